@@ -1,0 +1,336 @@
+"""Pass logs: one pass of a tractor over a field, the contract of DESIGN section 4.
+
+A pass log holds time-stamped channels in SI units. Channels sampled at different
+rates keep their own time stamps (seconds since the start of the pass, as they
+arrived at the logging computer); a channel never shares a time base it was not
+sampled on, so no channel is ever interpolated here.
+
+========================  ===================  =======  ==============================================
+channel                   time base            unit     meaning
+========================  ===================  =======  ==============================================
+``wheel_angle``           ``t`` (20 Hz)        rad      front-wheel angle as measured, + = steer left
+``steer_rate_cmd``        ``t`` (20 Hz)        rad/s    commanded steering rate, + = left
+``cross_track``           ``t_cross_track``    m        control point's offset from the line, + = left
+``heading_error``         ``t_heading_error``  rad      heading minus line heading, + = counter-clockwise
+``speed``                 ``t_speed``          m/s      ground speed
+========================  ===================  =======  ==============================================
+
+Further channels (``fix_quality``, truth channels ``truth_*`` of a simulated pass,
+...) may be added; each is declared in ``meta["extra_channels"]`` with its time
+base and unit.
+
+The canonical file is ``.npz`` (arrays named as above plus ``meta``, a JSON
+string) and is always read with ``allow_pickle=False``. CSV export and import
+are provided for logs that come from elsewhere.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import math
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Mapping
+
+import numpy as np
+
+from .errors import PassLogError
+
+SCHEMA = "passlog/1"
+
+#: Required channels: name -> (time base, unit).
+CHANNELS: Mapping[str, tuple[str, str]] = MappingProxyType({
+    "wheel_angle": ("t", "rad"),
+    "steer_rate_cmd": ("t", "rad/s"),
+    "cross_track": ("t_cross_track", "m"),
+    "heading_error": ("t_heading_error", "rad"),
+    "speed": ("t_speed", "m/s"),
+})
+TIME_BASES: tuple[str, ...] = ("t", "t_cross_track", "t_heading_error", "t_speed")
+REQUIRED_META: tuple[str, ...] = ("implement", "nominal_speed")
+
+
+def _readonly(a: Any, name: str) -> np.ndarray:
+    try:
+        arr = np.array(a, dtype=np.float64, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise PassLogError(f"channel {name!r}: expected numbers, got {type(a).__name__} ({exc})") from None
+    if arr.ndim != 1:
+        raise PassLogError(f"channel {name!r}: expected a 1-D array, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.flatnonzero(~np.isfinite(arr))[0])
+        raise PassLogError(f"channel {name!r}: non-finite value {arr[bad]!r} at index {bad}; "
+                           "a missing sample is left out, never written as NaN")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class PassLog:
+    """One pass, validated once at construction and immutable afterwards.
+
+    Parameters
+    ----------
+    times
+        Time bases by name (``t``, ``t_cross_track``, ``t_heading_error``,
+        ``t_speed``), s since the start of the pass, strictly increasing.
+    channels
+        Channel values by name, SI units, each as long as its time base.
+    meta
+        JSON-serialisable metadata. Required: ``implement`` (str) and
+        ``nominal_speed`` (m/s). Usual: ``gear``, ``seed``, ``source``,
+        ``sample_rates_hz``, ``latency_s``, ``simulator`` (parameters),
+        ``extra_channels`` ({name: {"time": base, "unit": str}}).
+    """
+
+    times: Mapping[str, np.ndarray]
+    channels: Mapping[str, np.ndarray]
+    meta: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        meta = _check_meta(self.meta)
+        bases = _channel_bases(meta)
+        times = {}
+        for name in TIME_BASES:
+            if name not in self.times:
+                raise PassLogError(f"missing time base {name!r}; expected {list(TIME_BASES)}")
+            arr = _readonly(self.times[name], name)
+            if arr.size < 2:
+                raise PassLogError(f"time base {name!r} has {arr.size} samples; a pass needs at least 2")
+            steps = np.diff(arr)
+            if np.any(steps <= 0):
+                i = int(np.flatnonzero(steps <= 0)[0])
+                raise PassLogError(f"time base {name!r} is not strictly increasing at index {i + 1} "
+                                   f"({arr[i]!r} then {arr[i + 1]!r})")
+            times[name] = arr
+        unknown = set(self.times) - set(TIME_BASES)
+        if unknown:
+            raise PassLogError(f"unknown time base(s) {sorted(unknown)}; expected {list(TIME_BASES)}")
+        chans = {}
+        for name, base in bases.items():
+            if name not in self.channels:
+                raise PassLogError(f"missing channel {name!r} (declared on time base {base!r})")
+            arr = _readonly(self.channels[name], name)
+            if arr.shape != times[base].shape:
+                raise PassLogError(f"channel {name!r} has {arr.size} samples but its time base "
+                                   f"{base!r} has {times[base].size}")
+            chans[name] = arr
+        undeclared = set(self.channels) - set(bases)
+        if undeclared:
+            raise PassLogError(f"channel(s) {sorted(undeclared)} are not declared; add them to "
+                               "meta['extra_channels'] with their time base and unit")
+        object.__setattr__(self, "times", MappingProxyType(times))
+        object.__setattr__(self, "channels", MappingProxyType(chans))
+        object.__setattr__(self, "meta", MappingProxyType(meta))
+
+    # -- access -----------------------------------------------------------------
+    def channel(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Return ``(time stamps [s], values [SI])`` of one channel."""
+        if name not in self.channels:
+            raise KeyError(f"no channel {name!r}; this log has {sorted(self.channels)}")
+        return self.times[self.time_base(name)], self.channels[name]
+
+    def time_base(self, name: str) -> str:
+        """Name of the time base a channel is sampled on."""
+        return _channel_bases(dict(self.meta))[name]
+
+    @property
+    def duration(self) -> float:
+        """Span of the 20 Hz time base, s."""
+        t = self.times["t"]
+        return float(t[-1] - t[0])
+
+    def content_hash(self) -> str:
+        """SHA-256 of the arrays and metadata (independent of file container details)."""
+        h = hashlib.sha256()
+        for name in (*TIME_BASES, *sorted(self.channels)):
+            arr = self.times[name] if name in self.times else self.channels[name]
+            h.update(name.encode())
+            h.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
+        h.update(json.dumps(dict(self.meta), sort_keys=True).encode())
+        return h.hexdigest()
+
+    # -- files ------------------------------------------------------------------
+    def save(self, path: str | Path) -> Path:
+        """Write the canonical ``.npz`` file (no pickled objects)."""
+        path = Path(path)
+        arrays = {**self.times, **self.channels, "meta": np.array(json.dumps(dict(self.meta)))}
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".part")
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+        tmp.replace(path)
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "PassLog":
+        """Read a ``.npz`` pass log with ``allow_pickle=False``; refuse anything malformed."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as npz:
+                keys = list(npz.files)
+                if "meta" not in keys:
+                    raise PassLogError(f"{path}: no 'meta' entry; not a pass log ({SCHEMA})")
+                try:
+                    raw = npz["meta"]
+                    meta = json.loads(str(raw[()]))
+                except ValueError as exc:
+                    raise PassLogError(f"{path}: 'meta' is not a JSON string ({exc})") from None
+                if not isinstance(meta, dict):
+                    raise PassLogError(f"{path}: 'meta' must be a JSON object")
+                arrays = {k: npz[k] for k in keys if k != "meta"}
+        except PassLogError:
+            raise
+        except FileNotFoundError:
+            raise PassLogError(f"{path}: no such file") from None
+        except ValueError as exc:
+            if "pickle" in str(exc).lower():
+                raise PassLogError(f"{path}: contains pickled objects; refusing to load it "
+                                   "(pass logs are read with allow_pickle=False)") from None
+            raise PassLogError(f"{path}: not a readable .npz pass log ({exc})") from None
+        except (OSError, zipfile.BadZipFile, EOFError) as exc:
+            raise PassLogError(f"{path}: not a readable .npz pass log ({exc})") from None
+        times = {k: v for k, v in arrays.items() if k in TIME_BASES}
+        chans = {k: v for k, v in arrays.items() if k not in TIME_BASES}
+        try:
+            return cls(times=times, channels=chans, meta=meta)
+        except PassLogError as exc:
+            raise PassLogError(f"{path}: {exc}") from None
+
+    def to_csv(self, path: str | Path) -> Path:
+        """Write a wide CSV: one row per distinct time stamp, blank where a channel has no sample.
+
+        The first line is ``# passlog/1 meta=<JSON>``; the header names ``time``
+        and every channel. Values are written with full precision (``repr``), so
+        a round trip is exact.
+        """
+        path = Path(path)
+        names = list(self.channels)
+        rows: dict[float, dict[str, float]] = {}
+        for name in names:
+            t, v = self.channel(name)
+            for ti, vi in zip(t.tolist(), v.tolist()):
+                rows.setdefault(ti, {})[name] = vi
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "w", newline="") as fh:
+            fh.write(f"# {SCHEMA} meta={json.dumps(dict(self.meta), sort_keys=True)}\n")
+            w = csv.writer(fh)
+            w.writerow(["time", *names])
+            for ti in sorted(rows):
+                r = rows[ti]
+                w.writerow([repr(ti), *(repr(r[n]) if n in r else "" for n in names)])
+        return path
+
+    @classmethod
+    def from_csv(cls, path: str | Path, meta: Mapping[str, Any] | None = None) -> "PassLog":
+        """Read a wide CSV (see :meth:`to_csv`).
+
+        Parameters
+        ----------
+        path
+            CSV file. Its first line may carry the metadata as ``# passlog/1 meta=<JSON>``.
+        meta
+            Metadata to use (or to override the file's) for logs from elsewhere;
+            at least ``implement`` and ``nominal_speed`` [m/s] must be known.
+        """
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise PassLogError(f"{path}: cannot read CSV ({exc})") from None
+        lines = text.splitlines()
+        file_meta: dict[str, Any] = {}
+        if lines and lines[0].startswith("#"):
+            head = lines.pop(0)[1:].strip()
+            if not head.startswith(SCHEMA + " meta="):
+                raise PassLogError(f"{path}: first line is a comment but not '# {SCHEMA} meta=<JSON>'")
+            try:
+                file_meta = json.loads(head[len(SCHEMA) + 6:])
+            except json.JSONDecodeError as exc:
+                raise PassLogError(f"{path}: metadata line is not valid JSON ({exc})") from None
+            if not isinstance(file_meta, dict):
+                raise PassLogError(f"{path}: metadata must be a JSON object")
+        merged = {**file_meta, **(dict(meta) if meta else {})}
+        reader = csv.reader(io.StringIO("\n".join(lines)))
+        try:
+            header = next(reader)
+        except StopIteration:
+            raise PassLogError(f"{path}: empty CSV, expected a header row") from None
+        if not header or header[0] != "time":
+            raise PassLogError(f"{path}: first column must be 'time', got {header[:1]}")
+        names = header[1:]
+        try:
+            bases = _channel_bases(_check_meta(merged))
+        except PassLogError as exc:
+            raise PassLogError(f"{path}: {exc}") from None
+        extra = [n for n in names if n not in bases]
+        if extra:
+            raise PassLogError(f"{path}: column(s) {extra} are not known channels; declare them in "
+                               "meta['extra_channels']")
+        cols: dict[str, list[tuple[float, float]]] = {n: [] for n in names}
+        for lineno, row in enumerate(reader, start=3 if file_meta else 2):
+            if len(row) != len(header):
+                raise PassLogError(f"{path}:{lineno}: {len(row)} fields, expected {len(header)}")
+            try:
+                ti = float(row[0])
+                for n, cell in zip(names, row[1:]):
+                    if cell.strip():
+                        cols[n].append((ti, float(cell)))
+            except ValueError as exc:
+                raise PassLogError(f"{path}:{lineno}: {exc}") from None
+        times: dict[str, np.ndarray] = {}
+        chans: dict[str, np.ndarray] = {}
+        for n in names:
+            base = bases[n]
+            t = np.array([p[0] for p in cols[n]])
+            if base in times and not np.array_equal(times[base], t):
+                raise PassLogError(f"{path}: channel {n!r} is not sampled at the same times as the "
+                                   f"other channels of time base {base!r}")
+            times.setdefault(base, t)
+            chans[n] = np.array([p[1] for p in cols[n]])
+        try:
+            return cls(times=times, channels=chans, meta=merged)
+        except PassLogError as exc:
+            raise PassLogError(f"{path}: {exc}") from None
+
+
+def _check_meta(meta: Mapping[str, Any]) -> dict[str, Any]:
+    if not isinstance(meta, Mapping):
+        raise PassLogError(f"meta must be a mapping, got {type(meta).__name__}")
+    out = dict(meta)
+    out.setdefault("schema", SCHEMA)
+    if out["schema"] != SCHEMA:
+        raise PassLogError(f"unsupported schema {out['schema']!r}; this reader handles {SCHEMA!r}")
+    missing = [k for k in REQUIRED_META if k not in out]
+    if missing:
+        raise PassLogError(f"meta lacks {missing}; a pass log must say its implement and "
+                           "nominal speed (m/s)")
+    if not isinstance(out["implement"], str) or not out["implement"]:
+        raise PassLogError(f"meta['implement'] must be a non-empty string, got {out['implement']!r}")
+    v = out["nominal_speed"]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+        raise PassLogError(f"meta['nominal_speed'] must be a finite speed >= 0 m/s, got {v!r}")
+    try:
+        json.dumps(out)
+    except (TypeError, ValueError) as exc:
+        raise PassLogError(f"meta is not JSON-serialisable ({exc})") from None
+    return out
+
+
+def _channel_bases(meta: Mapping[str, Any]) -> dict[str, str]:
+    bases = {name: base for name, (base, _unit) in CHANNELS.items()}
+    extra = meta.get("extra_channels", {}) or {}
+    if not isinstance(extra, Mapping):
+        raise PassLogError("meta['extra_channels'] must map channel names to {'time': base, 'unit': str}")
+    for name, spec in extra.items():
+        if name in bases or name in TIME_BASES or name == "meta":
+            raise PassLogError(f"extra channel {name!r} clashes with a standard name")
+        if not isinstance(spec, Mapping) or spec.get("time") not in TIME_BASES:
+            raise PassLogError(f"extra channel {name!r} must declare 'time' as one of {list(TIME_BASES)}")
+        bases[name] = spec["time"]
+    return bases

@@ -1,0 +1,95 @@
+#!/usr/bin/env python3
+"""Project tasks: set up the environment, run the main job, run the tests.
+
+Needs only the system ``python3`` (3.11). Every task first makes sure that
+``.venv/`` exists and holds the pinned dependencies (``pyproject.toml`` for the
+direct pins, ``requirements.lock`` for every transitive one); it reinstalls
+only when one of those two files changed.
+
+    python3 tasks.py demo     # main job, end to end, on the simulated tractor
+    python3 tasks.py test     # the whole test suite (what CI runs)
+    python3 tasks.py bench    # benchmarks, printed as tables
+    python3 tasks.py lock     # rewrite requirements.lock from the environment
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+VENV = ROOT / ".venv"
+PY = VENV / "bin" / "python"
+STAMP = VENV / ".installed-from"
+OUT = ROOT / "out"
+
+
+def _digest() -> str:
+    h = hashlib.sha256()
+    for name in ("pyproject.toml", "requirements.lock"):
+        h.update((ROOT / name).read_bytes())
+    return h.hexdigest()
+
+
+def _run(*cmd: str | os.PathLike[str]) -> None:
+    print("+", " ".join(str(c) for c in cmd), flush=True)
+    done = subprocess.run([str(c) for c in cmd], cwd=ROOT)
+    if done.returncode != 0:
+        sys.exit(done.returncode)
+
+
+def ensure_env() -> None:
+    """Create ``.venv`` and install the pinned project into it if needed."""
+    if sys.version_info[:2] != (3, 11):
+        sys.exit(f"Python 3.11 is required to build the environment, this is {sys.version.split()[0]}")
+    if not PY.exists():
+        print(f"creating virtual environment in {VENV}", flush=True)
+        venv.EnvBuilder(with_pip=True, clear=True).create(VENV)
+    want = _digest()
+    if STAMP.exists() and STAMP.read_text().strip() == want:
+        return
+    _run(PY, "-m", "pip", "install", "--quiet", "--disable-pip-version-check",
+         "-c", ROOT / "requirements.lock", "-e", f"{ROOT}[test]")
+    STAMP.write_text(want + "\n")
+
+
+def demo(args: list[str]) -> None:
+    """The main job on the simulated tractor: identification passes and a plot of one."""
+    ensure_env()
+    hil = VENV / "bin" / "hil"
+    logs = OUT / "demo" / "logs"
+    _run(hil, "sysid", "--out", logs, "--passes", "3", "--seed", "1997", *args)
+    _run(hil, "plot", logs / "ripper_9th_pass0.npz", "--out", OUT / "demo" / "sysid_pass_ripper_9th.png")
+    print(f"\nmain job done: pass logs in {logs}, figure in {OUT / 'demo'}")
+
+
+def test(args: list[str]) -> None:
+    """Every test, slow and notebook ones included (what CI runs)."""
+    ensure_env()
+    _run(PY, "-m", "pytest", "-m", "", "-q", *args)
+
+
+def bench(args: list[str]) -> None:
+    ensure_env()
+    _run(PY, ROOT / "benchmarks" / "run.py", *args)
+
+
+def lock(args: list[str]) -> None:
+    ensure_env()
+    frozen = subprocess.run([str(PY), "-m", "pip", "freeze", "--exclude-editable"],
+                            capture_output=True, text=True, check=True).stdout
+    header = ("# Exact versions of every package the project installs (constraints file).\n"
+              "# Regenerate: python3 tasks.py lock\n")
+    (ROOT / "requirements.lock").write_text(header + frozen)
+
+
+TASKS = {"demo": demo, "test": test, "bench": bench, "lock": lock}
+
+if __name__ == "__main__":
+    if len(sys.argv) < 2 or sys.argv[1] not in TASKS:
+        sys.exit(f"usage: python3 tasks.py {{{'|'.join(TASKS)}}} [args...]\n\n{__doc__}")
+    TASKS[sys.argv[1]](sys.argv[2:])

@@ -1,0 +1,293 @@
+"""Strict NMEA 0183 sentence decoding.
+
+Standard sentences (GGA, VTG, RMC, GST, HDT, THS) are decoded by :mod:`pynmeagps`
+and converted to the typed messages of :mod:`gnss.messages`; the proprietary
+Trimble ``$PTNL,AVR`` and Hemisphere ``$PSAT,HPR`` sentences, which pynmeagps
+does not know (it has an unrelated ``HPR`` layout), are decoded here.  Every
+other checksum-valid sentence is returned as :class:`~gnss.messages.NmeaSentence`.
+
+The checksum is always required (``*HH`` before the line end) and checked unless
+``check=False``; empty fields become ``None``.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+from functools import reduce
+from operator import xor
+
+from pynmeagps import NMEAReader
+
+from .errors import ChecksumError, NMEAParseError
+from .messages import Avr, Gga, Gst, Hdt, Hpr, NmeaMessage, NmeaSentence, Rmc, Ths, Vtg
+
+__all__ = ["nmea_checksum", "split_sentence", "parse_nmea", "KNOT", "NMEA_MAX_LENGTH"]
+
+KNOT = 1852.0 / 3600.0
+"""One knot in m/s."""
+
+NMEA_MAX_LENGTH = 255
+"""Longest accepted sentence in bytes, ``$`` to ``\\n`` (the standard says 82; proprietary ones are longer)."""
+
+_TWO_PI = 2.0 * math.pi
+_MIN_FIELDS = {"GGA": 14, "VTG": 8, "RMC": 11, "GST": 8, "HDT": 2, "THS": 2}
+
+
+def nmea_checksum(body: bytes) -> int:
+    """XOR checksum of the bytes between ``$`` and ``*`` (exclusive).
+
+    Parameters
+    ----------
+    body : bytes
+        Sentence content without ``$``, ``*``, checksum and line end.
+
+    Returns
+    -------
+    int
+        Checksum, 0-255.
+    """
+    return reduce(xor, body, 0)
+
+
+def split_sentence(sentence: bytes, *, check: bool = True) -> tuple[str, list[str]]:
+    """Validate the framing of one sentence and split it into address and fields.
+
+    Parameters
+    ----------
+    sentence : bytes
+        ``$ADDR,f1,...,fn*HH`` optionally followed by ``\\r\\n``.
+    check : bool, default True
+        Verify the checksum.
+
+    Returns
+    -------
+    address : str
+        ``"GPGGA"`` or, for proprietary sentences, e.g. ``"PTNL"``.
+    fields : list of str
+        The comma-separated fields after the address.
+
+    Raises
+    ------
+    NMEAParseError
+        Malformed framing or non-printable content.
+    ChecksumError
+        The checksum does not match (only when ``check``).
+    """
+    s = sentence.rstrip(b"\r\n")
+    if len(s) < 6 or s[0] != 0x24 or s[-3] != 0x2A:
+        raise NMEAParseError(
+            f"expected an NMEA sentence '$ADDR,...*HH', got {bytes(sentence[:40])!r}; "
+            "check the port's framing and baud rate"
+        )
+    body = s[1:-3]
+    try:
+        given = int(s[-2:], 16)
+        text = body.decode("ascii")
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise NMEAParseError(
+            f"expected hex checksum and printable ASCII, got {bytes(sentence[:40])!r}"
+        ) from exc
+    if not text.isprintable() or "$" in text or "*" in text:
+        raise NMEAParseError(f"expected printable ASCII without '$' or '*' in the body, got {text[:40]!r}")
+    if check:
+        calc = nmea_checksum(body)
+        if calc != given:
+            raise ChecksumError(
+                f"invalid NMEA checksum {given:02X} - should be {calc:02X} in {text[:40]!r}; "
+                "the sentence is corrupt and was refused"
+            )
+    parts = text.split(",")
+    return parts[0], parts[1:]
+
+
+def _opt(v: object) -> float | None:
+    if v == "" or v is None:
+        return None
+    return float(v)  # type: ignore[arg-type]
+
+
+def _opt_int(v: object) -> int | None:
+    if v == "" or v is None:
+        return None
+    return int(v)  # type: ignore[call-overload]
+
+
+def _rad(v: object) -> float | None:
+    x = _opt(v)
+    return None if x is None else math.radians(x)
+
+
+def _heading(v: object) -> float | None:
+    x = _opt(v)
+    return None if x is None else math.radians(x) % _TWO_PI
+
+
+def _tod(v: object) -> float | None:
+    if v == "" or v is None:
+        return None
+    if isinstance(v, _dt.time):
+        return v.hour * 3600.0 + v.minute * 60.0 + v.second + v.microsecond * 1e-6
+    raise NMEAParseError(f"expected a UTC time hhmmss.ss, got {v!r}")
+
+
+def _time_field(text: str) -> float | None:
+    """``hhmmss.sss`` to s of the day (strict)."""
+    if text == "":
+        return None
+    if len(text) < 6 or not text[:6].isdigit():
+        raise NMEAParseError(f"expected a UTC time hhmmss.ss, got {text!r}")
+    h, m, s = int(text[0:2]), int(text[2:4]), float(text[4:])
+    if h > 23 or m > 59 or not 0.0 <= s < 61.0:
+        raise NMEAParseError(f"expected a UTC time hhmmss.ss within one day, got {text!r}")
+    return h * 3600.0 + m * 60.0 + s
+
+
+def _avr(fields: list[str]) -> Avr:
+    # AVR,time,yaw,Yaw,tilt,Tilt,roll,Roll,range,quality,pdop,numSV
+    if len(fields) < 11 or fields[2] != "Yaw" or fields[4] != "Tilt" or fields[6] not in ("Roll", ""):
+        raise NMEAParseError(
+            f"expected $PTNL,AVR,time,yaw,Yaw,tilt,Tilt,roll,Roll,range,quality,pdop,nsv, got fields {fields!r}"
+        )
+    return Avr(
+        time=_time_field(fields[0]),
+        yaw=_heading(fields[1]),
+        tilt=_rad(fields[3]),
+        roll=_rad(fields[5]),
+        range=_opt(fields[7]),
+        quality=int(fields[8]) if fields[8] else 0,
+        pdop=_opt(fields[9]),
+        num_sv=_opt_int(fields[10]),
+    )
+
+
+def _hpr(fields: list[str]) -> Hpr:
+    # HPR,time,heading,pitch,roll,type
+    if len(fields) < 5 or fields[4] not in ("N", "G"):
+        raise NMEAParseError(f"expected $PSAT,HPR,time,heading,pitch,roll,N|G, got fields {fields!r}")
+    return Hpr(
+        time=_time_field(fields[0]),
+        heading=_heading(fields[1]),
+        pitch=_rad(fields[2]),
+        roll=_rad(fields[3]),
+        source=fields[4],
+    )
+
+
+def _from_pynmeagps(kind: str, talker: str, m: object) -> NmeaMessage:
+    g = m.__dict__.get  # pynmeagps stores decoded fields as instance attributes
+    if kind == "GGA":
+        return Gga(
+            talker=talker,
+            time=_tod(g("time")),
+            lat=_rad(g("lat")),
+            lon=_rad(g("lon")),
+            quality=int(g("quality") or 0),
+            num_sv=_opt_int(g("numSV")),
+            hdop=_opt(g("HDOP")),
+            alt=_opt(g("alt")),
+            geoid_sep=_opt(g("sep")),
+            diff_age=_opt(g("diffAge")),
+            station_id=_opt_int(g("diffStation")),
+        )
+    if kind == "VTG":
+        sogn = _opt(g("sogn"))
+        return Vtg(
+            talker=talker,
+            course=_heading(g("cogt")),
+            course_mag=_heading(g("cogm")),
+            speed=None if sogn is None else sogn * KNOT,
+            mode=g("posMode") or None,
+        )
+    if kind == "RMC":
+        spd = _opt(g("spd"))
+        mv = _rad(g("mv"))
+        if mv is not None and g("mvEW") == "W":
+            mv = -mv
+        date = g("date")
+        return Rmc(
+            talker=talker,
+            time=_tod(g("time")),
+            valid=g("status") == "A",
+            lat=_rad(g("lat")),
+            lon=_rad(g("lon")),
+            speed=None if spd is None else spd * KNOT,
+            course=_heading(g("cog")),
+            date=date if isinstance(date, _dt.date) else None,
+            mag_var=mv,
+            mode=g("posMode") or None,
+            nav_status=g("navStatus") or None,
+        )
+    if kind == "GST":
+        return Gst(
+            talker=talker,
+            time=_tod(g("time")),
+            range_rms=_opt(g("rangeRms")),
+            std_major=_opt(g("stdMajor")),
+            std_minor=_opt(g("stdMinor")),
+            orient=_rad(g("orient")),
+            std_lat=_opt(g("stdLat")),
+            std_lon=_opt(g("stdLong")),
+            std_alt=_opt(g("stdAlt")),
+        )
+    if kind == "HDT":
+        return Hdt(talker=talker, heading=_heading(g("headingT")))
+    # THS
+    mode = g("mi") or ""
+    if mode not in ("A", "E", "M", "S", "V"):
+        raise NMEAParseError(f"expected THS mode indicator A, E, M, S or V, got {mode!r}")
+    return Ths(talker=talker, heading=_heading(g("headt")), mode=mode)
+
+
+def parse_nmea(sentence: bytes, *, check: bool = True) -> NmeaMessage:
+    """Decode one NMEA sentence into a typed message.
+
+    Parameters
+    ----------
+    sentence : bytes
+        One complete sentence, ``$`` to ``*HH`` with or without ``\\r\\n``.
+    check : bool, default True
+        Verify the checksum.  Turn off only for logs known to be hand-edited.
+
+    Returns
+    -------
+    NmeaMessage
+        :class:`Gga`, :class:`Vtg`, :class:`Rmc`, :class:`Gst`, :class:`Hdt`, :class:`Ths`,
+        :class:`Avr`, :class:`Hpr`, or :class:`NmeaSentence` for anything else.
+
+    Raises
+    ------
+    ChecksumError
+        Checksum mismatch.
+    NMEAParseError
+        Malformed framing or a field that is not what the sentence type requires.
+    """
+    address, fields = split_sentence(sentence, check=check)
+    if address.startswith("P"):
+        sub = fields[0] if fields else ""
+        try:
+            if address == "PTNL" and sub == "AVR":
+                return _avr(fields[1:])
+            if address == "PSAT" and sub == "HPR":
+                return _hpr(fields[1:])
+        except ValueError as exc:
+            if isinstance(exc, NMEAParseError):
+                raise
+            raise NMEAParseError(f"{address},{sub}: expected numeric fields, got {fields!r} ({exc})") from exc
+        return NmeaSentence(talker="", sentence_type=f"{address},{sub}" if sub else address, fields=tuple(fields[1:]))
+    if len(address) != 5 or not address.isalnum():
+        raise NMEAParseError(f"expected a 5-character address like 'GPGGA', got {address!r}")
+    talker, kind = address[:2], address[2:]
+    need = _MIN_FIELDS.get(kind)
+    if need is None:
+        return NmeaSentence(talker=talker, sentence_type=kind, fields=tuple(fields))
+    if len(fields) < need:
+        raise NMEAParseError(f"{address}: expected at least {need} fields, got {len(fields)}: {fields!r}")
+    try:
+        raw = sentence if sentence.endswith(b"\r\n") else sentence.rstrip(b"\r\n") + b"\r\n"
+        decoded = NMEAReader.parse(raw, validate=0)
+        return _from_pynmeagps(kind, talker, decoded)
+    except NMEAParseError:
+        raise
+    except Exception as exc:  # pynmeagps raises assorted types on bad fields; normalise them
+        raise NMEAParseError(f"{address}: a field is not what the sentence type requires ({exc}); fields {fields!r}") from exc

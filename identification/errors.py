@@ -13,3 +13,23 @@ class IdentificationError(Exception):
 
 class PassLogError(IdentificationError, ValueError):
     """A pass log (file or arrays) is malformed, non-finite or unsafe to load."""
+
+
+class DataError(IdentificationError, ValueError):
+    """Input/output data are non-finite, too short or of mismatched dimensions."""
+
+
+class OptionError(IdentificationError, ValueError):
+    """An option is unknown or out of its allowed range."""
+
+
+class NotFittedError(IdentificationError, AttributeError):
+    """An estimator was used before :meth:`fit` was called."""
+
+
+class RealizationError(IdentificationError, ValueError):
+    """A state-space realisation or estimator gain could not be computed."""
+
+
+class ModelFileError(IdentificationError, ValueError):
+    """A model file is malformed, pickled, non-finite or of an unsupported schema."""

@@ -1,0 +1,227 @@
+"""The OKID estimator: observer Markov parameters → ERA or ERA/DC → Kalman predictor.
+
+Follows the scikit-learn fit convention: the constructor only stores options;
+:meth:`OKID.fit` validates them and the data, and sets the attributes ending in
+``_``; using them before ``fit`` raises :class:`NotFittedError`.
+
+Example
+-------
+>>> est = OKID(order="auto", markov=20).fit(data)          # doctest: +SKIP
+>>> est.model_.save("models/arm.npz")                      # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from . import era as _era
+from . import markov as _mk
+from .data import IOData
+from .errors import NotFittedError, OptionError
+from .estimator import kalman_gain, observer_gain
+from .model import Model
+from .refine import refine_bd
+from .simulate import predict_one_step
+
+_FITTED = ("markov_parameters_", "hankel_singular_values_", "model_")
+
+
+class OKID:
+    """Observer/Kalman filter identification with ERA or ERA/DC realisation.
+
+    Parameters
+    ----------
+    order
+        Model order, or ``"auto"`` (largest log-gap of the Hankel singular values
+        up to ``max_order``, see :func:`identification.era.select_order`).
+    markov
+        Number of observer Markov parameters ``p`` (lags), or ``"auto"``
+        (Akaike's criterion over 1..``max_markov``).
+    max_markov
+        Largest ``p`` considered by ``markov="auto"``.
+    max_order
+        Largest order considered by ``order="auto"``.
+    method
+        ``"era-dc"`` (default) or ``"era"``.
+    feedthrough
+        Estimate ``D`` (False: ``D = 0``, as for a tractor's steering-rate input).
+    hankel_rows, hankel_cols
+        Block rows/columns of the Hankel matrix (default ``max(p, ceil(2 max_order / q), 10)``
+        and the same with ``m``).
+    dc_blocks, dc_lag
+        ERA/DC correlation blocks and their spacing.
+    ridge
+        Relative Tikhonov term added to the equilibrated normal equations.
+    noise_floor
+        Relative process-noise floor of the Riccati estimator (see :mod:`identification.estimator`).
+    refine
+        ``"bd"`` (default): re-estimate ``B`` and ``D`` by output-error least squares
+        for the realised ``A``, ``C`` (:mod:`identification.refine`; needed for
+        coloured inputs); ``"none"``: keep ERA's ``B``, ``D``.
+    block_rows
+        Rows of the regression matrix formed at a time.
+    """
+
+    def __init__(self, *, order: int | str = "auto", markov: int | str = "auto", max_markov: int = 30,
+                 max_order: int = 10, method: str = "era-dc", feedthrough: bool = True,
+                 hankel_rows: int | None = None, hankel_cols: int | None = None,
+                 dc_blocks: int = 1, dc_lag: int = 1, ridge: float = 1e-10,
+                 noise_floor: float = 1e-3, refine: str = "bd",
+                 block_rows: int = _mk.BLOCK_ROWS) -> None:
+        self.order = order
+        self.markov = markov
+        self.max_markov = max_markov
+        self.max_order = max_order
+        self.method = method
+        self.feedthrough = feedthrough
+        self.hankel_rows = hankel_rows
+        self.hankel_cols = hankel_cols
+        self.dc_blocks = dc_blocks
+        self.dc_lag = dc_lag
+        self.ridge = ridge
+        self.noise_floor = noise_floor
+        self.refine = refine
+        self.block_rows = block_rows
+
+    def get_params(self) -> dict[str, Any]:
+        """The constructor options."""
+        return {k: getattr(self, k) for k in (
+            "order", "markov", "max_markov", "max_order", "method", "feedthrough", "hankel_rows",
+            "hankel_cols", "dc_blocks", "dc_lag", "ridge", "noise_floor", "refine", "block_rows")}
+
+    def __repr__(self) -> str:
+        return "OKID(" + ", ".join(f"{k}={v!r}" for k, v in self.get_params().items()) + ")"
+
+    # -- fitting -------------------------------------------------------------------------
+    def _check(self) -> None:
+        def pos_int(name: str, allow_none: bool = False, allow_auto: bool = False) -> None:
+            v = getattr(self, name)
+            if (allow_none and v is None) or (allow_auto and v == "auto"):
+                return
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                extra = " or 'auto'" if allow_auto else (" or None" if allow_none else "")
+                raise OptionError(f"{name} must be a positive integer{extra}, got {v!r}")
+        pos_int("order", allow_auto=True)
+        pos_int("markov", allow_auto=True)
+        for name in ("max_markov", "max_order", "dc_blocks", "dc_lag", "block_rows"):
+            pos_int(name)
+        pos_int("hankel_rows", allow_none=True)
+        pos_int("hankel_cols", allow_none=True)
+        if self.method not in ("era", "era-dc"):
+            raise OptionError(f"method must be 'era' or 'era-dc', got {self.method!r}")
+        if self.refine not in ("bd", "none"):
+            raise OptionError(f"refine must be 'bd' or 'none', got {self.refine!r}")
+        if not isinstance(self.feedthrough, bool):
+            raise OptionError(f"feedthrough must be True or False, got {self.feedthrough!r}")
+        for name in ("ridge", "noise_floor"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
+                raise OptionError(f"{name} must be a finite number >= 0, got {v!r}")
+
+    def fit(self, data: IOData, meta: dict[str, Any] | None = None) -> "OKID":
+        """Identify a model from ``data``.
+
+        Parameters
+        ----------
+        data
+            One or more experiments on one sample time.
+        meta
+            Extra metadata stored in the model (kind, conditions, source hashes...).
+
+        Returns
+        -------
+        self, with ``markov_parameters_`` (L+1, q, m), ``observer_markov_parameters_``,
+        ``gain_markov_parameters_``, ``hankel_singular_values_``, ``order_``, ``n_lags_``,
+        ``observer_gain_`` (OKID's ``G``), ``innovation_covariance_``, ``realization_``
+        and ``model_`` (:class:`~identification.model.Model`).
+        """
+        self._check()
+        if not isinstance(data, IOData):
+            raise OptionError(f"fit expects an IOData, got {type(data).__name__}; build one with "
+                              "IOData.from_arrays(u, y, dt) or identification.preprocess")
+        m, q = data.n_inputs, data.n_outputs
+        shortest = min(u.shape[0] for u, _ in data.experiments)
+        if self.markov == "auto":
+            p_max = max(1, min(self.max_markov, shortest - 1))
+            ne = _mk.accumulate(data, p_max, self.feedthrough, self.block_rows)
+            p, self.lag_criterion_ = _mk.select_lags(ne, self.ridge)
+            p = max(p, int(np.ceil(self.max_order / q)) if self.order == "auto" else
+                    int(np.ceil(self.order / q)))
+            p = min(p, p_max)
+        else:
+            p = int(self.markov)
+            ne = _mk.accumulate(data, p, self.feedthrough, self.block_rows)
+            self.lag_criterion_ = None
+        theta, sigma = _mk.solve(ne, p, self.ridge)
+        d, yb1, yb2 = _mk.split_theta(theta, m, q, self.feedthrough)
+        base_r = max(p, int(np.ceil(2 * self.max_order / q)), 10)
+        base_c = max(p, int(np.ceil(2 * self.max_order / m)), 10)
+        rows = self.hankel_rows or base_r
+        cols = self.hankel_cols or base_c
+        extra = 2 * (self.dc_blocks - 1) * self.dc_lag if self.method == "era-dc" else 0
+        n_markov = rows + cols + extra + 1
+        ymk = _mk.system_markov(d, yb1, yb2, n_markov)
+        ygain = _mk.observer_gain_markov(yb2, n_markov)
+        real = _era.era(ymk, self.order, rows, cols, self.max_order, self.method,
+                        self.dc_blocks, self.dc_lag)
+        g = observer_gain(real.A, real.C, ygain[:rows])
+        k, _ = kalman_gain(real.A, real.C, sigma, -g, self.noise_floor)
+        b_mat, d_mat = real.B, real.D
+        if self.refine == "bd":
+            b_mat, d_mat, _ = refine_bd(real.A, real.C, data, self.feedthrough)
+        resid = []
+        for u, y in data.experiments:
+            yo = predict_one_step(real.A, b_mat, real.C, d_mat, k, u, y)
+            resid.append((y - yo)[min(p, y.shape[0] - 2):])
+        e = np.vstack(resid)
+        r_innov = np.atleast_2d(np.cov(e.T))
+        lam, msv = _era.modal_singular_values(real.A, real.B, real.C, rows + cols)
+        emac_lam, emac_v = _era.emac(real)
+        self.n_lags_ = p
+        self.observer_markov_parameters_ = theta
+        self.markov_parameters_ = ymk
+        self.gain_markov_parameters_ = ygain
+        self.hankel_singular_values_ = real.hankel_singular_values
+        self.order_ = real.A.shape[0]
+        self.realization_ = real
+        self.observer_gain_ = g
+        self.residual_covariance_ = sigma
+        self.innovation_covariance_ = r_innov
+        self.modal_singular_values_ = (lam, msv)
+        self.emac_ = (emac_lam, emac_v)
+        info = {
+            "input_names": list(data.input_names), "output_names": list(data.output_names),
+            "input_units": list(data.input_units), "output_units": list(data.output_units),
+            "hankel_singular_values": [float(s) for s in real.hankel_singular_values[:40]],
+            "modal_singular_values": [float(s) for s in msv],
+            "eigenvalues": [[float(z.real), float(z.imag)] for z in lam],
+            "emac": [float(v) for v in emac_v],
+            "innovation_covariance": r_innov.tolist(),
+            "method": self.method, "order": self.order_, "n_observer_markov": p,
+            "hankel_rows": rows, "hankel_cols": cols, "feedthrough": self.feedthrough,
+            "refine": self.refine,
+            "n_samples": data.n_samples, "n_experiments": data.n_experiments,
+        }
+        self.model_ = Model(real.A, b_mat, real.C, d_mat, k, data.dt, {**info, **dict(meta or {})})
+        return self
+
+    def _require_fit(self) -> None:
+        missing = [a for a in _FITTED if not hasattr(self, a)]
+        if missing:
+            raise NotFittedError("this OKID estimator is not fitted yet; call fit(data) before using "
+                                 f"{', '.join(missing)}")
+
+    def __getattr__(self, name: str) -> Any:
+        if name.endswith("_") and not name.startswith("__"):
+            raise NotFittedError(f"OKID has no attribute {name!r} before fit(data) is called "
+                                 "(unfitted estimator)")
+        raise AttributeError(name)
+
+    def predict(self, data: IOData) -> list[np.ndarray]:
+        """One-step-ahead predictions of every experiment with the Kalman predictor."""
+        self._require_fit()
+        mdl = self.model_
+        data.check_channels(mdl.n_inputs, mdl.n_outputs)
+        return [predict_one_step(mdl.A, mdl.B, mdl.C, mdl.D, mdl.K, u, y) for u, y in data.experiments]

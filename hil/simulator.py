@@ -1,0 +1,186 @@
+"""The truth simulator: a batch of tractors stepped together on one time grid.
+
+Each tractor in the batch has its own condition and its own random streams (one
+``numpy.random.SeedSequence`` each), so a tractor's run does not depend on what
+else is in the batch. The simulator owns time: :meth:`TractorSimulator.step`
+advances every tractor by ``dt`` with the PWM duty last set, records the GPS
+epochs that fall on the grid, and :meth:`wheel_angle_counts` samples the
+potentiometer's ADC now.
+
+Typical use (one tractor, as the emulated bridge drives it)::
+
+    sim = TractorSimulator([condition_for("disker", 1.79)], duration=60.0, seeds=[7])
+    sim.set_duty(np.array([0.5]))
+    sim.step()
+    counts = sim.wheel_angle_counts()
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from . import disturbances, gps, vehicle
+from .conditions import Condition
+from .errors import SimulatorConfigError
+from .params import SimParams
+from .steering import sensor_counts, valve_rate
+from .vehicle import DEL, N_STATE, PSI, X, Y
+
+SeedLike = int | np.random.SeedSequence
+
+
+def _seed_sequence(seed: SeedLike) -> np.random.SeedSequence:
+    if isinstance(seed, np.random.SeedSequence):
+        return seed
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise SimulatorConfigError(f"a seed must be a non-negative integer, got {seed!r}")
+    return np.random.SeedSequence(int(seed))
+
+
+class TractorSimulator:
+    """A batch of ``B`` simulated tractors.
+
+    Parameters
+    ----------
+    conditions
+        One :class:`~hil.conditions.Condition` per tractor.
+    duration
+        Longest time the batch will be run, s (> 0); exogenous inputs and GPS
+        errors are drawn for it up front.
+    seeds
+        One seed (int or ``SeedSequence``) per tractor.
+    params
+        Simulator parameters (defaults: :class:`~hil.params.SimParams`).
+    initial
+        Optional initial values ``{"Y": m, "PSI": rad, "DEL": rad}`` per tractor, shape ``(B,)``.
+    """
+
+    def __init__(self, conditions: Sequence[Condition], duration: float, seeds: Sequence[SeedLike],
+                 params: SimParams | None = None, initial: dict[str, np.ndarray] | None = None) -> None:
+        if len(conditions) == 0:
+            raise SimulatorConfigError("at least one condition is needed")
+        if len(seeds) != len(conditions):
+            raise SimulatorConfigError(f"{len(conditions)} conditions but {len(seeds)} seeds; give one each")
+        if not isinstance(duration, (int, float)) or not np.isfinite(duration) or duration <= 0:
+            raise SimulatorConfigError(f"duration must be a finite number of seconds > 0, got {duration!r}")
+        self.params = p = params or SimParams()
+        self.conditions = tuple(conditions)
+        self.B = B = len(conditions)
+        self.n_steps = int(np.ceil(duration / p.dt - 1e-9))
+        self.duration = self.n_steps * p.dt
+        n = self.n_steps + 1
+        exo, errs, sens = [], [], []
+        for cond, seed in zip(conditions, seeds):
+            s_exo, s_gps, s_sensor = _seed_sequence(seed).spawn(3)
+            exo.append(disturbances.generate(cond, p, n, np.random.default_rng(s_exo)))
+            errs.append(gps.draw_errors(p.gps, self.duration, np.random.default_rng(s_gps)))
+            sens.append(np.random.default_rng(s_sensor).standard_normal(n) * p.sensor.noise)
+        self.exo = disturbances.stack(exo)
+        self.gps_errors = gps.stack_errors(errs)
+        self._sensor_noise = np.stack(sens)
+        self._disker = np.array([c.implement == "disker" for c in conditions], dtype=float)
+        self.state = np.zeros((B, N_STATE))
+        for name, values in (initial or {}).items():
+            if name not in vehicle.STATE_NAMES:
+                raise SimulatorConfigError(f"unknown initial state {name!r}; use {vehicle.STATE_NAMES}")
+            arr = np.broadcast_to(np.asarray(values, dtype=float), (B,))
+            if not np.all(np.isfinite(arr)):
+                raise SimulatorConfigError(f"initial {name} must be finite")
+            self.state[:, vehicle.STATE_NAMES.index(name)] = arr
+        dmax = p.steering.max_wheel_angle
+        self.state[:, DEL] = np.clip(self.state[:, DEL], -dmax, dmax)
+        self.k = 0
+        self.duty = np.zeros(B)
+        g = p.gps
+        self._pos_every = int(round(1.0 / (g.position_rate * p.dt)))
+        self._att_every = int(round(1.0 / (g.attitude_rate * p.dt)))
+        n_pos = self.gps_errors.pos_lost.shape[1]
+        n_att = self.gps_errors.att_lost.shape[1]
+        self.pos = {k: np.zeros((B, n_pos)) for k in ("x", "y", "fix", "t_arrival", "speed")}
+        self.pos["lost"] = np.zeros((B, n_pos), dtype=bool)
+        self.att = {k: np.zeros((B, n_att)) for k in ("yaw", "roll", "pitch", "t_arrival")}
+        self.att["lost"] = np.zeros((B, n_att), dtype=bool)
+        self.n_pos = self.n_att = 0
+        self._record_epochs()
+
+    # -- time ---------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        """Simulation time, s."""
+        return self.k * self.params.dt
+
+    def set_duty(self, duty: np.ndarray) -> None:
+        """Set the valve PWM duty of every tractor, in [-1, 1], + = left; held until changed."""
+        d = np.broadcast_to(np.asarray(duty, dtype=float), (self.B,))
+        if not np.all(np.isfinite(d)):
+            raise SimulatorConfigError("valve duty must be finite")
+        self.duty = np.clip(d, -1.0, 1.0).copy()
+
+    def step(self) -> None:
+        """Advance every tractor by one integration step ``dt``."""
+        if self.k >= self.n_steps:
+            raise SimulatorConfigError(f"the simulator was built for {self.duration:.2f} s and has reached it")
+        k, e = self.k, self.exo
+        u = vehicle.Inputs(rate_cmd=valve_rate(self.duty, self.params.steering), speed=e.speed[:, k],
+                           roll=e.roll[:, k], force_y=e.force_y[:, k], ripper_force=e.ripper_force[:, k],
+                           ripper_moment=e.ripper_moment[:, k], draft=e.draft[:, k],
+                           gang_pull=e.gang_pull[:, k], front_load=e.front_load[:, k], disker=self._disker)
+        self.state = vehicle.rk4_step(self.state, u, self.params)
+        self.k += 1
+        self._record_epochs()
+
+    # -- sensors ------------------------------------------------------------------
+    def wheel_angle_counts(self) -> np.ndarray:
+        """Potentiometer read by the 8-bit ADC now: int counts 0..255, shape ``(B,)``."""
+        p = self.params
+        return sensor_counts(self.state[:, DEL], self._sensor_noise[:, self.k], p.sensor, p.steering)
+
+    def truth(self) -> dict[str, np.ndarray]:
+        """True values now: ``cross_track`` [m, CG, + left], ``heading_error`` [rad],
+        ``wheel_angle`` [rad], ``speed`` [m/s], ``roll`` [rad], ``along_track`` [m],
+        ``hitch_angle`` [rad]."""
+        s, k = self.state, self.k
+        return {"cross_track": s[:, Y].copy(), "heading_error": s[:, PSI].copy(),
+                "wheel_angle": s[:, DEL].copy(), "speed": self.exo.speed[:, k].copy(),
+                "roll": self.exo.roll[:, k].copy(), "along_track": s[:, X].copy(),
+                "hitch_angle": s[:, vehicle.PHI].copy()}
+
+    def _record_epochs(self) -> None:
+        p, k, s = self.params, self.k, self.state
+        roll = self.exo.roll[:, k]
+        if k % self._pos_every == 0 and self.n_pos < self.pos["lost"].shape[1]:
+            i = self.n_pos
+            m = gps.position_epoch(s[:, X], s[:, Y], s[:, PSI], roll, i, self.gps_errors, p.gps, p.vehicle)
+            ground = np.hypot(self.exo.speed[:, k], s[:, vehicle.V])
+            m["speed"] = np.maximum(ground + self.gps_errors.speed_noise[:, i], 0.0)
+            for key, arr in self.pos.items():
+                arr[:, i] = m[key]
+            self.n_pos += 1
+        if k % self._att_every == 0 and self.n_att < self.att["lost"].shape[1]:
+            i = self.n_att
+            m = gps.attitude_epoch(s[:, PSI], roll, i, self.gps_errors, p.gps)
+            for key, arr in self.att.items():
+                arr[:, i] = m[key]
+            self.n_att += 1
+
+    #: How many of the newest epochs :meth:`latest_position` / :meth:`latest_attitude` look at.
+    LOOKBACK = 50
+
+    @classmethod
+    def _latest(cls, block: dict[str, np.ndarray], count: int, now: float) -> np.ndarray:
+        """Index of the newest epoch that arrived by ``now`` and was not lost; -1 if none of
+        the last :attr:`LOOKBACK` epochs qualifies (the data is then stale)."""
+        lo = max(0, count - cls.LOOKBACK)
+        arrived = (block["t_arrival"][:, lo:count] <= now) & ~block["lost"][:, lo:count]
+        idx = np.where(arrived, np.arange(lo, count), -1)
+        return idx.max(axis=1) if count > lo else np.full(block["lost"].shape[0], -1)
+
+    def latest_position(self, now: float) -> np.ndarray:
+        """Per tractor, index into :attr:`pos` of the newest position that arrived by ``now`` [s]."""
+        return self._latest(self.pos, self.n_pos, now)
+
+    def latest_attitude(self, now: float) -> np.ndarray:
+        """Per tractor, index into :attr:`att` of the newest attitude that arrived by ``now`` [s]."""
+        return self._latest(self.att, self.n_att, now)

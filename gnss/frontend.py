@@ -1,0 +1,400 @@
+"""The GPS front-end: receiver streams in, a navigation solution at the loop's rate out.
+
+The front-end time-stamps every message on arrival (host clock), maps the receivers' time
+tags to the host clock (:class:`TagClock`), keeps the latest position, velocity and attitude,
+and on each :meth:`GnssFrontEnd.step` publishes a :class:`NavSolution` extrapolated to the
+step time, with the control point projected through the lever arm and an explicit
+:class:`~gnss.integrity.Integrity`.
+
+Typical vehicle loop (do-mpc style, one call per tick at a fixed rate)::
+
+    fe = GnssFrontEnd(FrontEndConfig(origin=LocalFrame.from_degrees(41.575, -93.75, 250.0),
+                                     lever_arm=(1.2, 0.0, 3.0)),
+                      sources=[position_port, attitude_port])
+    while True:
+        nav = fe.step(clock())
+        if not nav.integrity.healthy: disengage(nav.integrity.reason)
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import ConfigError
+from .geodesy import LocalFrame
+from .integrity import FixQuality, Integrity, IntegrityConfig, assess_integrity, fix_from_gga, fix_from_nav_pvt
+from .lever_arm import control_point_enu
+from .messages import Avr, Gga, Gst, Hdt, Hpr, NavPvt, NavRelPosNed, Rmc, Ths, Vtg
+from .reader import ByteSource, GnssReader, Received
+
+__all__ = ["FrontEndConfig", "NavSolution", "TagClock", "GnssFrontEnd", "replay_solutions", "stamp_from_tags"]
+
+_DAY = 86400.0
+_WEEK = 604800.0
+# u-blox lastCorrectionAge buckets -> upper bound, s (0 = not available)
+_UBX_CORR_AGE = {1: 1.0, 2: 2.0, 3: 5.0, 4: 10.0, 5: 15.0, 6: 20.0, 7: 30.0, 8: 45.0, 9: 60.0, 10: 90.0, 11: 120.0, 12: math.inf}
+
+
+@dataclass(frozen=True)
+class FrontEndConfig:
+    """Configuration of :class:`GnssFrontEnd`.
+
+    Attributes
+    ----------
+    origin : LocalFrame
+        Field origin of the ENU frame.
+    lever_arm : tuple of float
+        Position antenna relative to the control point, body frame (x forward, y left, z up), m.
+    heading_offset : float
+        Added to every received heading to get the vehicle yaw (antenna-baseline mounting), rad.
+    receiver_latency : float
+        The receivers' minimum output latency (solution epoch to first byte), s; the time-tag
+        alignment cannot observe it, so it is configuration (datasheet, or measured with PPS).
+    max_extrapolation : float
+        Longest time a solution is propagated past its validity, s.
+    integrity : IntegrityConfig
+        Integrity thresholds.
+    require_attitude : bool
+        If True, a missing or stale heading makes the state STALE; if False the course over
+        ground is used as yaw (single-antenna setups).
+    """
+
+    origin: LocalFrame
+    lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    heading_offset: float = 0.0
+    receiver_latency: float = 0.0
+    max_extrapolation: float = 0.3
+    integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
+    require_attitude: bool = True
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.origin, LocalFrame):
+            raise ConfigError(f"FrontEndConfig.origin: expected a LocalFrame, got {type(self.origin).__name__}")
+        arm = tuple(float(x) for x in self.lever_arm)
+        if len(arm) != 3 or not all(math.isfinite(x) for x in arm):
+            raise ConfigError(f"FrontEndConfig.lever_arm: expected 3 finite body coordinates in m, got {self.lever_arm!r}")
+        object.__setattr__(self, "lever_arm", arm)
+        if not (0.0 <= self.receiver_latency < 1.0):
+            raise ConfigError(f"FrontEndConfig.receiver_latency: expected 0 <= latency < 1 s, got {self.receiver_latency!r}")
+        if not (0.0 <= self.max_extrapolation <= 2.0):
+            raise ConfigError(f"FrontEndConfig.max_extrapolation: expected 0-2 s, got {self.max_extrapolation!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class NavSolution:
+    """What the vehicle loop consumes, once per tick.
+
+    Attributes
+    ----------
+    t : float
+        Time the solution refers to (the step time), host clock, s.
+    t_validity : float
+        Host-clock time of validity of the last position fix, s (``nan`` if none).
+    t_arrival : float
+        Host-clock arrival time of the last position fix, s (``nan`` if none).
+    east, north, up : float
+        Control point at ``t``, ENU about the field origin, m (``nan`` if no position).
+    yaw : float
+        rad, 0 = north, clockwise (ENU angle = pi/2 - yaw, see :func:`gnss.frames.yaw_to_enu_angle`).
+    pitch : float
+        rad, positive nose up.
+    roll : float
+        rad, positive right side down.
+    yaw_rate : float
+        rad/s, clockwise positive (0 if unknown).
+    speed : float
+        m/s along the vehicle's forward axis (negative when reversing; unsigned without attitude).
+    velocity_east, velocity_north : float
+        Ground velocity, ENU, m/s.
+    fix : FixQuality
+        Receiver fix quality of the last position.
+    integrity : Integrity
+        State and reason; engage only when ``integrity.healthy``.
+    """
+
+    t: float
+    t_validity: float
+    t_arrival: float
+    east: float
+    north: float
+    up: float
+    yaw: float
+    pitch: float
+    roll: float
+    yaw_rate: float
+    speed: float
+    velocity_east: float
+    velocity_north: float
+    fix: FixQuality
+    integrity: Integrity
+
+    @property
+    def latency(self) -> float:
+        """Arrival minus validity of the last fix, s."""
+        return self.t_arrival - self.t_validity
+
+
+class TagClock:
+    """Maps a receiver time tag (periodic: UTC time of day or GPS time of week) to the host clock.
+
+    The offset is the running minimum of ``arrival - tag`` (transport delays are positive and the
+    minimum is the least-delayed message), allowed to creep up at ``drift`` s/s so that a host
+    clock running slower than the receiver is followed.
+
+    Parameters
+    ----------
+    period : float
+        Period of the tag, s (86400 for NMEA time of day, 604800 for UBX iTOW).
+    drift : float, default 2e-4
+        Largest relative clock drift followed, s/s.
+    """
+
+    def __init__(self, period: float, drift: float = 2e-4) -> None:
+        self.period = period
+        self.drift = drift
+        self.offset: float | None = None
+        self._last_arrival = math.nan
+
+    def host_time(self, tag: float, arrival: float, latency: float = 0.0) -> float:
+        """Host-clock time of validity of a message tagged ``tag`` (s) that arrived at ``arrival`` (s)."""
+        d = arrival - tag
+        if self.offset is None:
+            self.offset = d
+        else:
+            d -= round((d - self.offset) / self.period) * self.period
+            crept = self.offset + self.drift * max(arrival - self._last_arrival, 0.0)
+            self.offset = min(d, crept)
+        self._last_arrival = arrival
+        return min(tag + self.offset - latency, arrival)
+
+
+class GnssFrontEnd:
+    """Receiver messages in, :class:`NavSolution` out.
+
+    Parameters
+    ----------
+    config : FrontEndConfig
+    sources : sequence of ByteSource, optional
+        Receiver byte streams read on every :meth:`step` (non-blocking ``read`` expected).
+    clock : callable, default ``time.monotonic``
+        Host clock, s; pass a virtual clock for simulation.
+    """
+
+    def __init__(
+        self, config: FrontEndConfig, sources: Sequence[ByteSource] = (), clock: Callable[[], float] = time.monotonic
+    ) -> None:
+        self.config = config
+        self.clock = clock
+        self.readers = [GnssReader(s, clock=clock) for s in sources]
+        self._tod = TagClock(_DAY)
+        self._tow = TagClock(_WEEK)
+        self._arm = np.asarray(config.lever_arm)
+        self._pos: np.ndarray | None = None
+        self._pos_tv = self._pos_ta = -math.inf
+        self._fix = FixQuality.NONE
+        self._hdop: float | None = None
+        self._corr_age: float | None = None
+        self._h_acc: float | None = None
+        self._vel = np.zeros(3)
+        self._vel_tv = -math.inf
+        self._yaw = self._pitch = self._roll = math.nan
+        self._yaw_rate = 0.0
+        self._att_tv = self._att_ta = -math.inf
+
+    # ---------------------------------------------------------------- ingest
+    def _valid_time(self, tag: float | None, clock: TagClock, t_arr: float) -> float:
+        if tag is None or not math.isfinite(t_arr):
+            return t_arr - self.config.receiver_latency
+        return clock.host_time(tag, t_arr, self.config.receiver_latency)
+
+    def _set_position(self, lat: float, lon: float, h: float, tv: float, ta: float) -> None:
+        self._pos = self.config.origin.to_enu(lat, lon, h)
+        self._pos_tv, self._pos_ta = tv, ta
+
+    def _set_velocity(self, speed: float | None, course: float | None, tv: float, vel_up: float = 0.0) -> None:
+        if speed is None:
+            return
+        c = 0.0 if course is None else course
+        s = speed if (course is not None or speed < 0.1) else 0.0
+        self._vel = np.array([s * math.sin(c), s * math.cos(c), vel_up])
+        self._vel_tv = tv
+
+    def _set_attitude(self, yaw: float | None, pitch: float | None, roll: float | None, tv: float, ta: float) -> None:
+        if yaw is None:
+            return
+        yaw = (yaw + self.config.heading_offset) % (2 * math.pi)
+        dt = tv - self._att_tv
+        if math.isfinite(self._yaw) and 0.0 < dt < 1.0:
+            self._yaw_rate = ((yaw - self._yaw + math.pi) % (2 * math.pi) - math.pi) / dt
+        else:
+            self._yaw_rate = 0.0
+        self._yaw = yaw
+        if pitch is not None:
+            self._pitch = pitch
+        if roll is not None:
+            self._roll = roll
+        self._att_tv, self._att_ta = tv, ta
+
+    def ingest(self, rec: Received) -> None:
+        """Update the state with one received message (others are ignored)."""
+        m, ta = rec.message, rec.t_arrival
+        if isinstance(m, Gga):
+            tv = self._valid_time(m.time, self._tod, ta)
+            self._fix = fix_from_gga(m.quality) if m.lat is not None and m.lon is not None else FixQuality.NONE
+            self._hdop, self._corr_age = m.hdop, m.diff_age
+            if self._fix is not FixQuality.NONE:
+                self._set_position(m.lat, m.lon, m.height or 0.0, tv, ta)  # type: ignore[arg-type]
+            else:
+                self._pos_ta = ta
+        elif isinstance(m, NavPvt):
+            tv = self._valid_time(m.itow, self._tow, ta)
+            self._fix = fix_from_nav_pvt(m.fix_type, m.gnss_fix_ok, m.diff_soln, m.carr_soln)
+            self._hdop, self._h_acc = None, m.h_acc
+            self._corr_age = _UBX_CORR_AGE.get(m.last_correction_age)
+            if self._fix is not FixQuality.NONE:
+                self._set_position(m.lat, m.lon, m.height, tv, ta)
+                self._vel = np.array([m.vel_e, m.vel_n, -m.vel_d])
+                self._vel_tv = tv
+            else:
+                self._pos_ta = ta
+        elif isinstance(m, (Vtg, Rmc)):
+            tv = self._valid_time(getattr(m, "time", None), self._tod, ta)
+            if not isinstance(m, Rmc) or m.valid:
+                self._set_velocity(m.speed, m.course, tv)
+        elif isinstance(m, Gst):
+            if m.std_lat is not None and m.std_lon is not None:
+                self._h_acc = math.hypot(m.std_lat, m.std_lon)
+        elif isinstance(m, (Hdt, Ths)):
+            if not isinstance(m, Ths) or m.mode == "A":
+                self._set_attitude(m.heading, None, None, self._valid_time(None, self._tod, ta), ta)
+        elif isinstance(m, Avr):
+            if m.quality != 0:
+                self._set_attitude(m.yaw, m.tilt, m.roll, self._valid_time(m.time, self._tod, ta), ta)
+        elif isinstance(m, Hpr):
+            self._set_attitude(m.heading, m.pitch, m.roll, self._valid_time(m.time, self._tod, ta), ta)
+        elif isinstance(m, NavRelPosNed):
+            if m.rel_pos_valid and m.rel_pos_heading_valid:
+                pitch = math.atan2(-m.rel_pos_d, math.hypot(m.rel_pos_n, m.rel_pos_e))
+                self._set_attitude(m.rel_pos_heading, pitch, None, self._valid_time(m.itow, self._tow, ta), ta)
+
+    def poll(self) -> int:
+        """Read every source once and ingest what arrived; returns the number of messages."""
+        count = 0
+        for reader in self.readers:
+            for rec in reader.poll():
+                self.ingest(rec)
+                count += 1
+        return count
+
+    # --------------------------------------------------------------- publish
+    def solution(self, t: float) -> NavSolution:
+        """The navigation solution at host time ``t`` (s) from what has been ingested."""
+        cfg = self.config
+        nan = math.nan
+        pos_age = t - self._pos_ta if self._pos_ta > -math.inf else math.inf
+        att_age = t - self._att_ta if self._att_ta > -math.inf else math.inf
+        vel = self._vel if t - self._vel_tv <= cfg.integrity.lost_after else np.zeros(3)
+        yaw, pitch, roll, rate = self._yaw, self._pitch, self._roll, self._yaw_rate
+        if not cfg.require_attitude:
+            att_age = 0.0
+            if not math.isfinite(yaw) and float(np.hypot(vel[0], vel[1])) > 0.3:
+                yaw = math.atan2(vel[0], vel[1]) % (2 * math.pi)
+        integrity = assess_integrity(
+            cfg.integrity, position_age=pos_age, fix=self._fix, attitude_age=att_age,
+            correction_age=self._corr_age, hdop=self._hdop, h_acc=self._h_acc,
+        )
+        if math.isfinite(yaw) and self._att_tv > -math.inf:
+            dt_att = min(max(t - self._att_tv, 0.0), cfg.max_extrapolation)
+            yaw = (yaw + rate * dt_att) % (2 * math.pi)
+        if self._pos is None:
+            east = north = up = nan
+        else:
+            dt = min(max(t - self._pos_tv, 0.0), cfg.max_extrapolation)
+            ant = self._pos + vel * dt
+            att_known = math.isfinite(yaw)
+            cp = control_point_enu(
+                ant, yaw if att_known else 0.0,
+                pitch if math.isfinite(pitch) else 0.0, roll if math.isfinite(roll) else 0.0,
+                self._arm if att_known else np.zeros(3),
+            )
+            east, north, up = (float(x) for x in cp)
+        speed = float(np.hypot(vel[0], vel[1]))
+        if math.isfinite(yaw):
+            speed = float(vel[0] * math.sin(yaw) + vel[1] * math.cos(yaw))
+        return NavSolution(
+            t=t, t_validity=self._pos_tv if self._pos is not None else nan,
+            t_arrival=self._pos_ta if self._pos_ta > -math.inf else nan,
+            east=east, north=north, up=up, yaw=yaw,
+            pitch=pitch if math.isfinite(pitch) else 0.0, roll=roll if math.isfinite(roll) else 0.0,
+            yaw_rate=rate, speed=speed, velocity_east=float(vel[0]), velocity_north=float(vel[1]),
+            fix=self._fix, integrity=integrity,
+        )
+
+    def step(self, t: float | None = None) -> NavSolution:
+        """Poll the sources, then publish the solution at ``t`` (default: the clock now)."""
+        self.poll()
+        return self.solution(self.clock() if t is None else t)
+
+
+def stamp_from_tags(received: Iterable[Received], latency: float = 0.05) -> list[Received]:
+    """Give a capture without host time stamps synthetic arrival times from its own time tags.
+
+    Arrival = message time tag (NMEA time of day, unwrapped across midnight; or, without NMEA
+    tags, UBX iTOW) + ``latency`` s; untagged messages inherit the previous tagged arrival.
+    Lets :func:`replay_solutions` replay a file as if it arrived live.
+    """
+    out: list[Received] = []
+    t_last = 0.0
+    day = 0.0
+    prev_tod: float | None = None
+    base_tow: float | None = None
+    for rec in received:
+        m = rec.message
+        tod = getattr(m, "time", None) if not isinstance(m, NavPvt | NavRelPosNed) else None
+        if isinstance(tod, float):
+            if prev_tod is not None and tod < prev_tod - _DAY / 2:
+                day += _DAY
+            prev_tod = tod
+            t_last = tod + day + latency
+        elif isinstance(m, NavPvt | NavRelPosNed) and prev_tod is None:
+            base_tow = m.itow if base_tow is None else base_tow
+            t_last = (m.itow - base_tow) % _WEEK + latency
+        out.append(Received(rec.message, t_last, rec.raw))
+    return out
+
+
+def replay_solutions(frontend: GnssFrontEnd, received: Sequence[Received], rate: float) -> Iterator[NavSolution]:
+    """Publish solutions at a fixed rate over a recorded, arrival-stamped message sequence.
+
+    Parameters
+    ----------
+    frontend : GnssFrontEnd
+        Fresh front-end (its sources are not read).
+    received : sequence of Received
+        Messages with finite ``t_arrival`` in non-decreasing order.
+    rate : float
+        Output rate, Hz.
+
+    Yields
+    ------
+    NavSolution
+        At ``t0, t0 + 1/rate, ...`` from the first to the last arrival.
+    """
+    if not rate > 0:
+        raise ConfigError(f"rate: expected > 0 Hz, got {rate!r}")
+    if not received:
+        return
+    t_arr = np.array([r.t_arrival for r in received])
+    if not np.all(np.isfinite(t_arr)) or np.any(np.diff(t_arr) < 0):
+        raise ConfigError("replay_solutions: expected finite, non-decreasing arrival times; use stamp_from_tags first")
+    i = 0
+    for t in np.arange(t_arr[0], t_arr[-1] + 0.5 / rate, 1.0 / rate):
+        while i < len(received) and t_arr[i] <= t + 1e-9:
+            frontend.ingest(received[i])
+            i += 1
+        yield frontend.solution(float(t))

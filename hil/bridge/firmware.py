@@ -1,0 +1,311 @@
+"""Emulated MC68HC11 steering-bridge firmware: serial commands in, valve PWM out, wheel angle reported.
+
+Behaviour (the contract the host and the tests rely on)
+------------------------------------------------------
+* Boot (first :meth:`BridgeFirmware.step`): valve closed (``set_valve_duty(0)``),
+  disengaged, reports every ``report_period`` from then on.
+* Line timing: every received byte occupies the line for one byte time
+  (:class:`~hil.links.uart.UartRx`); a frame takes effect when its last byte has
+  arrived. Every sent frame likewise (:class:`~hil.links.uart.UartTx`). This holds
+  on any link, including a pseudo-terminal, which ignores the baud rate.
+* ``Engage``: refused while the manual override is active; otherwise engaged,
+  watchdog flag cleared, watchdog timer started, valve still closed until a
+  rate command arrives.
+* ``SteerRateCommand``: its sequence number is echoed in reports. While engaged
+  it sets the duty to ``clip(rate / max_rate, -1, 1)`` (the plant is told only
+  when the duty changes) and restarts the watchdog timer; while disengaged it
+  has no effect on the valve.
+* ``Disengage``: valve closed, disengaged.
+* Watchdog: engaged and no valid rate command for ``watchdog_timeout`` -> valve
+  closed, disengaged, WATCHDOG flag set until the next successful ``Engage``.
+* Manual override (sampled at every step, and at least every
+  ``input_poll_period``): while active the valve is closed, the bridge is
+  disengaged and the OVERRIDE flag is set; re-engaging needs an ``Engage``
+  after the driver lets go.
+* ``Ping``: answered with a ``Pong`` carrying the same token (does not feed
+  the watchdog).
+* Bad frames (CRC, length, unknown id, reserved bits, or a bridge-to-host
+  message) are dropped and counted; gaps in the host's sequence numbers are
+  counted as dropped frames.
+
+The firmware is a :class:`~hil.links.scheduler.Device`: it never sleeps and
+reads time only from the ``now`` it is stepped with.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+from hil.bridge.config import FirmwareConfig
+from hil.bridge.errors import PlantInterfaceError
+from hil.bridge.framing import DecodeEvent, StreamDecoder
+from hil.bridge.protocol import (
+    MESSAGE_TABLE,
+    Disengage,
+    Engage,
+    Ping,
+    Pong,
+    StatusFlags,
+    SteerRateCommand,
+    WheelAngleReport,
+    encode_frame,
+)
+from hil.links.link import ByteLink
+from hil.links.uart import UartRx, UartTx
+
+__all__ = ["SteeringPlant", "FirmwareState", "BridgeFirmware"]
+
+_READ_MAX = 4096  # bytes read from the link per step at most
+_TIME_EPS = 1e-9  # s; float slack on the report grid
+
+
+@runtime_checkable
+class SteeringPlant(Protocol):
+    """What the bridge firmware sees of the tractor (implemented by the truth simulator)."""
+
+    def set_valve_duty(self, duty: float) -> None:
+        """Apply a PWM duty in [-1, 1]; + = steer left; 0 = valve closed."""
+        ...
+
+    def wheel_angle_counts(self) -> int:
+        """Current 8-bit ADC reading of the wheel-angle potentiometer, 0..255."""
+        ...
+
+    def manual_override(self) -> bool:
+        """True while the driver is turning the steering wheel."""
+        ...
+
+    def advance(self, dt: float) -> None:
+        """Integrate the plant over ``dt`` seconds (called by the clock's owner, not the firmware)."""
+        ...
+
+
+@dataclass(frozen=True)
+class FirmwareState:
+    """Snapshot of the firmware's state (for tests and logs).
+
+    Parameters
+    ----------
+    time : float
+        Time of the last step, s.
+    engaged, watchdog_tripped, override : bool
+        Status flags.
+    duty : float
+        Duty last applied to the valve, -1..1.
+    command_seq : int
+        Sequence number of the last valid rate command (-1: none yet).
+    bad_frames, dropped_frames : int
+        Counters since boot (not wrapped).
+    reports_sent, commands_applied, engages_refused : int
+        Counters since boot.
+    """
+
+    time: float
+    engaged: bool
+    watchdog_tripped: bool
+    override: bool
+    duty: float
+    command_seq: int
+    bad_frames: int
+    dropped_frames: int
+    reports_sent: int
+    commands_applied: int
+    engages_refused: int
+
+    @property
+    def flags(self) -> StatusFlags:
+        """The status flags as they would be reported."""
+        f = StatusFlags.NONE
+        if self.engaged:
+            f |= StatusFlags.ENGAGED
+        if self.watchdog_tripped:
+            f |= StatusFlags.WATCHDOG
+        if self.override:
+            f |= StatusFlags.OVERRIDE
+        return f
+
+
+class BridgeFirmware:
+    """The emulated bridge as a device on a byte link.
+
+    Parameters
+    ----------
+    link : ByteLink
+        The bridge's serial port (pty master, in-memory endpoint, ...).
+    plant : SteeringPlant
+        Valve, wheel-angle ADC and override switch.
+    config : FirmwareConfig, optional
+        Defaults: 9600 8N1, 20 Hz reports, 250 ms watchdog, 0.35 rad/s full duty.
+    """
+
+    def __init__(self, link: ByteLink, plant: SteeringPlant, config: FirmwareConfig | None = None) -> None:
+        self.config = config if config is not None else FirmwareConfig()
+        self._link = link
+        self._plant = plant
+        self._rx = UartRx(self.config.line)
+        self._tx = UartTx(self.config.line, link)
+        self._decoder = StreamDecoder(self.config.max_payload)
+        self._segments: deque[tuple[int, float, float]] = deque()  # (stream index, first arrival, spacing)
+        self._inbox: deque[tuple[float, DecodeEvent]] = deque()
+        self._boot: float | None = None
+        self._last_step = -math.inf
+        self._next_report = math.inf
+        self._next_poll = math.inf
+        self._engaged = False
+        self._tripped = False
+        self._override = False
+        self._duty = 0.0
+        self._last_cmd_time = -math.inf
+        self._cmd_seq = -1
+        self._host_seq: int | None = None
+        self._bad = 0
+        self._dropped = 0
+        self._seq = 0
+        self._reports = 0
+        self._commands = 0
+        self._refused = 0
+
+    # -- device interface ------------------------------------------------------------------
+    def next_wakeup(self) -> float:
+        """Earliest time the firmware must run, s (``-inf`` before boot)."""
+        if self._boot is None:
+            return -math.inf
+        if self._link.in_waiting > 0:
+            return self._last_step
+        t = min(self._next_report, self._next_poll, self._tx.next_due())
+        if self._inbox:
+            t = min(t, self._inbox[0][0])
+        if self._engaged:
+            t = min(t, self._last_cmd_time + self.config.watchdog_timeout)
+        return t
+
+    def step(self, now: float) -> None:
+        """Run everything due at ``now``, s: receive, apply frames, watchdog, override, report, send."""
+        if self._boot is None:
+            self._boot = now
+            self._next_report = now + self.config.report_period
+            self._plant.set_valve_duty(0.0)
+            self._duty = 0.0
+        self._last_step = now
+        self._next_poll = now + self.config.input_poll_period
+        self._ingest(now)
+        self._sample_override()
+        # Bounded: the inbox only holds events already decoded.
+        for _ in range(len(self._inbox)):
+            if self._inbox[0][0] > now:
+                break
+            t, event = self._inbox.popleft()
+            self._check_watchdog(t)
+            self._apply(t, event, now)
+        self._check_watchdog(now)
+        if now >= self._next_report - _TIME_EPS:
+            self._report(now)
+            period = self.config.report_period
+            missed = math.floor((now - self._next_report) / period + _TIME_EPS) + 1
+            self._next_report += max(1, missed) * period
+        self._tx.flush(now)
+
+    # -- state -----------------------------------------------------------------------------
+    @property
+    def state(self) -> FirmwareState:
+        """Current state snapshot."""
+        return FirmwareState(
+            time=self._last_step, engaged=self._engaged, watchdog_tripped=self._tripped,
+            override=self._override, duty=self._duty, command_seq=self._cmd_seq, bad_frames=self._bad,
+            dropped_frames=self._dropped, reports_sent=self._reports, commands_applied=self._commands,
+            engages_refused=self._refused,
+        )
+
+    # -- internals -------------------------------------------------------------------------
+    def _ingest(self, now: float) -> None:
+        n = self._link.in_waiting
+        if n <= 0:
+            return
+        data = self._link.read(min(n, _READ_MAX))
+        if not data:
+            return
+        start = self._decoder.counters.bytes_fed
+        first, spacing = self._rx.arrive(len(data), now)
+        self._segments.append((start, first, spacing))
+        for event in self._decoder.feed(data):
+            # events come in stream order; drop segments that end before this event
+            while len(self._segments) > 1 and self._segments[1][0] <= event.end:
+                self._segments.popleft()
+            seg_start, seg_first, seg_spacing = self._segments[0]
+            self._inbox.append((seg_first + (event.end - seg_start) * seg_spacing, event))
+
+    def _set_duty(self, duty: float, force: bool = False) -> None:
+        if force or duty != self._duty:
+            self._plant.set_valve_duty(duty)
+            self._duty = duty
+
+    def _cut(self) -> None:
+        self._engaged = False
+        self._set_duty(0.0, force=True)
+
+    def _sample_override(self) -> None:
+        active = bool(self._plant.manual_override())
+        self._override = active
+        if active and (self._engaged or self._duty != 0.0):
+            self._cut()
+
+    def _check_watchdog(self, t: float) -> None:
+        if self._engaged and t >= self._last_cmd_time + self.config.watchdog_timeout:
+            self._tripped = True
+            self._cut()
+
+    def _apply(self, t: float, event: DecodeEvent, now: float) -> None:
+        frame = event.frame
+        if frame is None:
+            self._bad += 1
+            return
+        message = frame.message
+        if MESSAGE_TABLE[_ID_OF[type(message)]].direction != "host->bridge":
+            self._bad += 1
+            return
+        if self._host_seq is not None:
+            self._dropped += (frame.seq - self._host_seq - 1) % 256 if frame.seq != self._host_seq else 0
+        self._host_seq = frame.seq
+        if isinstance(message, SteerRateCommand):
+            self._cmd_seq = frame.seq
+            if self._engaged:
+                self._commands += 1
+                self._last_cmd_time = t
+                self._set_duty(min(1.0, max(-1.0, message.rate / self.config.max_rate)))
+        elif isinstance(message, Engage):
+            if self._override:
+                self._refused += 1
+            else:
+                self._engaged = True
+                self._tripped = False
+                self._last_cmd_time = t
+        elif isinstance(message, Disengage):
+            self._cut()
+        elif isinstance(message, Ping):
+            self._send(Pong(token=message.token), now)
+
+    def _send(self, message: Pong | WheelAngleReport, now: float) -> None:
+        self._tx.send(encode_frame(message, self._seq), now)
+        self._seq = (self._seq + 1) & 0xFF
+
+    def _report(self, now: float) -> None:
+        counts = self._plant.wheel_angle_counts()
+        if isinstance(counts, bool) or not isinstance(counts, int) or not 0 <= counts <= 255:
+            raise PlantInterfaceError(f"wheel_angle_counts() must return an int in 0..255 (8-bit ADC), "
+                                      f"got {counts!r}")
+        self._reports += 1
+        self._send(WheelAngleReport(
+            adc_counts=counts,
+            flags=self.state.flags,
+            command_seq=max(self._cmd_seq, 0),
+            duty=self._duty,
+            bad_frames=self._bad & 0xFFFF,
+            dropped_frames=self._dropped & 0xFFFF,
+            bridge_time_ms=round((now - (self._boot or 0.0)) * 1000.0) & 0xFFFF,
+        ), now)
+
+
+_ID_OF = {layout.cls: msg_id for msg_id, layout in MESSAGE_TABLE.items()}

@@ -1,0 +1,188 @@
+"""Stream decoder for bridge frames: finds frames in a byte stream, resynchronises after garbage.
+
+The decoder never raises on bad bytes. Each refused frame becomes an *error
+value* (an instance of a :class:`~hil.bridge.errors.FrameError` subclass) in the
+returned events and is counted; the decoder then drops the first sync byte of
+the refused frame and searches for the next sync pattern, so a frame that begins
+inside the garbage or inside a corrupted frame is still found.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+from hil.bridge.errors import ConfigError, CrcError, FieldError, FrameError, LengthError, UnknownMessageError
+from hil.bridge.protocol import CRC_LEN, HEADER_LEN, MAX_PAYLOAD, SYNC, Frame, crc16, decode_payload
+
+__all__ = ["DecodeEvent", "DecoderCounters", "StreamDecoder"]
+
+_CRC = struct.Struct(">H")
+
+
+@dataclass(frozen=True)
+class DecodeEvent:
+    """One outcome of decoding: a frame, or a refused frame.
+
+    Parameters
+    ----------
+    end : int
+        Index in the whole stream fed so far (0 = first byte ever fed) of the
+        last byte of the frame or refused frame.
+    frame : Frame or None
+        The accepted frame.
+    error : FrameError or None
+        Why a frame was refused (a value, not raised).
+    """
+
+    end: int
+    frame: Frame | None = None
+    error: FrameError | None = None
+
+
+@dataclass(frozen=True)
+class DecoderCounters:
+    """Snapshot of a decoder's counters (all since construction).
+
+    Parameters
+    ----------
+    frames : int
+        Frames accepted.
+    crc_errors, length_errors, unknown_ids, field_errors : int
+        Frames refused, by reason.
+    resyncs : int
+        Runs of bytes skipped while hunting for a sync pattern (after garbage or
+        a refused frame).
+    bytes_discarded : int
+        Bytes that were not part of an accepted frame.
+    bytes_fed : int
+        Bytes fed.
+    """
+
+    frames: int = 0
+    crc_errors: int = 0
+    length_errors: int = 0
+    unknown_ids: int = 0
+    field_errors: int = 0
+    resyncs: int = 0
+    bytes_discarded: int = 0
+    bytes_fed: int = 0
+
+    @property
+    def bad_frames(self) -> int:
+        """Frames refused for any reason."""
+        return self.crc_errors + self.length_errors + self.unknown_ids + self.field_errors
+
+
+class StreamDecoder:
+    """Incremental frame decoder with resynchronisation.
+
+    Parameters
+    ----------
+    max_payload : int, optional
+        Largest payload length accepted, bytes (default :data:`MAX_PAYLOAD`).
+        A larger length byte is refused at once (no waiting for bytes that
+        would never form a frame).
+    """
+
+    def __init__(self, max_payload: int = MAX_PAYLOAD) -> None:
+        if isinstance(max_payload, bool) or not isinstance(max_payload, int) or not 0 <= max_payload <= 255:
+            raise ConfigError(f"max_payload must be an int in 0..255 bytes, got {max_payload!r}")
+        self._max_payload = max_payload
+        self._buf = bytearray()
+        self._base = 0  # stream index of _buf[0]
+        self._hunting = False  # inside a run of skipped bytes
+        self._n = dict(frames=0, crc_errors=0, length_errors=0, unknown_ids=0, field_errors=0,
+                       resyncs=0, bytes_discarded=0)
+
+    @property
+    def counters(self) -> DecoderCounters:
+        """Current counters (a frozen snapshot)."""
+        return DecoderCounters(**self._n, bytes_fed=self._base + len(self._buf))
+
+    @property
+    def pending(self) -> int:
+        """Bytes held while waiting for the rest of a frame."""
+        return len(self._buf)
+
+    def _discard(self, n: int) -> None:
+        if n <= 0:
+            return
+        if not self._hunting:
+            self._n["resyncs"] += 1
+            self._hunting = True
+        self._n["bytes_discarded"] += n
+        del self._buf[:n]
+        self._base += n
+
+    def _consume(self, n: int) -> None:
+        del self._buf[:n]
+        self._base += n
+        self._hunting = False
+
+    def _refuse(self, err: FrameError, key: str, events: list[DecodeEvent], end: int) -> None:
+        self._n[key] += 1
+        err.offset = end
+        events.append(DecodeEvent(end=end, error=err))
+
+    def feed(self, data: bytes) -> list[DecodeEvent]:
+        """Add bytes; return the frames and refused frames they complete, in stream order.
+
+        Parameters
+        ----------
+        data : bytes
+            Any bytes, possibly empty, possibly garbage.
+
+        Returns
+        -------
+        list of DecodeEvent
+        """
+        buf = self._buf
+        buf += data
+        events: list[DecodeEvent] = []
+        # Every pass either consumes >= 1 byte or returns: bounded by len(buf).
+        for _ in range(len(buf) + 1):
+            i = buf.find(SYNC)
+            if i < 0:
+                keep = 1 if buf[-1:] == SYNC[:1] else 0
+                self._discard(len(buf) - keep)
+                return events
+            self._discard(i)
+            if len(buf) < HEADER_LEN:
+                return events
+            length = buf[4]
+            if length > self._max_payload:
+                end = self._base + HEADER_LEN - 1
+                self._refuse(LengthError(f"length byte {length} exceeds the maximum payload of "
+                                         f"{self._max_payload} bytes"), "length_errors", events, end)
+                self._discard(1)
+                continue
+            total = HEADER_LEN + length + CRC_LEN
+            if len(buf) < total:
+                return events
+            end = self._base + total - 1
+            body = bytes(buf[2:HEADER_LEN + length])
+            got = _CRC.unpack_from(buf, HEADER_LEN + length)[0]
+            want = crc16(body)
+            if got != want:
+                self._refuse(CrcError(f"invalid CRC 0x{got:04x} - should be 0x{want:04x}"),
+                             "crc_errors", events, end)
+                self._discard(1)
+                continue
+            try:
+                message = decode_payload(body[0], body[3:])
+            except UnknownMessageError as err:
+                self._refuse(err, "unknown_ids", events, end)
+            except LengthError as err:
+                self._refuse(err, "length_errors", events, end)
+            except FieldError as err:
+                self._refuse(err, "field_errors", events, end)
+            else:
+                self._n["frames"] += 1
+                events.append(DecodeEvent(end=end, frame=Frame(seq=body[1], message=message)))
+                self._consume(total)
+                continue
+            # A CRC-valid frame that is refused for its content is consumed whole.
+            self._n["bytes_discarded"] += total
+            self._consume(total)
+        return events  # pragma: no cover - the loop always returns earlier

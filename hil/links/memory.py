@@ -1,0 +1,177 @@
+"""In-memory byte links on a clock: two endpoints, each a pair of byte queues.
+
+An endpoint looks like ``serial.Serial`` (``in_waiting``, ``read``, ``write``).
+Bytes written become readable at the writer's clock time, or later when written
+with :meth:`MemoryEndpoint.write_paced` (the bridge emulator uses that to model
+its UART's transmission time without waking up for every byte). The link itself
+adds no delay: line timing belongs to the emulated device, so that a device
+behaves the same on a pseudo-terminal, which ignores the baud rate.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+from hil.links.clock import Clock
+from hil.links.errors import LinkClosedError, LinkConfigError
+
+__all__ = ["MemoryEndpoint", "memory_link_pair"]
+
+_EPS = 1e-12  # s; float slack when comparing a byte's release time with now
+
+
+class _Pipe:
+    """One direction: chunks (first release time, spacing, bytes), times non-decreasing."""
+
+    def __init__(self, capacity: int) -> None:
+        self.chunks: deque[tuple[float, float, bytes]] = deque()
+        self.size = 0
+        self.capacity = capacity
+        self.last = -math.inf
+        self.closed = False
+
+    def push(self, first: float, spacing: float, data: bytes) -> None:
+        if self.size + len(data) > self.capacity:
+            raise LinkConfigError(f"in-memory link buffer would exceed {self.capacity} bytes; "
+                                  "the reader is not reading (raise capacity or read more often)")
+        first = max(first, self.last)
+        self.chunks.append((first, spacing, data))
+        self.size += len(data)
+        self.last = first + spacing * (len(data) - 1)
+
+    @staticmethod
+    def _ready(chunk: tuple[float, float, bytes], now: float) -> int:
+        first, spacing, data = chunk
+        if first > now + _EPS:
+            return 0
+        if spacing <= 0.0:
+            return len(data)
+        return min(len(data), int((now + _EPS - first) / spacing) + 1)
+
+    def available(self, now: float) -> int:
+        total = 0
+        for chunk in self.chunks:
+            n = self._ready(chunk, now)
+            total += n
+            if n < len(chunk[2]):
+                break
+        return total
+
+    def take(self, size: int, now: float) -> bytes:
+        out = bytearray()
+        # Bounded by the number of chunks: each pass consumes one or stops.
+        for _ in range(len(self.chunks)):
+            if len(out) >= size:
+                break
+            first, spacing, data = self.chunks[0]
+            n = min(self._ready(self.chunks[0], now), size - len(out))
+            if n == 0:
+                break
+            out += data[:n]
+            if n == len(data):
+                self.chunks.popleft()
+            else:
+                self.chunks[0] = (first + n * spacing, spacing, data[n:])
+                break
+        self.size -= len(out)
+        return bytes(out)
+
+    def next_release(self) -> float:
+        return self.chunks[0][0] if self.chunks else math.inf
+
+
+class MemoryEndpoint:
+    """One end of an in-memory link (create pairs with :func:`memory_link_pair`).
+
+    Parameters are set by :func:`memory_link_pair`.
+    """
+
+    def __init__(self, clock: Clock, rx: _Pipe, tx: _Pipe, name: str) -> None:
+        self._clock = clock
+        self._rx = rx
+        self._tx = tx
+        self.name = name
+        self.bytes_written = 0
+        self.bytes_read = 0
+
+    def __repr__(self) -> str:
+        return f"MemoryEndpoint({self.name!r})"
+
+    @property
+    def in_waiting(self) -> int:
+        """Bytes readable now."""
+        return self._rx.available(self._clock.now())
+
+    def read(self, size: int = 1) -> bytes:
+        """Up to ``size`` readable bytes; never waits (returns b"" when none).
+
+        Raises
+        ------
+        LinkClosedError
+            Nothing is left to read and the other end is closed.
+        """
+        if isinstance(size, bool) or not isinstance(size, int) or size < 0:
+            raise LinkConfigError(f"read size must be a non-negative int, got {size!r}")
+        data = self._rx.take(size, self._clock.now())
+        if not data and self._rx.closed and not self._rx.chunks:
+            raise LinkClosedError(f"{self.name}: the other end of the in-memory link is closed")
+        self.bytes_read += len(data)
+        return data
+
+    def write(self, data: bytes) -> int:
+        """Queue ``data``, readable by the other end from now on; returns ``len(data)``."""
+        return self.write_paced(data, self._clock.now(), 0.0)
+
+    def write_paced(self, data: bytes, first: float, spacing: float) -> int:
+        """Queue ``data``; byte ``k`` readable from ``first + k * spacing``, s.
+
+        Raises
+        ------
+        LinkClosedError
+            This end was closed.
+        LinkConfigError
+            Bad times, or the other end's buffer is full.
+        """
+        if self._tx.closed:
+            raise LinkClosedError(f"{self.name}: write on a closed in-memory link")
+        if not (math.isfinite(first) and math.isfinite(spacing) and spacing >= 0):
+            raise LinkConfigError(f"paced write needs finite first time and spacing >= 0, got {first!r}, {spacing!r}")
+        data = bytes(data)
+        if data:
+            self._tx.push(max(first, self._clock.now()), float(spacing), data)
+        self.bytes_written += len(data)
+        return len(data)
+
+    def next_release(self) -> float:
+        """Time, s, at which the next unread byte becomes readable (inf if none queued)."""
+        return self._rx.next_release()
+
+    def close(self) -> None:
+        """Close this end; the other end reads what is left, then gets LinkClosedError."""
+        self._tx.closed = True
+        self._rx.closed = True
+
+
+def memory_link_pair(clock: Clock, capacity: int = 1 << 20,
+                     names: tuple[str, str] = ("host", "device")) -> tuple[MemoryEndpoint, MemoryEndpoint]:
+    """Create two connected in-memory endpoints on ``clock``.
+
+    Parameters
+    ----------
+    clock : Clock
+        Usually a :class:`~hil.links.clock.VirtualClock`.
+    capacity : int, optional
+        Bytes each direction may hold unread (default 1 MiB).
+    names : tuple of str, optional
+        Names used in error messages.
+
+    Returns
+    -------
+    (MemoryEndpoint, MemoryEndpoint)
+        What one end writes, the other reads.
+    """
+    if isinstance(capacity, bool) or not isinstance(capacity, int) or capacity <= 0:
+        raise LinkConfigError(f"capacity must be a positive int (bytes), got {capacity!r}")
+    a_to_b, b_to_a = _Pipe(capacity), _Pipe(capacity)
+    return (MemoryEndpoint(clock, b_to_a, a_to_b, names[0]), MemoryEndpoint(clock, a_to_b, b_to_a, names[1]))

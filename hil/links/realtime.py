@@ -1,0 +1,126 @@
+"""Real-time runner: steps devices and the plant in a background thread on a real clock.
+
+The counterpart of :class:`~hil.links.scheduler.LockstepScheduler` for runs over
+pseudo-terminals or real ports: the same devices, stepped when due, with the
+plant advanced by the wall-clock time that elapsed. The thread wakes at the
+earliest device wake-up and at least every ``poll`` seconds, to notice bytes
+that arrived on a pseudo-terminal.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Iterable
+from types import TracebackType
+
+from hil.links.clock import RealClock
+from hil.links.errors import LinkConfigError
+from hil.links.scheduler import Advanceable, Device
+
+__all__ = ["RealTimeRunner"]
+
+
+class RealTimeRunner:
+    """Run devices and a plant in real time in a daemon thread.
+
+    Parameters
+    ----------
+    clock : RealClock
+        Shared with the host code, so that both see one time axis.
+    devices : iterable of Device
+        Stepped in this order when due.
+    plant : Advanceable, optional
+        Advanced by the elapsed time before the devices are stepped.
+    poll : float, optional
+        Longest sleep between passes, s (default 0.001).
+    max_duration : float, optional
+        The thread stops by itself after this long, s (default 600): a forgotten
+        runner never outlives a test session.
+
+    Notes
+    -----
+    Everything the devices and the plant do happens in the runner's thread;
+    host code must talk to them only through links. An exception raised in the
+    thread stops it and is re-raised by :meth:`stop`.
+    """
+
+    def __init__(self, clock: RealClock, devices: Iterable[Device] = (), plant: Advanceable | None = None,
+                 poll: float = 0.001, max_duration: float = 600.0) -> None:
+        if not isinstance(clock, RealClock):
+            raise LinkConfigError(f"RealTimeRunner needs a RealClock, got {type(clock).__name__}")
+        for name, value in (("poll", poll), ("max_duration", max_duration)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise LinkConfigError(f"{name} must be a positive number of seconds, got {value!r}")
+        self.clock = clock
+        self.devices = list(devices)
+        self.plant = plant
+        self.poll = float(poll)
+        self.max_duration = float(max_duration)
+        self.passes = 0
+        self.late_max = 0.0
+        """Largest lateness of a device step behind its requested wake-up, s."""
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._error: BaseException | None = None
+
+    def start(self) -> None:
+        """Start the thread (once)."""
+        if self._thread is not None:
+            raise LinkConfigError("RealTimeRunner.start() called twice")
+        self._thread = threading.Thread(target=self._run, name="hil-realtime", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        clock = self.clock
+        last = clock.now()
+        t_stop = last + self.max_duration
+        try:
+            while not self._stop.is_set():
+                now = clock.now()
+                if now >= t_stop:
+                    return
+                if self.plant is not None and now > last:
+                    self.plant.advance(now - last)
+                last = now
+                for device in self.devices:
+                    wake = device.next_wakeup()
+                    if wake <= now:
+                        if math.isfinite(wake):
+                            self.late_max = max(self.late_max, now - wake)
+                        device.step(now)
+                self.passes += 1
+                wake = min((d.next_wakeup() for d in self.devices), default=math.inf)
+                clock.sleep_until(min(wake, now + self.poll))
+        except BaseException as err:  # re-raised in stop(); the thread must not die silently
+            self._error = err
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Stop the thread and wait for it; re-raise an exception it died of.
+
+        Raises
+        ------
+        TimeoutError
+            The thread did not finish within ``timeout`` seconds.
+        """
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+            if self._thread.is_alive():
+                raise TimeoutError(f"real-time runner thread did not stop within {timeout} s")
+        if self._error is not None:
+            err, self._error = self._error, None
+            raise err
+
+    @property
+    def alive(self) -> bool:
+        """True while the thread runs."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def __enter__(self) -> RealTimeRunner:
+        self.start()
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.stop()

@@ -1,0 +1,135 @@
+"""Lockstep scheduler: steps event-driven devices and the plant on a virtual clock.
+
+A device says when it next wants to run (:meth:`Device.next_wakeup`) and does
+its work in :meth:`Device.step`. The scheduler advances virtual time to the
+earliest wake-up (never further than ``max_step`` at once, so the plant is
+integrated in bounded steps), advances the plant by the elapsed time, and steps
+every device that is due. Devices that see unread input return a wake-up at or
+before the current time and are stepped again at once; a bounded number of such
+same-instant rounds is allowed before :class:`SchedulerStallError`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from typing import Protocol, runtime_checkable
+
+from hil.links.clock import VirtualClock
+from hil.links.errors import ClockError, LinkConfigError, SchedulerStallError
+
+__all__ = ["Device", "Advanceable", "LockstepScheduler"]
+
+
+@runtime_checkable
+class Device(Protocol):
+    """An emulated device stepped by a scheduler (bridge firmware, GNSS receiver, ...)."""
+
+    def next_wakeup(self) -> float:
+        """Absolute time, s, at which the device next needs :meth:`step` (``math.inf``: none)."""
+        ...
+
+    def step(self, now: float) -> None:
+        """Do everything due at ``now``, s."""
+        ...
+
+
+@runtime_checkable
+class Advanceable(Protocol):
+    """A plant integrated by whoever owns the clock."""
+
+    def advance(self, dt: float) -> None:
+        """Integrate the plant over ``dt`` seconds (``dt > 0``)."""
+        ...
+
+
+class LockstepScheduler:
+    """Run devices and a plant in lockstep on a :class:`VirtualClock`.
+
+    Parameters
+    ----------
+    clock : VirtualClock
+        The bench clock; this scheduler binds itself to it, so application code
+        that calls ``clock.sleep_until(t)`` runs the devices up to ``t``.
+    devices : iterable of Device
+        Stepped in this order when due at the same instant.
+    plant : Advanceable, optional
+        Advanced before the devices at every new instant.
+    max_step : float, optional
+        Longest plant integration step, s (default 0.01).
+    max_same_instant : int, optional
+        Rounds allowed at one instant before a stall is declared (default 1000).
+    """
+
+    def __init__(self, clock: VirtualClock, devices: Iterable[Device] = (), plant: Advanceable | None = None,
+                 max_step: float = 0.01, max_same_instant: int = 1000) -> None:
+        if not isinstance(clock, VirtualClock):
+            raise LinkConfigError(f"LockstepScheduler needs a VirtualClock, got {type(clock).__name__}; "
+                                  "use RealTimeRunner for real time")
+        if not (isinstance(max_step, (int, float)) and math.isfinite(max_step) and max_step > 0):
+            raise LinkConfigError(f"max_step must be a positive number of seconds, got {max_step!r}")
+        if isinstance(max_same_instant, bool) or not isinstance(max_same_instant, int) or max_same_instant < 1:
+            raise LinkConfigError(f"max_same_instant must be a positive int, got {max_same_instant!r}")
+        self.clock = clock
+        self.devices: list[Device] = list(devices)
+        self.plant = plant
+        self.max_step = float(max_step)
+        self.max_same_instant = max_same_instant
+        self.device_steps = 0
+        self.plant_steps = 0
+        self._running = False
+        clock.bind(self)
+
+    def add(self, device: Device) -> None:
+        """Append a device (stepped after the ones already registered)."""
+        self.devices.append(device)
+
+    def _step_due(self, now: float) -> bool:
+        stepped = False
+        for device in self.devices:
+            if device.next_wakeup() <= now:
+                device.step(now)
+                self.device_steps += 1
+                stepped = True
+        return stepped
+
+    def run_until(self, t_end: float) -> None:
+        """Advance virtual time to ``t_end``, s, stepping plant and devices on the way.
+
+        Raises
+        ------
+        ClockError
+            Called from inside a device step (re-entrant), or ``t_end`` not finite.
+        SchedulerStallError
+            Devices kept asking to run at one instant.
+        """
+        if self._running:
+            raise ClockError("run_until called from inside a device step; devices must not sleep")
+        if not math.isfinite(t_end):
+            raise ClockError(f"cannot run until a non-finite time ({t_end!r} s)")
+        self._running = True
+        try:
+            clock = self.clock
+            now = clock.now()
+            same = 0
+            # Each pass either advances time by > 0 or counts towards the stall limit.
+            while True:
+                if self._step_due(now):
+                    same += 1
+                    if same > self.max_same_instant:
+                        raise SchedulerStallError(
+                            f"devices were stepped {same} times at t={now!r} s without time advancing; "
+                            "a device's next_wakeup() keeps returning a time <= now")
+                    continue
+                same = 0
+                if now >= t_end:
+                    return
+                wake = min((d.next_wakeup() for d in self.devices), default=math.inf)
+                t_next = min(wake, t_end, now + self.max_step)
+                if self.plant is not None:
+                    self.plant.advance(t_next - now)
+                    self.plant_steps += 1
+                clock.advance_to(t_next)
+                now = t_next
+        finally:
+            self._running = False

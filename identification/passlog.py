@@ -64,7 +64,7 @@ def _readonly(a: Any, name: str) -> np.ndarray:
         raise PassLogError(f"channel {name!r}: expected a 1-D array, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
         bad = int(np.flatnonzero(~np.isfinite(arr))[0])
-        raise PassLogError(f"channel {name!r}: non-finite value {arr[bad]!r} at index {bad}; "
+        raise PassLogError(f"channel {name!r}: non-finite value {float(arr[bad])} at index {bad}; "
                            "a missing sample is left out, never written as NaN")
     arr.setflags(write=False)
     return arr
@@ -176,8 +176,10 @@ class PassLog:
                 keys = list(npz.files)
                 if "meta" not in keys:
                     raise PassLogError(f"{path}: no 'meta' entry; not a pass log ({SCHEMA})")
+                raw = npz["meta"]  # raises ValueError on pickled (object) content
+                if raw.dtype.kind != "U" or raw.shape != ():
+                    raise PassLogError(f"{path}: 'meta' must be one JSON string, got {raw.dtype} {raw.shape}")
                 try:
-                    raw = npz["meta"]
                     meta = json.loads(str(raw[()]))
                 except ValueError as exc:
                     raise PassLogError(f"{path}: 'meta' is not a JSON string ({exc})") from None
@@ -189,7 +191,7 @@ class PassLog:
         except FileNotFoundError:
             raise PassLogError(f"{path}: no such file") from None
         except ValueError as exc:
-            if "pickle" in str(exc).lower():
+            if "pickle" in str(exc).lower() or "object arrays" in str(exc).lower():
                 raise PassLogError(f"{path}: contains pickled objects; refusing to load it "
                                    "(pass logs are read with allow_pickle=False)") from None
             raise PassLogError(f"{path}: not a readable .npz pass log ({exc})") from None

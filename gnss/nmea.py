@@ -5,6 +5,8 @@ and converted to the typed messages of :mod:`gnss.messages`; the proprietary
 Trimble ``$PTNL,AVR`` and Hemisphere ``$PSAT,HPR`` sentences, which pynmeagps
 does not know (it has an unrelated ``HPR`` layout), are decoded here.  Every
 other checksum-valid sentence is returned as :class:`~gnss.messages.NmeaSentence`.
+Latitude and longitude are decoded here from the raw fields, because pynmeagps rounds
+them to 1e-10 degree, coarser than the 1e-8 arc-minute of RTK receivers.
 
 The checksum is always required (``*HH`` before the line end) and checked unless
 ``check=False``; empty fields become ``None``.
@@ -143,6 +145,25 @@ def _time_field(text: str) -> float | None:
     return h * 3600.0 + m * 60.0 + s
 
 
+def _latlon(value: str, hemi: str, width: int) -> float | None:
+    """``ddmm.mmmm`` / ``dddmm.mmmm`` and N/S/E/W to rad (strict)."""
+    if value == "" and hemi == "":
+        return None
+    signs = ("N", "S") if width == 2 else ("E", "W")
+    dot = value.find(".")
+    head = value if dot < 0 else value[:dot]
+    if hemi not in signs or len(head) != width + 2 or not head.isdigit():
+        raise NMEAParseError(
+            f"expected {'ddmm.mm,N|S' if width == 2 else 'dddmm.mm,E|W'}, got {value!r},{hemi!r}"
+        )
+    deg = int(value[:width])
+    minutes = float(value[width:])
+    if minutes >= 60.0 or deg > (90 if width == 2 else 180):
+        raise NMEAParseError(f"coordinate out of range: {value!r},{hemi!r}")
+    x = math.radians(deg + minutes / 60.0)
+    return -x if hemi == signs[1] else x
+
+
 def _avr(fields: list[str]) -> Avr:
     # AVR,time,yaw,Yaw,tilt,Tilt,roll,Roll,range,quality,pdop,numSV
     if len(fields) < 11 or fields[2] != "Yaw" or fields[4] != "Tilt" or fields[6] not in ("Roll", ""):
@@ -174,14 +195,14 @@ def _hpr(fields: list[str]) -> Hpr:
     )
 
 
-def _from_pynmeagps(kind: str, talker: str, m: object) -> NmeaMessage:
+def _from_pynmeagps(kind: str, talker: str, m: object, fields: list[str]) -> NmeaMessage:
     g = m.__dict__.get  # pynmeagps stores decoded fields as instance attributes
     if kind == "GGA":
         return Gga(
             talker=talker,
             time=_tod(g("time")),
-            lat=_rad(g("lat")),
-            lon=_rad(g("lon")),
+            lat=_latlon(fields[1], fields[2], 2),
+            lon=_latlon(fields[3], fields[4], 3),
             quality=int(g("quality") or 0),
             num_sv=_opt_int(g("numSV")),
             hdop=_opt(g("HDOP")),
@@ -209,8 +230,8 @@ def _from_pynmeagps(kind: str, talker: str, m: object) -> NmeaMessage:
             talker=talker,
             time=_tod(g("time")),
             valid=g("status") == "A",
-            lat=_rad(g("lat")),
-            lon=_rad(g("lon")),
+            lat=_latlon(fields[2], fields[3], 2),
+            lon=_latlon(fields[4], fields[5], 3),
             speed=None if spd is None else spd * KNOT,
             course=_heading(g("cog")),
             date=date if isinstance(date, _dt.date) else None,
@@ -286,7 +307,7 @@ def parse_nmea(sentence: bytes, *, check: bool = True) -> NmeaMessage:
     try:
         raw = sentence if sentence.endswith(b"\r\n") else sentence.rstrip(b"\r\n") + b"\r\n"
         decoded = NMEAReader.parse(raw, validate=0)
-        return _from_pynmeagps(kind, talker, decoded)
+        return _from_pynmeagps(kind, talker, decoded, fields)
     except NMEAParseError:
         raise
     except Exception as exc:  # pynmeagps raises assorted types on bad fields; normalise them

@@ -125,12 +125,17 @@ def _heading(v: object) -> float | None:
     return None if x is None else math.radians(x) % _TWO_PI
 
 
-def _tod(v: object) -> float | None:
-    if v == "" or v is None:
+def _date_field(text: str) -> _dt.date | None:
+    """``ddmmyy`` to a date; two-digit years map to 1980-2079 (the GPS era)."""
+    if text == "":
         return None
-    if isinstance(v, _dt.time):
-        return v.hour * 3600.0 + v.minute * 60.0 + v.second + v.microsecond * 1e-6
-    raise NMEAParseError(f"expected a UTC time hhmmss.ss, got {v!r}")
+    if len(text) != 6 or not text.isdigit():
+        raise NMEAParseError(f"expected a date ddmmyy, got {text!r}")
+    yy = int(text[4:])
+    try:
+        return _dt.date(2000 + yy if yy < 80 else 1900 + yy, int(text[2:4]), int(text[0:2]))
+    except ValueError as exc:
+        raise NMEAParseError(f"expected a valid date ddmmyy, got {text!r}") from exc
 
 
 def _time_field(text: str) -> float | None:
@@ -200,7 +205,7 @@ def _from_pynmeagps(kind: str, talker: str, m: object, fields: list[str]) -> Nme
     if kind == "GGA":
         return Gga(
             talker=talker,
-            time=_tod(g("time")),
+            time=_time_field(fields[0]),
             lat=_latlon(fields[1], fields[2], 2),
             lon=_latlon(fields[3], fields[4], 3),
             quality=int(g("quality") or 0),
@@ -225,16 +230,15 @@ def _from_pynmeagps(kind: str, talker: str, m: object, fields: list[str]) -> Nme
         mv = _rad(g("mv"))
         if mv is not None and g("mvEW") == "W":
             mv = -mv
-        date = g("date")
         return Rmc(
             talker=talker,
-            time=_tod(g("time")),
+            time=_time_field(fields[0]),
             valid=g("status") == "A",
             lat=_latlon(fields[2], fields[3], 2),
             lon=_latlon(fields[4], fields[5], 3),
             speed=None if spd is None else spd * KNOT,
             course=_heading(g("cog")),
-            date=date if isinstance(date, _dt.date) else None,
+            date=_date_field(fields[8]),
             mag_var=mv,
             mode=g("posMode") or None,
             nav_status=g("navStatus") or None,
@@ -242,7 +246,7 @@ def _from_pynmeagps(kind: str, talker: str, m: object, fields: list[str]) -> Nme
     if kind == "GST":
         return Gst(
             talker=talker,
-            time=_tod(g("time")),
+            time=_time_field(fields[0]),
             range_rms=_opt(g("rangeRms")),
             std_major=_opt(g("stdMajor")),
             std_minor=_opt(g("stdMinor")),

@@ -152,6 +152,8 @@ def encode_rmc(m: Rmc, *, time_decimals: int = 2, latlon_decimals: int = 8, deci
     lon, ew = _angle(m.lon, latlon_decimals, 3, "EW")
     mv = "" if m.mag_var is None else f"{abs(math.degrees(m.mag_var)):.4f}"
     mv_ew = "" if m.mag_var is None else ("E" if m.mag_var >= 0.0 else "W")
+    if m.date is not None and not 1980 <= m.date.year <= 2079:
+        raise EncodeError(f"RMC date: expected a year in 1980-2079 (two-digit year field), got {m.date}")
     fields = [
         m.talker + "RMC",
         _time(m.time, time_decimals),

@@ -38,7 +38,8 @@ def test_continuous_gain_solves_the_riccati_equation_and_discrete_converges_to_i
     s = solve_continuous_are(a, b, q, r)
     k_ref = (np.linalg.solve(r, b.T @ s)).ravel()
     assert np.allclose(kinematic_lqr(1.79, dt=None), k_ref, rtol=1e-8)
-    assert np.allclose(kinematic_lqr(1.79, dt=1e-3), k_ref, rtol=2e-3)
+    err = [np.max(np.abs(kinematic_lqr(1.79, dt=h) / k_ref - 1)) for h in (1e-2, 1e-3, 1e-4)]
+    assert err[0] > err[1] > err[2] and err[2] < 5e-4
 
 
 def test_heading_and_wheel_angle_gains_grow_with_speed():

@@ -5,6 +5,12 @@ value* (an instance of a :class:`~hil.bridge.errors.FrameError` subclass) in the
 returned events and is counted; the decoder then drops the first sync byte of
 the refused frame and searches for the next sync pattern, so a frame that begins
 inside the garbage or inside a corrupted frame is still found.
+
+A header is checked as soon as its five bytes are in: an unknown message id or
+a length byte that differs from the id's layout is refused at once, before the
+CRC, so a corrupted header never makes the decoder wait for bytes that belong
+to the next frame. Only a header that is consistent waits for its payload and
+CRC; a frame whose CRC fails is refused and counted as a CRC error.
 """
 
 from __future__ import annotations
@@ -13,7 +19,16 @@ import struct
 from dataclasses import dataclass
 
 from hil.bridge.errors import ConfigError, CrcError, FieldError, FrameError, LengthError, UnknownMessageError
-from hil.bridge.protocol import CRC_LEN, HEADER_LEN, MAX_PAYLOAD, SYNC, Frame, crc16, decode_payload
+from hil.bridge.protocol import (
+    CRC_LEN,
+    HEADER_LEN,
+    MAX_PAYLOAD,
+    MESSAGE_TABLE,
+    SYNC,
+    Frame,
+    crc16,
+    decode_payload,
+)
 
 __all__ = ["DecodeEvent", "DecoderCounters", "StreamDecoder"]
 
@@ -150,11 +165,19 @@ class StreamDecoder:
             self._discard(i)
             if len(buf) < HEADER_LEN:
                 return events
-            length = buf[4]
-            if length > self._max_payload:
-                end = self._base + HEADER_LEN - 1
-                self._refuse(LengthError(f"length byte {length} exceeds the maximum payload of "
-                                         f"{self._max_payload} bytes"), "length_errors", events, end)
+            msg_id, length = buf[2], buf[4]
+            layout = MESSAGE_TABLE.get(msg_id)
+            header_error: FrameError | None = None
+            if layout is None:
+                header_error = UnknownMessageError(f"unknown message id 0x{msg_id:02x}")
+                key = "unknown_ids"
+            elif length != layout.size or length > self._max_payload:
+                header_error = LengthError(f"message 0x{msg_id:02x} ({layout.cls.__name__}) has a "
+                                           f"{layout.size}-byte payload, length byte says {length}")
+                key = "length_errors"
+            if header_error is not None:
+                # Refused on the header alone: never wait for bytes that cannot form a frame.
+                self._refuse(header_error, key, events, self._base + HEADER_LEN - 1)
                 self._discard(1)
                 continue
             total = HEADER_LEN + length + CRC_LEN
@@ -170,11 +193,7 @@ class StreamDecoder:
                 self._discard(1)
                 continue
             try:
-                message = decode_payload(body[0], body[3:])
-            except UnknownMessageError as err:
-                self._refuse(err, "unknown_ids", events, end)
-            except LengthError as err:
-                self._refuse(err, "length_errors", events, end)
+                message = decode_payload(msg_id, body[3:])
             except FieldError as err:
                 self._refuse(err, "field_errors", events, end)
             else:

@@ -68,7 +68,7 @@ class FrontEndConfig:
     lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     heading_offset: float = 0.0
     receiver_latency: float = 0.0
-    max_extrapolation: float = 0.3
+    max_extrapolation: float = 0.5
     integrity: IntegrityConfig = field(default_factory=IntegrityConfig)
     require_attitude: bool = True
 
@@ -166,11 +166,12 @@ class TagClock:
         if self.offset is None:
             self.offset = d
         else:
-            d -= round((d - self.offset) / self.period) * self.period
+            d -= round((d - self.offset) / self.period) * self.period  # unwrap midnight / week
             crept = self.offset + self.drift * max(arrival - self._last_arrival, 0.0)
             self.offset = min(d, crept)
         self._last_arrival = arrival
-        return min(tag + self.offset - latency, arrival)
+        # arrival minus this message's delay beyond the least-delayed one, minus the known latency
+        return arrival - (d - self.offset) - latency
 
 
 class GnssFrontEnd:

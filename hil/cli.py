@@ -22,7 +22,7 @@ from identification.passlog import PassLog
 
 from .conditions import GEAR_SPEEDS, IMPLEMENTS
 from .errors import HilError
-from .params import SimParams, parameter_table
+from .params import SimParams, parameter_markdown, parameter_table
 from .plots import plot_pass
 from .sysid import SysidPlan, make_passes
 
@@ -73,7 +73,11 @@ def _cmd_plot(args: argparse.Namespace) -> dict:
 
 
 def _cmd_params(args: argparse.Namespace) -> dict:
-    return {"parameters": parameter_table(_params(args))}
+    p = _params(args)
+    out: dict = {"parameters": parameter_table(p)}
+    if args.markdown:
+        out["markdown"] = parameter_markdown(p)
+    return out
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -102,12 +106,15 @@ def build_parser() -> argparse.ArgumentParser:
     pl.set_defaults(func=_cmd_plot)
 
     pa = sub.add_parser("params", parents=[common], help="list the simulator's parameters")
+    pa.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     pa.set_defaults(func=_cmd_params)
     return p
 
 
 def _print_human(command: str, result: dict) -> None:
-    if command == "params":
+    if command == "params" and "markdown" in result:
+        print(result["markdown"], end="")
+    elif command == "params":
         for r in result["parameters"]:
             print(f"{r['name']:<38} {r['value']:>11.6g} {r['unit']:<8} {r['source']:<10} {r['doc']}")
     elif command == "sysid":

@@ -146,3 +146,11 @@ def test_cli_rejects_bad_arguments(tmp_path, capsys, monkeypatch, argv, code, me
 def test_pass_name():
     assert pass_name(condition_for("none", 1.34), 2) == "none_7th_pass2"
     assert pass_name(condition_for("none", 1.5), 0) == "none_1.50mps_pass0"
+
+
+def test_parameter_document_is_up_to_date():
+    from pathlib import Path
+
+    from hil.params import parameter_markdown
+    doc = Path(__file__).resolve().parents[2] / "docs" / "simulator_parameters.md"
+    assert doc.read_text() == parameter_markdown(), "regenerate: hil params --markdown > docs/simulator_parameters.md"

@@ -1,0 +1,112 @@
+"""Clocks and the lockstep scheduler."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+
+from hil.links.clock import Clock, RealClock, VirtualClock
+from hil.links.errors import ClockError, LinkConfigError, SchedulerStallError
+from hil.links.scheduler import LockstepScheduler
+
+
+class Ticker:
+    """A device that wants to run every ``period`` seconds and records when it ran."""
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self.next = 0.0
+        self.times: list[float] = []
+
+    def next_wakeup(self) -> float:
+        return self.next
+
+    def step(self, now: float) -> None:
+        self.times.append(now)
+        self.next += self.period
+
+
+class Integrator:
+    def __init__(self) -> None:
+        self.t = 0.0
+        self.dts: list[float] = []
+
+    def advance(self, dt: float) -> None:
+        self.dts.append(dt)
+        self.t += dt
+
+
+def test_virtual_clock_never_goes_back_and_refuses_non_finite_times():
+    c = VirtualClock(1.0)
+    c.advance_to(2.0)
+    with pytest.raises(ClockError, match="cannot move from 2.0 s to 1.5 s"):
+        c.advance_to(1.5)
+    with pytest.raises(ClockError):
+        c.sleep_until(math.inf)
+    c.sleep_until(5.0)  # no world bound: just advances
+    assert c.now() == 5.0
+    c.sleep_until(3.0)
+    assert c.now() == 5.0
+    assert isinstance(c, Clock) and isinstance(RealClock(), Clock)
+
+
+def test_real_clock_sleeps_until_the_requested_time():
+    c = RealClock()
+    t0 = c.now()
+    c.sleep_until(t0 + 0.02)
+    assert 0.02 <= c.now() - t0 < 0.2
+    t1 = time.monotonic()
+    c.sleep_until(t0)  # in the past: returns at once
+    assert time.monotonic() - t1 < 0.01
+
+
+def test_scheduler_steps_devices_exactly_at_their_wakeups_and_bounds_plant_steps():
+    clock = VirtualClock()
+    a, b = Ticker(0.0625), Ticker(0.25)  # exact in binary: no float drift at t = 1
+    plant = Integrator()
+    LockstepScheduler(clock, [a, b], plant, max_step=0.01)
+    clock.sleep_until(1.0)
+    assert clock.now() == 1.0
+    assert a.times == [0.0625 * k for k in range(17)]
+    assert b.times == [0.25 * k for k in range(5)]
+    assert plant.t == pytest.approx(1.0, abs=1e-12)
+    assert max(plant.dts) <= 0.01 + 1e-15 and min(plant.dts) > 0
+
+
+def test_scheduler_detects_a_device_that_never_lets_time_advance():
+    class Stuck:
+        def next_wakeup(self) -> float:
+            return -math.inf
+
+        def step(self, now: float) -> None:
+            pass
+
+    clock = VirtualClock()
+    LockstepScheduler(clock, [Stuck()], max_same_instant=50)
+    with pytest.raises(SchedulerStallError, match="without time advancing"):
+        clock.sleep_until(1.0)
+
+
+def test_a_device_may_not_sleep_inside_its_step():
+    clock = VirtualClock()
+
+    class Sleeper(Ticker):
+        def step(self, now: float) -> None:
+            clock.sleep_until(now + 1.0)
+
+    LockstepScheduler(clock, [Sleeper(0.1)])
+    with pytest.raises(ClockError, match="devices must not sleep"):
+        clock.sleep_until(1.0)
+
+
+def test_scheduler_options_are_validated_and_one_clock_drives_one_world():
+    clock = VirtualClock()
+    with pytest.raises(LinkConfigError, match="max_step"):
+        LockstepScheduler(clock, max_step=0)
+    with pytest.raises(LinkConfigError, match="VirtualClock"):
+        LockstepScheduler(RealClock())  # type: ignore[arg-type]
+    LockstepScheduler(clock)
+    with pytest.raises(ClockError, match="already drives another scheduler"):
+        LockstepScheduler(clock)

@@ -1,16 +1,107 @@
-"""``gnss``command (placeholder until its issue lands)."""
+"""``gnss`` command: thin wrapper over :mod:`gnss.summary` and :mod:`gnss.plot`.
+
+Commands
+--------
+``gnss decode FILE [--json] [--plot OUT.png]``   summary of a capture (``replay`` is an alias)
+``gnss xtrack FILE --a LAT,LON --b LAT,LON [--offset M] [--json]``   cross-track against an AB line
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import sys
+from pathlib import Path
+
+from .errors import GNSSError
+from .summary import CaptureSummary, cross_track_of_capture, summarize_capture
+
+__all__ = ["main"]
+
+
+def _latlon(text: str) -> tuple[float, float]:
+    try:
+        lat, lon = (float(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LAT,LON in degrees such as 41.5749,-93.7505, got {text!r}") from None
+    if not (abs(lat) <= 90 and abs(lon) <= 180):
+        raise argparse.ArgumentTypeError(f"expected |LAT| <= 90 and |LON| <= 180 degrees, got {text!r}")
+    return math.radians(lat), math.radians(lon)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="gnss", description="GNSS receiver captures: decode, summarise, cross-track.")
+    sub = p.add_subparsers(dest="command", required=True)
+    for name in ("decode", "replay"):
+        d = sub.add_parser(name, help="summarise a capture (messages per type, rates, fix quality, track)")
+        d.add_argument("file", type=Path, help="capture with NMEA / UBX / RTCM 3 bytes (gpsd '#' header allowed)")
+        d.add_argument("--json", action="store_true", help="print the summary as JSON")
+        d.add_argument("--plot", type=Path, metavar="OUT.png", help="draw the track (ENU about the first fix)")
+    x = sub.add_parser("xtrack", help="cross-track error of a capture's fixes against an AB line")
+    x.add_argument("file", type=Path)
+    x.add_argument("--a", type=_latlon, required=True, metavar="LAT,LON", help="point A, degrees")
+    x.add_argument("--b", type=_latlon, required=True, metavar="LAT,LON", help="point B, degrees")
+    x.add_argument("--offset", type=float, default=0.0, help="use the parallel line OFFSET m left of AB")
+    x.add_argument("--json", action="store_true", help="print statistics and per-fix values as JSON")
+    return p
+
+
+def _print_summary(s: CaptureSummary, path: Path) -> None:
+    print(f"{path}")
+    print(f"  messages ({sum(s.messages.values())}):")
+    for k, v in s.messages.items():
+        rate = f"  {s.rates_hz[k]:.2f} Hz" if k in s.rates_hz else ""
+        print(f"    {k:<16}{v:>6}{rate}")
+    print(f"  refused frames: {sum(s.errors.values())} {s.errors or ''}  garbage bytes: {s.garbage_bytes}")
+    print(f"  fix quality: {s.fix_quality}")
+    if s.duration is not None:
+        print(f"  time span: {s.t_first:.2f} .. {s.t_last:.2f} s ({s.duration:.2f} s), "
+              f"median interval {s.median_interval_s:.3f} s, max gap {s.max_gap_s:.3f} s")
+    for label, fix in (("first fix", s.first_fix), ("last fix", s.last_fix)):
+        if fix:
+            print(f"  {label}: {fix['lat_deg']:.9f} {fix['lon_deg']:.9f} {fix['height_m']:.3f} m")
+    if s.enu_extent_m:
+        e = s.enu_extent_m
+        print(f"  ENU extent about the first fix: east {e['east_min']:.3f}..{e['east_max']:.3f} m, "
+              f"north {e['north_min']:.3f}..{e['north_max']:.3f} m")
+    if s.heading_deg:
+        h = s.heading_deg
+        print(f"  heading: {h['min']:.2f}..{h['max']:.2f} deg (mean {h['mean']:.2f})")
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="gnss")
-    parser.add_subparsers(dest="command", required=True)
-    parser.parse_args(argv)
-    return 0
+    """Entry point; returns the exit status (0 ok, 1 bad input, 2 usage error from argparse)."""
+    args = _parser().parse_args(argv)
+    try:
+        data = args.file.read_bytes()
+    except OSError as exc:
+        print(f"gnss: error: cannot read {args.file}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    try:
+        if args.command in ("decode", "replay"):
+            summary, messages, _ = summarize_capture(data)
+            if args.plot:
+                from .plot import plot_track  # matplotlib only when a plot is asked for
+
+                plot_track(messages, args.plot)
+            if args.json:
+                print(json.dumps(summary.to_dict(), indent=2))
+            else:
+                _print_summary(summary, args.file)
+            return 0
+        res = cross_track_of_capture(data, args.a, args.b, args.offset)
+        st = res.stats()
+        if args.json:
+            print(json.dumps({"stats_m": st, "time_s": res.time.tolist(), "cross_track_m": res.cross_track.tolist(),
+                              "station_m": res.station.tolist()}, indent=2))
+        else:
+            print(f"{args.file}: {st['n']} fixes, cross-track mean {st['mean']:+.3f} m, rms {st['rms']:.3f} m, "
+                  f"max |xte| {st['max_abs']:.3f} m (positive = left of A->B)")
+        return 0
+    except GNSSError as exc:
+        print(f"gnss: error: {args.file}: {exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -12,8 +12,9 @@ from gnss.errors import ConfigError
 from gnss.frontend import FrontEndConfig, GnssFrontEnd, TagClock, replay_solutions, stamp_from_tags
 from gnss.geodesy import LocalFrame
 from gnss.integrity import FixQuality, IntegrityConfig, IntegrityState, assess_integrity
-from gnss.messages import Avr, Gga, Hdt, Vtg
-from gnss.nmea_encode import encode_avr, encode_gga, encode_hdt, encode_vtg
+from gnss.messages import Avr, Gga, Hdt, Hpr, NavPvt, NavRelPosNed, Vtg
+from gnss.nmea_encode import encode_avr, encode_gga, encode_hdt, encode_hpr, encode_vtg
+from gnss.ubx import encode_nav_pvt, encode_nav_relposned
 
 ORIGIN = LocalFrame.from_degrees(41.5749659, -93.7505719, 246.7)
 S = IntegrityState
@@ -175,3 +176,26 @@ def test_config_refuses_bad_values():
         FrontEndConfig(origin=(41.0, -93.0, 0.0))  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="lever_arm"):
         FrontEndConfig(origin=ORIGIN, lever_arm=(0.0, math.nan, 1.0))
+
+
+def test_binary_ubx_path_pvt_and_relposned():
+    fe, port, clock = make()
+    lat, lon, h = ORIGIN.to_geodetic([5.0, -2.0, 0.0])
+    port.write(encode_nav_pvt(NavPvt(200000.0, 3, True, True, 2, 22, float(lat), float(lon), float(h), float(h) - 30,
+                                     0.014, 0.02, 1.0, 0.0, 0.0, 1.0, 0.0, last_correction_age=2)))
+    port.write(encode_nav_relposned(NavRelPosNed(200000.0, 0, 1.0, 0.0, -0.05, 1.0012, 0.0, 0.001, 0.001, 0.001,
+                                                 0.001, 0.001, True, True, True, 2, True, True)))
+    nav = fe.step()
+    assert nav.integrity.state is S.RTK_FIXED and nav.fix is FixQuality.RTK_FIXED
+    assert (nav.east, nav.north) == pytest.approx((5.0, -2.0), abs=6e-3)  # NAV-PVT LSB 1e-7 deg ~ 1 cm
+    assert nav.yaw == pytest.approx(0.0, abs=1e-6) and nav.pitch == pytest.approx(0.05, abs=1e-3)
+    assert nav.speed == pytest.approx(1.0)  # velN 1 m/s, heading north
+
+
+def test_hpr_heading_offset_and_reverse_speed():
+    fe, port, clock = make(heading_offset=math.pi / 2)
+    port.write(gga_at(0.0, 0.0, 500.0) + encode_vtg(Vtg("GN", math.pi, None, 2.0, "D"))
+               + encode_hpr(Hpr(500.0, 3 * math.pi / 2, 0.0, 0.0, "N")))
+    nav = fe.step()
+    assert nav.yaw == pytest.approx(0.0, abs=1e-6)  # 270 deg reported + 90 deg mounting = north
+    assert nav.speed == pytest.approx(-2.0, abs=1e-3)  # moving south while facing north: reversing

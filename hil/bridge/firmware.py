@@ -278,7 +278,7 @@ class BridgeFirmware:
         elif isinstance(message, Engage):
             if self._override:
                 self._refused += 1
-            else:
+            elif not self._engaged:  # while engaged: no-op, must not feed the watchdog
                 self._engaged = True
                 self._tripped = False
                 self._last_cmd_time = t

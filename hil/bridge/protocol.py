@@ -256,17 +256,17 @@ MESSAGE_TABLE: dict[int, Layout] = {
                (Field("rate", "h", RATE_SCALE, "rad/s", "scaled"),)),
         Layout(0x02, Engage, "host->bridge", ()),
         Layout(0x03, Disengage, "host->bridge", ()),
-        Layout(0x04, Ping, "host->bridge", (Field("token", "H", None, "1"),)),
+        Layout(0x04, Ping, "host->bridge", (Field("token", "H", None, "token"),)),
         Layout(0x81, WheelAngleReport, "bridge->host", (
             Field("adc_counts", "B", None, "counts"),
             Field("flags", "B", None, "bits", "flags"),
-            Field("command_seq", "B", None, "1"),
-            Field("duty", "h", DUTY_SCALE, "1", "scaled"),
+            Field("command_seq", "B", None, "sequence"),
+            Field("duty", "h", DUTY_SCALE, "fraction", "scaled"),
             Field("bad_frames", "H", None, "frames"),
             Field("dropped_frames", "H", None, "frames"),
             Field("bridge_time_ms", "H", None, "ms"),
         )),
-        Layout(0x84, Pong, "bridge->host", (Field("token", "H", None, "1"),)),
+        Layout(0x84, Pong, "bridge->host", (Field("token", "H", None, "token"),)),
     )
 }
 """Message id -> layout. The one place where wire integers and SI values meet."""

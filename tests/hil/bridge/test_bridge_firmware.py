@@ -219,3 +219,17 @@ def test_firmware_config_refuses_unknown_options_and_bad_values():
         FirmwareConfig.from_mapping({"line": {"bauds": 9600}})
     cfg = FirmwareConfig.from_mapping({"line": {"baud": 4800}, "max_rate": 0.5})
     assert cfg.line.byte_time == pytest.approx(10 / 4800) and cfg.max_rate == 0.5
+
+
+@pytest.mark.timeout(20)
+def test_repeated_engage_does_not_feed_the_watchdog(bench, plant):
+    # Found by the safety property test: engage frames alone must not keep an old duty alive.
+    bench.driver.engage()
+    bench.driver.send_rate(0.35)
+    t_cmd = bench.clock.now() + (7 + CMD) * BT
+    for _ in range(10):
+        bench.clock.sleep_until(bench.clock.now() + 0.05)
+        bench.driver.engage()
+    assert plant.duty == 0.0
+    assert plant.duty_log[-1][0] == pytest.approx(t_cmd + 0.25, abs=1e-9)
+    assert bench.firmware.state.watchdog_tripped

@@ -1,0 +1,111 @@
+"""The same host code over a pseudo-terminal in real time and over an in-memory link in lockstep.
+
+Plant: the first-order TEST DOUBLE (tests/hil/bridge/bridge_plant_double.py).
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from itertools import groupby
+
+import pytest
+from bridge_plant_double import FirstOrderPlantDouble
+
+from hil.bridge.bench import LockstepBridge, PtyBridge
+from hil.bridge.driver import BridgeReport
+from hil.bridge.protocol import Ping, SteerRateCommand, frame_length
+
+BT = 10 / 9600
+State = tuple[bool, bool, bool]
+
+
+def scenario(bench: LockstepBridge | PtyBridge) -> list[BridgeReport]:
+    """Engage, steer, fall silent (watchdog), re-engage, steer, disengage: 1.6 s of host code."""
+    clock, drv = bench.clock, bench.driver
+    reports: list[BridgeReport] = []
+    t = clock.now()
+
+    def cycle(until: float, rate: float | None) -> None:
+        nonlocal t
+        while t < until - 1e-9:
+            t += 0.05
+            clock.sleep_until(t)
+            reports.extend(drv.poll())
+            if rate is not None:
+                drv.send_rate(rate)
+
+    t0 = t
+    cycle(t0 + 0.15, None)
+    drv.engage()
+    cycle(t0 + 0.55, 0.2)
+    cycle(t0 + 1.0, None)  # silence: the watchdog trips 250 ms after the last command
+    drv.engage()
+    cycle(t0 + 1.35, -0.1)
+    drv.disengage()
+    cycle(t0 + 1.6, None)
+    return reports
+
+
+def states(reports: list[BridgeReport]) -> list[tuple[State, int]]:
+    """Distinct consecutive (engaged, watchdog, override) states and how many reports showed each."""
+    keyed = [(r.engaged, r.watchdog_tripped, r.manual_override) for r in reports]
+    return [(k, len(list(g))) for k, g in groupby(keyed)]
+
+
+EXPECTED = [(False, False, False), (True, False, False), (False, True, False), (True, False, False),
+            (False, False, False)]
+
+
+@pytest.mark.timeout(20)
+def test_pty_in_real_time_and_memory_in_lockstep_report_the_same_sequence_of_states():
+    plant_mem = FirstOrderPlantDouble()
+    mem = LockstepBridge(plant_mem)
+    plant_mem.now = mem.clock.now
+    mem_reports = scenario(mem)
+
+    plant_pty = FirstOrderPlantDouble()
+    with PtyBridge(plant_pty) as pty:
+        plant_pty.now = pty.clock.now
+        wall0 = time.monotonic()
+        pty_reports = scenario(pty)
+        wall = time.monotonic() - wall0
+    assert wall < 3.0
+
+    s_mem, s_pty = states(mem_reports), states(pty_reports)
+    assert [k for k, _ in s_mem] == EXPECTED
+    assert [k for k, _ in s_pty] == EXPECTED
+    # Tolerance: real-time jitter may move a state boundary by one report either way.
+    for (_, n_mem), (_, n_pty) in zip(s_mem, s_pty):
+        assert abs(n_mem - n_pty) <= 2, (s_mem, s_pty)
+    assert abs(len(mem_reports) - len(pty_reports)) <= 2
+    # The wheel moved the same way: left while engaged first, then right.
+    for reports in (mem_reports, pty_reports):
+        counts = [r.adc_counts for r in reports]
+        assert max(counts) > 128 + 10 and counts[-1] < max(counts)
+    for bench in (mem, pty):
+        s = bench.driver.stats()
+        assert s.bad_frames == 0 and s.report_gaps == 0 and s.timeouts == 0
+
+
+@pytest.mark.timeout(20)
+def test_on_a_pty_a_command_still_takes_its_transmission_time_and_pings_measure_the_line():
+    plant = FirstOrderPlantDouble()
+    with PtyBridge(plant) as bench:
+        plant.now = bench.clock.now
+        drv, clock = bench.driver, bench.clock
+        drv.engage()
+        clock.sleep_until(clock.now() + 0.1)
+        t_send = clock.now()
+        drv.send_rate(0.35)
+        clock.sleep_until(t_send + 0.1)
+        rtts = [drv.ping(timeout=0.2) for _ in range(15)]
+    t_effect = next(t for t, d in plant.duty_log if d != 0.0)
+    wire = frame_length(SteerRateCommand(0.0)) * BT
+    assert t_effect >= t_send + wire, "a pty ignores the baud rate; the emulator must not"
+    assert t_effect <= t_send + wire + 0.01
+    two_frames = 2 * frame_length(Ping(0)) * BT
+    assert min(rtts) >= two_frames
+    # a ping may queue behind a report (18 bytes) in either direction; beyond that, a few ms of scheduling
+    assert statistics.median(rtts) <= two_frames + 18 * BT + 0.005
+    assert bench.runner.late_max < 0.05

@@ -61,6 +61,7 @@ def test_yaw_enu_angle_conventions():
     assert (R @ [-0.0, -1, 0])[2] < 0  # positive roll = right side down
 
 
+@settings(deadline=None)
 @given(fl(0, 2 * math.pi - 1e-6), fl(-1.2, 1.2), fl(-3.0, 3.0))
 def test_euler_round_trip(yaw, pitch, roll):
     y, p, r = euler_from_rotation(rotation_enu_from_body(yaw, pitch, roll))
@@ -137,6 +138,7 @@ def test_lever_arm_vectorised_and_forward_offset():
 
 
 # ------------------------------------------------------------------ guidance
+@settings(deadline=None)
 @given(fl(-50, 50), fl(-500, 500), fl(0, 2 * math.pi), fl(-3, 3))
 def test_ab_line_sign_and_magnitude(offset, station, line_yaw, dpsi):
     a = np.array([3.0, -7.0])

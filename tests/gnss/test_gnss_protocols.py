@@ -49,6 +49,7 @@ lon = fl(-math.pi, math.pi)
 yaw = fl(0.0, TWO_PI - 1e-9)
 
 
+@settings(deadline=None)
 @given(talkers, opt(tod), opt(st.tuples(lat, lon)), st.integers(0, 8), opt(st.integers(0, 99)),
        opt(fl(0, 99)), opt(fl(-400, 9000)), opt(fl(-120, 120)), opt(fl(0, 999)), opt(st.integers(0, 4095)))
 def test_gga_round_trip(talker, t, ll, q, nsv, hdop, alt, sep, age, sid):
@@ -66,6 +67,7 @@ def test_gga_round_trip(talker, t, ll, q, nsv, hdop, alt, sep, age, sid):
     assert ref.quality == q
 
 
+@settings(deadline=None)
 @given(talkers, opt(yaw), opt(yaw), opt(fl(0, 100)), opt(st.sampled_from("ADEFRN")))
 def test_vtg_round_trip(talker, c, cm, v, mode):
     back = parse_nmea(encode_nmea(Vtg(talker, c, cm, v, mode)))
@@ -77,6 +79,7 @@ def test_vtg_round_trip(talker, c, cm, v, mode):
 dates = st.dates(dt.date(1980, 1, 1), dt.date(2079, 12, 31))
 
 
+@settings(deadline=None)
 @given(talkers, opt(tod), st.booleans(), opt(st.tuples(lat, lon)), opt(fl(0, 100)), opt(yaw), opt(dates),
        opt(fl(-0.5, 0.5)), st.sampled_from([(None, None), ("D", None), ("F", "V"), ("A", "S")]))
 def test_rmc_round_trip(talker, t, valid, ll, v, c, d, mv, modes):
@@ -88,6 +91,7 @@ def test_rmc_round_trip(talker, t, valid, ll, v, c, d, mv, modes):
     assert close(back.mag_var, mv, math.radians(5e-5) + 1e-12)
 
 
+@settings(deadline=None)
 @given(talkers, opt(tod), st.lists(opt(fl(0, 999)), min_size=6, max_size=6), opt(fl(0, math.pi)))
 def test_gst_round_trip(talker, t, vals, orient):
     m = Gst(talker, t, vals[0], vals[1], vals[2], orient, vals[3], vals[4], vals[5])
@@ -97,6 +101,7 @@ def test_gst_round_trip(talker, t, vals, orient):
     assert close(back.orient, orient, math.radians(0.05) + 1e-12)
 
 
+@settings(deadline=None)
 @given(talkers, opt(yaw), st.sampled_from("AEMSV"))
 def test_hdt_ths_round_trip(talker, h, mode):
     back = parse_nmea(encode_nmea(Hdt(talker, h)))
@@ -105,6 +110,7 @@ def test_hdt_ths_round_trip(talker, h, mode):
     assert isinstance(back, Ths) and back.mode == mode and close_angle(back.heading, h, math.radians(0.005) + 1e-12)
 
 
+@settings(deadline=None)
 @given(opt(tod), opt(yaw), opt(fl(-1.5, 1.5)), opt(fl(-1.5, 1.5)), opt(fl(0, 100)), st.integers(0, 4),
        opt(fl(0, 99)), opt(st.integers(0, 99)))
 def test_avr_round_trip(t, y, tilt, roll, rng, q, pdop, nsv):
@@ -116,6 +122,7 @@ def test_avr_round_trip(t, y, tilt, roll, rng, q, pdop, nsv):
     assert close(back.pdop, pdop, 0.05 + 1e-9)
 
 
+@settings(deadline=None)
 @given(opt(tod), opt(yaw), opt(fl(-1.5, 1.5)), opt(fl(-1.5, 1.5)), st.sampled_from("NG"))
 def test_hpr_round_trip(t, h, p, r, src):
     back = parse_nmea(encode_hpr(Hpr(t, h, p, r, src)))
@@ -198,6 +205,7 @@ ubx_pvt = st.builds(
 )
 
 
+@settings(deadline=None)
 @given(ubx_pvt)
 def test_nav_pvt_round_trip(m):
     raw = encode_nav_pvt(m)
@@ -229,6 +237,7 @@ ubx_rel = st.builds(
 )
 
 
+@settings(deadline=None)
 @given(ubx_rel)
 def test_nav_relposned_round_trip(m):
     raw = encode_nav_relposned(m)
@@ -254,6 +263,7 @@ def test_ubx_checksum_and_length_refused():
 
 
 # ---------------------------------------------------------------------------- RTCM
+@settings(deadline=None)
 @given(st.integers(1, 4095), st.binary(min_size=0, max_size=300))
 def test_rtcm_frame_round_trip(msg_type, rest):
     payload = bytes([msg_type >> 4, (msg_type & 0xF) << 4]) + rest

@@ -84,15 +84,6 @@ class LockstepScheduler:
         """Append a device (stepped after the ones already registered)."""
         self.devices.append(device)
 
-    def _step_due(self, now: float) -> bool:
-        stepped = False
-        for device in self.devices:
-            if device.next_wakeup() <= now:
-                device.step(now)
-                self.device_steps += 1
-                stepped = True
-        return stepped
-
     def run_until(self, t_end: float) -> None:
         """Advance virtual time to ``t_end``, s, stepping plant and devices on the way.
 
@@ -113,19 +104,26 @@ class LockstepScheduler:
             now = clock.now()
             same = 0
             # Each pass either advances time by > 0 or counts towards the stall limit.
+            devices = self.devices
             while True:
-                if self._step_due(now):
+                wakes = [d.next_wakeup() for d in devices]
+                stepped = False
+                for device, wake in zip(devices, wakes):
+                    if wake <= now:
+                        device.step(now)
+                        self.device_steps += 1
+                        stepped = True
+                if stepped:
                     same += 1
                     if same > self.max_same_instant:
                         raise SchedulerStallError(
                             f"devices were stepped {same} times at t={now!r} s without time advancing; "
                             "a device's next_wakeup() keeps returning a time <= now")
-                    continue
+                    continue  # stepping one device may have given another work at this instant
                 same = 0
                 if now >= t_end:
                     return
-                wake = min((d.next_wakeup() for d in self.devices), default=math.inf)
-                t_next = min(wake, t_end, now + self.max_step)
+                t_next = min(min(wakes, default=math.inf), t_end, now + self.max_step)
                 if self.plant is not None:
                     self.plant.advance(t_next - now)
                     self.plant_steps += 1

@@ -121,3 +121,19 @@ def test_fuzz_random_bytes_never_raise_and_never_yield_a_frame_with_a_bad_crc(da
     c = dec.counters
     assert c.bytes_fed == len(data)
     assert dec.pending <= 5 + 32 + 2
+
+
+@settings(max_examples=300)
+@given(data=st.one_of(st.binary(max_size=60),
+                      st.builds(lambda f, i, x: f[:i] + bytes([f[i] ^ x]) + f[i + 1:] if i < len(f) else f,
+                                st.sampled_from(FRAMES), st.integers(0, 17), st.integers(1, 255))))
+def test_fuzz_strict_decoder_raises_only_package_errors(data):
+    from hil.bridge.protocol import decode_frame
+
+    try:
+        frame = decode_frame(data)
+    except BridgeError as err:
+        assert isinstance(err, ValueError)
+    else:
+        assert data in FRAMES, "only an intact frame is accepted"
+        assert encode_frame(frame.message, frame.seq) == data

@@ -86,3 +86,20 @@ def test_valve_never_open_while_disengaged_tripped_or_overridden(actions):
             assert not r.engaged
     s = bench.firmware.state
     assert s.bad_frames <= sum(1 for k, _ in actions if k == "garbage")
+
+
+@pytest.mark.timeout(60)
+@settings(max_examples=50, deadline=None)
+@given(noise=st.lists(st.binary(min_size=1, max_size=64), min_size=1, max_size=20))
+def test_random_bytes_from_the_host_never_crash_the_firmware_nor_open_the_valve(noise):
+    plant = CheckedPlant()
+    bench = LockstepBridge(plant)
+    plant.now = bench.clock.now
+    plant.firmware = bench.firmware
+    for chunk in noise:
+        bench.host_link.write(chunk)
+        bench.clock.sleep_until(bench.clock.now() + 0.03)
+    bench.clock.sleep_until(bench.clock.now() + 0.1)
+    assert plant.open_steps == 0 and all(d == 0.0 for _, d in plant.duty_log)
+    reports = bench.driver.poll()
+    assert reports and reports[-1].report.bad_frames == bench.firmware.state.bad_frames

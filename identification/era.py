@@ -17,11 +17,10 @@ array of shape (L + 1, q, m)) and return a balanced discrete-time realisation.
   Gramians of the same Hankel horizon, so both methods return the same
   coordinates for noise-free data.
 
-Order selection (:func:`select_order`, documented rule): among orders
-1..``max_order`` take the one after which the Hankel singular values drop the
-most on a log scale, ``n = argmax_k log10(σ_k / σ_{k+1})``; singular values
-below ``1e-12 σ_1`` count as zero, so exact low-order data give their exact
-order. A manual order overrides the rule.
+Order selection (:func:`select_order`, documented rule): with the log-gaps
+``g_k = log10(σ_k / σ_{k+1})``, k = 1..``max_order`` (σ floored at
+``1e-10 σ_1``), take the largest k whose gap is at least half the largest
+gap. A manual order overrides the rule.
 """
 
 from __future__ import annotations
@@ -75,18 +74,25 @@ def hankel(markov: np.ndarray, rows: int, cols: int, shift: int = 0) -> np.ndarr
     return h
 
 
-def select_order(singular_values: np.ndarray, max_order: int) -> int:
-    """Order after the largest log-gap of the Hankel singular values (see module docstring)."""
+def select_order(singular_values: np.ndarray, max_order: int, gap_fraction: float = 0.5) -> int:
+    """Automatic order from the Hankel singular values (see module docstring).
+
+    ``g_k = log10(σ_k / σ_{k+1})`` for k = 1..``max_order`` with every σ
+    floored at ``1e-10 σ_1``; the order is the largest k whose gap is at least
+    ``gap_fraction`` of the largest gap, so a strong first mode pair does not
+    hide a clear drop further on, and exact data give their exact order.
+    """
     s = np.asarray(singular_values, dtype=float)
     if s.size < 2:
         return max(int(s.size), 1)
-    kmax = int(min(max_order, s.size - 1))
-    if kmax < 1:
+    if max_order < 1:
         raise OptionError(f"max_order must be >= 1, got {max_order}")
-    floor = max(s[0] * 1e-12, np.finfo(float).tiny)
-    sc = np.maximum(s, floor)
+    kmax = int(min(max_order, s.size - 1))
+    sc = np.maximum(s, max(s[0] * 1e-10, np.finfo(float).tiny))
     gaps = np.log10(sc[:kmax] / sc[1:kmax + 1])
-    return int(np.argmax(gaps)) + 1
+    if gaps.max() <= 0:
+        return 1
+    return int(np.flatnonzero(gaps >= gap_fraction * gaps.max())[-1]) + 1
 
 
 def era(markov: np.ndarray, order: int | str = "auto", rows: int | None = None,

@@ -67,9 +67,14 @@ def kalman_gain(a: np.ndarray, c: np.ndarray, innovation_cov: np.ndarray,
     """
     n, q = a.shape[0], c.shape[0]
     r = 0.5 * (innovation_cov + innovation_cov.T)
-    evals = np.linalg.eigvalsh(r)
-    if evals.min() <= 0:
-        r = r + (max(evals.max(), 1e-300) * 1e-9) * np.eye(q)
+    # K is invariant to a common scale of (Q, R, S): work with the largest eigenvalue of R = 1,
+    # and clip R to positive definite (round-off makes noise-free residuals indefinite)
+    w, v = np.linalg.eigh(r)
+    if not np.all(np.isfinite(w)) or w.max() <= 1e-300:
+        r = np.eye(q)
+    else:
+        w = np.clip(w / w.max(), 1e-6, None)
+        r = (v * w) @ v.T
     k0 = np.zeros((n, q)) if initial_gain is None else np.asarray(initial_gain, dtype=float)
     qk = k0 @ r @ k0.T
     cp = np.linalg.pinv(c)

@@ -161,6 +161,16 @@ class Model:
         """Read a model file with ``allow_pickle=False``; refuse anything malformed."""
         path = Path(path)
         try:
+            with open(path, "rb") as fh:
+                magic = fh.read(4)
+        except FileNotFoundError:
+            raise ModelFileError(f"{path}: no such model file") from None
+        except OSError as exc:
+            raise ModelFileError(f"{path}: cannot read ({exc})") from None
+        if magic[:2] != b"PK":
+            raise ModelFileError(f"{path}: not a readable .npz model file (expected a zip archive, "
+                                 f"got leading bytes {magic!r})")
+        try:
             with np.load(path, allow_pickle=False) as npz:
                 missing = [k for k in (*ARRAYS, "dt", "meta") if k not in npz.files]
                 if missing:

@@ -48,7 +48,7 @@ class OKID:
     feedthrough
         Estimate ``D`` (False: ``D = 0``, as for a tractor's steering-rate input).
     hankel_rows, hankel_cols
-        Block rows/columns of the Hankel matrix (default ``max(p, ceil(2 max_order / q), 10)``
+        Block rows/columns of the Hankel matrix (default ``max(p, ceil(2 max_order / q), 40)``
         and the same with ``m``).
     dc_blocks, dc_lag
         ERA/DC correlation blocks and their spacing.
@@ -142,13 +142,16 @@ class OKID:
             raise OptionError(f"fit expects an IOData, got {type(data).__name__}; build one with "
                               "IOData.from_arrays(u, y, dt) or identification.preprocess")
         m, q = data.n_inputs, data.n_outputs
+        su, sy = _channel_scales(data)
+        raw = data
+        data = IOData(tuple((u / su, y / sy) for u, y in raw.experiments), raw.dt)
         shortest = min(u.shape[0] for u, _ in data.experiments)
         if self.markov == "auto":
             p_max = max(1, min(self.max_markov, shortest - 1))
             ne = _mk.accumulate(data, p_max, self.feedthrough, self.block_rows)
             p, self.lag_criterion_ = _mk.select_lags(ne, self.ridge)
-            p = max(p, int(np.ceil(self.max_order / q)) if self.order == "auto" else
-                    int(np.ceil(self.order / q)))
+            # the observer order p·q must exceed the largest order considered
+            p = max(p, int(np.ceil(((self.max_order if self.order == "auto" else self.order) + 1) / q)))
             p = min(p, p_max)
         else:
             p = int(self.markov)
@@ -156,8 +159,8 @@ class OKID:
             self.lag_criterion_ = None
         theta, sigma = _mk.solve(ne, p, self.ridge)
         d, yb1, yb2 = _mk.split_theta(theta, m, q, self.feedthrough)
-        base_r = max(p, int(np.ceil(2 * self.max_order / q)), 10)
-        base_c = max(p, int(np.ceil(2 * self.max_order / m)), 10)
+        base_r = max(p, int(np.ceil(2 * self.max_order / q)), 40)
+        base_c = max(p, int(np.ceil(2 * self.max_order / m)), 40)
         rows = self.hankel_rows or base_r
         cols = self.hankel_cols or base_c
         extra = 2 * (self.dc_blocks - 1) * self.dc_lag if self.method == "era-dc" else 0
@@ -171,14 +174,28 @@ class OKID:
         b_mat, d_mat = real.B, real.D
         if self.refine == "bd":
             b_mat, d_mat, _ = refine_bd(real.A, real.C, data, self.feedthrough)
+        # modal indicators on the scaled realisation (channels weigh alike)
+        lam, msv = _era.modal_singular_values(real.A, real.B, real.C, rows + cols)
+        emac_lam, emac_v = _era.emac(real)
+        # back to physical units: u = su * u_s, y = sy * y_s
+        ymk = ymk * sy[None, :, None] / su[None, None, :]
+        ygain = ygain * sy[None, :, None] / sy[None, None, :]
+        sigma = sigma * np.outer(sy, sy)
+        g = g / sy[None, :]
+        k = k / sy[None, :]
+        b_mat = b_mat / su[None, :]
+        d_mat = d_mat * sy[:, None] / su[None, :]
+        c_mat = real.C * sy[:, None]
+        real = _era.Realization(real.A, real.B / su[None, :], c_mat, real.D * sy[:, None] / su[None, :],
+                                real.hankel_singular_values, real.observability, real.controllability,
+                                real.method)
+        data = raw
         resid = []
         for u, y in data.experiments:
-            yo = predict_one_step(real.A, b_mat, real.C, d_mat, k, u, y)
+            yo = predict_one_step(real.A, b_mat, c_mat, d_mat, k, u, y)
             resid.append((y - yo)[min(p, y.shape[0] - 2):])
         e = np.vstack(resid)
         r_innov = np.atleast_2d(np.cov(e.T))
-        lam, msv = _era.modal_singular_values(real.A, real.B, real.C, rows + cols)
-        emac_lam, emac_v = _era.emac(real)
         self.n_lags_ = p
         self.observer_markov_parameters_ = theta
         self.markov_parameters_ = ymk
@@ -204,7 +221,7 @@ class OKID:
             "refine": self.refine,
             "n_samples": data.n_samples, "n_experiments": data.n_experiments,
         }
-        self.model_ = Model(real.A, b_mat, real.C, d_mat, k, data.dt, {**info, **dict(meta or {})})
+        self.model_ = Model(real.A, b_mat, c_mat, d_mat, k, data.dt, {**info, **dict(meta or {})})
         return self
 
     def _require_fit(self) -> None:
@@ -225,3 +242,18 @@ class OKID:
         mdl = self.model_
         data.check_channels(mdl.n_inputs, mdl.n_outputs)
         return [predict_one_step(mdl.A, mdl.B, mdl.C, mdl.D, mdl.K, u, y) for u, y in data.experiments]
+
+
+def _channel_scales(data: IOData) -> tuple[np.ndarray, np.ndarray]:
+    """RMS of every input and output over all experiments (1 where a channel is all zero).
+
+    Identification runs on channels divided by these, so that outputs in
+    different units (s, rad·s/m, rad) weigh alike in the least squares and the
+    Hankel matrix; the model is scaled back afterwards.
+    """
+    n = data.n_samples
+    su = np.sqrt(sum((u ** 2).sum(axis=0) for u, _ in data.experiments) / n)
+    sy = np.sqrt(sum((y ** 2).sum(axis=0) for _, y in data.experiments) / n)
+    su[su == 0] = 1.0
+    sy[sy == 0] = 1.0
+    return su, sy

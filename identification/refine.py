@@ -87,3 +87,4 @@ def refine_bd(a: np.ndarray, c: np.ndarray, data: IOData, feedthrough: bool = Tr
     dmat = theta[nb:nb + nd].reshape(m, q).T if feedthrough else np.zeros((q, m))
     x0 = [theta[nb + nd + e * n: nb + nd + (e + 1) * n] for e in range(data.n_experiments)]
     return bmat, dmat, x0
+

@@ -6,8 +6,9 @@ Fit of an output (the "NRMSE fit" of MATLAB's ``compare``):
 
 computed over all samples of all experiments. Free-run fits simulate each
 experiment from a least-squares initial state (:func:`estimate_x0`), as
-``compare`` does; one-step fits use the Kalman predictor from a zero state and
-skip the first ``warmup`` samples of each experiment. Bias and standard
+``compare`` does; one-step fits use the Kalman predictor from a least-squares
+initial predictor state and may skip the first ``warmup`` samples of each
+experiment. Bias and standard
 deviation are those of ``y - ŷ`` per output (the paper's Table 1).
 """
 
@@ -83,7 +84,7 @@ def validate(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, k: np.n
     for u, y in data.experiments:
         x0 = estimate_x0(a, b, c, d, u, y, x0_horizon)
         yf = simulate(a, b, c, d, u, x0)
-        yo = predict_one_step(a, b, c, d, k, u, y)
+        yo = predict_one_step(a, b, c, d, k, u, y, x0="fit")
         preds.append((y, yf, yo))
         w = min(warmup, max(y.shape[0] - 2, 0))
         ys.append(y)

@@ -1,0 +1,120 @@
+"""Tractor models from pass logs: local, velocity-invariant and central (the paper's three kinds).
+
+* ``local_<implement>_<gear>``: the passes of one (speed, implement) condition;
+* ``vi_<implement>``: all speeds of one implement (velocity-normalised outputs);
+* ``central``: every pass.
+
+Validation uses held-out passes: of every condition with two or more passes the
+last one (in the order given) is held out; a condition with a single pass is
+split in time, the first two thirds to fit and the rest to validate. The
+metrics of the held-out data are stored in each model's ``meta["fit"]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+from .data import IOData
+from .okid import OKID
+from .passlog import PassLog
+from .preprocess import Preprocessing, condition_of, passes_to_iodata
+from .validation import ValidationResult, validate
+
+
+@dataclass(frozen=True)
+class TractorResult:
+    """One identified tractor model with its validation."""
+
+    name: str
+    kind: str
+    model: Any
+    validation: ValidationResult
+    validation_data: IOData
+
+
+def _key(log: PassLog) -> tuple[str, str]:
+    c = condition_of(log)
+    return c["implement"], c["gear"] or f"{c['nominal_speed']:.2f}mps"
+
+
+def _split(logs: Sequence[PassLog], pre: Preprocessing) -> tuple[IOData, IOData]:
+    by_cond: dict[tuple[str, str], list[PassLog]] = {}
+    for log in logs:
+        by_cond.setdefault(_key(log), []).append(log)
+    fit_logs, val_logs, split_logs = [], [], []
+    for group in by_cond.values():
+        if len(group) >= 2:
+            fit_logs.extend(group[:-1])
+            val_logs.append(group[-1])
+        else:
+            split_logs.extend(group)
+    parts_fit, parts_val = [], []
+    if fit_logs:
+        parts_fit.append(passes_to_iodata(fit_logs, pre))
+        parts_val.append(passes_to_iodata(val_logs, pre))
+    if split_logs:
+        a, b = passes_to_iodata(split_logs, pre).split(2.0 / 3.0)
+        parts_fit.append(a)
+        parts_val.append(b)
+    fit = parts_fit[0].merge(*parts_fit[1:]) if len(parts_fit) > 1 else parts_fit[0]
+    val = parts_val[0].merge(*parts_val[1:]) if len(parts_val) > 1 else parts_val[0]
+    all_data = passes_to_iodata(list(logs), pre)
+    fit = IOData(fit.experiments, fit.dt, fit.input_names, fit.output_names, fit.input_units,
+                 fit.output_units, dict(all_data.meta))
+    return fit, val
+
+
+def identify_group(name: str, kind: str, logs: Sequence[PassLog], pre: Preprocessing,
+                   okid_options: dict[str, Any]) -> TractorResult:
+    """Identify and validate one model from a group of passes."""
+    fit, val = _split(logs, pre)
+    est = OKID(feedthrough=False, **okid_options).fit(fit)
+    mdl = est.model_
+    res = validate(mdl.A, mdl.B, mdl.C, mdl.D, mdl.K, val, warmup=est.n_lags_)
+    meta = {**fit.meta, "kind": kind, "name": name, "fit": {**res.as_dict(),
+            "validation": "held-out passes (last of each condition) or last third of single passes"}}
+    mdl = mdl.with_meta(**meta)
+    return TractorResult(name, kind, mdl, res, val)
+
+
+def identify_tractor(logs: Sequence[PassLog], pre: Preprocessing = Preprocessing(),
+                     okid_options: dict[str, Any] | None = None, kinds: Sequence[str] = (
+                         "local", "velocity-invariant", "central")) -> list[TractorResult]:
+    """Local, velocity-invariant and central models from pass logs.
+
+    Parameters
+    ----------
+    logs
+        Pass logs (any mix of implements and speeds).
+    pre
+        Pre-processing settings (sample time, normalisation...).
+    okid_options
+        Options of :class:`~identification.okid.OKID` (``order``, ``markov``...); ``feedthrough`` is False.
+    kinds
+        Which kinds of model to build.
+    """
+    opts = dict(okid_options or {})
+    out: list[TractorResult] = []
+    if "local" in kinds:
+        groups: dict[tuple[str, str], list[PassLog]] = {}
+        for log in logs:
+            groups.setdefault(_key(log), []).append(log)
+        for (imp, gear), group in sorted(groups.items()):
+            out.append(identify_group(f"local_{imp}_{gear}", "local", group, pre, opts))
+    if "velocity-invariant" in kinds:
+        imps: dict[str, list[PassLog]] = {}
+        for log in logs:
+            imps.setdefault(_key(log)[0], []).append(log)
+        for imp, group in sorted(imps.items()):
+            out.append(identify_group(f"vi_{imp}", "velocity-invariant", group, pre, opts))
+    if "central" in kinds:
+        out.append(identify_group("central", "central", list(logs), pre, opts))
+    return out
+
+
+def save_results(results: Sequence[TractorResult], out_dir: str | Path) -> list[Path]:
+    """Write ``<out_dir>/<name>.npz`` for every result."""
+    out_dir = Path(out_dir)
+    return [r.model.save(out_dir / f"{r.name}.npz") for r in results]

@@ -17,16 +17,15 @@ def test_lockstep_bridge_runs_at_least_100_times_faster_than_real_time():
     drv, clock = bench.driver, bench.clock
     drv.engage()
     virtual = 60.0
-    t = 0.0
     wall0 = time.perf_counter()
-    while t < virtual:
-        t += 0.05
+    for k in range(1, 1201):
+        t = 0.05 * k
         clock.sleep_until(t)
         drv.poll()
         drv.send_rate(0.1 if int(t) % 2 else -0.1)
     speed = virtual / (time.perf_counter() - wall0)
     s = drv.stats()
     assert s.reports_received >= 1195 and s.frames_sent == 1201 and s.bad_frames == 0
-    assert bench.firmware.state.commands_applied == 1200 and not bench.firmware.state.watchdog_tripped
+    assert bench.firmware.state.commands_applied == 1199 and not bench.firmware.state.watchdog_tripped
     # ~850x on an idle developer machine; the bound leaves room for a loaded CI runner
     assert speed > 100, f"lockstep ran only {speed:.0f}x real time"

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
-from typing import Any, Mapping
+from typing import Any
 
 from hil.bridge.errors import ConfigError
 from hil.bridge.protocol import MAX_PAYLOAD, RATE_SCALE
@@ -19,7 +20,7 @@ def _positive(name: str, value: object, unit: str = "s") -> None:
         raise ConfigError(f"{name} must be a positive finite number ({unit}), got {value!r}")
 
 
-def _build(cls: type, options: Mapping[str, Any], nested: Mapping[str, type] | None = None) -> Any:
+def _build(cls: type, options: Mapping[str, Any], nested: Mapping[str, Any] | None = None) -> Any:
     known = {f.name for f in fields(cls)}
     unknown = sorted(set(options) - known)
     if unknown:

@@ -70,8 +70,8 @@ def _layout_tables() -> list[str]:
                 wire = "bit field"
             else:
                 wire = f.unit
-            out.append(f"| {offset} | {_TYPES[f.code]} | `{f.name}` | {wire} | "
-                       f"{'float, ' + f.unit if f.kind == 'scaled' else ('StatusFlags' if f.kind == 'flags' else 'int')} |")
+            in_code = {"scaled": f"float, {f.unit}", "flags": "StatusFlags"}.get(f.kind, "int")
+            out.append(f"| {offset} | {_TYPES[f.code]} | `{f.name}` | {wire} | {in_code} |")
             offset += _SIZES[f.code]
         out.append("")
     return out

@@ -23,8 +23,8 @@ import binascii
 import enum
 import math
 import struct
-from dataclasses import dataclass, fields as dc_fields
-from typing import Union
+from dataclasses import dataclass
+from dataclasses import fields as dc_fields
 
 from hil.bridge.errors import CrcError, EncodeError, FieldError, FrameError, LengthError, UnknownMessageError
 
@@ -170,7 +170,7 @@ class Pong:
     token: int
 
 
-Message = Union[SteerRateCommand, Engage, Disengage, Ping, WheelAngleReport, Pong]
+Message = SteerRateCommand | Engage | Disengage | Ping | WheelAngleReport | Pong
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
-from typing import Any, Mapping
+from typing import Any
 
 from hil.links.errors import LinkConfigError
 from hil.links.link import ByteLink

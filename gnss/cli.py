@@ -58,6 +58,8 @@ def _print_summary(s: CaptureSummary, path: Path) -> None:
     if s.duration is not None:
         print(f"  time span: {s.t_first:.2f} .. {s.t_last:.2f} s ({s.duration:.2f} s), "
               f"median interval {s.median_interval_s:.3f} s, max gap {s.max_gap_s:.3f} s")
+        for g in s.gaps:
+            print(f"  gap: {g['duration_s']:.2f} s after {g['start_s']:.2f} s")
     for label, fix in (("first fix", s.first_fix), ("last fix", s.last_fix)):
         if fix:
             print(f"  {label}: {fix['lat_deg']:.9f} {fix['lon_deg']:.9f} {fix['height_m']:.3f} m")

@@ -342,30 +342,40 @@ class GnssFrontEnd:
         return self.solution(self.clock() if t is None else t)
 
 
-def stamp_from_tags(received: Iterable[Received], latency: float = 0.05) -> list[Received]:
+def _tag(m: object, use_tod: bool) -> float | None:
+    if use_tod:
+        t = None if isinstance(m, NavPvt | NavRelPosNed) else getattr(m, "time", None)
+        return t if isinstance(t, float) else None
+    return m.itow if isinstance(m, NavPvt | NavRelPosNed) else None
+
+
+def stamp_from_tags(received: Sequence[Received], latency: float = 0.05) -> list[Received]:
     """Give a capture without host time stamps synthetic arrival times from its own time tags.
 
-    Arrival = message time tag (NMEA time of day, unwrapped across midnight; or, without NMEA
-    tags, UBX iTOW) + ``latency`` s; untagged messages inherit the previous tagged arrival.
+    Arrival = message time tag + ``latency`` s, where the tag is the NMEA UTC time of day
+    (unwrapped across midnight) or, for captures without time-tagged NMEA, the UBX iTOW (unwrapped
+    across the week).  Untagged messages inherit the previous tag (the first tag before it).
     Lets :func:`replay_solutions` replay a file as if it arrived live.
     """
+    use_tod = any(_tag(r.message, True) is not None for r in received)
+    period = _DAY if use_tod else _WEEK
+    tags: list[float | None] = []
+    wrap, prev = 0.0, None
+    for r in received:
+        t = _tag(r.message, use_tod)
+        if t is not None:
+            if prev is not None and t < prev - period / 2:
+                wrap += period
+            prev = t
+            t += wrap
+        tags.append(t)
+    first = next((t for t in tags if t is not None), 0.0)
     out: list[Received] = []
-    t_last = 0.0
-    day = 0.0
-    prev_tod: float | None = None
-    base_tow: float | None = None
-    for rec in received:
-        m = rec.message
-        tod = getattr(m, "time", None) if not isinstance(m, NavPvt | NavRelPosNed) else None
-        if isinstance(tod, float):
-            if prev_tod is not None and tod < prev_tod - _DAY / 2:
-                day += _DAY
-            prev_tod = tod
-            t_last = tod + day + latency
-        elif isinstance(m, NavPvt | NavRelPosNed) and prev_tod is None:
-            base_tow = m.itow if base_tow is None else base_tow
-            t_last = (m.itow - base_tow) % _WEEK + latency
-        out.append(Received(rec.message, t_last, rec.raw))
+    t_last = first
+    for r, t in zip(received, tags):
+        if t is not None:
+            t_last = max(t, t_last)
+        out.append(Received(r.message, t_last + latency, r.raw))
     return out
 
 

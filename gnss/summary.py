@@ -31,21 +31,52 @@ class Fix:
     quality: str
 
 
+def _indexed_fixes(messages: list[Message]) -> list[tuple[int, Fix]]:
+    has_gga = any(isinstance(m, Gga) and m.lat is not None and m.time is not None for m in messages)
+    out: list[tuple[int, Fix]] = []
+    day, prev = 0.0, None
+    for i, m in enumerate(messages):
+        if has_gga and isinstance(m, Gga) and m.lat is not None and m.lon is not None and m.time is not None:
+            if prev is not None and m.time < prev - _DAY / 2:
+                day += _DAY
+            prev = m.time
+            out.append((i, Fix(m.time + day, m.lat, m.lon, m.height or 0.0, f"gga{m.quality}")))
+        elif not has_gga and isinstance(m, NavPvt) and m.gnss_fix_ok:
+            out.append((i, Fix(m.itow, m.lat, m.lon, m.height, f"pvt-fix{m.fix_type}-carr{m.carr_soln}")))
+    return out
+
+
 def fixes_of(messages: list[Message]) -> list[Fix]:
     """Position fixes (GGA, or NAV-PVT when the capture has no GGA) in stream order."""
-    ggas = [m for m in messages if isinstance(m, Gga) and m.lat is not None and m.lon is not None and m.time is not None]
-    out: list[Fix] = []
-    if ggas:
-        day, prev = 0.0, None
-        for g in ggas:
-            if prev is not None and g.time < prev - _DAY / 2:  # type: ignore[operator]
-                day += _DAY
-            prev = g.time
-            out.append(Fix(g.time + day, g.lat, g.lon, g.height or 0.0, f"gga{g.quality}"))  # type: ignore[arg-type, operator]
-        return out
-    for p in messages:
-        if isinstance(p, NavPvt) and p.gnss_fix_ok:
-            out.append(Fix(p.itow, p.lat, p.lon, p.height, f"pvt-fix{p.fix_type}-carr{p.carr_soln}"))
+    return [f for _, f in _indexed_fixes(messages)]
+
+
+def _rates(messages: list[Message], indexed: list[tuple[int, Fix]]) -> dict[str, float]:
+    """Messages per second of each key: count / (distinct epochs x median epoch interval) of that key.
+
+    Each message belongs to the epoch of the latest fix before it; robust to gaps in the capture.
+    """
+    if len(indexed) < 2:
+        return {}
+    epochs: dict[str, list[float]] = {}
+    counts: Counter = Counter()
+    k, t_epoch = 0, None
+    for i, m in enumerate(messages):
+        while k < len(indexed) and indexed[k][0] <= i:
+            t_epoch = indexed[k][1].time
+            k += 1
+        if t_epoch is None:
+            continue
+        key = message_key(m)
+        counts[key] += 1
+        if not epochs.setdefault(key, []) or epochs[key][-1] != t_epoch:
+            epochs[key].append(t_epoch)
+    out = {}
+    for key, times in sorted(epochs.items()):
+        dt = np.diff(times)
+        dt = dt[dt > 0]
+        if dt.size:
+            out[key] = counts[key] / len(times) / float(np.median(dt))
     return out
 
 
@@ -72,7 +103,8 @@ class CaptureSummary:
     messages : dict
         Count per message key (``"GNGGA"``, ``"NAV-PVT"``, ``"RTCM1077"`` ...).
     rates_hz : dict
-        Count / time span per key, Hz (empty without a time span).
+        Messages per second of each key, measured over the epochs in which the key appears
+        (so gaps in the capture do not dilute it), Hz.
     errors : dict
         Refused frames per error type.
     garbage_bytes : int
@@ -89,6 +121,8 @@ class CaptureSummary:
         ``min``, ``max``, ``mean`` of reported headings, deg.
     max_gap_s : float or None
         Largest interval between consecutive fixes, s.
+    gaps : list of dict
+        ``start_s`` (tag time) and ``duration_s`` of every interval longer than twice the median.
     median_interval_s : float or None
         Median interval between consecutive fixes, s.
     """
@@ -107,6 +141,7 @@ class CaptureSummary:
     heading_deg: dict[str, float] | None
     max_gap_s: float | None
     median_interval_s: float | None
+    gaps: list[dict[str, float]]
 
     def to_dict(self) -> dict[str, object]:
         """Plain JSON-serialisable dictionary."""
@@ -143,7 +178,8 @@ def summarize_capture(data: bytes) -> tuple[CaptureSummary, list[Message], Reade
             f"({stats.n_errors} refused frames, {stats.garbage_bytes} garbage bytes); is this a receiver capture?"
         )
     counts = Counter(message_key(m) for m in messages)
-    fixes = fixes_of(messages)
+    indexed = _indexed_fixes(messages)
+    fixes = [f for _, f in indexed]
     t = np.array([f.time for f in fixes])
     span = float(t[-1] - t[0]) if len(t) > 1 else None
     enu = None
@@ -156,7 +192,7 @@ def summarize_capture(data: bytes) -> tuple[CaptureSummary, list[Message], Reade
     dt = np.diff(t)
     summary = CaptureSummary(
         messages=dict(sorted(counts.items())),
-        rates_hz={k: v / span for k, v in sorted(counts.items())} if span else {},
+        rates_hz=_rates(messages, indexed),
         errors=dict(stats.errors),
         garbage_bytes=stats.garbage_bytes,
         fix_quality=dict(sorted(Counter(f.quality for f in fixes).items())),
@@ -169,6 +205,9 @@ def summarize_capture(data: bytes) -> tuple[CaptureSummary, list[Message], Reade
         heading_deg={"min": min(heads), "max": max(heads), "mean": float(np.mean(heads))} if heads else None,
         max_gap_s=float(dt.max()) if dt.size else None,
         median_interval_s=float(np.median(dt)) if dt.size else None,
+        gaps=[{"start_s": float(t[i]), "duration_s": float(dt[i])} for i in np.flatnonzero(dt > 2 * np.median(dt))]
+        if dt.size
+        else [],
     )
     return summary, messages, stats
 

@@ -5,8 +5,12 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 from hil.bridge.docgen import BEGIN, EXAMPLES, main, render, replace_block
 from hil.bridge.protocol import MESSAGE_TABLE, decode_frame, encode_frame
+
+pytestmark = pytest.mark.timeout(20)
 
 DOC = Path(__file__).resolve().parents[3] / "docs" / "bridge_protocol.md"
 

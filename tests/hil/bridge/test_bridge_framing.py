@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hil.bridge.errors import BridgeError, CrcError, LengthError, UnknownMessageError
 from hil.bridge.framing import StreamDecoder
 from hil.bridge.protocol import SYNC, Engage, Ping, StatusFlags, SteerRateCommand, WheelAngleReport, crc16, encode_frame
+
+pytestmark = pytest.mark.timeout(20)
 
 FRAMES = [
     encode_frame(SteerRateCommand(0.2), 1),

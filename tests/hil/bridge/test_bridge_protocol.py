@@ -29,6 +29,8 @@ from hil.bridge.protocol import (
     frame_length,
 )
 
+pytestmark = pytest.mark.timeout(20)
+
 
 def crc_ccitt_false_bitwise(data: bytes) -> int:
     """Independent bit-by-bit CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no xorout)."""

@@ -109,3 +109,15 @@ def test_on_a_pty_a_command_still_takes_its_transmission_time_and_pings_measure_
     # a ping may queue behind a report (18 bytes) in either direction; beyond that, a few ms of scheduling
     assert statistics.median(rtts) <= two_frames + 18 * BT + 0.005
     assert bench.runner.late_max < 0.05
+
+
+@pytest.mark.timeout(20)
+def test_lockstep_runs_are_bit_for_bit_reproducible():
+    runs = []
+    for _ in range(2):
+        plant = FirstOrderPlantDouble()
+        bench = LockstepBridge(plant)
+        plant.now = bench.clock.now
+        reports = scenario(bench)
+        runs.append(([(r.received_at, r.seq, r.report) for r in reports], plant.duty_log, plant.angle))
+    assert runs[0] == runs[1]

@@ -29,3 +29,18 @@ def test_lockstep_bridge_runs_at_least_100_times_faster_than_real_time():
     assert bench.firmware.state.commands_applied == 1199 and not bench.firmware.state.watchdog_tripped
     # ~850x on an idle developer machine; the bound leaves room for a loaded CI runner
     assert speed > 100, f"lockstep ran only {speed:.0f}x real time"
+
+
+@pytest.mark.timeout(30)
+def test_measurement_functions_report_plausible_numbers():
+    from hil.bridge.measure import measure_lockstep_speed, measure_pty_latency
+
+    speed = measure_lockstep_speed(FirstOrderPlantDouble(), duration=10.0)
+    assert speed.cycles == 200 and speed.virtual_s == pytest.approx(10.0)
+    assert 195 <= speed.reports <= 200 and speed.speedup > 50
+    lat = measure_pty_latency(FirstOrderPlantDouble(), samples=10)
+    bt = 10 / 9600
+    assert lat.wire_command == pytest.approx(9 * bt)
+    assert 18 * bt <= lat.ping_rtt_min <= lat.ping_rtt_median <= lat.ping_rtt_max < 0.1
+    assert lat.wire_command <= lat.command_to_valve_median < lat.wire_command + 0.01
+    assert set(lat.as_dict()) >= {"ping_rtt_p99", "command_to_valve_max"}

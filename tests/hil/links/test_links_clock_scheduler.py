@@ -11,6 +11,8 @@ from hil.links.clock import Clock, RealClock, VirtualClock
 from hil.links.errors import ClockError, LinkConfigError, SchedulerStallError
 from hil.links.scheduler import LockstepScheduler
 
+pytestmark = pytest.mark.timeout(20)
+
 
 class Ticker:
     """A device that wants to run every ``period`` seconds and records when it ran."""

@@ -10,6 +10,8 @@ from hil.links.link import ByteLink, TimedByteLink
 from hil.links.memory import memory_link_pair
 from hil.links.uart import LineConfig, UartRx, UartTx
 
+pytestmark = pytest.mark.timeout(20)
+
 
 def test_memory_link_delivers_both_ways_in_order_and_looks_like_a_serial_port():
     clock = VirtualClock()

@@ -36,6 +36,7 @@ __all__ = ["FrontEndConfig", "NavSolution", "TagClock", "GnssFrontEnd", "replay_
 
 _DAY = 86400.0
 _WEEK = 604800.0
+_MIN_RATE_DT = 0.05  # s, shortest interval over which the yaw rate is differentiated
 # u-blox lastCorrectionAge buckets -> upper bound, s (0 = not available)
 _UBX_CORR_AGE = {1: 1.0, 2: 2.0, 3: 5.0, 4: 10.0, 5: 15.0, 6: 20.0, 7: 30.0, 8: 45.0, 9: 60.0, 10: 90.0, 11: 120.0, 12: math.inf}
 
@@ -205,6 +206,7 @@ class GnssFrontEnd:
         self._vel_tv = -math.inf
         self._yaw = self._pitch = self._roll = math.nan
         self._yaw_rate = 0.0
+        self._rate_yaw, self._rate_tv = math.nan, -math.inf
         self._att_tv = self._att_ta = -math.inf
 
     # ---------------------------------------------------------------- ingest
@@ -229,11 +231,13 @@ class GnssFrontEnd:
         if yaw is None:
             return
         yaw = (yaw + self.config.heading_offset) % (2 * math.pi)
-        dt = tv - self._att_tv
-        if math.isfinite(self._yaw) and 0.0 < dt < 1.0:
-            self._yaw_rate = ((yaw - self._yaw + math.pi) % (2 * math.pi) - math.pi) / dt
-        else:
-            self._yaw_rate = 0.0
+        dt = tv - self._rate_tv
+        if not math.isfinite(self._rate_yaw) or dt >= 1.0:
+            self._yaw_rate, self._rate_yaw, self._rate_tv = 0.0, yaw, tv
+        elif dt >= _MIN_RATE_DT:
+            # differentiate over >= 50 ms only: HDT and THS of one epoch arrive ~1 ms apart
+            self._yaw_rate = ((yaw - self._rate_yaw + math.pi) % (2 * math.pi) - math.pi) / dt
+            self._rate_yaw, self._rate_tv = yaw, tv
         self._yaw = yaw
         if pitch is not None:
             self._pitch = pitch

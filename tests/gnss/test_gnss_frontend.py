@@ -199,3 +199,20 @@ def test_hpr_heading_offset_and_reverse_speed():
     nav = fe.step()
     assert nav.yaw == pytest.approx(0.0, abs=1e-6)  # 270 deg reported + 90 deg mounting = north
     assert nav.speed == pytest.approx(-2.0, abs=1e-3)  # moving south while facing north: reversing
+
+
+def test_yaw_rate_from_10hz_attitude_not_from_duplicate_sentences():
+    fe, port, clock = make()
+    rate = 0.2  # rad/s clockwise
+    for k in range(10):
+        clock.t = 100.0 + 0.1 * k
+        yaw = 1.0 + rate * 0.1 * k
+        # HDT and THS of the same epoch, differing by their 0.01 deg resolution, arrive together
+        port.write(gga_at(0.0, 0.0, 10.0 + 0.1 * k) + encode_hdt(Hdt("GN", yaw)))
+        fe.step()
+        clock.t += 0.001
+        port.write(encode_hdt(Hdt("GN", yaw + math.radians(0.01))))
+        nav = fe.step()
+    assert nav.yaw_rate == pytest.approx(rate, abs=0.01)
+    # extrapolated 50 ms ahead with the rate
+    assert fe.solution(clock.t + 0.05).yaw == pytest.approx(nav.yaw + rate * 0.05, abs=2e-3)

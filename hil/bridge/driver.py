@@ -158,8 +158,9 @@ class BridgeDriver:
         self._decoder = StreamDecoder(self.config.max_payload)
         self._seq = 0
         self._reports: deque[BridgeReport] = deque()
-        self._pongs: dict[int, float] = {}  # token -> receive time
-        self._ping_sent: dict[int, float] = {}
+        self._ping_sent: dict[int, float] = {}  # outstanding ping token -> send time, s
+        self._awaited: int | None = None  # token a blocking ping() waits for
+        self._awaited_rtt: float | None = None
         self._next_token = 0
         self._latest: BridgeReport | None = None
         self._last_bridge_seq: int | None = None
@@ -217,7 +218,8 @@ class BridgeDriver:
         token = self._next_token
         self._next_token = (token + 1) & 0xFFFF
         self._ping_sent[token] = self._clock.now()
-        self._pongs.pop(token, None)
+        if len(self._ping_sent) > _MAX_OUTSTANDING_PINGS:  # never answered: forget the oldest
+            self._ping_sent.pop(next(iter(self._ping_sent)))
         self._send(Ping(token=token))
         return token
 
@@ -250,8 +252,10 @@ class BridgeDriver:
                     self._n["reports_overflowed"] += 1
             elif isinstance(msg, Pong) and msg.token in self._ping_sent:
                 self._n["pongs_received"] += 1
-                self._rtts.append(now - self._ping_sent.pop(msg.token))
-                self._pongs[msg.token] = now
+                rtt = now - self._ping_sent.pop(msg.token)
+                self._rtts.append(rtt)
+                if msg.token == self._awaited:
+                    self._awaited_rtt = rtt
             else:
                 self._n["unexpected_frames"] += 1
 
@@ -302,14 +306,17 @@ class BridgeDriver:
         """
         deadline = self._clock.now() + _check_timeout(timeout)
         token = self.send_ping()
-        sent = self._ping_sent[token]
-        for _ in range(_max_polls(timeout, self.config.poll_interval)):
-            self._pump()
-            if token in self._pongs:
-                return self._pongs.pop(token) - sent
-            if self._clock.now() >= deadline:
-                break
-            self._wait(deadline)
+        self._awaited, self._awaited_rtt = token, None
+        try:
+            for _ in range(_max_polls(timeout, self.config.poll_interval)):
+                self._pump()
+                if self._awaited_rtt is not None:
+                    return self._awaited_rtt
+                if self._clock.now() >= deadline:
+                    break
+                self._wait(deadline)
+        finally:
+            self._awaited = None
         self._ping_sent.pop(token, None)
         self._n["timeouts"] += 1
         raise BridgeTimeout(f"no answer to ping {token} within {timeout} s")
@@ -334,6 +341,9 @@ class BridgeDriver:
         return DriverStats(**self._n, crc_errors=c.crc_errors, length_errors=c.length_errors,
                            unknown_ids=c.unknown_ids, field_errors=c.field_errors, resyncs=c.resyncs,
                            bytes_discarded=c.bytes_discarded, ping_rtts=tuple(self._rtts))
+
+
+_MAX_OUTSTANDING_PINGS = 64
 
 
 def _check_timeout(timeout: float) -> float:

@@ -123,7 +123,9 @@ class LockstepScheduler:
                 same = 0
                 if now >= t_end:
                     return
-                t_next = min(min(wakes, default=math.inf), t_end, now + self.max_step)
+                t_next = min(min(wakes, default=math.inf), t_end)
+                if self.plant is not None:
+                    t_next = min(t_next, now + self.max_step)
                 if self.plant is not None:
                     self.plant.advance(t_next - now)
                     self.plant_steps += 1

@@ -95,3 +95,21 @@ def test_driver_refuses_unsendable_commands_without_writing_anything():
         drv.read_report(timeout=-1)
     with pytest.raises(ConfigError, match=r"unknown DriverConfig option\(s\) \['timeout'\]"):
         DriverConfig.from_mapping({"timeout": 1})
+
+
+@pytest.mark.timeout(20)
+def test_non_blocking_pings_are_timed_by_poll_and_unanswered_ones_are_forgotten(bench):
+    drv, clock = bench.driver, bench.clock
+    clock.sleep_until(0.07)
+    drv.send_ping()
+    for _ in range(20):
+        clock.sleep_until(clock.now() + 0.005)
+        drv.poll()
+    assert len(drv.stats().ping_rtts) == 1 and drv.stats().ping_rtts[0] >= 18 * 10 / 9600
+    # a bridge that never answers does not make the driver's memory grow
+    silent_clock = VirtualClock()
+    host, _ = memory_link_pair(silent_clock)
+    mute = BridgeDriver(host, silent_clock)
+    for _ in range(1000):
+        mute.send_ping()
+    assert len(mute._ping_sent) <= 64

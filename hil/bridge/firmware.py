@@ -148,7 +148,6 @@ class BridgeFirmware:
         self._rx = UartRx(self.config.line)
         self._tx = UartTx(self.config.line, link)
         self._decoder = StreamDecoder(self.config.max_payload)
-        self._segments: deque[tuple[int, float, float]] = deque()  # (stream index, first arrival, spacing)
         self._inbox: deque[tuple[float, DecodeEvent]] = deque()
         self._boot: float | None = None
         self._last_step = -math.inf
@@ -229,13 +228,10 @@ class BridgeFirmware:
             return
         start = self._decoder.counters.bytes_fed
         first, spacing = self._rx.arrive(len(data), now)
-        self._segments.append((start, first, spacing))
+        # A decode event is produced by the byte that completes (or dooms) a frame, so every
+        # event from this chunk ends inside it: its time is that byte's arrival time.
         for event in self._decoder.feed(data):
-            # events come in stream order; drop segments that end before this event
-            while len(self._segments) > 1 and self._segments[1][0] <= event.end:
-                self._segments.popleft()
-            seg_start, seg_first, seg_spacing = self._segments[0]
-            self._inbox.append((seg_first + (event.end - seg_start) * seg_spacing, event))
+            self._inbox.append((first + (event.end - start) * spacing, event))
 
     def _set_duty(self, duty: float, force: bool = False) -> None:
         if force or duty != self._duty:

@@ -140,3 +140,15 @@ def test_fuzz_strict_decoder_raises_only_package_errors(data):
     else:
         assert data in FRAMES, "only an intact frame is accepted"
         assert encode_frame(frame.message, frame.seq) == data
+
+
+@settings(max_examples=200)
+@given(data=st.lists(st.one_of(st.sampled_from(FRAMES), st.binary(max_size=20)), max_size=8).map(b"".join),
+       chunk=st.integers(1, 40))
+def test_every_event_ends_inside_the_chunk_that_produced_it(data, chunk):
+    # The firmware times each frame by the arrival of its last byte; it relies on this.
+    dec = StreamDecoder()
+    for i in range(0, len(data), chunk):
+        piece = data[i:i + chunk]
+        for event in dec.feed(piece):
+            assert i <= event.end < i + len(piece)

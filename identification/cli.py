@@ -36,6 +36,54 @@ def _convert(args: argparse.Namespace) -> dict:
             "duration_s": log.duration, "content_hash": log.content_hash()}
 
 
+def _order(text: str) -> int | str:
+    if text == "auto":
+        return "auto"
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or a positive integer, got {text!r}")
+    return value
+
+
+def _columns(text: str) -> list[str]:
+    cols = [c.strip() for c in text.split(",") if c.strip()]
+    if not cols:
+        raise argparse.ArgumentTypeError("expected comma-separated column names")
+    return cols
+
+
+def _okid(args: argparse.Namespace) -> dict:
+    from .workflow import identify_logs
+
+    return identify_logs(args.logs, args.out, order=args.order, markov=args.markov,
+                         normalize=args.normalize, dt=args.dt, method=args.method,
+                         kinds=args.kinds)
+
+
+def _fit(args: argparse.Namespace) -> dict:
+    from .workflow import fit_csv
+
+    return fit_csv(args.data, args.inputs, args.outputs, args.out, order=args.order, markov=args.markov,
+                   dt=args.dt, method=args.method, feedthrough=not args.no_feedthrough,
+                   split=args.split, experiment_column=args.experiment_column)
+
+
+def _validate(args: argparse.Namespace) -> dict:
+    from .workflow import validate_csv
+
+    return validate_csv(args.model, args.data, args.inputs, args.outputs, dt=args.dt,
+                        experiment_column=args.experiment_column)
+
+
+def _report(args: argparse.Namespace) -> dict:
+    from .workflow import make_report
+
+    return make_report(args.models, args.out, logs=args.logs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="identification", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -46,6 +94,55 @@ def build_parser() -> argparse.ArgumentParser:
                    "'{\"implement\": \"none\", \"nominal_speed\": 1.79}'")
     c.add_argument("--json", action="store_true", help="print the result as JSON")
     c.set_defaults(func=_convert)
+
+    o = sub.add_parser("okid", help="identify local, velocity-invariant and central models from pass logs")
+    o.add_argument("logs", nargs="+", help="pass logs (.npz) or directories holding them")
+    o.add_argument("--out", required=True, help="directory for models/<name>.npz")
+    o.add_argument("--order", type=_order, default="auto", help="model order or 'auto' (default)")
+    o.add_argument("--markov", type=_order, default="auto",
+                   help="observer Markov parameters p, or 'auto' (default, Akaike)")
+    o.add_argument("--normalize", choices=("velocity", "none"), default="velocity",
+                   help="outputs y/V, psi/V, delta (default) or y, psi, delta")
+    o.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")
+    o.add_argument("--method", choices=("era-dc", "era"), default="era-dc")
+    o.add_argument("--kinds", nargs="+", choices=("local", "velocity-invariant", "central"),
+                   default=["local", "velocity-invariant", "central"])
+    o.add_argument("--json", action="store_true", help="print the result as JSON")
+    o.set_defaults(func=_okid)
+
+    f = sub.add_parser("fit", help="identify a model from any MIMO input/output CSV record")
+    f.add_argument("data", help="CSV file with a header row")
+    f.add_argument("--inputs", type=_columns, required=True, help="input columns, comma-separated")
+    f.add_argument("--outputs", type=_columns, required=True, help="output columns, comma-separated")
+    f.add_argument("--out", required=True, help="model file to write (.npz)")
+    f.add_argument("--order", type=_order, default="auto")
+    f.add_argument("--markov", type=_order, default="auto")
+    f.add_argument("--dt", type=float, default=None, help="sample time, s (default: from a time column, else 1)")
+    f.add_argument("--method", choices=("era-dc", "era"), default="era-dc")
+    f.add_argument("--no-feedthrough", action="store_true", help="fix D = 0")
+    f.add_argument("--split", type=float, default=None,
+                   help="fit on this leading fraction of each experiment and validate on the rest")
+    f.add_argument("--experiment-column", default=None, help="column that numbers separate experiments")
+    f.add_argument("--json", action="store_true")
+    f.set_defaults(func=_fit)
+
+    v = sub.add_parser("validate", help="free-run and one-step fits of a model on a CSV record")
+    v.add_argument("model", help="model file (.npz)")
+    v.add_argument("data", help="CSV file with a header row")
+    v.add_argument("--inputs", type=_columns, required=True)
+    v.add_argument("--outputs", type=_columns, required=True)
+    v.add_argument("--dt", type=float, default=None)
+    v.add_argument("--experiment-column", default=None)
+    v.add_argument("--json", action="store_true")
+    v.set_defaults(func=_validate)
+
+    r = sub.add_parser("report", help="figures 6-8: Hankel and modal singular values, reconstruction")
+    r.add_argument("models", help="directory of model files")
+    r.add_argument("--out", required=True, help="directory for the figures")
+    r.add_argument("--logs", nargs="*", default=None,
+                   help="pass logs for the reconstruction figure (held-out passes are best)")
+    r.add_argument("--json", action="store_true")
+    r.set_defaults(func=_report)
     return p
 
 
@@ -57,8 +154,11 @@ def main(argv: list[str] | None = None) -> int:
     except (IdentificationError, ValueError, json.JSONDecodeError) as exc:
         print(f"identification {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    text = result.pop("_text", None)
     if args.json:
         print(json.dumps(result, indent=2))
+    elif text is not None:
+        print(text)
     else:
         for k, v in result.items():
             print(f"{k:>14}: {v}")

@@ -19,7 +19,7 @@ import numpy as np
 from . import era as _era
 from . import markov as _mk
 from .data import IOData
-from .errors import NotFittedError, OptionError
+from .errors import NotFittedError, OptionError, RealizationError
 from .estimator import kalman_gain, observer_gain
 from .model import Model
 from .refine import refine_bd
@@ -177,6 +177,15 @@ class OKID:
         # modal indicators on the scaled realisation (channels weigh alike)
         lam, msv = _era.modal_singular_values(real.A, real.B, real.C, rows + cols)
         emac_lam, emac_v = _era.emac(real)
+        # the same indicators for a deliberately over-sized realisation (Figure 7 of the paper)
+        n_hi = int(min(self.max_order, np.sum(real.hankel_singular_values > 1e-10 * real.hankel_singular_values[0])))
+        msv_hi: list[float] = []
+        if n_hi > real.A.shape[0]:
+            try:
+                hi = _era.era(ymk, n_hi, rows, cols, self.max_order, "era")
+                msv_hi = [float(v) for v in _era.modal_singular_values(hi.A, hi.B, hi.C, rows + cols)[1]]
+            except (RealizationError, np.linalg.LinAlgError):
+                msv_hi = []
         # back to physical units: u = su * u_s, y = sy * y_s
         ymk = ymk * sy[None, :, None] / su[None, None, :]
         ygain = ygain * sy[None, :, None] / sy[None, None, :]
@@ -213,6 +222,7 @@ class OKID:
             "input_units": list(data.input_units), "output_units": list(data.output_units),
             "hankel_singular_values": [float(s) for s in real.hankel_singular_values[:40]],
             "modal_singular_values": [float(s) for s in msv],
+            "modal_singular_values_max_order": msv_hi,
             "eigenvalues": [[float(z.real), float(z.imag)] for z in lam],
             "emac": [float(v) for v in emac_v],
             "innovation_covariance": r_innov.tolist(),

@@ -24,7 +24,6 @@ import enum
 import math
 import struct
 from dataclasses import dataclass
-from dataclasses import fields as dc_fields
 
 from hil.bridge.errors import CrcError, EncodeError, FieldError, FrameError, LengthError, UnknownMessageError
 
@@ -408,7 +407,3 @@ def decode_frame(data: bytes) -> Frame:
         raise CrcError(f"invalid CRC 0x{got:04x} - should be 0x{want:04x}")
     return Frame(seq=data[3], message=decode_payload(data[2], data[HEADER_LEN:HEADER_LEN + length]))
 
-
-def message_fields(message: Message) -> dict[str, object]:
-    """Field values of a message as a plain dict (for logs and documentation)."""
-    return {f.name: getattr(message, f.name) for f in dc_fields(message)}

@@ -71,3 +71,28 @@ def test_bridge_steers_the_truth_simulator_and_reports_its_potentiometer():
     final = sensor_counts_float(np.array([angles[-1]]), sim.params.sensor, st)[0]
     assert abs(reports[-1].adc_counts - final) <= 3
     assert drv.stats().bad_frames == 0 and bench.firmware.state.bad_frames == 0
+
+
+@pytest.mark.timeout(30)
+def test_bridge_steers_the_truth_simulator_over_a_pty_in_real_time():
+    from hil.bridge.bench import PtyBridge
+
+    sim = TractorSimulator([condition_for("ripper", 1.0)], duration=5.0, seeds=[5])
+    with PtyBridge(SimulatorPlant(sim)) as bench:
+        drv, clock = bench.driver, bench.clock
+        drv.engage()
+        t = clock.now()
+        reports = []
+        for _ in range(20):  # 1 s at 20 Hz, steering left at full nominal rate
+            drv.send_rate(0.35)
+            t += 0.05
+            clock.sleep_until(t)
+            reports += drv.poll()
+        drv.disengage()
+        clock.sleep_until(t + 0.1)
+        reports += drv.poll()
+    assert 1.0 <= sim.time <= 1.5, "the runner advanced the simulator by the elapsed wall-clock time"
+    assert float(sim.duty[0]) == 0.0, "disengage closed the valve"
+    counts = [r.adc_counts for r in reports if r.engaged]
+    assert len(counts) >= 15 and counts[-1] > counts[0] + 20, "the wheel turned left, as the ADC shows"
+    assert not reports[-1].engaged and drv.stats().bad_frames == 0

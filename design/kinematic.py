@@ -41,9 +41,9 @@ class KinematicWeights:
         Steering rate, rad/s.
     """
 
-    y_max: float = 0.10
+    y_max: float = 0.15
     psi_max: float = math.radians(5.0)
-    delta_max: float = math.radians(10.0)
+    delta_max: float = math.radians(5.0)
     u_max: float = math.radians(20.0)
 
     def __post_init__(self) -> None:
@@ -108,7 +108,7 @@ def kinematic_lqr(speed: float, dt: float | None = 0.05, weights: KinematicWeigh
     return np.asarray(k, dtype=float).reshape(3)
 
 
-def gains_versus_speed(speeds: np.ndarray, dt: float | None = 0.05,
-                       weights: KinematicWeights | None = None) -> np.ndarray:
+def gains_versus_speed(speeds: np.ndarray, dt: float | None = 0.05, weights: KinematicWeights | None = None,
+                       wheelbase: float = 2.85, d2: float = 1.14) -> np.ndarray:
     """Gains of :func:`kinematic_lqr` at every speed: shape ``(len(speeds), 3)``."""
-    return np.array([kinematic_lqr(float(v), dt, weights) for v in np.asarray(speeds, dtype=float)])
+    return np.array([kinematic_lqr(float(v), dt, weights, wheelbase, d2) for v in np.asarray(speeds, dtype=float)])

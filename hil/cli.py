@@ -3,6 +3,8 @@
     hil sysid --out logs/ [--speeds ...] [--implements ...] [--passes N] [--duration S] [--seed S]
     hil plot LOG.npz --out figure.png
     hil params [--set group.name=value ...]
+    hil run --controller kinematic --implement none --speed 1.79 --duration 60 --out runs/NAME
+        [--realtime] [--seed N] [--fault KIND:START-END ...]
 
 Unknown options and bad values exit with status 2 (usage) or 1 (a value the
 library refused), with a message saying what was expected.
@@ -23,7 +25,8 @@ from identification.passlog import PassLog
 from .conditions import GEAR_SPEEDS, IMPLEMENTS
 from .errors import HilError
 from .params import SimParams, parameter_markdown, parameter_table
-from .plots import plot_pass
+from .plots import plot_pass, plot_run
+from .run import RunSpec, simulated_run, summarize
 from .sysid import SysidPlan, make_passes
 
 
@@ -80,6 +83,56 @@ def _cmd_params(args: argparse.Namespace) -> dict:
     return out
 
 
+FAULT_KINDS = {"override": "override", "stuck-valve": "stuck_valve", "gps-outage": "gps_outage",
+               "rtk-float": "rtk_float"}
+
+
+def _fault(text: str) -> tuple[str, tuple[float, float]]:
+    kind, sep, span = text.partition(":")
+    start, dash, end = span.partition("-")
+    if kind not in FAULT_KINDS or not sep or not dash:
+        raise argparse.ArgumentTypeError(f"expected KIND:START-END with KIND in {sorted(FAULT_KINDS)}, got {text!r}")
+    a, b = _float(start), _float(end)
+    if not (0 <= a < b):
+        raise argparse.ArgumentTypeError(f"fault interval must satisfy 0 <= START < END (s), got {text!r}")
+    return FAULT_KINDS[kind], (a, b)
+
+
+def _controller(name: str):
+    from design.controller import KinematicLQRController
+    if name == "kinematic":
+        return KinematicLQRController()
+    raise HilError(f"unknown controller {name!r}")
+
+
+def _cmd_run(args: argparse.Namespace) -> dict:
+    faults: dict[str, list] = {}
+    for kind, span in args.fault or []:
+        faults.setdefault(kind, []).append(span)
+    spec = RunSpec(implement=args.implement, speed=args.speed, duration=args.duration, seed=args.seed,
+                   realtime=args.realtime, initial_cross_track=args.initial_cross_track,
+                   **{k: tuple(v) for k, v in faults.items()})
+    params = _params(args)
+    controller = _controller(args.controller)
+    bar = tqdm(total=round(spec.duration), unit="s", desc="closed-loop pass", disable=args.quiet, file=sys.stderr)
+
+    def progress(done: float, total: float) -> None:
+        bar.n = round(done)
+        bar.refresh()
+
+    log = simulated_run(spec, controller, params, progress=progress)
+    bar.close()
+    out = Path(args.out)
+    summary = summarize(log)
+    log.save(out / "run_log.npz")
+    plot_run(log, out / "track.png", summary)
+    result = {"out": str(out), "controller": args.controller, "implement": spec.implement, "speed": spec.speed,
+              "mode": log.meta["mode"], "summary": summary, "events": list(log.meta["events"]),
+              "files": [str(out / "run_log.npz"), str(out / "track.png"), str(out / "summary.json")]}
+    (out / "summary.json").write_text(json.dumps(result, indent=2) + "\n")
+    return result
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="hil", description="Truth simulator and hardware-in-the-loop bench.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -105,6 +158,21 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     pl.set_defaults(func=_cmd_plot)
 
+    r = sub.add_parser("run", parents=[common], help="one closed-loop pass following an AB line")
+    r.add_argument("--controller", required=True, choices=["kinematic"],
+                   help="control law: the paper's LQR on the kinematic model at the measured speed")
+    r.add_argument("--implement", choices=IMPLEMENTS, default="none")
+    r.add_argument("--speed", type=_float, default=1.79, help="nominal speed, m/s (default 1.79)")
+    r.add_argument("--duration", type=_float, default=60.0, help="seconds (default 60)")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--realtime", action="store_true", help="real time over pseudo-terminals (default: lockstep)")
+    r.add_argument("--initial-cross-track", type=_float, default=0.3, help="start offset from the line, m")
+    r.add_argument("--fault", action="append", type=_fault, metavar="KIND:START-END",
+                   help=f"inject a fault, KIND in {sorted(FAULT_KINDS)}; repeatable")
+    r.add_argument("--out", required=True, help="directory for run_log.npz, track.png, summary.json")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.set_defaults(func=_cmd_run)
+
     pa = sub.add_parser("params", parents=[common], help="list the simulator's parameters")
     pa.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     pa.set_defaults(func=_cmd_params)
@@ -117,6 +185,21 @@ def _print_human(command: str, result: dict) -> None:
     elif command == "params":
         for r in result["parameters"]:
             print(f"{r['name']:<38} {r['value']:>11.6g} {r['unit']:<8} {r['source']:<10} {r['doc']}")
+    elif command == "run":
+        s = result["summary"]
+        if "measured_sigma_m" in s:
+            print(f"{result['controller']} on {result['implement']} at {result['speed']} m/s ({result['mode']}): "
+                  f"bias {s['measured_bias_m'] * 100:.1f} cm, 1-sigma {s['measured_sigma_m'] * 100:.1f} cm "
+                  f"(true {s['true_bias_m'] * 100:.1f} / {s['true_sigma_m'] * 100:.1f} cm), "
+                  f"max {s['measured_max_abs_m'] * 100:.1f} cm")
+        else:
+            print(f"{result['controller']} never engaged long enough for statistics")
+        print(f"engaged {s['engaged_fraction'] * 100:.0f} % of cycles, {s['disengagements']} disengagement(s), "
+              f"{s['deadline_misses']} deadline miss(es), loop time p50 {s['loop_time_ms_p50']:.2f} ms, "
+              f"p99 {s['loop_time_ms_p99']:.2f} ms")
+        for e in result["events"]:
+            print(f"  t={e['t']:7.2f} s  {e['event']}: {e['reason']}")
+        print(f"files in {result['out']}")
     elif command == "sysid":
         print(f"wrote {result['passes']} pass logs of {result['duration_s']:.0f} s to {result['out']}")
     else:

@@ -47,3 +47,52 @@ def plot_pass(log: PassLog, out: str | Path, title: str | None = None) -> Path:
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
+
+
+def plot_run(log: PassLog, out: str | Path, summary: dict | None = None) -> Path:
+    """Draw a closed-loop run like the paper's Figure 12: the track and the cross-track error.
+
+    Top: cross-track [m] against distance along the line [m] (measured, and the truth
+    when present), engaged stretches shaded. Bottom: wheel angle [deg] and steering
+    command [deg/s] against time [s], disengagements marked.
+    """
+    out = Path(out)
+    t = log.times["t"]
+    ch = log.channels
+    along = ch.get("truth_along_track", np.cumsum(ch["speed"]) * np.r_[0.0, np.diff(t)].mean())
+    engaged = ch["engaged"] > 0.5
+    fig, (ax1, ax2, ax3) = plt.subplots(3, 1, figsize=(10, 8), gridspec_kw={"height_ratios": [2, 2, 1.3]})
+    ax1.plot(along, ch["cross_track"], lw=0.8, label="measured (GPS)")
+    if "truth_cross_track" in ch:
+        ax1.plot(along, ch["truth_cross_track"], lw=0.7, color="k", alpha=0.7, label="truth")
+    ax1.fill_between(along, -1, 1, where=~engaged, color="red", alpha=0.08, transform=ax1.get_xaxis_transform(),
+                     label="disengaged")
+    ax1.axhline(0.0, color="g", lw=0.8)
+    for b in (-0.0508, 0.0508):
+        ax1.axhline(b, color="g", lw=0.5, ls="--")
+    ax1.set_xlabel("distance along the line [m]")
+    ax1.set_ylabel("cross-track [m]")
+    ax1.legend(loc="upper right", fontsize=8)
+    ax1.grid(True, alpha=0.3)
+    ax2.plot(t, np.degrees(ch["wheel_angle"]), lw=0.8, label="wheel angle [deg]")
+    ax2.plot(t, np.degrees(ch["steer_rate_cmd"]), lw=0.6, alpha=0.8, label="steering rate cmd [deg/s]")
+    for e in log.meta.get("events", []):
+        ax2.axvline(e["t"], color="g" if e["event"] == "engage" else "r", lw=0.8, alpha=0.6)
+    ax2.set_ylabel("deg, deg/s")
+    ax2.legend(loc="upper right", fontsize=8)
+    ax2.grid(True, alpha=0.3)
+    ax3.plot(t, ch["compute_time"] * 1e3, lw=0.6, label="loop time [ms]")
+    ax3.set_xlabel("time [s]")
+    ax3.set_ylabel("ms")
+    ax3.grid(True, alpha=0.3)
+    m = log.meta
+    s = summary or {}
+    stats = (f"bias {s['measured_bias_m'] * 100:.1f} cm, 1-sigma {s['measured_sigma_m'] * 100:.1f} cm"
+             if "measured_sigma_m" in s else "never engaged")
+    ax1.set_title(f"{m.get('controller')} - {m['implement']}, {m['nominal_speed']:.2f} m/s, "
+                  f"{m.get('mode')}: {stats}")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out

@@ -1,0 +1,273 @@
+"""The vehicle loop: GPS front-end -> guidance errors -> controller -> limits -> steering bridge.
+
+One piece of code for every link: it talks to a clock, a bridge driver and a GPS
+front-end, so it runs unchanged in lockstep against emulated devices on
+in-memory links, in real time over pseudo-terminals, and on real serial ports.
+
+Engagement: the loop engages only after ``engage_after`` seconds of continuous
+health (GPS integrity healthy, speed in range, bridge reporting without
+override, close enough to the line); it disengages in the cycle it sees any
+fault (GPS not healthy or stale, bridge silent, watchdog, override, the bridge
+not confirming the engage, a link error) and records why. While disengaged it
+never sends a steering command.
+
+Every cycle is recorded; :meth:`VehicleLoop.run_log` turns the record into a
+pass log (all channels on the cycle time base, so a closed-loop run can feed
+identification too).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass
+from typing import Callable
+
+import numpy as np
+
+from design.controller import Controller, Measurement
+from gnss.frontend import GnssFrontEnd
+from gnss.guidance import ABLine
+from identification.passlog import PassLog
+
+from .bridge.driver import BridgeDriver, BridgeLinkError
+from .errors import SimulatorConfigError
+from .links.clock import Clock
+from .steering import WheelAngleCalibration
+
+INTEGRITY_CODES = {"RTK_FIXED": 0, "RTK_FLOAT": 1, "DEGRADED": 2, "STALE": 3, "LOST": 4}
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """Settings of the vehicle loop.
+
+    Attributes
+    ----------
+    rate
+        Cycle rate, Hz (the bridge reports at 20 Hz).
+    max_rate
+        Steering-rate command limit, rad/s.
+    speed_min, speed_max
+        Speed range in which the loop may steer, m/s.
+    engage_after
+        Continuous health needed before engaging, s.
+    engage_cross_track, engage_heading
+        Largest cross-track [m] and heading error [rad] at which the loop engages.
+    engage_confirm
+        Time the bridge has to report itself engaged after an engage, s.
+    """
+
+    rate: float = 20.0
+    max_rate: float = 0.35
+    speed_min: float = 0.5
+    speed_max: float = 4.5
+    engage_after: float = 0.5
+    engage_cross_track: float = 2.0
+    engage_heading: float = 0.35
+    engage_confirm: float = 0.3
+
+    def __post_init__(self) -> None:
+        for k, v in asdict(self).items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+                raise SimulatorConfigError(f"LoopConfig.{k} must be a finite number >= 0, got {v!r}")
+        if self.rate <= 0 or self.max_rate <= 0 or self.speed_max <= self.speed_min:
+            raise SimulatorConfigError("LoopConfig: need rate > 0, max_rate > 0 and speed_max > speed_min")
+
+
+_COLUMNS = ("t", "cross_track", "heading_error", "wheel_angle", "speed", "steer_rate_cmd", "engaged",
+            "healthy", "gps_valid", "bridge_valid", "integrity", "fix_quality", "compute_time", "lateness",
+            "deadline_miss", "adc_counts")
+
+
+class VehicleLoop:
+    """The loop itself.
+
+    Parameters
+    ----------
+    clock
+        Loop clock (virtual in lockstep, real otherwise).
+    driver
+        Steering-bridge driver.
+    frontend
+        GPS front-end (its sources are the receivers' links).
+    line
+        Guidance line.
+    controller
+        Control law (see :class:`design.controller.Controller`).
+    calibration
+        Wheel-angle ADC calibration (counts to rad).
+    config
+        Loop settings.
+    truth
+        Optional callable giving the simulator's truth now, logged as ``truth_*`` channels.
+    """
+
+    def __init__(self, clock: Clock, driver: BridgeDriver, frontend: GnssFrontEnd, line: ABLine,
+                 controller: Controller, calibration: WheelAngleCalibration, config: LoopConfig | None = None,
+                 truth: Callable[[], dict[str, float]] | None = None) -> None:
+        if not isinstance(controller, Controller):
+            raise SimulatorConfigError(f"{type(controller).__name__} does not implement the Controller interface")
+        self.clock, self.driver, self.frontend, self.line = clock, driver, frontend, line
+        self.controller, self.calibration = controller, calibration
+        self.config = config or LoopConfig()
+        self.truth = truth
+        controller.reset()
+        self.engaged = False
+        self.events: list[dict] = []
+        self._rows: dict[str, list[float]] = {k: [] for k in _COLUMNS}
+        self._truth_rows: dict[str, list[float]] = {}
+        self._estimates: list[tuple[float, ...]] = []
+        self._healthy_since = math.inf
+        self._engaged_at = math.nan
+        self._confirmed = False
+        self._last = {"cross_track": 0.0, "heading_error": 0.0, "wheel_angle": 0.0, "speed": 0.0}
+
+    # -- one cycle ------------------------------------------------------------------
+    def cycle(self, t_due: float) -> None:
+        """Wait for ``t_due`` (loop clock, s), then measure, decide, command and record."""
+        cfg = self.config
+        self.clock.sleep_until(t_due)
+        wall0 = time.perf_counter()
+        now = self.clock.now()
+        reasons: list[str] = []
+        link_ok = True
+        try:
+            self.driver.poll()
+        except BridgeLinkError as exc:
+            link_ok = False
+            reasons.append(f"bridge link error: {exc}")
+        rep = self.driver.latest
+        bridge_valid = rep is not None and self.driver.is_alive()
+        if bridge_valid:
+            delta = float(self.calibration.to_angle(rep.adc_counts))
+        else:
+            delta = self._last["wheel_angle"]
+            reasons.append("bridge silent")
+        nav = self.frontend.step(now)
+        gps_valid = math.isfinite(nav.east) and math.isfinite(nav.north) and math.isfinite(nav.yaw)
+        if gps_valid:
+            err = self.line.errors(nav.east, nav.north, nav.yaw)
+            xte, he = float(err.cross_track), float(err.heading_error)
+        else:
+            xte, he = self._last["cross_track"], self._last["heading_error"]
+        speed = nav.speed if math.isfinite(nav.speed) else self._last["speed"]
+        if not nav.integrity.healthy:
+            reasons.append(f"gps {nav.integrity.state.name.lower()}: {nav.integrity.reason}")
+        if not cfg.speed_min <= speed <= cfg.speed_max:
+            reasons.append(f"speed {speed:.2f} m/s outside {cfg.speed_min}-{cfg.speed_max} m/s")
+        if rep is not None and rep.manual_override:
+            reasons.append("manual override")
+        if self.engaged and rep is not None:
+            if rep.engaged:
+                self._confirmed = True
+            if self._confirmed and rep.watchdog_tripped:
+                reasons.append("bridge watchdog tripped")
+            elif self._confirmed and not rep.engaged:
+                reasons.append("bridge disengaged itself")
+            elif not self._confirmed and now - self._engaged_at > cfg.engage_confirm:
+                reasons.append("bridge did not confirm the engage")
+        healthy = not reasons
+        u = 0.0
+        if self.engaged and not healthy:
+            self._disengage(now, "; ".join(reasons), link_ok)
+        elif not self.engaged:
+            if not healthy:
+                self._healthy_since = math.inf
+            else:
+                self._healthy_since = min(self._healthy_since, now)
+                near = abs(xte) <= cfg.engage_cross_track and abs(he) <= cfg.engage_heading
+                if near and now - self._healthy_since >= cfg.engage_after - 1e-9:
+                    self._engage(now, link_ok)
+        if self.engaged:
+            m = Measurement(t=now, cross_track=xte, heading_error=he, wheel_angle=delta, speed=speed)
+            u = float(np.clip(self.controller.step(m), -cfg.max_rate, cfg.max_rate))
+            try:
+                self.driver.send_rate(u)
+            except BridgeLinkError as exc:
+                self._disengage(now, f"bridge link error: {exc}", False)
+                u = 0.0
+        self._last = {"cross_track": xte, "heading_error": he, "wheel_angle": delta, "speed": speed}
+        compute = time.perf_counter() - wall0
+        late = now - t_due
+        done = self.clock.now()
+        row = {"t": now, "cross_track": xte, "heading_error": he, "wheel_angle": delta, "speed": speed,
+               "steer_rate_cmd": u, "engaged": float(self.engaged), "healthy": float(healthy),
+               "gps_valid": float(gps_valid), "bridge_valid": float(bridge_valid),
+               "integrity": float(INTEGRITY_CODES.get(nav.integrity.state.name, 9)),
+               "fix_quality": float(int(nav.fix)), "compute_time": compute, "lateness": late,
+               "deadline_miss": float(done - t_due > 1.0 / cfg.rate), "adc_counts": float(rep.adc_counts) if rep else -1.0}
+        for k, v in row.items():
+            self._rows[k].append(v)
+        self._estimates.append(tuple(self.controller.estimate()))
+        if self.truth is not None:
+            for k, v in self.truth().items():
+                self._truth_rows.setdefault(k, []).append(v)
+
+    def _engage(self, now: float, link_ok: bool) -> None:
+        if not link_ok:
+            return
+        self.controller.reset()
+        try:
+            self.driver.engage()
+        except BridgeLinkError as exc:
+            self.events.append({"t": now, "event": "engage failed", "reason": str(exc)})
+            return
+        self.engaged, self._engaged_at, self._confirmed = True, now, False
+        self.events.append({"t": now, "event": "engage", "reason": "healthy"})
+
+    def _disengage(self, now: float, reason: str, link_ok: bool) -> None:
+        self.engaged = False
+        self._healthy_since = math.inf
+        if link_ok:
+            try:
+                self.driver.disengage()
+            except BridgeLinkError:
+                reason += " (disengage frame not sent: link error)"
+        self.events.append({"t": now, "event": "disengage", "reason": reason})
+
+    # -- whole runs ----------------------------------------------------------------------
+    def run(self, duration: float, start: float | None = None,
+            progress: Callable[[float, float], None] | None = None) -> None:
+        """Run cycles for ``duration`` seconds from ``start`` (default: the clock now), then disengage."""
+        if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
+            raise SimulatorConfigError(f"duration must be a finite number of seconds > 0, got {duration!r}")
+        t0 = self.clock.now() if start is None else start
+        period = 1.0 / self.config.rate
+        n = int(math.floor(duration * self.config.rate + 1e-9))
+        for k in range(1, n + 1):
+            self.cycle(t0 + k * period)
+            if progress is not None and k % 100 == 0:
+                progress(k * period, duration)
+        if self.engaged:
+            self._disengage(self.clock.now(), "end of run", True)
+
+    def run_log(self, meta: dict) -> PassLog:
+        """The record as a pass log (cycle time base for every channel) with ``meta`` added."""
+        r = {k: np.asarray(v, dtype=float) for k, v in self._rows.items()}
+        t = r.pop("t")
+        if t.size < 2:
+            raise SimulatorConfigError("a run log needs at least two cycles")
+        std = ("cross_track", "heading_error", "wheel_angle", "speed", "steer_rate_cmd")
+        extra_units = {"engaged": "1", "healthy": "1", "gps_valid": "1", "bridge_valid": "1",
+                       "integrity": "code", "fix_quality": "1", "compute_time": "s", "lateness": "s",
+                       "deadline_miss": "1", "adc_counts": "counts"}
+        chans = {k: r[k] for k in std}
+        extra = {}
+        for k, unit in extra_units.items():
+            chans[k] = r[k]
+            extra[k] = {"time": "t", "unit": unit}
+        est = np.array(self._estimates, dtype=float)
+        for i in range(est.shape[1] if est.ndim == 2 else 0):
+            chans[f"estimate_{i}"] = est[:, i]
+            extra[f"estimate_{i}"] = {"time": "t", "unit": "controller state"}
+        for k, v in self._truth_rows.items():
+            chans[f"truth_{k}"] = np.asarray(v, dtype=float)
+            extra[f"truth_{k}"] = {"time": "t", "unit": "SI"}
+        full_meta = {**meta, "extra_channels": extra, "events": self.events,
+                     "integrity_codes": INTEGRITY_CODES, "loop": asdict(self.config),
+                     "controller": getattr(self.controller, "name", type(self.controller).__name__),
+                     "sample_rates_hz": {k: self.config.rate for k in std},
+                     "time_stamps": "loop cycle time; missing GPS/bridge values hold the last one (see *_valid)"}
+        return PassLog(times={"t": t, "t_cross_track": t, "t_heading_error": t, "t_speed": t},
+                       channels=chans, meta=full_meta)

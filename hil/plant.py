@@ -1,0 +1,113 @@
+"""One simulated tractor as the emulated devices see it (the bridge's ``SteeringPlant``).
+
+:class:`SimulatedTractor` wraps a one-tractor :class:`~hil.simulator.TractorSimulator`:
+the bridge firmware sets the valve's PWM duty and reads the potentiometer's ADC;
+the emulated receivers read the simulator's GPS epochs; whoever owns the clock
+calls :meth:`advance`. The simulator integrates on a fixed grid (``params.dt``);
+``advance`` accumulates arbitrary intervals and steps whenever a grid step is
+complete, so what devices see lags the clock by less than one step (10 ms).
+
+Plant-level faults: manual-override intervals (the driver grabs the wheel) and
+stuck-valve intervals (the spool sticks at its last opening whatever the duty).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+from .conditions import Condition
+from .errors import SimulatorConfigError
+from .params import SimParams
+from .simulator import SeedLike, TractorSimulator
+
+Interval = tuple[float, float]
+
+
+def _intervals(items: Sequence[Interval], name: str) -> tuple[Interval, ...]:
+    out = []
+    for it in items:
+        if len(it) != 2 or not all(isinstance(x, (int, float)) and math.isfinite(x) for x in it) or it[1] <= it[0]:
+            raise SimulatorConfigError(f"{name}: expected (start, end) in s with end > start, got {it!r}")
+        out.append((float(it[0]), float(it[1])))
+    return tuple(out)
+
+
+class SimulatedTractor:
+    """A single simulated tractor behind the steering bridge and the receivers.
+
+    Parameters
+    ----------
+    condition
+        Implement and nominal speed.
+    duration
+        Longest run, s.
+    seed
+        The run's seed.
+    params
+        Simulator parameters.
+    initial
+        Initial state values (see :class:`~hil.simulator.TractorSimulator`).
+    override
+        Intervals ``(start, end)`` [s] during which the driver turns the wheel (manual override).
+    stuck_valve
+        Intervals during which the valve ignores new duties and stays where it was.
+    """
+
+    def __init__(self, condition: Condition, duration: float, seed: SeedLike, params: SimParams | None = None,
+                 initial: dict[str, float] | None = None, override: Sequence[Interval] = (),
+                 stuck_valve: Sequence[Interval] = ()) -> None:
+        init = {k: np.array([v], dtype=float) for k, v in (initial or {}).items()}
+        self.sim = TractorSimulator([condition], duration, [seed], params, init)
+        self.condition = condition
+        self.override_intervals = _intervals(override, "override")
+        self.stuck_intervals = _intervals(stuck_valve, "stuck_valve")
+        self._pending = 0.0
+        self._duty = 0.0
+        self.time = 0.0
+
+    @property
+    def params(self) -> SimParams:
+        return self.sim.params
+
+    # -- SteeringPlant ------------------------------------------------------------
+    def set_valve_duty(self, duty: float) -> None:
+        """Apply a PWM duty in [-1, 1], + = left (ignored while the valve is stuck)."""
+        if not math.isfinite(duty):
+            raise SimulatorConfigError(f"valve duty must be finite, got {duty!r}")
+        self._duty = float(duty)
+        if not self._in(self.stuck_intervals):
+            self.sim.set_duty(np.array([self._duty]))
+
+    def wheel_angle_counts(self) -> int:
+        """8-bit ADC reading of the potentiometer now, 0..255."""
+        return int(self.sim.wheel_angle_counts()[0])
+
+    def manual_override(self) -> bool:
+        """True while the (simulated) driver turns the steering wheel."""
+        return self._in(self.override_intervals)
+
+    def advance(self, dt: float) -> None:
+        """Let ``dt`` seconds pass (steps the simulator on its own grid)."""
+        if not (dt >= 0 and math.isfinite(dt)):
+            raise SimulatorConfigError(f"advance needs a finite dt >= 0, got {dt!r}")
+        self.time += dt
+        self._pending += dt
+        h = self.sim.params.dt
+        while self._pending >= h - 1e-9 and self.sim.k < self.sim.n_steps:
+            was_stuck = self._in(self.stuck_intervals)
+            self.sim.step()
+            self._pending -= h
+            if was_stuck and not self._in(self.stuck_intervals):
+                self.sim.set_duty(np.array([self._duty]))   # the spool frees: latest duty applies
+
+    def _in(self, intervals: tuple[Interval, ...]) -> bool:
+        t = self.sim.time
+        return any(a <= t < b for a, b in intervals)
+
+    # -- truth for logs -----------------------------------------------------------
+    def truth(self) -> dict[str, float]:
+        """True values now (see :meth:`TractorSimulator.truth`), as floats."""
+        return {k: float(v[0]) for k, v in self.sim.truth().items()}

@@ -1,0 +1,178 @@
+"""Emulated GPS receivers: the simulator's GPS epochs encoded as NMEA byte streams.
+
+Three layers, as in ArduPilot's simulated GPS: the truth and its errors come from
+the simulator (:mod:`hil.gps`, drawn per pass), the encoding from :mod:`gnss`
+(the same encoders the front-end's tests round-trip), and line timing from a
+UART at the receiver's baud rate. Each receiver is a device on the bench clock
+(``next_wakeup`` / ``step``) writing to a byte link, so the same receiver feeds an
+in-memory link in lockstep or a pseudo-terminal in real time.
+
+* :class:`PositionReceiver` - ``GGA`` + ``VTG`` at 5 Hz (fix quality 4 or 5).
+* :class:`AttitudeReceiver` - Trimble ``$PTNL,AVR`` at 10 Hz (yaw, tilt, roll).
+
+The guidance line of the simulator (x along, y left) is placed in the field by
+:class:`FieldGeometry`: a field origin (WGS-84) and the line's heading.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gnss.geodesy import LocalFrame
+from gnss.guidance import ABLine
+from gnss.messages import Avr, Gga, Vtg
+from gnss.nmea_encode import encode_avr, encode_gga, encode_vtg
+
+from .errors import SimulatorConfigError
+from .links.link import ByteLink
+from .links.uart import LineConfig, UartTx
+from .plant import SimulatedTractor
+
+_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class FieldGeometry:
+    """Where the simulator's straight guidance line lies on the Earth.
+
+    Attributes
+    ----------
+    origin
+        Field origin (point A of the line), WGS-84.
+    line_yaw
+        Heading of the line A to B, rad, 0 = north, clockwise.
+    utc_start
+        UTC time of day at simulation time 0, s (time tags of the receivers).
+    """
+
+    origin: LocalFrame = field(default_factory=lambda: LocalFrame.from_degrees(37.4275, -122.1697, 30.0))
+    line_yaw: float = math.radians(20.0)
+    utc_start: float = 12 * 3600.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.line_yaw) and math.isfinite(self.utc_start) and 0 <= self.utc_start < 86400):
+            raise SimulatorConfigError("FieldGeometry: line_yaw must be finite and utc_start in [0, 86400) s")
+
+    def line_to_enu(self, x: float, y: float) -> tuple[float, float]:
+        """Line frame (x along, y left; m) to ENU east, north (m)."""
+        s, c = math.sin(self.line_yaw), math.cos(self.line_yaw)
+        return x * s - y * c, x * c + y * s
+
+    def yaw(self, psi: float) -> float:
+        """Vehicle yaw (rad, 0 = north, clockwise) from heading relative to the line (rad, CCW +)."""
+        return (self.line_yaw - psi) % (2 * math.pi)
+
+    def ab_line(self, length: float = 1000.0) -> ABLine:
+        """The guidance line as the vehicle computer knows it (A at the origin)."""
+        return ABLine(np.zeros(2), np.array(self.line_to_enu(length, 0.0)))
+
+
+class _Receiver:
+    """Common device logic: epochs become due at their arrival time; lost ones are skipped."""
+
+    def __init__(self, tractor: SimulatedTractor, link: ByteLink, geometry: FieldGeometry,
+                 line: LineConfig, rate: float, latency: float, jitter: np.ndarray, lost: np.ndarray) -> None:
+        self.tractor = tractor
+        self.geometry = geometry
+        self.uart = UartTx(line, link)
+        self.rate, self.latency = rate, latency
+        self._jitter, self._lost = jitter, lost
+        self.k = 0
+        self._retry = -math.inf
+        self.sent = 0
+        self.suppressed: list[tuple[float, float]] = []   # fault injection: (start, end) with no output
+
+    def _arrival(self, k: int) -> float:
+        return k / self.rate + self.latency + float(self._jitter[k])
+
+    def next_wakeup(self) -> float:
+        due = self._arrival(self.k) if self.k < len(self._lost) else math.inf
+        return min(max(due, self._retry), self.uart.next_due())
+
+    def step(self, now: float) -> None:
+        self.uart.flush(now)
+        while self.k < len(self._lost) and self._arrival(self.k) <= now + _EPS:
+            if self._recorded() <= self.k:        # the plant has not reached the epoch yet
+                self._retry = now + self.tractor.params.dt
+                return
+            k = self.k
+            self.k += 1
+            t_valid = k / self.rate
+            if self._lost[k] or any(a <= t_valid < b for a, b in self.suppressed):
+                continue
+            self.uart.send(self._encode(k, t_valid), now)
+            self.sent += 1
+        self._retry = -math.inf
+        self.uart.flush(now)
+
+    def _recorded(self) -> int:
+        raise NotImplementedError
+
+    def _encode(self, k: int, t_valid: float) -> bytes:
+        raise NotImplementedError
+
+
+class PositionReceiver(_Receiver):
+    """RTK position receiver: ``$GPGGA`` then ``$GPVTG`` every 0.2 s.
+
+    Parameters
+    ----------
+    tractor
+        The simulated tractor whose GPS epochs are sent.
+    link
+        Byte link to the vehicle computer (in-memory or pseudo-terminal).
+    geometry
+        Field placement of the guidance line.
+    line
+        Serial line format (default 38400 8N1).
+    """
+
+    def __init__(self, tractor: SimulatedTractor, link: ByteLink, geometry: FieldGeometry,
+                 line: LineConfig | None = None) -> None:
+        g, err = tractor.params.gps, tractor.sim.gps_errors
+        super().__init__(tractor, link, geometry, line or LineConfig(baud=38400), g.position_rate,
+                         g.position_latency, err.pos_jitter[0], err.pos_lost[0])
+        self.downgraded: list[tuple[float, float]] = []     # fault injection: report RTK float instead
+
+    def _recorded(self) -> int:
+        return self.tractor.sim.n_pos
+
+    def _encode(self, k: int, t_valid: float) -> bytes:
+        sim, geo = self.tractor.sim, self.geometry
+        pos = sim.pos
+        east, north = geo.line_to_enu(float(pos["x"][0, k]), float(pos["y"][0, k]))
+        up = self.tractor.params.vehicle.antenna_height
+        lat, lon, h = geo.origin.to_geodetic(np.array([east, north, up]))
+        quality = int(pos["fix"][0, k])
+        if any(a <= t_valid < b for a, b in self.downgraded):
+            quality = 5
+        tod = (geo.utc_start + t_valid) % 86400.0
+        ia = min(int(round(t_valid * sim.params.gps.attitude_rate)), sim.n_att - 1)
+        course = geo.yaw(float(sim.att["yaw"][0, ia]))
+        gga = Gga(talker="GP", time=tod, lat=float(lat), lon=float(lon), quality=quality, num_sv=14, hdop=0.8,
+                  alt=float(h), geoid_sep=0.0, diff_age=1.0 if quality in (4, 5) else None, station_id=1)
+        vtg = Vtg(talker="GP", course=course, course_mag=None, speed=float(pos["speed"][0, k]), mode="D")
+        return encode_gga(gga) + encode_vtg(vtg)
+
+
+class AttitudeReceiver(_Receiver):
+    """Multi-antenna attitude receiver: Trimble ``$PTNL,AVR`` every 0.1 s."""
+
+    def __init__(self, tractor: SimulatedTractor, link: ByteLink, geometry: FieldGeometry,
+                 line: LineConfig | None = None) -> None:
+        g, err = tractor.params.gps, tractor.sim.gps_errors
+        super().__init__(tractor, link, geometry, line or LineConfig(baud=38400), g.attitude_rate,
+                         g.attitude_latency, err.att_jitter[0], err.att_lost[0])
+
+    def _recorded(self) -> int:
+        return self.tractor.sim.n_att
+
+    def _encode(self, k: int, t_valid: float) -> bytes:
+        att, geo = self.tractor.sim.att, self.geometry
+        tod = (geo.utc_start + t_valid) % 86400.0
+        avr = Avr(time=tod, yaw=geo.yaw(float(att["yaw"][0, k])), tilt=float(att["pitch"][0, k]),
+                  roll=float(att["roll"][0, k]), range=1.5, quality=3, pdop=1.6, num_sv=12)
+        return encode_avr(avr)

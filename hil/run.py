@@ -1,0 +1,168 @@
+"""A closed-loop pass on the bench: simulated tractor, emulated bridge and receivers, the vehicle loop.
+
+:func:`simulated_run` assembles everything for one pass following an AB line,
+either in lockstep on a virtual clock (in-memory links, much faster than real
+time) or in real time over pseudo-terminals, runs the loop and returns the run
+log; :func:`summarize` gives the paper's Table 2 numbers for it.
+"""
+
+from __future__ import annotations
+
+import math
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from design.controller import Controller
+from gnss.frontend import FrontEndConfig, GnssFrontEnd
+from identification.passlog import PassLog
+
+from .bridge.bench import LockstepBridge, PtyBridge
+from .conditions import condition_for
+from .errors import SimulatorConfigError
+from .links.memory import memory_link_pair
+from .links.pty import PtyPair
+from .loop import LoopConfig, VehicleLoop
+from .params import SimParams
+from .plant import SimulatedTractor
+from .receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from .steering import WheelAngleCalibration
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One closed-loop pass.
+
+    Attributes
+    ----------
+    implement, speed
+        Condition (implement name, nominal speed in m/s).
+    duration
+        Length of the pass, s.
+    seed
+        Seed of the simulated tractor and its sensors.
+    realtime
+        Real time over pseudo-terminals instead of lockstep on in-memory links.
+    initial_cross_track, initial_heading
+        Where the tractor starts relative to the line (m, rad).
+    override, stuck_valve
+        Plant fault intervals ``(start, end)`` in s: the driver turns the wheel; the valve sticks.
+    gps_outage, rtk_float
+        Receiver fault intervals: no GPS output at all; position reported as RTK float.
+    """
+
+    implement: str = "none"
+    speed: float = 1.79
+    duration: float = 60.0
+    seed: int = 0
+    realtime: bool = False
+    initial_cross_track: float = 0.3
+    initial_heading: float = 0.0
+    override: tuple[tuple[float, float], ...] = ()
+    stuck_valve: tuple[tuple[float, float], ...] = ()
+    gps_outage: tuple[tuple[float, float], ...] = ()
+    rtk_float: tuple[tuple[float, float], ...] = ()
+    geometry: FieldGeometry = field(default_factory=FieldGeometry)
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.duration, (int, float)) and math.isfinite(self.duration) and 1 <= self.duration <= 3600):
+            raise SimulatorConfigError(f"duration must be between 1 and 3600 s, got {self.duration!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise SimulatorConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
+        for name in ("initial_cross_track", "initial_heading"):
+            if not math.isfinite(getattr(self, name)):
+                raise SimulatorConfigError(f"{name} must be finite")
+        condition_for(self.implement, self.speed)   # validates implement and speed
+
+
+def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | None = None,
+                  loop_config: LoopConfig | None = None,
+                  progress: Callable[[float, float], None] | None = None) -> PassLog:
+    """Run one closed-loop pass on the simulated tractor and return its run log."""
+    cond = condition_for(spec.implement, spec.speed)
+    plant = SimulatedTractor(cond, spec.duration + 1.0, spec.seed, params,
+                             initial={"Y": spec.initial_cross_track, "PSI": spec.initial_heading},
+                             override=spec.override, stuck_valve=spec.stuck_valve)
+    p = plant.params
+    cal = WheelAngleCalibration.two_point(p.sensor, p.steering)
+    geo = spec.geometry
+    vp = p.vehicle
+    fe_config = FrontEndConfig(origin=geo.origin, lever_arm=(vp.antenna_ahead_of_cg, vp.antenna_left_of_cg,
+                                                             vp.antenna_height))
+    with ExitStack() as stack:
+        if spec.realtime:
+            pos_pty, att_pty = stack.enter_context(PtyPair()), stack.enter_context(PtyPair())
+            receivers = [PositionReceiver(plant, pos_pty.device_link(), geo),
+                         AttitudeReceiver(plant, att_pty.device_link(), geo)]
+            bench = stack.enter_context(PtyBridge(plant, extra_devices=receivers))
+            sources = [pos_pty.open_serial(baudrate=38400, timeout=0),
+                       att_pty.open_serial(baudrate=38400, timeout=0)]
+            for s in sources:
+                stack.callback(s.close)
+        else:
+            bench = stack.enter_context(LockstepBridge(plant, max_step=p.dt))
+            receivers, sources = [], []
+            for cls, name in ((PositionReceiver, "position"), (AttitudeReceiver, "attitude")):
+                host, dev = memory_link_pair(bench.clock, names=("host", name))
+                rx = cls(plant, dev, geo)
+                bench.scheduler.add(rx)
+                receivers.append(rx)
+                sources.append(host)
+        for rx in receivers:
+            rx.suppressed.extend(spec.gps_outage)
+        receivers[0].downgraded.extend(spec.rtk_float)
+        clock = bench.clock
+        frontend = GnssFrontEnd(fe_config, sources=sources, clock=clock.now)
+        loop = VehicleLoop(clock, bench.driver, frontend, geo.ab_line(), controller, cal, loop_config,
+                           truth=plant.truth)
+        loop.run(spec.duration, start=clock.now(), progress=progress)
+        stats = bench.driver.stats()
+    meta = {"implement": cond.implement, "nominal_speed": cond.speed, "gear": cond.gear, "seed": spec.seed,
+            "source": "hil.run (closed loop on the simulated tractor)",
+            "mode": "realtime-pty" if spec.realtime else "lockstep",
+            "initial": {"cross_track": spec.initial_cross_track, "heading": spec.initial_heading},
+            "faults": {"override": list(spec.override), "stuck_valve": list(spec.stuck_valve),
+                       "gps_outage": list(spec.gps_outage), "rtk_float": list(spec.rtk_float)},
+            "bridge_stats": {k: v for k, v in stats.__dict__.items() if k != "ping_rtts"},
+            "receivers_sent": {"position": receivers[0].sent, "attitude": receivers[1].sent},
+            "simulator": p.to_dict()}
+    return loop.run_log(meta)
+
+
+def summarize(log: PassLog, settle: float = 5.0) -> dict:
+    """Tracking and timing figures of a run log.
+
+    Cross-track statistics (bias = mean, 1-sigma = standard deviation, max |.|, m) are
+    taken over the engaged cycles at least ``settle`` seconds after the latest engage (so
+    the approach to the line after each engage is left out); both the
+    measured (GPS) value, as in the paper, and the truth when the log has it.
+    """
+    t = log.times["t"]
+    ch = log.channels
+    engaged = ch["engaged"] > 0.5
+    events = list(log.meta.get("events", []))
+    first = next((e["t"] for e in events if e["event"] == "engage"), math.inf)
+    starts = np.array([e["t"] for e in events if e["event"] == "engage"])
+    last_engage = np.full(t.shape, -math.inf)
+    if starts.size:
+        i = np.searchsorted(starts, t + 1e-9, side="right") - 1
+        last_engage = np.where(i >= 0, starts[np.maximum(i, 0)], -math.inf)
+    window = engaged & (t >= last_engage + settle)
+    out: dict = {"cycles": int(t.size), "engaged_fraction": float(engaged.mean()),
+                 "first_engage_s": None if math.isinf(first) else float(first),
+                 "disengagements": sum(1 for e in events if e["event"] == "disengage" and e["reason"] != "end of run"),
+                 "samples_in_statistics": int(window.sum())}
+    for key, name in (("cross_track", "measured"), ("truth_cross_track", "true")):
+        if key in ch and window.any():
+            x = ch[key][window]
+            out[f"{name}_bias_m"] = float(x.mean())
+            out[f"{name}_sigma_m"] = float(x.std())
+            out[f"{name}_max_abs_m"] = float(np.abs(x).max())
+    ct = ch["compute_time"] * 1e3
+    out.update({"deadline_misses": int(ch["deadline_miss"].sum()),
+                "loop_time_ms_p50": float(np.percentile(ct, 50)), "loop_time_ms_p99": float(np.percentile(ct, 99)),
+                "loop_time_ms_max": float(ct.max()),
+                "lateness_ms_p99": float(np.percentile(ch["lateness"] * 1e3, 99))})
+    return out

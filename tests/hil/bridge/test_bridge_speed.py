@@ -41,6 +41,7 @@ def test_measurement_functions_report_plausible_numbers():
     lat = measure_pty_latency(FirstOrderPlantDouble(), samples=10)
     bt = 10 / 9600
     assert lat.wire_command == pytest.approx(9 * bt)
-    assert 18 * bt <= lat.ping_rtt_min <= lat.ping_rtt_median <= lat.ping_rtt_max < 0.1
+    assert 18 * bt <= lat.ping_rtt_min <= lat.ping_rtt_median <= lat.ping_rtt_max
+    assert lat.ping_rtt_median < 0.1  # maxima are not bounded here: CI machines are shared
     assert lat.wire_command <= lat.command_to_valve_median < lat.wire_command + 0.01
     assert set(lat.as_dict()) >= {"ping_rtt_p99", "command_to_valve_max"}

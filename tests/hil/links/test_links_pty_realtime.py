@@ -98,7 +98,7 @@ def test_real_time_runner_steps_devices_on_time_and_advances_the_plant_by_wall_t
     assert not runner.alive
     assert 20 <= len(dev.times) <= 27
     gaps = [b - a for a, b in zip(dev.times, dev.times[1:])]
-    assert max(gaps) < 0.02 + 0.015, "no step more than 15 ms late on an idle machine"
+    assert max(gaps) < 0.02 + 0.05, "no step grossly late (50 ms bound: CI machines are shared)"
     assert plant.t == pytest.approx(dev.times[-1] - dev.times[0], abs=0.05)
 
 

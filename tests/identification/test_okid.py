@@ -67,6 +67,7 @@ def test_noisy_4th_order_system_matches_truth():
     np.testing.assert_allclose(est.innovation_covariance_, c @ p @ c.T + 0.0025 * np.eye(2), rtol=0.1, atol=1e-3)
 
 
+@pytest.mark.slow
 def test_error_shrinks_as_n_grows():
     errs, eig = [], []
     for n, seed in ((2_000, 1), (20_000, 2), (200_000, 3)):

@@ -27,6 +27,9 @@ Behaviour (the contract the host and the tests rely on)
 * Bad frames (CRC, length, unknown id, reserved bits, or a bridge-to-host
   message) are dropped and counted; gaps in the host's sequence numbers are
   counted as dropped frames.
+* A link that fails (closed, cable pulled) is not an error of the firmware: it
+  hears nothing, its output is lost, it keeps running, and the watchdog cuts
+  the valve.
 
 The firmware is a :class:`~hil.links.scheduler.Device`: it never sleeps and
 reads time only from the ``now`` it is stepped with.
@@ -101,6 +104,9 @@ class FirmwareState:
         Counters since boot (not wrapped).
     reports_sent, commands_applied, engages_refused : int
         Counters since boot.
+    link_errors : int
+        Reads or writes that failed because the link is gone; the firmware keeps
+        running (and its watchdog cuts the valve), as a board whose cable was pulled.
     """
 
     time: float
@@ -114,6 +120,7 @@ class FirmwareState:
     reports_sent: int
     commands_applied: int
     engages_refused: int
+    link_errors: int = 0
 
     @property
     def flags(self) -> StatusFlags:
@@ -166,13 +173,14 @@ class BridgeFirmware:
         self._reports = 0
         self._commands = 0
         self._refused = 0
+        self._link_errors = 0
 
     # -- device interface ------------------------------------------------------------------
     def next_wakeup(self) -> float:
         """Earliest time the firmware must run, s (``-inf`` before boot)."""
         if self._boot is None:
             return -math.inf
-        if self._link.in_waiting > 0:
+        if self._link_in_waiting() > 0:
             return self._last_step
         t = min(self._next_report, self._next_poll, self._tx.next_due())
         if self._inbox:
@@ -205,7 +213,10 @@ class BridgeFirmware:
             period = self.config.report_period
             missed = math.floor((now - self._next_report) / period + _TIME_EPS) + 1
             self._next_report += max(1, missed) * period
-        self._tx.flush(now)
+        try:
+            self._tx.flush(now)
+        except OSError:
+            self._link_errors += 1
 
     # -- state -----------------------------------------------------------------------------
     @property
@@ -215,15 +226,26 @@ class BridgeFirmware:
             time=self._last_step, engaged=self._engaged, watchdog_tripped=self._tripped,
             override=self._override, duty=self._duty, command_seq=self._cmd_seq, bad_frames=self._bad,
             dropped_frames=self._dropped, reports_sent=self._reports, commands_applied=self._commands,
-            engages_refused=self._refused,
+            engages_refused=self._refused, link_errors=self._link_errors,
         )
 
     # -- internals -------------------------------------------------------------------------
+    def _link_in_waiting(self) -> int:
+        try:
+            return self._link.in_waiting
+        except OSError:  # cable gone: the bridge hears nothing
+            self._link_errors += 1
+            return 0
+
     def _ingest(self, now: float) -> None:
-        n = self._link.in_waiting
+        n = self._link_in_waiting()
         if n <= 0:
             return
-        data = self._link.read(min(n, _READ_MAX))
+        try:
+            data = self._link.read(min(n, _READ_MAX))
+        except OSError:
+            self._link_errors += 1
+            return
         if not data:
             return
         start = self._decoder.counters.bytes_fed
@@ -284,7 +306,10 @@ class BridgeFirmware:
             self._send(Pong(token=message.token), now)
 
     def _send(self, message: Pong | WheelAngleReport, now: float) -> None:
-        self._tx.send(encode_frame(message, self._seq), now)
+        try:
+            self._tx.send(encode_frame(message, self._seq), now)
+        except OSError:  # nobody listening: the UART sends into the void, the bridge carries on
+            self._link_errors += 1
         self._seq = (self._seq + 1) & 0xFF
 
     def _report(self, now: float) -> None:

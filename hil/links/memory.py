@@ -94,13 +94,25 @@ class MemoryEndpoint:
         self.name = name
         self.bytes_written = 0
         self.bytes_read = 0
+        self._closed = False
 
     def __repr__(self) -> str:
         return f"MemoryEndpoint({self.name!r})"
 
+    def _check_open(self) -> None:
+        if self._closed:
+            raise LinkClosedError(f"{self.name}: this end of the in-memory link is closed")
+
     @property
     def in_waiting(self) -> int:
-        """Bytes readable now."""
+        """Bytes readable now.
+
+        Raises
+        ------
+        LinkClosedError
+            This end was closed.
+        """
+        self._check_open()
         return self._rx.available(self._clock.now())
 
     def read(self, size: int = 1) -> bytes:
@@ -109,8 +121,9 @@ class MemoryEndpoint:
         Raises
         ------
         LinkClosedError
-            Nothing is left to read and the other end is closed.
+            This end is closed, or nothing is left to read and the other end is closed.
         """
+        self._check_open()
         if isinstance(size, bool) or not isinstance(size, int) or size < 0:
             raise LinkConfigError(f"read size must be a non-negative int, got {size!r}")
         data = self._rx.take(size, self._clock.now())
@@ -129,12 +142,13 @@ class MemoryEndpoint:
         Raises
         ------
         LinkClosedError
-            This end was closed.
+            Either end was closed.
         LinkConfigError
             Bad times, or the other end's buffer is full.
         """
+        self._check_open()
         if self._tx.closed:
-            raise LinkClosedError(f"{self.name}: write on a closed in-memory link")
+            raise LinkClosedError(f"{self.name}: the other end of the in-memory link is closed")
         if not (math.isfinite(first) and math.isfinite(spacing) and spacing >= 0):
             raise LinkConfigError(f"paced write needs finite first time and spacing >= 0, got {first!r}, {spacing!r}")
         data = bytes(data)
@@ -149,6 +163,7 @@ class MemoryEndpoint:
 
     def close(self) -> None:
         """Close this end; the other end reads what is left, then gets LinkClosedError."""
+        self._closed = True
         self._tx.closed = True
         self._rx.closed = True
 

@@ -113,3 +113,25 @@ def test_non_blocking_pings_are_timed_by_poll_and_unanswered_ones_are_forgotten(
     for _ in range(1000):
         mute.send_ping()
     assert len(mute._ping_sent) <= 64
+
+
+@pytest.mark.timeout(20)
+def test_a_lost_link_raises_in_the_driver_while_the_bridge_carries_on_and_its_watchdog_cuts_the_valve(bench, plant):
+    from hil.bridge.driver import BridgeLinkError
+
+    drv, clock = bench.driver, bench.clock
+    drv.engage()
+    for _ in range(5):
+        drv.send_rate(0.35)
+        clock.sleep_until(clock.now() + 0.05)
+    assert plant.duty == 1.0
+    t_last = clock.now() - 0.05 + 9 * 10 / 9600  # arrival of the last command
+    bench.host_link.close()  # cable pulled
+    with pytest.raises(BridgeLinkError, match="failed"):
+        drv.send_rate(0.35)
+    with pytest.raises(ConnectionError):
+        drv.poll()
+    clock.sleep_until(clock.now() + 0.5)  # the bridge keeps running in lockstep, no exception
+    assert plant.duty_log[-1] == (pytest.approx(t_last + 0.25, abs=1e-9), 0.0)
+    state = bench.firmware.state
+    assert state.watchdog_tripped and state.link_errors > 0

@@ -53,6 +53,11 @@ def test_closed_memory_link_drains_then_raises_and_capacity_is_enforced():
         b.read(1)
     with pytest.raises(LinkClosedError):
         a.write(b"x")
+    with pytest.raises(LinkClosedError, match="this end"):
+        _ = a.in_waiting
+    with pytest.raises(LinkClosedError, match="other end"):
+        b.write(b"x")
+    assert b.in_waiting == 0, "the far end of a closed link just hears nothing"
     c, d = memory_link_pair(clock, capacity=8)
     with pytest.raises(LinkConfigError, match="exceed 8 bytes"):
         c.write(b"123456789")

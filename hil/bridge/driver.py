@@ -20,7 +20,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from hil.bridge.config import DriverConfig
-from hil.bridge.errors import BridgeError, BridgeTimeout, ConfigError
+from hil.bridge.errors import BridgeLinkError, BridgeTimeout, ConfigError
 from hil.bridge.framing import StreamDecoder
 from hil.bridge.protocol import (
     Disengage,
@@ -37,10 +37,6 @@ from hil.links.clock import Clock, RealClock
 from hil.links.link import ByteLink
 
 __all__ = ["BridgeLinkError", "BridgeReport", "DriverStats", "BridgeDriver"]
-
-
-class BridgeLinkError(BridgeError, ConnectionError):
-    """Reading from or writing to the bridge's link failed (port gone, pty closed, ...)."""
 
 
 @dataclass(frozen=True)

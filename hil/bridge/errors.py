@@ -19,6 +19,7 @@ __all__ = [
     "ConfigError",
     "PlantInterfaceError",
     "BridgeTimeout",
+    "BridgeLinkError",
 ]
 
 
@@ -73,3 +74,7 @@ class BridgeTimeout(BridgeError, TimeoutError):
 
 class PlantInterfaceError(BridgeError, ValueError):
     """The plant answered the firmware with a value its hardware could not produce."""
+
+
+class BridgeLinkError(BridgeError, ConnectionError):
+    """Reading from or writing to the bridge's link failed (port gone, pty closed, ...)."""

@@ -121,7 +121,8 @@ class PtyBridge:
         try:
             self.firmware = BridgeFirmware(self.pty.device_link(), plant, firmware_config)
             self.port: serial.Serial = self.pty.open_serial(baudrate=self.firmware.config.line.baud)
-            self.runner = RealTimeRunner(self.clock, [self.firmware, *extra_devices], plant, poll=poll)
+            self.runner = RealTimeRunner(self.clock, [self.firmware, *extra_devices], plant, poll=poll,
+                                         wake_fds=[self.pty.device_link().fileno()])
             self.driver = BridgeDriver(self.port, self.clock, driver_config)
         except BaseException:
             self.pty.close()

@@ -10,8 +10,9 @@ that arrived on a pseudo-terminal.
 from __future__ import annotations
 
 import math
+import select
 import threading
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from types import TracebackType
 
 from hil.links.clock import RealClock
@@ -37,6 +38,10 @@ class RealTimeRunner:
     max_duration : float, optional
         The thread stops by itself after this long, s (default 600): a forgotten
         runner never outlives a test session.
+    wake_fds : sequence of int, optional
+        File descriptors the devices read (a pty master): the thread waits on
+        them with ``select`` instead of sleeping, so it wakes as soon as bytes
+        arrive rather than at the next poll.
 
     Notes
     -----
@@ -46,7 +51,7 @@ class RealTimeRunner:
     """
 
     def __init__(self, clock: RealClock, devices: Iterable[Device] = (), plant: Advanceable | None = None,
-                 poll: float = 0.001, max_duration: float = 600.0) -> None:
+                 poll: float = 0.001, max_duration: float = 600.0, wake_fds: Sequence[int] = ()) -> None:
         if not isinstance(clock, RealClock):
             raise LinkConfigError(f"RealTimeRunner needs a RealClock, got {type(clock).__name__}")
         for name, value in (("poll", poll), ("max_duration", max_duration)):
@@ -57,6 +62,7 @@ class RealTimeRunner:
         self.plant = plant
         self.poll = float(poll)
         self.max_duration = float(max_duration)
+        self.wake_fds = [int(fd) for fd in wake_fds]
         self.passes = 0
         self.late_max = 0.0
         """Largest lateness of a device step behind its requested wake-up, s."""
@@ -91,7 +97,13 @@ class RealTimeRunner:
                         device.step(now)
                 self.passes += 1
                 wake = min((d.next_wakeup() for d in self.devices), default=math.inf)
-                clock.sleep_until(min(wake, now + self.poll))
+                until = min(wake, now + self.poll)
+                if self.wake_fds:
+                    timeout = until - clock.now()
+                    if timeout > 0:
+                        select.select(self.wake_fds, [], [], timeout)
+                else:
+                    clock.sleep_until(until)
         except BaseException as err:  # re-raised in stop(); the thread must not die silently
             self._error = err
 

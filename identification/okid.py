@@ -57,9 +57,15 @@ class OKID:
     noise_floor
         Relative process-noise floor of the Riccati estimator (see :mod:`identification.estimator`).
     refine
-        ``"bd"`` (default): re-estimate ``B`` and ``D`` by output-error least squares
-        for the realised ``A``, ``C`` (:mod:`identification.refine`; needed for
-        coloured inputs); ``"none"``: keep ERA's ``B``, ``D``.
+        Re-estimate ``B`` and ``D`` by linear least squares for the realised
+        ``A``, ``C`` (:mod:`identification.refine`): ``"pem"`` (default)
+        minimises the one-step prediction error of the Kalman predictor - the
+        right choice when the model is used with its estimator (the tractor) and
+        the most accurate Markov parameters on white-input data; ``"oe"``
+        minimises the free-run (simulation) error - the right choice for
+        simulation models from coloured or closed-loop-derived inputs (DaISy
+        CD_player_arm: 72.9 % mean free-run fit against 70.3 % with ``"pem"``
+        and 65.4 % with ``"none"``); ``"none"`` keeps ERA's ``B``, ``D``.
     block_rows
         Rows of the regression matrix formed at a time.
     """
@@ -68,7 +74,7 @@ class OKID:
                  max_order: int = 10, method: str = "era-dc", feedthrough: bool = True,
                  hankel_rows: int | None = None, hankel_cols: int | None = None,
                  dc_blocks: int = 1, dc_lag: int = 1, ridge: float = 1e-10,
-                 noise_floor: float = 1e-3, refine: str = "bd",
+                 noise_floor: float = 1e-3, refine: str = "pem",
                  block_rows: int = _mk.BLOCK_ROWS) -> None:
         self.order = order
         self.markov = markov
@@ -111,8 +117,8 @@ class OKID:
         pos_int("hankel_cols", allow_none=True)
         if self.method not in ("era", "era-dc"):
             raise OptionError(f"method must be 'era' or 'era-dc', got {self.method!r}")
-        if self.refine not in ("bd", "none"):
-            raise OptionError(f"refine must be 'bd' or 'none', got {self.refine!r}")
+        if self.refine not in ("pem", "oe", "none"):
+            raise OptionError(f"refine must be 'pem', 'oe' or 'none', got {self.refine!r}")
         if not isinstance(self.feedthrough, bool):
             raise OptionError(f"feedthrough must be True or False, got {self.feedthrough!r}")
         for name in ("ridge", "noise_floor"):
@@ -172,8 +178,10 @@ class OKID:
         g = observer_gain(real.A, real.C, ygain[:rows])
         k, _ = kalman_gain(real.A, real.C, sigma, -g, self.noise_floor)
         b_mat, d_mat = real.B, real.D
-        if self.refine == "bd":
+        if self.refine == "oe":
             b_mat, d_mat, _ = refine_bd(real.A, real.C, data, self.feedthrough)
+        elif self.refine == "pem":
+            b_mat, d_mat, _ = refine_bd(real.A, real.C, data, self.feedthrough, k)
         # modal indicators on the scaled realisation (channels weigh alike)
         lam, msv = _era.modal_singular_values(real.A, real.B, real.C, rows + cols)
         emac_lam, emac_v = _era.emac(real)

@@ -1,0 +1,255 @@
+#!/usr/bin/env python3
+"""Benchmark: identification.OKID against python-control, SIPPY and nfoursid.
+
+Part 1 - synthetic 4th-order MIMO system (2 inputs, 2 outputs, poles 0.9 e^{±0.3j},
+0.8 e^{±1.1j}, D != 0, process noise 0.1, measurement noise 0.05, white inputs) at
+N = 5k, 50k, 200k, 1M samples. Every case runs in its own subprocess so that the
+peak resident memory (``ru_maxrss`` growth over the process after the data were
+made) and the wall time belong to that method alone. Columns: time [s], peak
+memory [MB], relative error of the first 20 Markov parameters, free-run and
+one-step fit [%] (mean of the two outputs) on a fresh 5 000-sample record. A
+peer is skipped at sizes where its measured growth (time or memory, from the
+smaller sizes) projects beyond 300 s or 4 GB, and the table says so.
+
+Part 2 - DaISy robot_arm and CD_player_arm, first half to fit, second half to
+validate, free-run fit from a least-squares initial state (the same metric for
+all). Peers are given their best order from {2, 4, 6, 8}; OKID runs with the
+settings pinned in tests/identification/test_daisy.py.
+
+Run: ``.venv/bin/python benchmarks/bench_identification.py [--sizes 5000 50000 ...] [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from identification.data import IOData  # noqa: E402
+from identification.okid import OKID  # noqa: E402
+from identification.simulate import simulate  # noqa: E402
+from identification.validation import validate  # noqa: E402
+
+DAISY = ROOT / "tests" / "data" / "sysid"
+METHODS = ("okid", "control", "sippy-n4sid", "nfoursid")
+LIMIT_S, LIMIT_MB = 300.0, 4096.0
+
+
+def true_system():
+    poles = [0.9 * np.exp(1j * 0.3), 0.8 * np.exp(1j * 1.1)]
+    a = np.zeros((4, 4))
+    for i, p in enumerate(poles):
+        a[2 * i:2 * i + 2, 2 * i:2 * i + 2] = [[p.real, p.imag], [-p.imag, p.real]]
+    b = np.array([[1.0, 0.2], [0.3, -0.5], [0.0, 1.0], [0.7, 0.4]])
+    c = np.array([[1.0, 0.5, -0.4, 0.2], [0.1, -0.3, 0.8, 0.6]])
+    d = np.array([[0.1, 0.0], [0.0, 0.05]])
+    return a, b, c, d
+
+
+def make_data(n: int, seed: int):
+    a, b, c, d = true_system()
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=(n, 2))
+    w = 0.1 * rng.normal(size=(n, 4))
+    y = simulate(a, np.hstack([b, np.eye(4)]), c, np.hstack([d, np.zeros((2, 4))]), np.hstack([u, w]))
+    return u, y + 0.05 * rng.normal(size=(n, 2))
+
+
+def markov_error(a, b, c, d, n=20):
+    at, bt, ct, dt = true_system()
+    est = np.array([d] + [c @ np.linalg.matrix_power(a, k) @ b for k in range(n)])
+    tru = np.array([dt] + [ct @ np.linalg.matrix_power(at, k) @ bt for k in range(n)])
+    return float(np.linalg.norm(est - tru) / np.linalg.norm(tru))
+
+
+# -- the methods: each returns (A, B, C, D, K or None) -----------------------------------
+def fit_okid(u, y, order=4, **kw):
+    m = OKID(order=order, **kw).fit(IOData.from_arrays(u, y)).model_
+    return m.A, m.B, m.C, m.D, m.K
+
+
+def fit_control(u, y, order=4, n_markov=100):
+    import control as ct
+
+    h = np.asarray(ct.markov(y.T, u.T, n_markov))
+    if h.ndim == 1:
+        h = h[None, None, :]
+    sysd, _ = ct.era(h, order, dt=True)
+    return sysd.A, sysd.B, sysd.C, sysd.D, None
+
+
+def fit_sippy(u, y, order=4, method="N4SID"):
+    from sippy_unipi import system_identification
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = system_identification(y.T, u.T, method, SS_fixed_order=order, SS_f=20, SS_D_required=True)
+    return s.A, s.B, s.C, s.D, np.asarray(s.K)
+
+
+def fit_nfoursid(u, y, order=4, rows=20):
+    import pandas as pd
+    from nfoursid.nfoursid import NFourSID
+
+    cu = [f"u{i}" for i in range(u.shape[1])]
+    cy = [f"y{i}" for i in range(y.shape[1])]
+    n4 = NFourSID(pd.DataFrame(np.hstack([u, y]), columns=cu + cy), output_columns=cy,
+                  input_columns=cu, num_block_rows=rows)
+    n4.subspace_identification()
+    ss, _cov = n4.system_identification(rank=order)
+    return ss.a, ss.b, ss.c, ss.d, None
+
+
+FITTERS = {"okid": fit_okid, "control": fit_control, "sippy-n4sid": fit_sippy, "sippy-moesp":
+           lambda u, y, order: fit_sippy(u, y, order, "MOESP"), "sippy-cva":
+           lambda u, y, order: fit_sippy(u, y, order, "CVA"), "nfoursid": fit_nfoursid}
+
+
+def _metrics(a, b, c, d, k, u_val, y_val):
+    a, b, c, d = (np.atleast_2d(np.asarray(x, float)) for x in (a, b, c, d))
+    res = validate(a, b, c, d, np.zeros((a.shape[0], c.shape[0])) if k is None else np.asarray(k, float),
+                   IOData.from_arrays(u_val, y_val))
+    return res
+
+
+def run_case(method: str, n: int) -> dict:
+    """Child process: fit one method at one size, report time and memory."""
+    u, y = make_data(n, seed=n)
+    u_val, y_val = make_data(5000, seed=1)
+    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    t0 = time.perf_counter()
+    a, b, c, d, k = FITTERS[method](u, y, 4)
+    elapsed = time.perf_counter() - t0
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0 - base
+    res = _metrics(a, b, c, d, k, u_val, y_val)
+    return {"method": method, "n": n, "time_s": elapsed, "peak_mb": max(peak, 0.0),
+            "markov_error": markov_error(*(np.atleast_2d(np.asarray(x, float)) for x in (a, b, c, d))),
+            "free_run_fit": float(np.mean(res.free_run_fit)),
+            "one_step_fit": None if k is None else float(np.mean(res.one_step_fit))}
+
+
+def _child(method: str, n: int) -> dict:
+    try:
+        done = subprocess.run([sys.executable, __file__, "--case", method, str(n)], capture_output=True,
+                              text=True, timeout=LIMIT_S * 1.5)
+    except subprocess.TimeoutExpired:
+        return {"method": method, "n": n, "skipped": f"timed out after {LIMIT_S * 1.5:.0f} s"}
+    if done.returncode != 0:
+        last = (done.stderr.strip().splitlines() or ["failed"])[-1]
+        return {"method": method, "n": n, "skipped": f"failed: {last[:80]}"}
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _projected(prev: list[dict], n: int) -> str | None:
+    ok = [r for r in prev if "skipped" not in r]
+    if not ok:
+        return "failed at a smaller size" if prev else None
+    last = ok[-1]
+    ratio = n / last["n"]
+    growth_t = 1.0
+    growth_m = 1.0
+    if len(ok) >= 2:
+        r0, r1 = ok[-2], ok[-1]
+        lr = np.log(r1["n"] / r0["n"])
+        growth_t = max(np.log(max(r1["time_s"], 1e-3) / max(r0["time_s"], 1e-3)) / lr, 1.0)
+        growth_m = max(np.log(max(r1["peak_mb"], 1.0) / max(r0["peak_mb"], 1.0)) / lr, 1.0)
+    t = last["time_s"] * ratio ** growth_t
+    mem = max(last["peak_mb"], 1.0) * ratio ** growth_m
+    if t > LIMIT_S or mem > LIMIT_MB:
+        return f"skipped: projected {t:.0f} s, {mem:.0f} MB (limits {LIMIT_S:.0f} s, {LIMIT_MB:.0f} MB)"
+    if any("skipped" in r for r in prev):
+        return "skipped: failed at a smaller size"
+    return None
+
+
+def synthetic_table(sizes: list[int], methods: list[str]) -> list[dict]:
+    rows = []
+    for method in methods:
+        prev: list[dict] = []
+        for n in sizes:
+            why = _projected(prev, n)
+            row = {"method": method, "n": n, "skipped": why} if why else _child(method, n)
+            prev.append(row)
+            rows.append(row)
+            print(_fmt_row(row), flush=True)
+    return rows
+
+
+def _fmt_row(r: dict) -> str:
+    if r.get("skipped"):
+        return f"{r['method']:12s} {r['n']:>8d}  {r['skipped']}"
+    one = "   n/a" if r["one_step_fit"] is None else f"{r['one_step_fit']:6.2f}"
+    return (f"{r['method']:12s} {r['n']:>8d} {r['time_s']:9.3f} {r['peak_mb']:9.1f} "
+            f"{r['markov_error']:10.2e} {r['free_run_fit']:8.2f} {one}")
+
+
+def daisy_table() -> list[dict]:
+    rows = []
+    cases = {"robot_arm": (1, dict(order=8, markov=13, method="era", hankel_rows=20, hankel_cols=20)),
+             "CD_player_arm": (2, dict(order=8, markov=6, refine="oe"))}
+    for name, (m, okid_kw) in cases.items():
+        raw = np.loadtxt(DAISY / name / f"{name}.dat")
+        u, y = raw[:, :m], raw[:, m:]
+        h = raw.shape[0] // 2
+        for method in ("okid", "control", "sippy-n4sid", "sippy-moesp", "sippy-cva", "nfoursid"):
+            best, best_order, t_best = None, None, 0.0
+            orders = [okid_kw["order"]] if method == "okid" else [2, 4, 6, 8]
+            for order in orders:
+                try:
+                    t0 = time.perf_counter()
+                    if method == "okid":
+                        kw = dict(okid_kw)
+                        kw.pop("order")
+                        mats = fit_okid(u[:h], y[:h], order, **kw)
+                    else:
+                        mats = FITTERS[method](u[:h], y[:h], order)
+                    el = time.perf_counter() - t0
+                    res = _metrics(*mats, u[h:], y[h:])
+                except Exception as exc:  # a peer failing is a result, not a crash
+                    print(f"  {name} {method} order {order}: failed ({type(exc).__name__})", file=sys.stderr)
+                    continue
+                fit = res.free_run_fit
+                if np.all(np.isfinite(fit)) and (best is None or fit.mean() > best.mean()):
+                    best, best_order, t_best = fit, order, el
+            rows.append({"data": name, "method": method, "order": best_order,
+                         "free_run_fit": None if best is None else [float(v) for v in best],
+                         "time_s": t_best})
+            fr = "failed" if best is None else " ".join(f"{v:7.2f}" for v in best) + f"   mean {best.mean():6.2f}"
+            print(f"{name:14s} {method:12s} n={best_order!s:>2s} {fr}", flush=True)
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[5_000, 50_000, 200_000, 1_000_000])
+    ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
+    ap.add_argument("--quick", action="store_true", help="sizes 5k and 50k only")
+    ap.add_argument("--json", help="also write the results to this JSON file")
+    ap.add_argument("--case", nargs=2, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.case:
+        print(json.dumps(run_case(args.case[0], int(args.case[1]))))
+        return
+    sizes = [5_000, 50_000] if args.quick else args.sizes
+    print("Synthetic 4th-order 2x2 system (fits on a fresh 5k record, mean of 2 outputs)")
+    print(f"{'method':12s} {'N':>8s} {'time [s]':>9s} {'peak [MB]':>9s} {'Markov err':>10s} "
+          f"{'free %':>8s} {'1-step %':>6s}")
+    syn = synthetic_table(sizes, args.methods)
+    print("\nDaISy records, free-run validation fit % per output (first half fit, second half validate)")
+    dai = daisy_table()
+    if args.json:
+        Path(args.json).write_text(json.dumps({"synthetic": syn, "daisy": dai}, indent=2))
+
+
+if __name__ == "__main__":
+    main()

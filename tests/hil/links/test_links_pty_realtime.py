@@ -113,3 +113,33 @@ def test_real_time_runner_reraises_a_device_error_on_stop():
         runner.stop()
     with pytest.raises(LinkConfigError):
         RealTimeRunner(clock, poll=0)
+
+
+class Echo:
+    """Device that answers every byte on its link; wakes only for input (no timer)."""
+
+    def __init__(self, link) -> None:
+        self.link = link
+
+    def next_wakeup(self) -> float:
+        return -1.0 if self.link.in_waiting else float("inf")
+
+    def step(self, now: float) -> None:
+        self.link.write(self.link.read(self.link.in_waiting))
+
+
+@pytest.mark.timeout(20)
+def test_runner_with_wake_fds_reacts_to_bytes_at_once_not_at_the_next_poll():
+    clock = RealClock()
+    with PtyPair() as pair:
+        dev = pair.device_link()
+        port = pair.open_serial()
+        with RealTimeRunner(clock, [Echo(dev)], poll=0.5, wake_fds=[dev.fileno()]):
+            clock.sleep_until(clock.now() + 0.05)
+            delays = []
+            for k in range(5):
+                t0 = time.monotonic()
+                port.write(bytes([k]))
+                assert read_for(port, 1, timeout=1.0) == bytes([k])
+                delays.append(time.monotonic() - t0)
+    assert max(delays) < 0.1, f"echo took {max(delays):.3f} s: the runner slept through its input"

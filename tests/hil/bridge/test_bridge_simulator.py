@@ -96,3 +96,25 @@ def test_bridge_steers_the_truth_simulator_over_a_pty_in_real_time():
     counts = [r.adc_counts for r in reports if r.engaged]
     assert len(counts) >= 15 and counts[-1] > counts[0] + 20, "the wheel turned left, as the ADC shows"
     assert not reports[-1].engaged and drv.stats().bad_frames == 0
+
+
+@pytest.mark.timeout(30)
+def test_the_simulated_tractor_of_hil_plant_is_a_steering_plant_and_its_override_cuts_the_valve():
+    from hil.plant import SimulatedTractor
+
+    tractor = SimulatedTractor(condition_for("disker", 1.34), 4.0, 3, override=((1.0, 1.5),))
+    assert isinstance(tractor, SteeringPlant)
+    bench = LockstepBridge(tractor, max_step=tractor.params.dt)
+    drv, clock = bench.driver, bench.clock
+    drv.engage()
+    states = []
+    for k in range(1, 61):  # 3 s
+        drv.send_rate(0.2)
+        clock.sleep_until(0.05 * k)
+        states += [(r.report.bridge_time_ms / 1000, r.engaged, r.manual_override) for r in drv.poll()]
+        if k == 40:
+            drv.engage()  # the driver let go at 1.5 s: the host re-engages explicitly
+    overridden = [t for t, _, o in states if o]
+    assert overridden and 1.0 <= min(overridden) <= 1.06 and max(overridden) <= 1.5
+    assert not any(e for t, e, _ in states if 1.01 < t < 2.0), "no re-engage before the host asks"
+    assert states[-1][1], "engaged again after the explicit engage"

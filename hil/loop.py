@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from dataclasses import asdict, dataclass
 from typing import Callable
 
@@ -56,6 +57,11 @@ class LoopConfig:
         Largest cross-track [m] and heading error [rad] at which the loop engages.
     engage_confirm
         Time the bridge has to report itself engaged after an engage, s.
+    response_window, response_min_command, response_min_ratio
+        Steering-response monitor: over the last ``response_window`` s engaged, when the
+        commanded rates add up to at least ``response_min_command`` rad of wheel motion
+        and the wheel moved less than ``response_min_ratio`` of it in that direction, the
+        steering is not responding (stuck valve, hydraulics off) and the loop disengages.
     """
 
     rate: float = 20.0
@@ -66,6 +72,9 @@ class LoopConfig:
     engage_cross_track: float = 2.0
     engage_heading: float = 0.35
     engage_confirm: float = 0.3
+    response_window: float = 1.0
+    response_min_command: float = 0.12
+    response_min_ratio: float = 0.15
 
     def __post_init__(self) -> None:
         for k, v in asdict(self).items():
@@ -122,6 +131,8 @@ class VehicleLoop:
         self._engaged_at = math.nan
         self._confirmed = False
         self._last = {"cross_track": 0.0, "heading_error": 0.0, "wheel_angle": 0.0, "speed": 0.0}
+        self._response: deque[tuple[float, float]] = deque(maxlen=max(2, round(self.config.response_window
+                                                                            * self.config.rate) + 1))
 
     # -- one cycle ------------------------------------------------------------------
     def cycle(self, t_due: float) -> None:
@@ -167,6 +178,10 @@ class VehicleLoop:
                 reasons.append("bridge disengaged itself")
             elif not self._confirmed and now - self._engaged_at > cfg.engage_confirm:
                 reasons.append("bridge did not confirm the engage")
+            if self._confirmed and bridge_valid:
+                why = self._steering_response(delta)
+                if why:
+                    reasons.append(why)
         healthy = not reasons
         u = 0.0
         if self.engaged and not healthy:
@@ -182,6 +197,7 @@ class VehicleLoop:
         if self.engaged:
             m = Measurement(t=now, cross_track=xte, heading_error=he, wheel_angle=delta, speed=speed)
             u = float(np.clip(self.controller.step(m), -cfg.max_rate, cfg.max_rate))
+            self._response.append((u, delta))
             try:
                 self.driver.send_rate(u)
             except BridgeLinkError as exc:
@@ -204,6 +220,18 @@ class VehicleLoop:
             for k, v in self.truth().items():
                 self._truth_rows.setdefault(k, []).append(v)
 
+    def _steering_response(self, delta: float) -> str | None:
+        """Reason if the wheel has not followed the commands over the monitor's window."""
+        cfg = self.config
+        if len(self._response) < self._response.maxlen:
+            return None
+        commanded = sum(u for u, _ in list(self._response)[:-1]) / cfg.rate
+        moved = delta - self._response[0][1]
+        if abs(commanded) >= cfg.response_min_command and moved / commanded < cfg.response_min_ratio:
+            return (f"steering not responding: commanded {math.degrees(commanded):.1f} deg in "
+                    f"{cfg.response_window:.1f} s, wheel moved {math.degrees(moved):.1f} deg")
+        return None
+
     def _engage(self, now: float, link_ok: bool) -> None:
         if not link_ok:
             return
@@ -214,10 +242,12 @@ class VehicleLoop:
             self.events.append({"t": now, "event": "engage failed", "reason": str(exc)})
             return
         self.engaged, self._engaged_at, self._confirmed = True, now, False
+        self._response.clear()
         self.events.append({"t": now, "event": "engage", "reason": "healthy"})
 
     def _disengage(self, now: float, reason: str, link_ok: bool) -> None:
         self.engaged = False
+        self._response.clear()
         self._healthy_since = math.inf
         if link_ok:
             try:

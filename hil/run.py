@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Callable
 
 import numpy as np
@@ -21,7 +21,9 @@ from identification.passlog import PassLog
 
 from .bridge.bench import LockstepBridge, PtyBridge
 from .conditions import condition_for
+from .bridge.driver import BridgeDriver
 from .errors import SimulatorConfigError
+from .faults import FaultyLink, LinkFault
 from .links.memory import memory_link_pair
 from .links.pty import PtyPair
 from .loop import LoopConfig, VehicleLoop
@@ -51,6 +53,8 @@ class RunSpec:
         Plant fault intervals ``(start, end)`` in s: the driver turns the wheel; the valve sticks.
     gps_outage, rtk_float
         Receiver fault intervals: no GPS output at all; position reported as RTK float.
+    link_faults
+        Faults on the bridge link, host side (see :mod:`hil.faults`).
     """
 
     implement: str = "none"
@@ -64,6 +68,7 @@ class RunSpec:
     stuck_valve: tuple[tuple[float, float], ...] = ()
     gps_outage: tuple[tuple[float, float], ...] = ()
     rtk_float: tuple[tuple[float, float], ...] = ()
+    link_faults: tuple[LinkFault, ...] = ()
     geometry: FieldGeometry = field(default_factory=FieldGeometry)
 
     def __post_init__(self) -> None:
@@ -114,17 +119,28 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             rx.suppressed.extend(spec.gps_outage)
         receivers[0].downgraded.extend(spec.rtk_float)
         clock = bench.clock
+        driver = bench.driver
+        faulty = None
+        if spec.link_faults:
+            host = bench.port if spec.realtime else bench.host_link
+            rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(99,)))
+            faulty = FaultyLink(host, clock, spec.link_faults, rng)
+            driver = BridgeDriver(faulty, clock, bench.driver.config)
         frontend = GnssFrontEnd(fe_config, sources=sources, clock=clock.now)
-        loop = VehicleLoop(clock, bench.driver, frontend, geo.ab_line(), controller, cal, loop_config,
+        loop = VehicleLoop(clock, driver, frontend, geo.ab_line(), controller, cal, loop_config,
                            truth=plant.truth)
         loop.run(spec.duration, start=clock.now(), progress=progress)
-        stats = bench.driver.stats()
+        stats = driver.stats()
+        firmware = bench.firmware.state
     meta = {"implement": cond.implement, "nominal_speed": cond.speed, "gear": cond.gear, "seed": spec.seed,
             "source": "hil.run (closed loop on the simulated tractor)",
             "mode": "realtime-pty" if spec.realtime else "lockstep",
             "initial": {"cross_track": spec.initial_cross_track, "heading": spec.initial_heading},
             "faults": {"override": list(spec.override), "stuck_valve": list(spec.stuck_valve),
-                       "gps_outage": list(spec.gps_outage), "rtk_float": list(spec.rtk_float)},
+                       "gps_outage": list(spec.gps_outage), "rtk_float": list(spec.rtk_float),
+                       "link": [asdict(f) for f in spec.link_faults],
+                       "link_fault_counts": faulty.counts if faulty else {}},
+            "firmware": {k: v for k, v in asdict(firmware).items() if isinstance(v, (int, float, bool))},
             "bridge_stats": {k: v for k, v in stats.__dict__.items() if k != "ping_rtts"},
             "receivers_sent": {"position": receivers[0].sent, "attitude": receivers[1].sent},
             "simulator": p.to_dict()}

@@ -24,6 +24,7 @@ from identification.passlog import PassLog
 
 from .conditions import GEAR_SPEEDS, IMPLEMENTS
 from .errors import HilError
+from .faults import LinkFault
 from .params import SimParams, parameter_markdown, parameter_table
 from .plots import plot_pass, plot_run
 from .run import RunSpec, simulated_run, summarize
@@ -85,16 +86,28 @@ def _cmd_params(args: argparse.Namespace) -> dict:
 
 FAULT_KINDS = {"override": "override", "stuck-valve": "stuck_valve", "gps-outage": "gps_outage",
                "rtk-float": "rtk_float"}
+LINK_FAULT_KINDS = ("link-garbage", "link-drop", "link-corrupt", "link-delay", "link-cut")
 
 
-def _fault(text: str) -> tuple[str, tuple[float, float]]:
+def _fault(text: str) -> tuple[str, object]:
+    """``KIND:START-END`` (plant and receiver faults) or ``link-KIND:START-END[@RATE]`` (bridge link)."""
     kind, sep, span = text.partition(":")
+    span, at, rate_text = span.partition("@")
     start, dash, end = span.partition("-")
-    if kind not in FAULT_KINDS or not sep or not dash:
-        raise argparse.ArgumentTypeError(f"expected KIND:START-END with KIND in {sorted(FAULT_KINDS)}, got {text!r}")
+    kinds = sorted(FAULT_KINDS) + list(LINK_FAULT_KINDS)
+    if kind not in kinds or not sep or not dash:
+        raise argparse.ArgumentTypeError(f"expected KIND:START-END[@RATE] with KIND in {kinds}, got {text!r}")
     a, b = _float(start), _float(end)
     if not (0 <= a < b):
         raise argparse.ArgumentTypeError(f"fault interval must satisfy 0 <= START < END (s), got {text!r}")
+    if kind in LINK_FAULT_KINDS:
+        rate = _float(rate_text) if at else 1.0
+        try:
+            return "link_faults", LinkFault(kind[5:], a, b, rate=rate)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    if at:
+        raise argparse.ArgumentTypeError(f"@RATE applies to link faults only, got {text!r}")
     return FAULT_KINDS[kind], (a, b)
 
 
@@ -168,7 +181,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--realtime", action="store_true", help="real time over pseudo-terminals (default: lockstep)")
     r.add_argument("--initial-cross-track", type=_float, default=0.3, help="start offset from the line, m")
     r.add_argument("--fault", action="append", type=_fault, metavar="KIND:START-END",
-                   help=f"inject a fault, KIND in {sorted(FAULT_KINDS)}; repeatable")
+                   help=f"inject a fault, KIND in {sorted(FAULT_KINDS) + list(LINK_FAULT_KINDS)}; link "
+                        "faults take @RATE, the probability per chunk (default 1); repeatable")
     r.add_argument("--out", required=True, help="directory for run_log.npz, track.png, summary.json")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=_cmd_run)

@@ -121,11 +121,13 @@ def test_realtime_over_ptys_agrees_with_lockstep(controller):
 
 def test_cli_run_writes_log_figure_and_summary(tmp_path, capsys):
     rc = hil_main(["run", "--controller", "kinematic", "--implement", "disker", "--speed", "1.0", "--duration", "8",
-                   "--seed", "1", "--out", str(tmp_path), "--quiet", "--json", "--fault", "override:4-4.5"])
+                   "--seed", "1", "--out", str(tmp_path), "--quiet", "--json", "--fault", "override:4-4.5",
+                   "--fault", "link-cut:6-6.5"])
     assert rc == 0
     result = json.loads(capsys.readouterr().out)
-    assert result["summary"]["engaged_fraction"] > 0.5
+    assert result["summary"]["engaged_fraction"] > 0.4
     assert any("manual override" in e["reason"] for e in result["events"])
+    assert any("bridge link error" in e["reason"] for e in result["events"])
     assert json.loads((tmp_path / "summary.json").read_text())["summary"] == result["summary"]
     assert (tmp_path / "track.png").stat().st_size > 10_000
     assert PassLog.load(tmp_path / "run_log.npz").meta["implement"] == "disker"
@@ -133,6 +135,8 @@ def test_cli_run_writes_log_figure_and_summary(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, message", [
     (["--fault", "meteor:1-2"], "expected KIND:START-END"),
+    (["--fault", "link-drop:1-2@1.5"], "probability"),
+    (["--fault", "override:1-2@0.5"], "@RATE applies to link faults only"),
     (["--fault", "override:5-2"], "0 <= START < END"),
     (["--controller", "pid"], "invalid choice: 'pid'"),
 ])

@@ -122,7 +122,7 @@ def test_realtime_over_ptys_agrees_with_lockstep(controller):
 def test_cli_run_writes_log_figure_and_summary(tmp_path, capsys):
     rc = hil_main(["run", "--controller", "kinematic", "--implement", "disker", "--speed", "1.0", "--duration", "8",
                    "--seed", "1", "--out", str(tmp_path), "--quiet", "--json", "--fault", "override:4-4.5",
-                   "--fault", "link-cut:6-6.5"])
+                   "--fault", "link-cut:2-2.5"])
     assert rc == 0
     result = json.loads(capsys.readouterr().out)
     assert result["summary"]["engaged_fraction"] > 0.4

@@ -5,6 +5,8 @@
     hil params [--set group.name=value ...]
     hil run --controller kinematic --implement none --speed 1.79 --duration 60 --out runs/NAME
         [--realtime] [--seed N] [--fault KIND:START-END ...]
+    hil drive --bridge PORT --position PORT [--attitude PORT] --controller kinematic \
+        --line LAT,LON,LAT,LON --duration S --out runs/NAME
 
 Unknown options and bad values exit with status 2 (usage) or 1 (a value the
 library refused), with a message saying what was expected.
@@ -146,6 +148,35 @@ def _cmd_run(args: argparse.Namespace) -> dict:
     return result
 
 
+def _floats(n: int):
+    def parse(text: str) -> tuple[float, ...]:
+        parts = text.split(",")
+        if len(parts) != n:
+            raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {text!r}")
+        return tuple(_float(p) for p in parts)
+    return parse
+
+
+def _cmd_drive(args: argparse.Namespace) -> dict:
+    from .drive import DriveConfig, drive
+    a, b = args.line[:2], args.line[2:]
+    cfg = DriveConfig(bridge_port=args.bridge, position_port=args.position, attitude_port=args.attitude,
+                      line_a=a, line_b=b, height=args.height, lever_arm=args.lever_arm,
+                      wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
+                      gnss_baud=args.gnss_baud)
+    log = drive(cfg, _controller(args.controller), args.duration, implement=args.implement,
+                nominal_speed=args.speed)
+    out = Path(args.out)
+    summary = summarize(log)
+    log.save(out / "run_log.npz")
+    plot_run(log, out / "track.png", summary)
+    result = {"out": str(out), "controller": args.controller, "implement": args.implement, "speed": args.speed,
+              "mode": "vehicle", "summary": summary, "events": list(log.meta["events"]),
+              "files": [str(out / "run_log.npz"), str(out / "track.png"), str(out / "summary.json")]}
+    (out / "summary.json").write_text(json.dumps(result, indent=2) + "\n")
+    return result
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="hil", description="Truth simulator and hardware-in-the-loop bench.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -187,6 +218,27 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=_cmd_run)
 
+    d = sub.add_parser("drive", help="run the vehicle loop on real serial ports (on a tractor)")
+    d.add_argument("--bridge", required=True, help="steering bridge serial device")
+    d.add_argument("--position", required=True, help="position receiver serial device")
+    d.add_argument("--attitude", help="attitude receiver serial device (default: same as --position)")
+    d.add_argument("--controller", required=True, choices=["kinematic"])
+    d.add_argument("--line", required=True, type=_floats(4), metavar="LAT_A,LON_A,LAT_B,LON_B",
+                   help="guidance line ends in degrees; A is the local origin (write --line=... when a "
+                        "value is negative)")
+    d.add_argument("--height", type=_float, default=0.0, help="field ellipsoidal height, m")
+    d.add_argument("--lever-arm", type=_floats(3), default=(0.0, 0.0, 3.0), metavar="X,Y,Z",
+                   help="antenna from the control point, body frame (fwd, left, up), m")
+    d.add_argument("--wheel-calibration", type=_floats(2), default=(128.0, 0.0061), metavar="CENTER,RAD_PER_COUNT")
+    d.add_argument("--bridge-baud", type=int, default=9600)
+    d.add_argument("--gnss-baud", type=int, default=38400)
+    d.add_argument("--duration", type=_float, required=True, help="seconds (Ctrl-C stops earlier)")
+    d.add_argument("--implement", default="unknown", help="label for the run log")
+    d.add_argument("--speed", type=_float, default=0.0, help="nominal speed for the run log, m/s")
+    d.add_argument("--out", required=True, help="directory for run_log.npz, track.png, summary.json")
+    d.add_argument("--json", action="store_true", help="print the result as JSON")
+    d.set_defaults(func=_cmd_drive)
+
     pa = sub.add_parser("params", parents=[common], help="list the simulator's parameters")
     pa.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     pa.set_defaults(func=_cmd_params)
@@ -199,7 +251,7 @@ def _print_human(command: str, result: dict) -> None:
     elif command == "params":
         for r in result["parameters"]:
             print(f"{r['name']:<38} {r['value']:>11.6g} {r['unit']:<8} {r['source']:<10} {r['doc']}")
-    elif command == "run":
+    elif command in ("run", "drive"):
         s = result["summary"]
         if "measured_sigma_m" in s:
             print(f"{result['controller']} on {result['implement']} at {result['speed']} m/s ({result['mode']}): "

@@ -269,8 +269,12 @@ class VehicleLoop:
             self.cycle(t0 + k * period)
             if progress is not None and k % 100 == 0:
                 progress(k * period, duration)
+        self.stop("end of run")
+
+    def stop(self, reason: str) -> None:
+        """Disengage now if engaged (sending the disengage frame) and record ``reason``."""
         if self.engaged:
-            self._disengage(self.clock.now(), "end of run", True)
+            self._disengage(self.clock.now(), reason, True)
 
     def run_log(self, meta: dict) -> PassLog:
         """The record as a pass log (cycle time base for every channel) with ``meta`` added."""

@@ -5,7 +5,8 @@ Part 1 - synthetic 4th-order MIMO system (2 inputs, 2 outputs, poles 0.9 e^{±0.
 0.8 e^{±1.1j}, D != 0, process noise 0.1, measurement noise 0.05, white inputs) at
 N = 5k, 50k, 200k, 1M samples. Every case runs in its own subprocess so that the
 peak resident memory (``ru_maxrss`` growth over the process after the data were
-made) and the wall time belong to that method alone. Columns: time [s], peak
+made) and the wall time belong to that method alone; every child runs with one
+BLAS thread (``OPENBLAS_NUM_THREADS=1``), the same for all methods. Columns: time [s], peak
 memory [MB], relative error of the first 20 Markov parameters, free-run and
 one-step fit [%] (mean of the two outputs) on a fresh 5 000-sample record. A
 peer is skipped at sizes where its measured growth (time or memory, from the
@@ -141,13 +142,23 @@ def run_case(method: str, n: int) -> dict:
 def _child(method: str, n: int) -> dict:
     try:
         done = subprocess.run([sys.executable, __file__, "--case", method, str(n)], capture_output=True,
-                              text=True, timeout=LIMIT_S * 1.5)
+                              text=True, timeout=LIMIT_S * 1.5, env=_single_thread_env())
     except subprocess.TimeoutExpired:
         return {"method": method, "n": n, "skipped": f"timed out after {LIMIT_S * 1.5:.0f} s"}
     if done.returncode != 0:
         last = (done.stderr.strip().splitlines() or ["failed"])[-1]
         return {"method": method, "n": n, "skipped": f"failed: {last[:80]}"}
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _single_thread_env() -> dict:
+    """Every method runs on one BLAS thread: equal footing, and stable timings on a shared machine."""
+    import os
+
+    env = dict(os.environ)
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        env[var] = "1"
+    return env
 
 
 def _projected(prev: list[dict], n: int) -> str | None:
@@ -241,7 +252,7 @@ def main() -> None:
         print(json.dumps(run_case(args.case[0], int(args.case[1]))))
         return
     sizes = [5_000, 50_000] if args.quick else args.sizes
-    print("Synthetic 4th-order 2x2 system (fits on a fresh 5k record, mean of 2 outputs)")
+    print("Synthetic 4th-order 2x2 system (one BLAS thread each; fits on a fresh 5k record, mean of 2 outputs)")
     print(f"{'method':12s} {'N':>8s} {'time [s]':>9s} {'peak [MB]':>9s} {'Markov err':>10s} "
           f"{'free %':>8s} {'1-step %':>6s}")
     syn = synthetic_table(sizes, args.methods)

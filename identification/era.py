@@ -18,9 +18,10 @@ array of shape (L + 1, q, m)) and return a balanced discrete-time realisation.
   coordinates for noise-free data.
 
 Order selection (:func:`select_order`, documented rule): with the log-gaps
-``g_k = log10(σ_k / σ_{k+1})``, k = 1..``max_order`` (σ floored at
-``1e-10 σ_1``), take the largest k whose gap is at least half the largest
-gap. A manual order overrides the rule.
+``g_k = log10(σ_k / σ_{k+1})``, k = 1..``max_order``, take the largest k whose
+gap is at least half the largest gap and whose σ_k is at least 0.1 % of σ_1;
+exact (rank-deficient) Hankel matrices give their rank. A manual order
+overrides the rule.
 """
 
 from __future__ import annotations
@@ -74,13 +75,18 @@ def hankel(markov: np.ndarray, rows: int, cols: int, shift: int = 0) -> np.ndarr
     return h
 
 
-def select_order(singular_values: np.ndarray, max_order: int, gap_fraction: float = 0.5) -> int:
+def select_order(singular_values: np.ndarray, max_order: int, gap_fraction: float = 0.5,
+                 rel_floor: float = 1e-3) -> int:
     """Automatic order from the Hankel singular values (see module docstring).
 
-    ``g_k = log10(σ_k / σ_{k+1})`` for k = 1..``max_order`` with every σ
-    floored at ``1e-10 σ_1``; the order is the largest k whose gap is at least
-    ``gap_fraction`` of the largest gap, so a strong first mode pair does not
-    hide a clear drop further on, and exact data give their exact order.
+    If the Hankel matrix has numerical rank r <= ``max_order`` (singular values
+    below ``1e-10 σ_1`` count as zero: exact data), the order is r. Otherwise,
+    with ``g_k = log10(σ_k / σ_{k+1})`` for k = 1..``max_order``, candidates are
+    the k whose gap is at least ``gap_fraction`` of the largest gap and whose
+    ``σ_k`` is at least ``rel_floor σ_1``; the order is the largest candidate
+    (the largest gap if there is none). A strong first mode pair thus does not
+    hide a clear drop further on, and a gap among modes below 0.1 % of the
+    first does not count.
     """
     s = np.asarray(singular_values, dtype=float)
     if s.size < 2:
@@ -88,11 +94,15 @@ def select_order(singular_values: np.ndarray, max_order: int, gap_fraction: floa
     if max_order < 1:
         raise OptionError(f"max_order must be >= 1, got {max_order}")
     kmax = int(min(max_order, s.size - 1))
-    sc = np.maximum(s, max(s[0] * 1e-10, np.finfo(float).tiny))
-    gaps = np.log10(sc[:kmax] / sc[1:kmax + 1])
+    tiny = max(s[0] * 1e-10, np.finfo(float).tiny)
+    rank = int(np.sum(s > tiny))
+    if rank <= kmax:
+        return max(rank, 1)
+    gaps = np.log10(s[:kmax] / s[1:kmax + 1])
     if gaps.max() <= 0:
         return 1
-    return int(np.flatnonzero(gaps >= gap_fraction * gaps.max())[-1]) + 1
+    ok = np.flatnonzero((gaps >= gap_fraction * gaps.max()) & (s[:kmax] >= rel_floor * s[0]))
+    return int(ok[-1]) + 1 if ok.size else int(np.argmax(gaps)) + 1
 
 
 def era(markov: np.ndarray, order: int | str = "auto", rows: int | None = None,

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
+from numpy.lib.stride_tricks import as_strided
 
 from .data import IOData
 from .errors import DataError, OptionError
@@ -97,24 +98,31 @@ def accumulate(data: IOData, p_max: int, feedthrough: bool = True,
         if n <= p_max:
             raise DataError(f"experiment {idx} has {n} samples; {p_max} observer Markov parameters "
                             f"need more than {p_max} (use fewer lags or longer records)")
-        v = np.hstack([u, y])
+        v = np.ascontiguousarray(np.hstack([u, y]))
         buf = np.empty((min(block_rows, n - p_max), ncol))
+        c0 = m if feedthrough else 0
+        width = p_max * (m + q)
         for k0 in range(p_max, n, block_rows):
             k1 = min(k0 + block_rows, n)
             b = k1 - k0
             phi = buf[:b]
-            c = 0
             if feedthrough:
                 phi[:, :m] = u[k0:k1]
-                c = m
-            for i in range(1, p_max + 1):
-                phi[:, c:c + m + q] = v[k0 - i:k1 - i]
-                c += m + q
+            # row k holds v_{k-p}, ..., v_{k-1} (oldest first): a sliding view, copied row by row
+            phi[:, c0:] = as_strided(v[k0 - p_max:], shape=(b, width), strides=(v.strides[0], v.strides[1]),
+                                     writeable=False)
             yb = y[k0:k1]
             gram += phi.T @ phi
             cross += phi.T @ yb
             yy += yb.T @ yb
             rows += b
+    # reorder the lag columns to the canonical [u_k, v_{k-1}, ..., v_{k-p}]
+    perm = np.arange(ncol)
+    c0 = m if feedthrough else 0
+    lags = np.arange(p_max * (m + q)).reshape(p_max, m + q)[::-1].ravel()
+    perm[c0:] = c0 + lags
+    gram = gram[np.ix_(perm, perm)]
+    cross = cross[perm]
     return NormalEquations(gram, cross, yy, rows, m, q, int(p_max), bool(feedthrough))
 
 

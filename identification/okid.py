@@ -228,7 +228,7 @@ class OKID:
         info = {
             "input_names": list(data.input_names), "output_names": list(data.output_names),
             "input_units": list(data.input_units), "output_units": list(data.output_units),
-            "hankel_singular_values": [float(s) for s in real.hankel_singular_values[:40]],
+            "hankel_singular_values": [float(s) for s in real.hankel_singular_values],
             "modal_singular_values": [float(s) for s in msv],
             "modal_singular_values_max_order": msv_hi,
             "eigenvalues": [[float(z.real), float(z.imag)] for z in lam],

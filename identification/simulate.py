@@ -51,19 +51,25 @@ def _states(a: np.ndarray, b: np.ndarray, u: np.ndarray, x0: np.ndarray) -> np.n
     n, nsamp = a.shape[0], u.shape[0]
     if n == 0:
         return np.zeros((nsamp, 0))
-    t, z = sla.schur(a.astype(complex), output="complex")
-    g = u @ (z.conj().T @ b).T  # (N, n) driving terms in Schur coordinates
-    w0 = z.conj().T @ x0
-    w = np.empty((nsamp, n), dtype=complex)
+    real = bool(np.all(np.isreal(np.linalg.eigvals(a)))) if n <= 64 else False
+    if real:
+        t, z = sla.schur(a, output="real")      # real eigenvalues: real upper-triangular T
+        dtype = float
+    else:
+        t, z = sla.schur(a.astype(complex), output="complex")
+        dtype = complex
+    zh = z.conj().T
+    g = (zh @ b) @ u.T                           # (n, N) driving terms in Schur coordinates
+    w0 = zh @ x0
+    w = np.empty((n, nsamp), dtype=dtype)        # one contiguous row per Schur state
     for i in range(n - 1, -1, -1):
-        s = g[:, i].copy()
+        s = g[i]
         if i < n - 1:
-            s += w[:, i + 1:] @ t[i, i + 1:]
-        w[0, i] = w0[i]
+            s = s + t[i, i + 1:] @ w[i + 1:]
+        w[i, 0] = w0[i]
         if nsamp > 1:
-            w[1:, i] = _shifted(t[i, i], s, w0[i], nsamp)
-    x = (w @ z.T).real
-    return x
+            w[i, 1:] = _shifted(t[i, i], s, w0[i], nsamp)
+    return (z @ w).real.T
 
 
 def _shifted(lam: complex, s: np.ndarray, w0: complex, nsamp: int) -> np.ndarray:

@@ -26,8 +26,9 @@ from .validation import ValidationResult, validate
 
 #: Time spanned by the block rows (and columns) of the Hankel matrix, s. The
 #: three integrators of the kinematics need a horizon of seconds to separate the
-#: steering-lag mode; 2.5 s (50 blocks at 20 Hz) gave the best held-out one-step
-#: fits on simulated passes (40 to 120 blocks tried).
+#: steering-lag mode from noise on short records (2 s was too short on 60 s
+#: synthetic passes at 20 Hz); on simulated passes the held-out one-step fits are
+#: the same for 40 to 80 blocks at 20 Hz.
 HANKEL_HORIZON_S = 2.5
 
 

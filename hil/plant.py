@@ -60,7 +60,7 @@ class SimulatedTractor:
                  initial: dict[str, float] | None = None, override: Sequence[Interval] = (),
                  stuck_valve: Sequence[Interval] = ()) -> None:
         init = {k: np.array([v], dtype=float) for k, v in (initial or {}).items()}
-        self.sim = TractorSimulator([condition], duration, [seed], params, init)
+        self.sim = TractorSimulator([condition], duration, [seed], params, init, scalar=True)
         self.condition = condition
         self.override_intervals = _intervals(override, "override")
         self.stuck_intervals = _intervals(stuck_valve, "stuck_valve")

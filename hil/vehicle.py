@@ -26,6 +26,7 @@ Longitudinal speed is imposed (engine and gearbox hold the gear's speed).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,7 +41,7 @@ G = 9.80665  # m/s^2
 
 @dataclass(frozen=True)
 class Inputs:
-    """Inputs held over one integration step, each of shape ``(B,)``.
+    """Inputs held over one integration step, each of shape ``(B,)`` (or a float for one tractor).
 
     ``rate_cmd`` is the valve's steady-state rate for the current duty (rad/s);
     the rest are the exogenous values at this step (see :class:`hil.disturbances.Exogenous`).
@@ -59,35 +60,62 @@ class Inputs:
     disker: np.ndarray
 
 
-def derivative(s: np.ndarray, u: Inputs, p: SimParams) -> np.ndarray:
-    """Time derivative of the state ``s`` (shape ``(B, 8)``) under inputs ``u``."""
+class _ArrayOps:
+    """Element-wise operations on ``(B,)`` arrays (the batch path)."""
+
+    cos, sin, tanh, abs, maximum, where = np.cos, np.sin, np.tanh, np.abs, np.maximum, np.where
+
+    @staticmethod
+    def as_float(c):
+        return c.astype(float)
+
+
+class _ScalarOps:
+    """The same operations on Python floats (one tractor: no per-call array overhead)."""
+
+    cos, sin, tanh, abs, maximum = math.cos, math.sin, math.tanh, abs, max
+
+    @staticmethod
+    def where(c, a, b):
+        return a if c else b
+
+    @staticmethod
+    def as_float(c):
+        return float(c)
+
+
+def _rates(m, x, u: Inputs, p: SimParams) -> tuple:
+    """The equations of motion once, for arrays (``m = _ArrayOps``) or floats (``m = _ScalarOps``).
+
+    ``x`` is the state as a sequence of its 8 components; returns their 8 derivatives.
+    """
     vp, st = p.vehicle, p.steering
     a = vp.cg_to_front_axle
     b = vp.wheelbase - a
-    psi, v, r, dl, om, phi = s[:, PSI], s[:, V], s[:, R], s[:, DEL], s[:, OM], s[:, PHI]
+    psi, v, r, dl, om, phi = x[PSI], x[V], x[R], x[DEL], x[OM], x[PHI]
     spd = u.speed
-    cd, sd = np.cos(dl), np.sin(dl)
+    cd, sd = m.cos(dl), m.sin(dl)
     # front tyres: slip from the wheel's own velocity
     vfa = v + a * r
     uf = spd * cd + vfa * sd
     vf = -spd * sd + vfa * cd
-    alpha_f = vf / np.maximum(np.abs(uf), vp.slip_speed_floor)
+    alpha_f = vf / m.maximum(m.abs(uf), vp.slip_speed_floor)
     nf = vp.mass * G * b / vp.wheelbase * u.front_load
     fmax_f = vp.friction_coefficient * nf
-    ff = -fmax_f * np.tanh(vp.front_cornering_stiffness * u.front_load * alpha_f / np.maximum(fmax_f, 1e-9))
+    ff = -fmax_f * m.tanh(vp.front_cornering_stiffness * u.front_load * alpha_f / m.maximum(fmax_f, 1e-9))
     # rear tyres
-    alpha_r = (v - b * r) / np.maximum(spd, vp.slip_speed_floor)
+    alpha_r = (v - b * r) / m.maximum(spd, vp.slip_speed_floor)
     fmax_r = vp.friction_coefficient * vp.mass * G * a / vp.wheelbase
-    fr = -fmax_r * np.tanh(vp.rear_cornering_stiffness * alpha_r / fmax_r)
+    fr = -fmax_r * m.tanh(vp.rear_cornering_stiffness * alpha_r / fmax_r)
     # external forces (applied only while moving)
-    moving = (spd >= vp.standstill_speed).astype(float)
+    moving = m.as_float(spd >= vp.standstill_speed)
     x_shank = -(b + p.ripper.shank_behind_rear_axle)
     x_hitch = -(b + vp.hitch_behind_rear_axle)
-    cp, sp = np.cos(phi), np.sin(phi)
+    cp, sp = m.cos(phi), m.sin(phi)
     f_hitch_x = -u.draft * cp
     f_hitch_y = -u.draft * sp
     m_hitch = x_hitch * f_hitch_y - p.disker.draft_offset * f_hitch_x
-    fy_ext = moving * (-vp.mass * G * np.sin(u.roll) + u.force_y + u.ripper_force + f_hitch_y)
+    fy_ext = moving * (-vp.mass * G * m.sin(u.roll) + u.force_y + u.ripper_force + f_hitch_y)
     mz_ext = moving * (x_shank * u.ripper_force + u.ripper_moment + m_hitch)
     # trailer (massless, pinned at the hitch; gangs crab at alpha_t)
     v_hitch = v + x_hitch * r
@@ -97,17 +125,20 @@ def derivative(s: np.ndarray, u: Inputs, p: SimParams) -> np.ndarray:
     # wheel angle against the mechanical stops
     dmax = st.max_wheel_angle
     blocked = ((dl >= dmax) & (om > 0)) | ((dl <= -dmax) & (om < 0))
-    out = np.empty_like(s)
-    cpsi, spsi = np.cos(psi), np.sin(psi)
-    out[:, X] = spd * cpsi - v * spsi
-    out[:, Y] = spd * spsi + v * cpsi
-    out[:, PSI] = r
-    out[:, V] = (ff * cd + fr + fy_ext) / vp.mass - spd * r
-    out[:, R] = (a * ff * cd - b * fr + mz_ext) / vp.yaw_inertia
-    out[:, DEL] = np.where(blocked, 0.0, om)
-    out[:, OM] = (u.rate_cmd - om) / st.lag
-    out[:, PHI] = phidot
-    return out
+    cpsi, spsi = m.cos(psi), m.sin(psi)
+    return (spd * cpsi - v * spsi,
+            spd * spsi + v * cpsi,
+            r,
+            (ff * cd + fr + fy_ext) / vp.mass - spd * r,
+            (a * ff * cd - b * fr + mz_ext) / vp.yaw_inertia,
+            m.where(blocked, 0.0, om),
+            (u.rate_cmd - om) / st.lag,
+            phidot)
+
+
+def derivative(s: np.ndarray, u: Inputs, p: SimParams) -> np.ndarray:
+    """Time derivative of the state ``s`` (shape ``(B, 8)``) under inputs ``u``."""
+    return np.stack(np.broadcast_arrays(*_rates(_ArrayOps, s.T, u, p)), axis=1)
 
 
 def rk4_step(s: np.ndarray, u: Inputs, p: SimParams) -> np.ndarray:
@@ -120,4 +151,17 @@ def rk4_step(s: np.ndarray, u: Inputs, p: SimParams) -> np.ndarray:
     out = s + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
     dmax = p.steering.max_wheel_angle
     out[:, DEL] = np.clip(out[:, DEL], -dmax, dmax)
+    return out
+
+
+def rk4_step_scalar(x: list[float], u: Inputs, p: SimParams) -> list[float]:
+    """:func:`rk4_step` for one tractor with the state as 8 floats and float inputs."""
+    h = p.dt
+    k1 = _rates(_ScalarOps, x, u, p)
+    k2 = _rates(_ScalarOps, [xi + 0.5 * h * ki for xi, ki in zip(x, k1)], u, p)
+    k3 = _rates(_ScalarOps, [xi + 0.5 * h * ki for xi, ki in zip(x, k2)], u, p)
+    k4 = _rates(_ScalarOps, [xi + h * ki for xi, ki in zip(x, k3)], u, p)
+    out = [xi + (h / 6.0) * (a + 2.0 * b + 2.0 * c + d) for xi, a, b, c, d in zip(x, k1, k2, k3, k4)]
+    dmax = p.steering.max_wheel_angle
+    out[DEL] = min(max(out[DEL], -dmax), dmax)
     return out

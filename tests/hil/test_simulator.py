@@ -139,3 +139,20 @@ def test_initial_state_and_bad_inputs_are_checked():
         sim.step()
     with pytest.raises(ValueError, match="has reached it"):
         sim.step()
+
+
+def test_scalar_path_for_one_tractor_agrees_with_the_batch_path():
+    p = SimParams()
+    conds = [condition_for("disker", 2.24)]
+    one = TractorSimulator(conds, 20.0, [5], p, scalar=True)
+    batch = TractorSimulator(conds + [condition_for("ripper", 1.0)], 20.0, [5, 6], p)
+    for k in range(1999):
+        d = np.sin(k * 0.013) * (1.2 if k < 900 else 0.4)   # saturates, hits the stops, then gentler
+        one.set_duty(np.array([d]))
+        batch.set_duty(np.array([d, -0.3]))
+        one.step()
+        batch.step()
+    assert np.max(np.abs(one.state[0] - batch.state[0])) < 1e-9
+    assert np.array_equal(one.wheel_angle_counts(), batch.wheel_angle_counts()[:1])
+    with pytest.raises(ValueError, match="scalar path integrates one tractor"):
+        TractorSimulator(conds * 2, 5.0, [1, 2], scalar=True)

@@ -20,6 +20,7 @@ states carried across chunks, so memory stays bounded for long records.
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import lfilter
 
 from .data import IOData
 from .simulate import simulate
@@ -31,6 +32,13 @@ def refine_bd(a: np.ndarray, c: np.ndarray, data: IOData, feedthrough: bool = Tr
               k: np.ndarray | None = None, chunk: int = CHUNK
               ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """Least-squares ``B``, ``D`` and per-experiment initial states for fixed ``A``, ``C`` (and ``K``).
+
+    Every regressor is the response of ``C (zI - F)⁻¹ b`` (``F = A - K C``) to
+    one input or output signal. All of them share the denominator
+    ``det(zI - F)``, so each signal is run once through that all-pole filter
+    (:func:`scipy.signal.lfilter`) and every regressor is then a short FIR
+    combination of the filtered signal (one matrix product): O(N n (n + m q))
+    work, no per-regressor simulation.
 
     Parameters
     ----------
@@ -44,7 +52,7 @@ def refine_bd(a: np.ndarray, c: np.ndarray, data: IOData, feedthrough: bool = Tr
         (n, q) predictor gain: minimise the one-step prediction error of the
         Kalman predictor; None: minimise the free-run (output) error.
     chunk
-        Samples simulated at a time.
+        Samples processed at a time.
 
     Returns
     -------
@@ -52,50 +60,55 @@ def refine_bd(a: np.ndarray, c: np.ndarray, data: IOData, feedthrough: bool = Tr
     """
     n, q, m = a.shape[0], c.shape[0], data.n_inputs
     kk = np.zeros((n, q)) if k is None else np.asarray(k, float)
-    a_sim = a - kk @ c
+    f = a - kk @ c
     nb, nd, ne = n * m, (q * m if feedthrough else 0), n * data.n_experiments
     ncol = nb + nd + ne
+    den = np.real(np.poly(f)) if n else np.ones(1)
     eye = np.eye(n)
-    # regressor systems: (column index or -1 for the known part, b vector, signal index, direct output)
-    # signals: 0..m-1 inputs, m..m+q-1 outputs
-    systems = [(j * n + i, eye[:, i], j, None) for j in range(m) for i in range(n)]
-    if feedthrough:
-        systems += [(nb + j * q + r, -kk[:, r], j, r) for j in range(m) for r in range(q)]
-    if k is not None:
-        systems += [(-1, kk[:, r], m + r, None) for r in range(q)]
+    # numerators of C adj(zI - F) b, descending powers of z, for every b used: (q, n + 1) each
+    num_e = [_numerator(f, eye[:, i], c, den) for i in range(n)]
+    num_k = [_numerator(f, kk[:, r], c, den) for r in range(q)]
     gram = np.zeros((ncol, ncol))
     cross = np.zeros(ncol)
     zq1 = np.zeros((q, 1))
     for e, (u, y) in enumerate(data.experiments):
         sig = np.hstack([u, y])
-        nsamp = u.shape[0]
-        carry = np.zeros((len(systems), n))
+        nsig = m + (q if k is not None else 0)
+        zi = np.zeros((nsig, n))
+        hist = np.zeros((nsig, n))
         carry0 = np.eye(n)
+        nsamp = u.shape[0]
         for k0 in range(0, nsamp, chunk):
             k1 = min(k0 + chunk, nsamp)
             b = k1 - k0
+            lagged = []
+            for j in range(nsig):
+                w, zi[j] = lfilter([1.0], den, sig[k0:k1, j], zi=zi[j])
+                ext = np.concatenate([hist[j], w])
+                hist[j] = ext[-n:] if n else hist[j]
+                # column l holds w[k - l], l = 0..n
+                lagged.append(np.lib.stride_tricks.sliding_window_view(ext, n + 1)[:, ::-1])
             phi = np.zeros((b, q, ncol))
             target = y[k0:k1].copy()
-            for s, (col, bvec, si, direct) in enumerate(systems):
-                if not np.any(bvec) and direct is None:
-                    continue
-                yy, xs = simulate(a_sim, bvec[:, None], c, zq1, sig[k0:k1, si:si + 1], carry[s],
-                                  return_states=True)
-                carry[s] = a_sim @ xs[-1] + bvec * sig[k1 - 1, si]
-                if direct is not None:
-                    yy[:, direct] += sig[k0:k1, si]
-                if col < 0:
-                    target -= yy
-                else:
-                    phi[:, :, col] += yy
+            for j in range(m):
+                for i in range(n):
+                    phi[:, :, j * n + i] = lagged[j] @ num_e[i].T
+                if feedthrough:
+                    for r in range(q):
+                        col = nb + j * q + r
+                        phi[:, :, col] = -(lagged[j] @ num_k[r].T)
+                        phi[:, r, col] += u[k0:k1, j]
+            if k is not None:
+                for r in range(q):
+                    target -= lagged[m + r] @ num_k[r].T
             zero_u = np.zeros((b, 1))
             for i in range(n):
-                yy, xs = simulate(a_sim, np.zeros((n, 1)), c, zq1, zero_u, carry0[:, i], return_states=True)
+                yy, xs = simulate(f, np.zeros((n, 1)), c, zq1, zero_u, carry0[:, i], return_states=True)
                 phi[:, :, nb + nd + e * n + i] = yy
-                carry0[:, i] = a_sim @ xs[-1]
-            f = phi.reshape(b * q, ncol)
-            gram += f.T @ f
-            cross += f.T @ target.reshape(-1)
+                carry0[:, i] = f @ xs[-1]
+            fl = phi.reshape(b * q, ncol)
+            gram += fl.T @ fl
+            cross += fl.T @ target.reshape(-1)
     d = np.sqrt(np.diag(gram))
     d[d == 0] = 1.0
     theta = np.linalg.lstsq(gram / np.outer(d, d) + 1e-12 * np.eye(ncol), cross / d, rcond=1e-12)[0] / d
@@ -103,3 +116,19 @@ def refine_bd(a: np.ndarray, c: np.ndarray, data: IOData, feedthrough: bool = Tr
     dmat = theta[nb:nb + nd].reshape(m, q).T if feedthrough else np.zeros((q, m))
     x0 = [theta[nb + nd + e * n: nb + nd + (e + 1) * n] for e in range(data.n_experiments)]
     return bmat, dmat, x0
+
+
+def _numerator(f: np.ndarray, b: np.ndarray, c: np.ndarray, den: np.ndarray) -> np.ndarray:
+    """Numerator polynomials (q, n + 1) of ``C (zI - F)⁻¹ b`` over ``den = det(zI - F)``.
+
+    Uses ``C adj(zI - F) b = Σ_{l=0}^{n-1} z^{n-1-l} C M_l b`` with the
+    Faddeev-LeVerrier matrices ``M_0 = I``, ``M_l = F M_{l-1} + den[l] I``.
+    """
+    n, q = f.shape[0], c.shape[0]
+    num = np.zeros((q, n + 1))
+    mk = np.eye(n)
+    for l in range(n):
+        if l:
+            mk = f @ mk + den[l] * np.eye(n)
+        num[:, l + 1] = c @ mk @ b
+    return num

@@ -30,6 +30,7 @@ from .faults import LinkFault
 from .params import SimParams, parameter_markdown, parameter_table
 from .plots import plot_pass, plot_run
 from .run import RunSpec, simulated_run, summarize
+from .table import format_table, make_controller, run_table
 from .sysid import SysidPlan, make_passes
 
 
@@ -114,10 +115,28 @@ def _fault(text: str) -> tuple[str, object]:
 
 
 def _controller(name: str):
-    from design.controller import KinematicLQRController
-    if name == "kinematic":
-        return KinematicLQRController()
-    raise HilError(f"unknown controller {name!r}")
+    return make_controller(name)
+
+
+def _cmd_table(args: argparse.Namespace) -> dict:
+    bar = tqdm(total=1, unit="pass", desc="passes", disable=args.quiet, file=sys.stderr)
+
+    def progress(done: int, total: int) -> None:
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    seeds = list(range(args.seed, args.seed + args.seeds))
+    result = run_table(args.controller, seeds=seeds, duration=args.duration, params=_params(args),
+                       workers=args.workers, progress=progress)
+    bar.close()
+    result["text"] = format_table(result)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "table.json").write_text(json.dumps(result, indent=2) + "\n")
+        (out / "table.txt").write_text(result["text"] + "\n")
+    return result
 
 
 def _cmd_run(args: argparse.Namespace) -> dict:
@@ -218,6 +237,17 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=_cmd_run)
 
+    tb = sub.add_parser("table", parents=[common], help="a controller over the 15 conditions, beside the "
+                        "paper's Table 2")
+    tb.add_argument("--controller", required=True, choices=["kinematic"])
+    tb.add_argument("--seeds", type=int, default=2, help="passes per condition (default 2)")
+    tb.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    tb.add_argument("--duration", type=_float, default=60.0, help="seconds per pass (default 60)")
+    tb.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    tb.add_argument("--out", help="directory for table.json and table.txt")
+    tb.add_argument("--quiet", action="store_true")
+    tb.set_defaults(func=_cmd_table)
+
     d = sub.add_parser("drive", help="run the vehicle loop on real serial ports (on a tractor)")
     d.add_argument("--bridge", required=True, help="steering bridge serial device")
     d.add_argument("--position", required=True, help="position receiver serial device")
@@ -251,6 +281,8 @@ def _print_human(command: str, result: dict) -> None:
     elif command == "params":
         for r in result["parameters"]:
             print(f"{r['name']:<38} {r['value']:>11.6g} {r['unit']:<8} {r['source']:<10} {r['doc']}")
+    elif command == "table":
+        print(result["text"])
     elif command in ("run", "drive"):
         s = result["summary"]
         if "measured_sigma_m" in s:

@@ -70,7 +70,7 @@ class OKID:
         Rows of the regression matrix formed at a time.
     """
 
-    def __init__(self, *, order: int | str = "auto", markov: int | str = "auto", max_markov: int = 30,
+    def __init__(self, *, order: int | str = "auto", markov: int | str = "auto", max_markov: int = 20,
                  max_order: int = 10, method: str = "era-dc", feedthrough: bool = True,
                  hankel_rows: int | None = None, hankel_cols: int | None = None,
                  dc_blocks: int = 1, dc_lag: int = 1, ridge: float = 1e-10,

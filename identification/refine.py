@@ -23,7 +23,6 @@ import numpy as np
 from scipy.signal import lfilter
 
 from .data import IOData
-from .simulate import simulate
 
 CHUNK = 65536
 
@@ -38,7 +37,8 @@ def refine_bd(a: np.ndarray, c: np.ndarray, data: IOData, feedthrough: bool = Tr
     ``det(zI - F)``, so each signal is run once through that all-pole filter
     (:func:`scipy.signal.lfilter`) and every regressor is then a short FIR
     combination of the filtered signal (one matrix product): O(N n (n + m q))
-    work, no per-regressor simulation.
+    work, no per-regressor simulation. The initial-state columns are the
+    impulse responses of ``(F, F e_i, C, C e_i)``, filtered the same way.
 
     Parameters
     ----------
@@ -68,16 +68,18 @@ def refine_bd(a: np.ndarray, c: np.ndarray, data: IOData, feedthrough: bool = Tr
     # numerators of C adj(zI - F) b, descending powers of z, for every b used: (q, n + 1) each
     num_e = [_numerator(f, eye[:, i], c, den) for i in range(n)]
     num_k = [_numerator(f, kk[:, r], c, den) for r in range(q)]
+    # free response C F^k e_i = impulse response of (F, F e_i, C, C e_i)
+    num_x = [_numerator(f, f[:, i], c, den) for i in range(n)]
     gram = np.zeros((ncol, ncol))
     cross = np.zeros(ncol)
-    zq1 = np.zeros((q, 1))
     for e, (u, y) in enumerate(data.experiments):
-        sig = np.hstack([u, y])
-        nsig = m + (q if k is not None else 0)
+        nsamp = u.shape[0]
+        impulse = np.zeros((nsamp, 1))
+        impulse[0, 0] = 1.0
+        sig = np.hstack([u, y, impulse]) if k is not None else np.hstack([u, impulse])
+        nsig = sig.shape[1]
         zi = np.zeros((nsig, n))
         hist = np.zeros((nsig, n))
-        carry0 = np.eye(n)
-        nsamp = u.shape[0]
         for k0 in range(0, nsamp, chunk):
             k1 = min(k0 + chunk, nsamp)
             b = k1 - k0
@@ -101,11 +103,10 @@ def refine_bd(a: np.ndarray, c: np.ndarray, data: IOData, feedthrough: bool = Tr
             if k is not None:
                 for r in range(q):
                     target -= lagged[m + r] @ num_k[r].T
-            zero_u = np.zeros((b, 1))
             for i in range(n):
-                yy, xs = simulate(f, np.zeros((n, 1)), c, zq1, zero_u, carry0[:, i], return_states=True)
-                phi[:, :, nb + nd + e * n + i] = yy
-                carry0[:, i] = f @ xs[-1]
+                col = nb + nd + e * n + i
+                phi[:, :, col] = lagged[nsig - 1] @ num_x[i].T
+                phi[:, :, col] += np.outer(sig[k0:k1, nsig - 1], c[:, i])
             fl = phi.reshape(b * q, ncol)
             gram += fl.T @ fl
             cross += fl.T @ target.reshape(-1)

@@ -81,6 +81,7 @@ def identify_group(name: str, kind: str, logs: Sequence[PassLog], pre: Preproces
     fit, val = _split(logs, pre)
     opts = dict(okid_options)
     horizon = max(int(round(HANKEL_HORIZON_S / pre.dt)), 10)
+    opts.setdefault("max_markov", 30)     # Akaike often wants the longest observer here
     opts.setdefault("hankel_rows", horizon)
     opts.setdefault("hankel_cols", horizon)
     est = OKID(feedthrough=False, **opts).fit(fit)

@@ -13,6 +13,14 @@ import numpy as np  # noqa: E402
 from identification.passlog import PassLog  # noqa: E402
 
 
+def _save(fig, out: Path) -> Path:
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
 def plot_pass(log: PassLog, out: str | Path, title: str | None = None) -> Path:
     """Draw one pass like the paper's Figure 5 and save it (PNG, PDF or SVG by suffix).
 
@@ -42,11 +50,7 @@ def plot_pass(log: PassLog, out: str | Path, title: str | None = None) -> Path:
     gear = f"{m['gear']}th gear, " if m.get("gear") else ""
     axes[0].set_title(title or f"System identification pass: {m['implement']}, {gear}"
                       f"{m['nominal_speed']:.2f} m/s, open-loop (seed {m.get('seed')})")
-    fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return _save(fig, out)
 
 
 def plot_run(log: PassLog, out: str | Path, summary: dict | None = None) -> Path:
@@ -91,8 +95,4 @@ def plot_run(log: PassLog, out: str | Path, summary: dict | None = None) -> Path
              if "measured_sigma_m" in s else "never engaged")
     ax1.set_title(f"{m.get('controller')} - {m['implement']}, {m['nominal_speed']:.2f} m/s, "
                   f"{m.get('mode')}: {stats}")
-    fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return _save(fig, out)

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .disturbances import Exogenous
 from .params import SimParams
 
 X, Y, PSI, V, R, DEL, OM, PHI = range(8)
@@ -40,24 +41,15 @@ G = 9.80665  # m/s^2
 
 
 @dataclass(frozen=True)
-class Inputs:
-    """Inputs held over one integration step, each of shape ``(B,)`` (or a float for one tractor).
-
-    ``rate_cmd`` is the valve's steady-state rate for the current duty (rad/s);
-    the rest are the exogenous values at this step (see :class:`hil.disturbances.Exogenous`).
-    ``disker`` is 1.0 for tractors towing the disker, else 0.0.
+class Inputs(Exogenous):
+    """Inputs held over one integration step: the exogenous values at this step
+    (:class:`hil.disturbances.Exogenous`, each ``(B,)`` or a float for one tractor), plus
+    ``rate_cmd``, the valve's steady-state rate for the current duty [rad/s], and ``disker``,
+    1.0 for tractors towing the disker, else 0.0.
     """
 
-    rate_cmd: np.ndarray
-    speed: np.ndarray
-    roll: np.ndarray
-    force_y: np.ndarray
-    ripper_force: np.ndarray
-    ripper_moment: np.ndarray
-    draft: np.ndarray
-    gang_pull: np.ndarray
-    front_load: np.ndarray
-    disker: np.ndarray
+    rate_cmd: np.ndarray | float = 0.0
+    disker: np.ndarray | float = 0.0
 
 
 class _ArrayOps:

@@ -196,6 +196,29 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
     return result
 
 
+def _cmd_emulate(args: argparse.Namespace) -> dict:
+    import time
+
+    from .emulate import EmulatedTractor
+    with EmulatedTractor(implement=args.implement, speed=args.speed, duration=args.duration, seed=args.seed,
+                         params=_params(args)) as tractor:
+        drive = "hil drive " + " ".join(tractor.setup.drive_args()) + " --controller kinematic --duration 60 --out runs/x"
+        info = {"bridge": tractor.setup.bridge, "position": tractor.setup.position,
+                "attitude": tractor.setup.attitude, "drive_command": drive}
+        print(json.dumps(info, indent=2) if args.json else
+              f"emulated tractor ({args.implement}, {args.speed} m/s) on\n  bridge   {info['bridge']}\n"
+              f"  position {info['position']}\n  attitude {info['attitude']}\nsteer it with:\n  {drive}\n"
+              f"running for {args.duration:.0f} s (Ctrl-C stops)", flush=True)
+        try:
+            t_end = time.monotonic() + args.duration
+            while time.monotonic() < t_end and tractor.runner.alive:
+                time.sleep(0.2)
+        except KeyboardInterrupt:
+            pass
+        final = tractor.truth()
+    return {**info, "final_truth": final}
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="hil", description="Truth simulator and hardware-in-the-loop bench.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -248,6 +271,14 @@ def build_parser() -> argparse.ArgumentParser:
     tb.add_argument("--quiet", action="store_true")
     tb.set_defaults(func=_cmd_table)
 
+    em = sub.add_parser("emulate", parents=[common], help="an emulated tractor behind three pseudo-terminals, "
+                        "in real time (for hil drive)")
+    em.add_argument("--implement", choices=IMPLEMENTS, default="none")
+    em.add_argument("--speed", type=_float, default=1.34, help="nominal speed, m/s")
+    em.add_argument("--duration", type=_float, default=600.0, help="seconds before it stops by itself")
+    em.add_argument("--seed", type=int, default=0)
+    em.set_defaults(func=_cmd_emulate)
+
     d = sub.add_parser("drive", help="run the vehicle loop on real serial ports (on a tractor)")
     d.add_argument("--bridge", required=True, help="steering bridge serial device")
     d.add_argument("--position", required=True, help="position receiver serial device")
@@ -281,6 +312,8 @@ def _print_human(command: str, result: dict) -> None:
     elif command == "params":
         for r in result["parameters"]:
             print(f"{r['name']:<38} {r['value']:>11.6g} {r['unit']:<8} {r['source']:<10} {r['doc']}")
+    elif command == "emulate":
+        print(f"stopped; tractor at cross-track {result['final_truth']['cross_track']:.3f} m")
     elif command == "table":
         print(result["text"])
     elif command in ("run", "drive"):

@@ -3,50 +3,21 @@
 from __future__ import annotations
 
 import json
-import math
-
-import numpy as np
 import pytest
 
-from hil.bridge.firmware import BridgeFirmware
 from hil.cli import main as hil_main
-from hil.conditions import condition_for
 from hil.drive import DriveConfig
-from hil.links.clock import RealClock
-from hil.links.pty import PtyPair
-from hil.links.realtime import RealTimeRunner
-from hil.plant import SimulatedTractor
-from hil.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
-from hil.steering import WheelAngleCalibration
+from hil.emulate import EmulatedTractor
 from identification.passlog import PassLog
 
 
 @pytest.mark.slow
 @pytest.mark.timeout(60)
 def test_drive_steers_the_emulated_tractor_over_serial_ports(tmp_path, capsys):
-    plant = SimulatedTractor(condition_for("none", 1.34), 30.0, 11, initial={"Y": 0.3})
-    p = plant.params
-    geo = FieldGeometry()
-    lat_b, lon_b, _ = geo.origin.to_geodetic(np.array([*geo.line_to_enu(1000.0, 0.0), 0.0]))
-    cal = WheelAngleCalibration.two_point(p.sensor, p.steering)
-    vp = p.vehicle
-    with PtyPair() as bridge, PtyPair() as pos, PtyPair() as att:
-        devices = [BridgeFirmware(bridge.device_link(), plant),
-                   PositionReceiver(plant, pos.device_link(), geo), AttitudeReceiver(plant, att.device_link(), geo)]
-        runner = RealTimeRunner(RealClock(), devices, plant)
-        runner.start()
-        try:
-            rc = hil_main(["drive", "--bridge", bridge.slave_name, "--position", pos.slave_name,
-                           "--attitude", att.slave_name, "--controller", "kinematic",
-                           f"--line={math.degrees(geo.origin.lat0)},{math.degrees(geo.origin.lon0)},"
-                           f"{math.degrees(float(lat_b))},{math.degrees(float(lon_b))}",
-                           "--height", str(geo.origin.h0),
-                           f"--lever-arm={vp.antenna_ahead_of_cg},{vp.antenna_left_of_cg},{vp.antenna_height}",
-                           f"--wheel-calibration={cal.center_counts},{cal.rad_per_count}",
-                           "--duration", "6", "--implement", "none", "--speed", "1.34",
-                           "--out", str(tmp_path), "--json"])
-        finally:
-            runner.stop()
+    with EmulatedTractor(implement="none", speed=1.34, duration=30.0, seed=11) as tractor:
+        rc = hil_main(["drive", *tractor.setup.drive_args(), "--controller", "kinematic", "--duration", "6",
+                       "--implement", "none", "--speed", "1.34", "--out", str(tmp_path), "--json"])
+        final = tractor.truth()
     assert rc == 0
     result = json.loads(capsys.readouterr().out)
     events = result["events"]
@@ -57,7 +28,7 @@ def test_drive_steers_the_emulated_tractor_over_serial_ports(tmp_path, capsys):
     log = PassLog.load(tmp_path / "run_log.npz")
     assert log.meta["mode"] == "vehicle"
     # the loop pulled the tractor from 0.3 m towards the line (truth of the emulated tractor)
-    assert abs(plant.truth()["cross_track"]) < 0.2
+    assert abs(final["cross_track"]) < 0.2
 
 
 def test_drive_config_is_validated():

@@ -1,0 +1,122 @@
+"""A whole emulated tractor behind pseudo-terminals: steering bridge, position and attitude receivers.
+
+What a vehicle computer sees of a real tractor, as three serial devices (``/dev/pts/N``),
+run in real time in a background thread: point ``hil drive`` (or any other program)
+at them. The devices are the same as on the bench: the emulated HC11 bridge
+firmware on the simulated tractor's valve and potentiometer, and the emulated
+receivers encoding the simulator's GPS epochs as NMEA.
+"""
+
+from __future__ import annotations
+
+import math
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from types import TracebackType
+
+import numpy as np
+
+from .bridge.firmware import BridgeFirmware
+from .conditions import condition_for
+from .links.clock import RealClock
+from .links.pty import PtyPair
+from .links.realtime import RealTimeRunner
+from .params import SimParams
+from .plant import SimulatedTractor
+from .receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from .steering import WheelAngleCalibration
+
+
+@dataclass(frozen=True)
+class VehicleSetup:
+    """What ``hil drive`` must be told to steer the emulated tractor (ports and geometry).
+
+    Attributes
+    ----------
+    bridge, position, attitude
+        Serial device names.
+    line
+        Guidance line A, B as ``(lat_a, lon_a, lat_b, lon_b)``, degrees.
+    height
+        Field ellipsoidal height, m.
+    lever_arm
+        Antenna from the control point, body frame (fwd, left, up), m.
+    wheel_calibration
+        ``(centre counts, rad per count)``.
+    """
+
+    bridge: str
+    position: str
+    attitude: str
+    line: tuple[float, float, float, float]
+    height: float
+    lever_arm: tuple[float, float, float]
+    wheel_calibration: tuple[float, float]
+
+    def drive_args(self) -> list[str]:
+        """The matching ``hil drive`` options."""
+        fmt = lambda xs: ",".join(repr(float(x)) for x in xs)  # noqa: E731
+        return ["--bridge", self.bridge, "--position", self.position, "--attitude", self.attitude,
+                f"--line={fmt(self.line)}", "--height", repr(self.height), f"--lever-arm={fmt(self.lever_arm)}",
+                f"--wheel-calibration={fmt(self.wheel_calibration)}"]
+
+
+@dataclass
+class EmulatedTractor:
+    """Context manager: start the emulated tractor's devices on ptys in real time.
+
+    Parameters
+    ----------
+    implement, speed
+        Condition (implement name, nominal speed in m/s).
+    duration
+        Longest run, s (the devices stop by themselves after it).
+    seed
+        Seed of the simulated tractor.
+    initial_cross_track
+        Start offset from the line, m.
+    """
+
+    implement: str = "none"
+    speed: float = 1.34
+    duration: float = 600.0
+    seed: int = 0
+    initial_cross_track: float = 0.3
+    params: SimParams | None = None
+    geometry: FieldGeometry = field(default_factory=FieldGeometry)
+
+    def __enter__(self) -> "EmulatedTractor":
+        self.plant = SimulatedTractor(condition_for(self.implement, self.speed), self.duration + 1.0, self.seed,
+                                      self.params, initial={"Y": self.initial_cross_track})
+        self._stack = ExitStack()
+        try:
+            bridge, pos, att = (self._stack.enter_context(PtyPair()) for _ in range(3))
+            devices = [BridgeFirmware(bridge.device_link(), self.plant),
+                       PositionReceiver(self.plant, pos.device_link(), self.geometry),
+                       AttitudeReceiver(self.plant, att.device_link(), self.geometry)]
+            self.runner = RealTimeRunner(RealClock(), devices, self.plant, max_duration=self.duration)
+            self.runner.start()
+            self._stack.callback(self.runner.stop)
+        except BaseException:
+            self._stack.close()
+            raise
+        p = self.plant.params
+        geo = self.geometry
+        lat_b, lon_b, _ = geo.origin.to_geodetic(np.array([*geo.line_to_enu(1000.0, 0.0), 0.0]))
+        cal = WheelAngleCalibration.two_point(p.sensor, p.steering)
+        vp = p.vehicle
+        self.setup = VehicleSetup(
+            bridge=bridge.slave_name, position=pos.slave_name, attitude=att.slave_name,
+            line=(math.degrees(geo.origin.lat0), math.degrees(geo.origin.lon0),
+                  math.degrees(float(lat_b)), math.degrees(float(lon_b))),
+            height=geo.origin.h0, lever_arm=(vp.antenna_ahead_of_cg, vp.antenna_left_of_cg, vp.antenna_height),
+            wheel_calibration=(cal.center_counts, cal.rad_per_count))
+        return self
+
+    def truth(self) -> dict[str, float]:
+        """The simulated tractor's true state now."""
+        return self.plant.truth()
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self._stack.close()

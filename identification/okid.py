@@ -138,8 +138,11 @@ class OKID:
 
         Returns
         -------
-        self, with ``markov_parameters_`` (L+1, q, m), ``observer_markov_parameters_``,
-        ``gain_markov_parameters_``, ``hankel_singular_values_``, ``order_``, ``n_lags_``,
+        self, with ``markov_parameters_`` (L+1, q, m; OKID's system Markov parameters,
+        before any re-estimation of B and D), ``observer_markov_parameters_`` (q, ncol:
+        ``[D, Ȳ_1, ..., Ȳ_p]``),
+        ``gain_markov_parameters_``, ``hankel_singular_values_`` (of the data scaled to
+        unit RMS per channel), ``order_``, ``n_lags_``,
         ``observer_gain_`` (OKID's ``G``), ``innovation_covariance_``, ``realization_``
         and ``model_`` (:class:`~identification.model.Model`).
         """
@@ -195,6 +198,8 @@ class OKID:
             except (RealizationError, np.linalg.LinAlgError):
                 msv_hi = []
         # back to physical units: u = su * u_s, y = sy * y_s
+        reg_scale = np.concatenate(([su] if self.feedthrough else []) + [np.concatenate([su, sy])] * p)
+        theta = theta * sy[:, None] / reg_scale[None, :]
         ymk = ymk * sy[None, :, None] / su[None, None, :]
         ygain = ygain * sy[None, :, None] / sy[None, None, :]
         sigma = sigma * np.outer(sy, sy)

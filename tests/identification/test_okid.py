@@ -125,3 +125,15 @@ def test_unfitted_use_and_bad_options_raise_clear_errors():
             OKID(**bad).fit(data)
     with pytest.raises(OptionError, match="IOData"):
         OKID().fit(np.zeros((10, 2)))
+
+
+def test_observer_markov_parameters_are_in_physical_units():
+    # scaling the output by 100 scales D and the input part of Ȳ by 100 and leaves the output part alone
+    u, y = simulate_data(4_000, np.random.default_rng(13))
+    a = OKID(markov=6, order=4).fit(IOData.from_arrays(u, y))
+    b = OKID(markov=6, order=4).fit(IOData.from_arrays(u, 100.0 * y))
+    np.testing.assert_allclose(b.observer_markov_parameters_[:, :2], 100.0 * a.observer_markov_parameters_[:, :2],
+                               rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(b.observer_markov_parameters_[:, 4:6], a.observer_markov_parameters_[:, 4:6],
+                               rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(b.markov_parameters_, 100.0 * a.markov_parameters_, rtol=1e-6, atol=1e-9)

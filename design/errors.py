@@ -9,3 +9,15 @@ class DesignError(Exception):
 
 class DesignInputError(DesignError, ValueError):
     """A design option, weight or model is invalid."""
+
+
+class SynthesisError(DesignError):
+    """A synthesis problem is infeasible, or the solver failed or returned a design that does not verify."""
+
+
+class VerificationError(DesignError):
+    """A controller fails its closed-loop check on at least one model (the message names it)."""
+
+
+class ControllerFileError(DesignError, ValueError):
+    """A controller file is malformed, tampered with, non-finite, of another schema or sample time."""

@@ -1,0 +1,276 @@
+"""Controller files (JSON) for a linear compensator, and the vehicle-side controller that runs one.
+
+Layout (schema ``design-controller/1``, ``kind: "linear"``)::
+
+    {"schema", "kind", "name", "dt",
+     "outputs": [{"name": "cross_track", "normalization": "speed" | "none", "units"}, ...],
+     "input": {"name": "steer_rate_cmd", "units": "rad/s"},
+     "compensator": {"Ac", "Bc", "Cc", "Dc", "Ec"},        # nested lists
+     "limits": {"rate": rad/s, "speed_min": m/s},
+     "design": {...}, "certificate": {...}, "models": [{"name", "hash"}],
+     "checksum": "sha256:<hex of the canonical JSON of everything else>"}
+
+``xc[k+1] = Ac xc + Bc y + Ec (u_applied - u)``, ``u = Cc xc + Dc y`` with ``y`` the
+listed outputs, each divided by ``max(speed, speed_min)`` when its normalisation is
+``"speed"``. :func:`load_controller` refuses a file that fails the schema, the
+checksum, the dimensions, finiteness or the sample time.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from .compensator import Compensator
+from .controller import Measurement
+from .errors import ControllerFileError, DesignInputError
+
+SCHEMA = "design-controller/1"
+MEASUREMENTS = ("cross_track", "heading_error", "wheel_angle")
+NORMALIZATIONS = ("speed", "none")
+TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "compensator", "limits", "design",
+            "certificate", "models", "checksum")
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """One measured output the compensator reads: a :class:`Measurement` field and its normalisation."""
+
+    name: str
+    normalization: str
+    units: str
+
+    def __post_init__(self) -> None:
+        if self.name not in MEASUREMENTS:
+            raise ControllerFileError(f"output name must be one of {MEASUREMENTS}, got {self.name!r}")
+        if self.normalization not in NORMALIZATIONS:
+            raise ControllerFileError(f"output {self.name!r}: normalization must be one of {NORMALIZATIONS}, "
+                                      f"got {self.normalization!r}")
+
+
+VELOCITY_OUTPUTS = (OutputSpec("cross_track", "speed", "s"), OutputSpec("heading_error", "speed", "rad*s/m"),
+                    OutputSpec("wheel_angle", "none", "rad"))
+
+
+def outputs_for(meta: Mapping[str, Any]) -> tuple[OutputSpec, ...]:
+    """Output specs matching a model's metadata (``normalization`` velocity or none)."""
+    norm = meta.get("normalization", "velocity")
+    if norm == "velocity":
+        return VELOCITY_OUTPUTS
+    if norm == "none":
+        return tuple(OutputSpec(n, "none", u) for n, u in zip(MEASUREMENTS, ("m", "rad", "rad")))
+    raise DesignInputError(f"model normalization must be 'velocity' or 'none', got {norm!r}")
+
+
+@dataclass(frozen=True)
+class ControllerFile:
+    """Contents of a linear controller file (validated; see module docstring)."""
+
+    name: str
+    compensator: Compensator
+    outputs: tuple[OutputSpec, ...]
+    rate_limit: float = 0.35
+    speed_min: float = 0.3
+    design: Mapping[str, Any] = field(default_factory=dict)
+    certificate: Mapping[str, Any] = field(default_factory=dict)
+    models: tuple[Mapping[str, str], ...] = ()
+
+    def __post_init__(self) -> None:
+        if len(self.outputs) != self.compensator.n_measurements:
+            raise ControllerFileError(f"{len(self.outputs)} outputs listed, the compensator reads "
+                                      f"{self.compensator.n_measurements}")
+        if self.compensator.n_commands != 1:
+            raise ControllerFileError(f"the compensator must write 1 command, got {self.compensator.n_commands}")
+        for nm in ("rate_limit", "speed_min"):
+            v = getattr(self, nm)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise ControllerFileError(f"limits: {nm} must be a finite number > 0, got {v!r}")
+
+    def to_dict(self) -> dict:
+        """The file's JSON object, checksum included."""
+        c = self.compensator
+        body = {"schema": SCHEMA, "kind": "linear", "name": self.name, "dt": c.dt,
+                "outputs": [{"name": o.name, "normalization": o.normalization, "units": o.units}
+                            for o in self.outputs],
+                "input": {"name": "steer_rate_cmd", "units": "rad/s"},
+                "compensator": {k: getattr(c, k).tolist() for k in ("Ac", "Bc", "Cc", "Dc", "Ec")},
+                "limits": {"rate": self.rate_limit, "speed_min": self.speed_min},
+                "design": dict(self.design), "certificate": dict(self.certificate),
+                "models": [dict(m) for m in self.models]}
+        body = json.loads(json.dumps(body))
+        body["checksum"] = checksum(body)
+        return body
+
+    def save(self, path: str | Path) -> Path:
+        """Write the file atomically."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".part")
+        tmp.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
+        tmp.replace(path)
+        return path
+
+
+def checksum(body: Mapping[str, Any]) -> str:
+    """``sha256:`` of the canonical JSON (sorted keys, no spaces) of ``body`` without its checksum."""
+    data = {k: v for k, v in body.items() if k != "checksum"}
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
+
+
+def _reject_constant(token: str) -> float:
+    raise ControllerFileError(f"non-finite number {token} in the controller file")
+
+
+def read_controller_file(path: str | Path, dt: float | None = 0.05) -> ControllerFile:
+    """Read and check a controller file.
+
+    Parameters
+    ----------
+    path
+        JSON controller file.
+    dt
+        The loop's sample time, s; the file's must match (``None`` skips the check).
+
+    Raises
+    ------
+    ControllerFileError
+        Malformed JSON, unknown schema or kind, bad checksum, wrong dimensions,
+        non-finite numbers or a sample-time mismatch.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ControllerFileError(f"{path}: cannot read ({exc})") from None
+    try:
+        body = json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise ControllerFileError(f"{path}: not valid JSON ({exc})") from None
+    except ControllerFileError as exc:
+        raise ControllerFileError(f"{path}: {exc}") from None
+    try:
+        return _from_body(body, dt)
+    except (ControllerFileError, DesignInputError) as exc:
+        raise ControllerFileError(f"{path}: {exc}") from None
+
+
+def _from_body(body: Any, dt: float | None) -> ControllerFile:
+    if not isinstance(body, dict):
+        raise ControllerFileError(f"expected a JSON object, got {type(body).__name__}")
+    if body.get("schema") != SCHEMA:
+        raise ControllerFileError(f"unsupported schema {body.get('schema')!r}; expected {SCHEMA!r}")
+    if body.get("kind") != "linear":
+        raise ControllerFileError(f"kind {body.get('kind')!r} is not supported here; expected 'linear'")
+    missing = [k for k in TOP_KEYS if k not in body]
+    if missing:
+        raise ControllerFileError(f"missing keys {missing}")
+    unknown = sorted(set(body) - set(TOP_KEYS))
+    if unknown:
+        raise ControllerFileError(f"unknown keys {unknown}")
+    want = checksum(body)
+    if body["checksum"] != want:
+        raise ControllerFileError(f"checksum mismatch: file says {body['checksum']!r}, content gives {want!r} "
+                                  "(the file was edited or corrupted)")
+    fdt = body["dt"]
+    if isinstance(fdt, bool) or not isinstance(fdt, (int, float)) or not math.isfinite(fdt) or fdt <= 0:
+        raise ControllerFileError(f"dt must be a finite sample time > 0 s, got {fdt!r}")
+    if dt is not None and abs(fdt - dt) > 1e-9:
+        raise ControllerFileError(f"sample time mismatch: the file is for dt={fdt} s, the loop runs at dt={dt} s")
+    comp_d = body["compensator"]
+    if not isinstance(comp_d, dict) or sorted(comp_d) != ["Ac", "Bc", "Cc", "Dc", "Ec"]:
+        raise ControllerFileError("compensator must hold exactly Ac, Bc, Cc, Dc, Ec")
+    mats = {}
+    for k in ("Ac", "Bc", "Cc", "Dc", "Ec"):
+        try:
+            arr = np.array(comp_d[k], dtype=float)
+        except (TypeError, ValueError):
+            raise ControllerFileError(f"compensator {k} is not a numeric matrix") from None
+        if arr.ndim != 2 and not (arr.ndim == 1 and arr.size == 0):
+            raise ControllerFileError(f"compensator {k} must be 2-D, got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ControllerFileError(f"compensator {k} has non-finite entries")
+        mats[k] = arr
+    outputs = body["outputs"]
+    if not isinstance(outputs, list) or not all(isinstance(o, dict) for o in outputs):
+        raise ControllerFileError("outputs must be a list of objects")
+    specs = tuple(OutputSpec(o.get("name"), o.get("normalization"), str(o.get("units", ""))) for o in outputs)
+    q, nc = len(specs), mats["Ac"].shape[0] if mats["Ac"].ndim == 2 else 0
+    shapes = {"Ac": (nc, nc), "Bc": (nc, q), "Cc": (1, nc), "Dc": (1, q), "Ec": (nc, 1)}
+    for k, shp in shapes.items():
+        if mats[k].size == 0 and 0 in shp:
+            mats[k] = mats[k].reshape(shp)
+        if mats[k].shape != shp:
+            raise ControllerFileError(f"dimension mismatch: {k} has shape {mats[k].shape}, expected {shp} "
+                                      f"for {nc} states and {q} outputs")
+    try:
+        comp = Compensator(mats["Ac"], mats["Bc"], mats["Cc"], mats["Dc"], float(fdt), mats["Ec"])
+    except DesignInputError as exc:
+        raise ControllerFileError(str(exc)) from None
+    lim = body["limits"]
+    if not isinstance(lim, dict) or sorted(lim) != ["rate", "speed_min"]:
+        raise ControllerFileError(f"limits must hold exactly 'rate' and 'speed_min', got {lim!r}")
+    models = body["models"]
+    if not isinstance(models, list):
+        raise ControllerFileError("models must be a list")
+    return ControllerFile(str(body["name"]), comp, specs, lim["rate"], lim["speed_min"], body["design"],
+                          body["certificate"], tuple(models))
+
+
+class LinearController:
+    """Runs a linear controller file in the vehicle loop (implements :class:`design.controller.Controller`).
+
+    Each cycle the measured outputs are normalised as the file says, the compensator
+    steps, the command is clipped to the file's rate limit and the compensator's
+    memory follows the clipped command (anti-windup).
+    """
+
+    def __init__(self, spec: ControllerFile) -> None:
+        self.spec = spec
+        self.name = f"linear:{spec.name}"
+        self.dt = spec.compensator.dt
+        c = spec.compensator
+        self._ac, self._bc, self._cc, self._dc, self._ec = c.Ac, c.Bc, c.Cc[0], c.Dc[0], c.Ec[:, 0]
+        self._xc = np.zeros(c.order)
+
+    def reset(self) -> None:
+        self._xc = np.zeros(self.spec.compensator.order)
+
+    def outputs(self, m: Measurement) -> np.ndarray:
+        """Normalised output vector of one measurement."""
+        v = max(float(m.speed), self.spec.speed_min)
+        return np.array([getattr(m, o.name) / v if o.normalization == "speed" else getattr(m, o.name)
+                         for o in self.spec.outputs])
+
+    def step(self, m: Measurement) -> float:
+        y = self.outputs(m)
+        u = float(self._cc @ self._xc + self._dc @ y)
+        if not math.isfinite(u):
+            self.reset()
+            return 0.0
+        lim = self.spec.rate_limit
+        ua = min(max(u, -lim), lim)
+        self._xc = self._ac @ self._xc + self._bc @ y + self._ec * (ua - u)
+        return ua
+
+    def estimate(self) -> tuple[float, ...]:
+        return tuple(float(v) for v in self._xc)
+
+
+def load_controller(path: str | Path, dt: float | None = 0.05) -> LinearController:
+    """Read, check and instantiate a linear controller file for the vehicle loop.
+
+    Parameters
+    ----------
+    path
+        Controller file (JSON).
+    dt
+        The loop's sample time, s (default 0.05 = 20 Hz); the file must match it.
+    """
+    return LinearController(read_controller_file(path, dt))

@@ -1,0 +1,320 @@
+"""Robust state feedback for a finite set of models by LMIs (cvxpy; Clarabel or SCS).
+
+For ``z[k+1] = A_i z[k] + B_i u[k] + Bw w[k]``, i = 1..N, and ``u = K z``, the
+guaranteed H2 / LQ cost ``J_i = tr((Q + K'RK) L_i)`` with ``L_i`` the closed loop's
+controllability Gramian (equivalently the summed LQ cost from the initial
+states ``z0`` = columns of ``Bw``) is bounded over all models by ``gamma``:
+
+``common`` (quadratic stabilisation; one Gramian bound ``P`` for every model, ``Y = K P``)::
+
+    [P - Bw Bw',  A_i P + B_i Y;  *,  P] > 0,    [W,  Cz P + Dz Y;  *,  P] > 0,    tr W < gamma
+
+``extended`` (de Oliveira, Geromel & Bernussou 2002: one ``P_i`` per model, a common
+slack ``G``, ``Y = K G``)::
+
+    [P_i,  A_i G + B_i Y,  Bw;  *,  G + G' - P_i,  0;  *,  *,  I] > 0,
+    [W_i,  Cz G + Dz Y;  *,  G + G' - P_i] > 0,    tr W_i < gamma
+
+with ``Cz = [Q^½; 0]``, ``Dz = [0; R^½]``. For one model both give the Riccati cost.
+Options: every closed-loop pole inside the disk ``|s| <= r`` (``[r P, A P + B Y; *, r P] > 0``,
+or its extended analogue), and ``|u| <= u_bar`` on an invariant ellipsoid that contains a
+stated set of initial errors (``[u_bar^2, Y; *, P] > 0``, ``E0 E0' < P``).
+
+Problems are scaled before solving (states and input by the caller's Bryson sizes).
+After every solve the design is re-checked exactly on every model (spectral radius and
+a Lyapunov equation); a design that fails is refused whatever the solver reported.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import cvxpy as cp
+import numpy as np
+import scipy.linalg as sla
+
+from .compensator import spectral_radius
+from .errors import DesignInputError, SynthesisError
+
+FORMULATIONS = ("common", "extended")
+SOLVERS = {"clarabel": cp.CLARABEL, "scs": cp.SCS}
+
+
+@dataclass(frozen=True)
+class LMIOptions:
+    """Options of :func:`robust_state_feedback`.
+
+    Attributes
+    ----------
+    formulation
+        ``"common"`` or ``"extended"``.
+    solver
+        ``"clarabel"`` (default) or ``"scs"``.
+    pole_radius
+        Disk radius r in (0, 1] for every closed-loop pole (decay per sample); None = off.
+    input_bound
+        ``u_bar`` > 0, rad/s: bound on ``|u|`` over the initial-error set; None = off.
+    initial_set
+        (nz, r) matrix ``E0``: initial errors ``E0 xi`` with ``|xi| <= 1`` (required with ``input_bound``).
+    strictness
+        Margin (scaled units) that turns strict LMIs into non-strict ones.
+    cost_tolerance
+        Relative tolerance of the exact per-model cost over the returned bound.
+    """
+
+    formulation: str = "extended"
+    solver: str = "clarabel"
+    pole_radius: float | None = None
+    input_bound: float | None = None
+    initial_set: np.ndarray | None = field(default=None, compare=False)
+    strictness: float = 1e-7
+    cost_tolerance: float = 1e-3
+
+    def __post_init__(self) -> None:
+        if self.formulation not in FORMULATIONS:
+            raise DesignInputError(f"formulation must be one of {FORMULATIONS}, got {self.formulation!r}")
+        if self.solver not in SOLVERS:
+            raise DesignInputError(f"solver must be one of {tuple(SOLVERS)}, got {self.solver!r}")
+        r = self.pole_radius
+        if r is not None and not (isinstance(r, (int, float)) and math.isfinite(r) and 0 < r <= 1):
+            raise DesignInputError(f"pole_radius must lie in (0, 1], got {r!r}")
+        u = self.input_bound
+        if u is not None and not (isinstance(u, (int, float)) and math.isfinite(u) and u > 0):
+            raise DesignInputError(f"input_bound must be a finite number > 0 rad/s, got {u!r}")
+        if (u is None) != (self.initial_set is None):
+            raise DesignInputError("input_bound and initial_set go together: give both or neither")
+        for name in ("strictness", "cost_tolerance"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise DesignInputError(f"{name} must be a finite number >= 0, got {v!r}")
+
+
+@dataclass(frozen=True)
+class StateFeedbackDesign:
+    """Result of a robust synthesis, already re-checked model by model.
+
+    Attributes
+    ----------
+    K
+        (m, nz) gain, ``u = K z``.
+    bound
+        Guaranteed cost ``gamma`` over all models.
+    costs
+        Exact cost of ``K`` on each model (Lyapunov equation).
+    radii
+        Closed-loop spectral radius on each model.
+    names
+        Model names, in order.
+    status
+        Solver status string.
+    times
+        Seconds: ``build`` (cvxpy problem), ``solve`` (compile + solver), ``check``.
+    """
+
+    K: np.ndarray
+    bound: float
+    costs: tuple[float, ...]
+    radii: tuple[float, ...]
+    names: tuple[str, ...]
+    status: str
+    times: dict
+
+
+def closed_loop_cost(a: np.ndarray, b: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray,
+                     bw: np.ndarray) -> float:
+    """Exact cost ``tr((Q + K'RK) L)``, ``L = Acl L Acl' + Bw Bw'``; ``inf`` if unstable."""
+    acl = a + b @ k
+    if spectral_radius(acl) >= 1.0:
+        return math.inf
+    gram = sla.solve_discrete_lyapunov(acl, bw @ bw.T)
+    return float(np.trace((q + k.T @ r @ k) @ gram))
+
+
+def _sqrt_psd(m: np.ndarray) -> np.ndarray:
+    w, v = np.linalg.eigh(0.5 * (m + m.T))
+    keep = w > 1e-12 * max(w.max(), 1e-300)
+    return (v[:, keep] * np.sqrt(w[keep])).T
+
+
+def _sym(x: cp.Expression) -> cp.Expression:
+    return 0.5 * (x + x.T)
+
+
+def _check_systems(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndarray]) -> tuple[int, int]:
+    if len(a_list) == 0 or len(a_list) != len(b_list):
+        raise DesignInputError(f"need the same number (>= 1) of A and B matrices, got {len(a_list)} and {len(b_list)}")
+    nz, m = np.shape(b_list[0])
+    for i, (a, b) in enumerate(zip(a_list, b_list)):
+        if np.shape(a) != (nz, nz) or np.shape(b) != (nz, m):
+            raise DesignInputError(f"model {i}: A {np.shape(a)}, B {np.shape(b)}; expected {(nz, nz)}, {(nz, m)}")
+        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+            raise DesignInputError(f"model {i}: non-finite entries in A or B")
+    return nz, m
+
+
+def _build(a_s, b_s, cz, dz, bw, opts: LMIOptions, u_bar: float | None, e0: np.ndarray | None,
+           use_pole: bool, use_bound: bool):
+    nz, m = b_s[0].shape
+    nw = cz.shape[0]
+    eps = opts.strictness
+    iz, ie = np.eye(nz), np.eye(bw.shape[1])
+    y = cp.Variable((m, nz))
+    cons = []
+    r = opts.pole_radius
+    if opts.formulation == "common":
+        p = cp.Variable((nz, nz), symmetric=True)
+        w = cp.Variable((nw, nw), symmetric=True)
+        for a, b in zip(a_s, b_s):
+            acl = a @ p + b @ y
+            cons.append(_sym(cp.bmat([[p - bw @ bw.T, acl], [acl.T, p]])) >> eps * np.eye(2 * nz))
+            if use_pole:
+                cons.append(_sym(cp.bmat([[r * p, acl], [acl.T, r * p]])) >> 0)
+        perf = cz @ p + dz @ y
+        cons.append(_sym(cp.bmat([[w, perf], [perf.T, p]])) >> 0)
+        objective = cp.trace(w)
+        lyap, gvar = [p], p
+        slack = [p]
+    else:
+        g = cp.Variable((nz, nz))
+        gamma = cp.Variable()
+        lyap = []
+        slack = []
+        for a, b in zip(a_s, b_s):
+            p = cp.Variable((nz, nz), symmetric=True)
+            w = cp.Variable((nw, nw), symmetric=True)
+            acl = a @ g + b @ y
+            s = g + g.T - p
+            cons.append(_sym(cp.bmat([[p, acl, bw], [acl.T, s, np.zeros((nz, bw.shape[1]))],
+                                      [bw.T, np.zeros((bw.shape[1], nz)), ie]])) >> eps * np.eye(2 * nz + bw.shape[1]))
+            perf = cz @ g + dz @ y
+            cons.append(_sym(cp.bmat([[w, perf], [perf.T, s]])) >> 0)
+            cons.append(cp.trace(w) <= gamma)
+            if use_pole:
+                cons.append(_sym(cp.bmat([[r * p, acl], [acl.T, r * s]])) >> 0)
+            lyap.append(p)
+            slack.append(s)
+        objective = gamma
+        gvar = g
+    if use_bound:
+        for p, s in zip(lyap, slack):
+            cons.append(_sym(cp.bmat([[np.array([[u_bar ** 2]]) * np.eye(m), y], [y.T, s]])) >> 0)
+            cons.append(_sym(cp.bmat([[p, e0], [e0.T, np.eye(e0.shape[1])]])) >> 0)
+    del iz
+    return cp.Problem(cp.Minimize(objective), cons), y, gvar
+
+
+def _solve(prob: cp.Problem, solver: str) -> str:
+    try:
+        prob.solve(solver=SOLVERS[solver])
+    except cp.error.SolverError as exc:
+        raise SynthesisError(f"solver {solver} failed ({exc}); try --solver "
+                             f"{'scs' if solver == 'clarabel' else 'clarabel'}") from None
+    return str(prob.status)
+
+
+def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndarray], q: np.ndarray,
+                          r: np.ndarray, bw: np.ndarray, scale: np.ndarray, input_scale: float,
+                          options: LMIOptions | None = None,
+                          names: Sequence[str] | None = None) -> StateFeedbackDesign:
+    """One gain ``K`` for every model, minimising the guaranteed cost bound.
+
+    Parameters
+    ----------
+    a_list, b_list
+        The models in one common state basis: (nz, nz) and (nz, m) each.
+    q, r
+        (nz, nz) PSD state weight and (m, m) PD input weight.
+    bw
+        (nz, nw) disturbance / initial-state matrix of the H2 cost.
+    scale
+        (nz,) typical size of each state (Bryson maxima); the LMIs are solved in ``z / scale``.
+    input_scale
+        Typical size of the input, rad/s.
+    options
+        :class:`LMIOptions`.
+    names
+        Model names for messages.
+
+    Raises
+    ------
+    SynthesisError
+        The LMIs are infeasible (the message says which option to relax), the solver
+        failed, or the returned gain does not stabilise or exceed the bound on some model.
+    """
+    opts = options or LMIOptions()
+    nz, m = _check_systems(a_list, b_list)
+    names = tuple(names) if names is not None else tuple(f"model {i}" for i in range(len(a_list)))
+    if len(names) != len(a_list):
+        raise DesignInputError(f"{len(names)} names for {len(a_list)} models")
+    scale = np.asarray(scale, dtype=float)
+    if scale.shape != (nz,) or not np.all(np.isfinite(scale)) or np.any(scale <= 0):
+        raise DesignInputError(f"scale must be {nz} finite positive numbers")
+    if not (math.isfinite(input_scale) and input_scale > 0):
+        raise DesignInputError(f"input_scale must be > 0, got {input_scale!r}")
+    q, r, bw = np.asarray(q, float), np.asarray(r, float), np.asarray(bw, float)
+    if q.shape != (nz, nz) or r.shape != (m, m) or bw.ndim != 2 or bw.shape[0] != nz:
+        raise DesignInputError(f"weights: Q {q.shape}, R {r.shape}, Bw {bw.shape}; expected "
+                               f"{(nz, nz)}, {(m, m)}, ({nz}, nw)")
+    t0 = time.perf_counter()
+    s, si, su = np.diag(scale), np.diag(1.0 / scale), float(input_scale)
+    a_s = [si @ a @ s for a in a_list]
+    b_s = [si @ b * su for b in b_list]
+    cz = _sqrt_psd(s @ q @ s)
+    rs = _sqrt_psd(su * su * r)
+    czf = np.vstack([cz, np.zeros((m, nz))])
+    dzf = np.vstack([np.zeros((cz.shape[0], m)), rs])
+    bws = si @ bw
+    e0 = None if opts.initial_set is None else si @ np.asarray(opts.initial_set, float)
+    if e0 is not None and e0.shape[0] != nz:
+        raise DesignInputError(f"initial_set must have {nz} rows, got {e0.shape[0]}")
+    u_bar = None if opts.input_bound is None else opts.input_bound / su
+    use_pole, use_bound = opts.pole_radius is not None, opts.input_bound is not None
+    prob, y, gvar = _build(a_s, b_s, czf, dzf, bws, opts, u_bar, e0, use_pole, use_bound)
+    t1 = time.perf_counter()
+    status = _solve(prob, opts.solver)
+    t2 = time.perf_counter()
+    if status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE, cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE) \
+            or y.value is None:
+        raise SynthesisError(_diagnose(a_s, b_s, czf, dzf, bws, opts, u_bar, e0, status))
+    k = su * (y.value @ np.linalg.inv(gvar.value)) @ si
+    bound = float(prob.value)
+    costs, radii = [], []
+    for name, a, b in zip(names, a_list, b_list):
+        rho = spectral_radius(a + b @ k)
+        cost = closed_loop_cost(a, b, k, q, r, bw)
+        radii.append(rho)
+        costs.append(cost)
+        limit = 1.0 if opts.pole_radius is None else opts.pole_radius * (1 + 1e-6)
+        if rho >= limit:
+            raise SynthesisError(f"solver reported {status!r} but the gain fails on {name}: closed-loop spectral "
+                                 f"radius {rho:.6f}, expected < {limit:.6f}; the design is refused "
+                                 f"(try --solver {'scs' if opts.solver == 'clarabel' else 'clarabel'})")
+        if cost > bound * (1 + opts.cost_tolerance) + 1e-9:
+            raise SynthesisError(f"solver reported {status!r} but on {name} the exact cost {cost:.6g} exceeds "
+                                 f"the guaranteed bound {bound:.6g}; the design is refused")
+    t3 = time.perf_counter()
+    return StateFeedbackDesign(k, bound, tuple(costs), tuple(radii), names, status,
+                               {"build": t1 - t0, "solve": t2 - t1, "check": t3 - t2})
+
+
+def _diagnose(a_s, b_s, czf, dzf, bws, opts: LMIOptions, u_bar, e0, status: str) -> str:
+    head = f"the {opts.formulation} LMIs are infeasible over {len(a_s)} models (solver status {status!r})"
+    extras = [(opts.pole_radius is not None, "the pole region (raise --pole-radius towards 1 or drop it)"),
+              (opts.input_bound is not None, "the input bound (raise --rate-limit or shrink the initial-error set)")]
+    if any(on for on, _ in extras):
+        for drop_pole, drop_bound, what in ((True, False, extras[0][1]), (False, True, extras[1][1])):
+            if (drop_pole and opts.pole_radius is None) or (drop_bound and opts.input_bound is None):
+                continue
+            prob, y, _ = _build(a_s, b_s, czf, dzf, bws, opts, u_bar, e0,
+                                opts.pole_radius is not None and not drop_pole,
+                                opts.input_bound is not None and not drop_bound)
+            st = _solve(prob, opts.solver)
+            if st in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) and y.value is not None:
+                return f"{head}; feasible without {what.split(' (')[0]}: relax {what}"
+    hint = "try --formulation extended (less conservative)" if opts.formulation == "common" else \
+        "no single linear controller of this structure was found; drop the most different model, or " \
+        "lengthen the measured window (--past)"
+    return f"{head}; {hint}"

@@ -1,0 +1,216 @@
+"""From identified models to a verified controller file: robust LMI design and the LQG baselines.
+
+:func:`design_robust` rewrites every model in the common measured coordinates of
+:mod:`design.iostate`, solves :func:`design.lmi.robust_state_feedback` for one gain,
+turns it into a compensator that reads measured outputs only, verifies that
+compensator closed around every model (:mod:`design.verify`) and returns the
+controller file. :func:`design_lqr` does the same for the paper's controller (LQR on
+one model with its Kalman predictor), verified on whichever models are given.
+Nothing that fails verification is returned.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from identification.model import Model
+
+from .compensator import Compensator
+from .controller_file import ControllerFile, outputs_for
+from .errors import DesignInputError
+from .iostate import IOStateLayout, feedback_compensator, io_state_model
+from .lmi import LMIOptions, StateFeedbackDesign, closed_loop_cost, robust_state_feedback
+from .lqr import dlqr, lqg_compensator
+from .verify import Certificate, certify, model_hash, require_stable
+from .weights import OutputWeights
+
+
+@dataclass(frozen=True)
+class RobustSpec:
+    """What :func:`design_robust` designs.
+
+    Attributes
+    ----------
+    weights
+        Bryson weights (model output units; rad/s).
+    formulation, solver, pole_radius
+        See :class:`design.lmi.LMIOptions`.
+    rate_limit
+        Bound on the steering-rate command, rad/s, over the initial-error set (None = no bound).
+    initial_errors
+        Per-output half-widths of the initial-error set (model output units); 0 = not in the set.
+    integral
+        Integrate the first output (cross-track / speed) so a steady pull leaves no bias.
+    past
+        Past samples in the measured state (>= 1).
+    command_limit
+        Clip of the exported controller's command, rad/s (the loop's limit).
+    speed_min
+        Floor of the speed used for normalisation, m/s.
+    name
+        Controller name.
+    """
+
+    weights: OutputWeights = field(default_factory=OutputWeights)
+    formulation: str = "extended"
+    solver: str = "clarabel"
+    pole_radius: float | None = None
+    rate_limit: float | None = None
+    initial_errors: tuple[float, ...] = (0.1, 0.02, 0.0)
+    integral: bool = False
+    past: int = 1
+    command_limit: float = 0.35
+    speed_min: float = 0.3
+    name: str = "robust"
+
+
+@dataclass(frozen=True)
+class RobustResult:
+    """A verified robust design: the file, the certificate and the synthesis details."""
+
+    file: ControllerFile
+    certificate: Certificate
+    synthesis: StateFeedbackDesign
+    lqr_costs: tuple[float, ...]
+    layout: IOStateLayout
+
+    @property
+    def conservatism(self) -> float:
+        """Guaranteed cost over the largest per-model LQR cost (>= 1)."""
+        return self.synthesis.bound / max(self.lqr_costs)
+
+
+def _model_names(models: Sequence[Model]) -> list[str]:
+    names = [str(m.meta.get("name", f"model {i}")) for i, m in enumerate(models)]
+    if len(set(names)) != len(names):
+        names = [f"{n}#{i}" for i, n in enumerate(names)]
+    return names
+
+
+def _check_family(models: Sequence[Model]) -> None:
+    if not models:
+        raise DesignInputError("no models given")
+    m0 = models[0]
+    for i, m in enumerate(models):
+        if (m.n_inputs, m.n_outputs) != (m0.n_inputs, m0.n_outputs) or abs(m.dt - m0.dt) > 1e-12:
+            raise DesignInputError(f"model {i} ({m.meta.get('name')}) has m={m.n_inputs}, q={m.n_outputs}, "
+                                   f"dt={m.dt}; expected m={m0.n_inputs}, q={m0.n_outputs}, dt={m0.dt} like the first")
+        if m.meta.get("normalization", "velocity") != m0.meta.get("normalization", "velocity"):
+            raise DesignInputError(f"model {i} has normalization {m.meta.get('normalization')!r}, "
+                                   f"the first has {m0.meta.get('normalization')!r}")
+    if m0.n_inputs != 1:
+        raise DesignInputError(f"the tractor has one input (steering rate); the models have {m0.n_inputs}")
+
+
+def design_problem(models: Sequence[Model], spec: RobustSpec) -> tuple[IOStateLayout, list, list, dict]:
+    """The synthesis data: layout, ``A_z``/``B_z`` per model, and ``Q, R, Bw, scale`` (dict)."""
+    _check_family(models)
+    q = models[0].n_outputs
+    w = spec.weights
+    layout = IOStateLayout(q, 1, spec.past, (0,) if spec.integral else (), models[0].dt)
+    a_list, b_list = [], []
+    for m in models:
+        az, bz = io_state_model(m.A, m.B, m.C, m.D, layout)
+        a_list.append(az)
+        b_list.append(bz)
+    nz = layout.order
+    ymax = np.asarray(w.y_max)
+    if ymax.size != q:
+        raise DesignInputError(f"weights.y_max has {ymax.size} entries, the models have {q} outputs")
+    scale = np.concatenate([np.tile(ymax, spec.past + 1), np.full(spec.past, w.u_max),
+                            np.full(len(layout.integral), w.i_max)])
+    qz = np.zeros((nz, nz))
+    qz[layout.output_slot(0), layout.output_slot(0)] = w.output_matrix(q)
+    for i in range(len(layout.integral)):
+        j = layout.n_window + i
+        qz[j, j] = w.i_max ** -2
+    data = {"Q": qz, "R": w.input_matrix(1), "Bw": np.diag(scale), "scale": scale, "input_scale": w.u_max}
+    return layout, a_list, b_list, data
+
+
+def _initial_set(layout: IOStateLayout, errors: Sequence[float]) -> np.ndarray:
+    if len(errors) != layout.n_outputs or any(not math.isfinite(e) or e < 0 for e in errors):
+        raise DesignInputError(f"initial_errors needs {layout.n_outputs} finite values >= 0, got {errors!r}")
+    cols = []
+    for j, e in enumerate(errors):
+        if e > 0:
+            col = np.zeros(layout.order)
+            for lag in range(layout.past + 1):
+                col[layout.output_slot(lag).start + j] = e
+            cols.append(col)
+    if not cols:
+        raise DesignInputError("initial_errors are all zero: the input bound needs a non-empty set")
+    return np.column_stack(cols)
+
+
+def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> RobustResult:
+    """One verified compensator for every model (see module docstring).
+
+    Raises
+    ------
+    SynthesisError
+        Infeasible LMIs or a solver result that does not verify in the synthesis coordinates.
+    VerificationError
+        The exported compensator is not stable on some model (names it).
+    """
+    spec = spec or RobustSpec()
+    names = _model_names(models)
+    layout, a_list, b_list, d = design_problem(models, spec)
+    opts = LMIOptions(spec.formulation, spec.solver, spec.pole_radius, spec.rate_limit,
+                      None if spec.rate_limit is None else _initial_set(layout, spec.initial_errors))
+    syn = robust_state_feedback(a_list, b_list, d["Q"], d["R"], d["Bw"], d["scale"], d["input_scale"],
+                                opts, names)
+    lqr_costs = []
+    for a, b in zip(a_list, b_list):
+        f, _ = dlqr(a, b, d["Q"], d["R"])
+        lqr_costs.append(closed_loop_cost(a, b, -f, d["Q"], d["R"], d["Bw"]))
+    comp = feedback_compensator(syn.K, layout)
+    cert = certify(comp, models, names)
+    require_stable(cert)
+    design = {"method": "robust-lmi", "formulation": spec.formulation, "solver": spec.solver,
+              "status": syn.status, "coordinates": "measured window z = " + ", ".join(
+                  layout.state_names(list(models[0].meta.get("output_names", ["y1", "y2", "y3"])), ["u"])),
+              "weights": asdict(spec.weights), "pole_radius": spec.pole_radius, "rate_limit": spec.rate_limit,
+              "initial_errors": list(spec.initial_errors), "integral": spec.integral, "past": spec.past,
+              "gain_K": syn.K.tolist(), "guaranteed_cost": syn.bound, "costs": list(syn.costs),
+              "lqr_costs": lqr_costs, "conservatism": syn.bound / max(lqr_costs),
+              "synthesis_radii": list(syn.radii), "times_s": syn.times}
+    file = ControllerFile(spec.name, comp, outputs_for(models[0].meta), spec.command_limit, spec.speed_min,
+                          design, cert.to_dict(),
+                          tuple({"name": n, "hash": model_hash(m)} for n, m in zip(names, models)))
+    return RobustResult(file, cert, syn, tuple(lqr_costs), layout)
+
+
+def design_lqr(model: Model, verify_on: Sequence[Model] = (), weights: OutputWeights | None = None,
+               name: str = "lqr", command_limit: float = 0.35, speed_min: float = 0.3,
+               require: bool = True) -> tuple[ControllerFile, Certificate]:
+    """The paper's controller on one model: LQR + the model's Kalman predictor, verified.
+
+    Parameters
+    ----------
+    model
+        Design model (e.g. the central model).
+    verify_on
+        Further models to check it on (the design model is always checked).
+    require
+        Refuse (raise :class:`VerificationError`) if it is unstable on any of them;
+        with False the certificate records the failures (the paper's central LQR is
+        not guaranteed on every condition; this is how to show it).
+    """
+    w = weights or OutputWeights()
+    comp: Compensator = lqg_compensator(model, w)
+    family = [model, *verify_on]
+    names = _model_names(family)
+    cert = certify(comp, family, names)
+    if require:
+        require_stable(cert)
+    else:
+        require_stable(Certificate(cert.checks[:1]))
+    design = {"method": "lqg", "design_model": names[0], "weights": asdict(w)}
+    file = ControllerFile(name, comp, outputs_for(model.meta), command_limit, speed_min, design, cert.to_dict(),
+                          tuple({"name": n, "hash": model_hash(m)} for n, m in zip(names, family)))
+    return file, cert

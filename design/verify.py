@@ -1,0 +1,174 @@
+"""Verification of an exported compensator closed around every model (the certificate).
+
+For each model: closed-loop spectral radius (exact eigenvalues of the full plant +
+compensator loop), classical gain / phase margins and the delay margin in samples,
+the disk margin with its disk-based gain and phase margins (python-control's
+``disk_margins``, balanced skew) at the plant input, and the response to a
+constant steering-rate disturbance at the plant input (peak command, settling time
+and the steady first output). The worst model (largest spectral radius) is named.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import warnings
+from dataclasses import asdict, dataclass
+from typing import Sequence
+
+import control
+import numpy as np
+
+from identification.model import Model
+
+from .compensator import Compensator, closed_loop_matrix, spectral_radius
+from .errors import VerificationError
+
+
+def model_hash(model: Model) -> str:
+    """``sha256:`` of the model's arrays and sample time (independent of the file's container)."""
+    h = hashlib.sha256()
+    for name in ("A", "B", "C", "D", "K"):
+        arr = np.ascontiguousarray(getattr(model, name), dtype="<f8")
+        h.update(name.encode() + str(arr.shape).encode() + arr.tobytes())
+    h.update(np.float64(model.dt).tobytes())
+    return "sha256:" + h.hexdigest()
+
+
+@dataclass(frozen=True)
+class ModelCheck:
+    """The exported compensator closed around one model.
+
+    Attributes
+    ----------
+    name, hash
+        Model identity.
+    spectral_radius
+        Of the closed loop (< 1 is stable).
+    gain_margin_db, phase_margin_deg
+        Classical margins of the loop at the plant input (inf when not crossed).
+    delay_margin_samples
+        Extra loop delay tolerated, in samples (phase margin / (crossover x dt)).
+    disk_margin, disk_gain_margin_db, disk_phase_margin_deg
+        Balanced disk margin at the plant input and its gain / phase margins.
+    peak_rate
+        Peak |command|, rad/s, after a step input disturbance of 0.01 rad/s.
+    settling_s
+        Time until the first output stays within 5 % of its peak excursion, s.
+    steady_output
+        First output at the end of that simulation (output units).
+    """
+
+    name: str
+    hash: str
+    spectral_radius: float
+    gain_margin_db: float
+    phase_margin_deg: float
+    delay_margin_samples: float
+    disk_margin: float
+    disk_gain_margin_db: float
+    disk_phase_margin_deg: float
+    peak_rate: float
+    settling_s: float
+    steady_output: float
+
+    @property
+    def stable(self) -> bool:
+        """Closed loop asymptotically stable."""
+        return self.spectral_radius < 1.0
+
+
+def _db(x: float) -> float:
+    return 20 * math.log10(x) if x > 0 and math.isfinite(x) else math.inf
+
+
+def _margins(model: Model, comp: Compensator) -> tuple[float, float, float, float, float, float]:
+    plant = control.ss(model.A, model.B, model.C, model.D, model.dt)
+    kc = control.ss(comp.Ac, comp.Bc, comp.Cc, comp.Dc, comp.dt)
+    loop = -(kc * plant)                      # negative-feedback loop at the plant input
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gm, pm, _sm, _wpc, wgc, _wms = control.stability_margins(loop)
+        omega = np.linspace(1e-3, math.pi / model.dt * 0.999, 2000)
+        dm, dgm, dpm = control.disk_margins(loop, omega, skew=0.0)
+    gm = float(gm) if gm is not None else math.inf
+    pm = float(pm) if pm is not None else math.inf
+    wgc = float(wgc) if wgc is not None else math.nan
+    delay = pm / 180 * math.pi / (wgc * model.dt) if (math.isfinite(pm) and wgc and wgc > 0 and pm > 0) else \
+        (0.0 if pm <= 0 else math.inf)
+    return _db(gm), pm, delay, float(dm), _db(float(dgm)), float(dpm)
+
+
+def _disturbance(model: Model, comp: Compensator, seconds: float = 30.0,
+                 size: float = 0.01) -> tuple[float, float, float]:
+    acl = closed_loop_matrix(model.A, model.B, model.C, model.D, comp)
+    n = model.order
+    bd = np.vstack([model.B, comp.Bc @ model.D]) * size
+    steps = int(round(seconds / model.dt))
+    x = np.zeros(acl.shape[0])
+    out, cmd = np.empty(steps), np.empty(steps)
+    for k in range(steps):
+        y = model.C @ x[:n]
+        out[k] = y[0]
+        cmd[k] = (comp.Cc @ x[n:] + comp.Dc @ y)[0]
+        x = acl @ x + bd[:, 0]
+    peak = np.max(np.abs(out - out[-1])) if steps else 0.0
+    outside = np.nonzero(np.abs(out - out[-1]) > 0.05 * peak)[0] if peak > 0 else []
+    settle = (outside[-1] + 1) * model.dt if len(outside) else 0.0
+    return float(np.max(np.abs(cmd + size))), float(settle), float(out[-1])
+
+
+def check_model(model: Model, comp: Compensator, name: str | None = None) -> ModelCheck:
+    """Certificate row of ``comp`` closed around ``model``."""
+    acl = closed_loop_matrix(model.A, model.B, model.C, model.D, comp)
+    rho = spectral_radius(acl)
+    nm = name or str(model.meta.get("name", "model"))
+    if rho < 1.0:
+        gm, pm, delay, dm, dgm, dpm = _margins(model, comp)
+        peak, settle, steady = _disturbance(model, comp)
+    else:
+        gm = pm = delay = dm = dgm = dpm = 0.0
+        peak = settle = steady = math.inf
+    return ModelCheck(nm, model_hash(model), rho, gm, pm, delay, dm, dgm, dpm, peak, settle, steady)
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """Per-model checks of one compensator and the worst model."""
+
+    checks: tuple[ModelCheck, ...]
+
+    @property
+    def worst(self) -> ModelCheck:
+        """The model with the largest closed-loop spectral radius."""
+        return max(self.checks, key=lambda c: c.spectral_radius)
+
+    @property
+    def passed(self) -> bool:
+        """Every closed loop is stable."""
+        return all(c.stable for c in self.checks)
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (non-finite numbers as strings ``"inf"``/``"nan"``)."""
+        def clean(v):
+            return v if not isinstance(v, float) or math.isfinite(v) else str(v)
+        rows = [{k: clean(v) for k, v in asdict(c).items()} for c in self.checks]
+        return {"models": rows, "worst": self.worst.name, "max_spectral_radius": self.worst.spectral_radius,
+                "passed": self.passed}
+
+
+def certify(comp: Compensator, models: Sequence[Model], names: Sequence[str] | None = None) -> Certificate:
+    """Check ``comp`` on every model; sample times must agree."""
+    names = list(names) if names is not None else [str(m.meta.get("name", f"model {i}")) for i, m in enumerate(models)]
+    for nm, m in zip(names, models):
+        if abs(m.dt - comp.dt) > 1e-9:
+            raise VerificationError(f"{nm}: sample time {m.dt} s, the compensator's is {comp.dt} s")
+    return Certificate(tuple(check_model(m, comp, nm) for nm, m in zip(names, models)))
+
+
+def require_stable(cert: Certificate) -> None:
+    """Raise :class:`VerificationError` naming every model on which the loop is not stable."""
+    bad = [c for c in cert.checks if not c.stable]
+    if bad:
+        desc = ", ".join(f"{c.name} (spectral radius {c.spectral_radius:.6f}, expected < 1)" for c in bad)
+        raise VerificationError(f"the controller does not stabilise {len(bad)} of {len(cert.checks)} models: {desc}")

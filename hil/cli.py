@@ -30,7 +30,9 @@ from .faults import LinkFault
 from .params import SimParams, parameter_markdown, parameter_table
 from .plots import plot_pass, plot_run
 from .run import RunSpec, simulated_run, summarize
-from .table import format_table, make_controller, run_table
+from .campaign import EXECUTORS, Campaign, make_controller
+from .conditions import condition_for
+from .report import write_report
 from .sysid import SysidPlan, make_passes
 
 
@@ -87,6 +89,7 @@ def _cmd_params(args: argparse.Namespace) -> dict:
     return out
 
 
+CONTROLLERS = ("kinematic", "pure-pursuit", "stanley")
 FAULT_KINDS = {"override": "override", "stuck-valve": "stuck_valve", "gps-outage": "gps_outage",
                "rtk-float": "rtk_float"}
 LINK_FAULT_KINDS = ("link-garbage", "link-drop", "link-corrupt", "link-delay", "link-cut")
@@ -118,25 +121,35 @@ def _controller(name: str):
     return make_controller(name)
 
 
-def _cmd_table(args: argparse.Namespace) -> dict:
-    bar = tqdm(total=1, unit="pass", desc="passes", disable=args.quiet, file=sys.stderr)
+def _conditions(text: str):
+    if text == "all":
+        return None
+    out = []
+    for part in text.split(","):
+        imp, sep, speed = part.partition(":")
+        if not sep:
+            raise argparse.ArgumentTypeError(f"expected 'all' or IMPLEMENT:SPEED[,...], got {text!r}")
+        try:
+            out.append(condition_for(imp, _float(speed)))
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+    return out
+
+
+def _cmd_compare(args: argparse.Namespace) -> dict:
+    campaign = Campaign(Path(args.out) / "campaign", args.controllers, args.conditions,
+                        seeds=list(range(args.seed, args.seed + args.seeds)), duration=args.duration,
+                        params=_params(args))
+    bar = tqdm(total=len(campaign.keys), unit="pass", desc="campaign", disable=args.quiet, file=sys.stderr)
 
     def progress(done: int, total: int) -> None:
-        bar.total = total
         bar.n = done
         bar.refresh()
 
-    seeds = list(range(args.seed, args.seed + args.seeds))
-    result = run_table(args.controller, seeds=seeds, duration=args.duration, params=_params(args),
-                       workers=args.workers, progress=progress)
+    results = campaign.run(args.executor, args.scheduler, args.workers, progress)
     bar.close()
-    result["text"] = format_table(result)
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "table.json").write_text(json.dumps(result, indent=2) + "\n")
-        (out / "table.txt").write_text(result["text"] + "\n")
-    return result
+    rep = write_report(results, args.out, extra={"campaign": campaign.identity})
+    return {"out": args.out, "passes": len(results), "tables": rep["tables"], "files": rep["files"]}
 
 
 def _cmd_run(args: argparse.Namespace) -> dict:
@@ -245,8 +258,9 @@ def build_parser() -> argparse.ArgumentParser:
     pl.set_defaults(func=_cmd_plot)
 
     r = sub.add_parser("run", parents=[common], help="one closed-loop pass following an AB line")
-    r.add_argument("--controller", required=True, choices=["kinematic"],
-                   help="control law: the paper's LQR on the kinematic model at the measured speed")
+    r.add_argument("--controller", required=True, choices=CONTROLLERS,
+                   help="control law: kinematic (the paper's LQR on the kinematic model at the measured speed), "
+                        "pure-pursuit or stanley")
     r.add_argument("--implement", choices=IMPLEMENTS, default="none")
     r.add_argument("--speed", type=_float, default=1.79, help="nominal speed, m/s (default 1.79)")
     r.add_argument("--duration", type=_float, default=60.0, help="seconds (default 60)")
@@ -260,16 +274,22 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=_cmd_run)
 
-    tb = sub.add_parser("table", parents=[common], help="a controller over the 15 conditions, beside the "
-                        "paper's Table 2")
-    tb.add_argument("--controller", required=True, choices=["kinematic"])
-    tb.add_argument("--seeds", type=int, default=2, help="passes per condition (default 2)")
-    tb.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    tb.add_argument("--duration", type=_float, default=60.0, help="seconds per pass (default 60)")
-    tb.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
-    tb.add_argument("--out", help="directory for table.json and table.txt")
-    tb.add_argument("--quiet", action="store_true")
-    tb.set_defaults(func=_cmd_table)
+    cp = sub.add_parser("compare", parents=[common], help="controllers over the conditions and seeds: a report "
+                        "in the paper's Table 2 layout")
+    cp.add_argument("controllers", nargs="+", choices=CONTROLLERS, metavar="CONTROLLER",
+                    help=f"one or more of {list(CONTROLLERS)}")
+    cp.add_argument("--conditions", type=_conditions, default=None, metavar="all|IMPLEMENT:SPEED,...",
+                    help="default: the paper's 15")
+    cp.add_argument("--seeds", type=int, default=2, help="passes per condition and controller (default 2)")
+    cp.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    cp.add_argument("--duration", type=_float, default=60.0, help="seconds per pass (default 60)")
+    cp.add_argument("--executor", choices=EXECUTORS, default="local")
+    cp.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://10.0.0.5:8786 (with --executor dask)")
+    cp.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
+    cp.add_argument("--out", required=True, help="report directory (the campaign's runs are kept in OUT/campaign "
+                    "and an interrupted campaign resumes there)")
+    cp.add_argument("--quiet", action="store_true")
+    cp.set_defaults(func=_cmd_compare)
 
     em = sub.add_parser("emulate", parents=[common], help="an emulated tractor behind three pseudo-terminals, "
                         "in real time (for hil drive)")
@@ -283,7 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--bridge", required=True, help="steering bridge serial device")
     d.add_argument("--position", required=True, help="position receiver serial device")
     d.add_argument("--attitude", help="attitude receiver serial device (default: same as --position)")
-    d.add_argument("--controller", required=True, choices=["kinematic"])
+    d.add_argument("--controller", required=True, choices=CONTROLLERS)
     d.add_argument("--line", required=True, type=_floats(4), metavar="LAT_A,LON_A,LAT_B,LON_B",
                    help="guidance line ends in degrees; A is the local origin (write --line=... when a "
                         "value is negative)")
@@ -314,8 +334,10 @@ def _print_human(command: str, result: dict) -> None:
             print(f"{r['name']:<38} {r['value']:>11.6g} {r['unit']:<8} {r['source']:<10} {r['doc']}")
     elif command == "emulate":
         print(f"stopped; tractor at cross-track {result['final_truth']['cross_track']:.3f} m")
-    elif command == "table":
-        print(result["text"])
+    elif command == "compare":
+        for text in result["tables"].values():
+            print(text + "\n")
+        print(f"report: {result['files'][0]}")
     elif command in ("run", "drive"):
         s = result["summary"]
         if "measured_sigma_m" in s:

@@ -1,0 +1,162 @@
+"""Today's open-source autosteer laws as controllers of the loop's interface: pure pursuit and Stanley.
+
+Both compute a wanted wheel angle from the guidance errors, the way autosteer
+programs for tractors (AgOpenGPS and its kin) do, and follow it with a
+proportional wheel-angle servo, because the steering bridge takes a steering
+*rate*: ``u = k_servo (delta_wanted - delta)``, rad/s.
+
+* **Pure pursuit**: a look-ahead point on the line at ``L_d = max(L_min, k_la V)``;
+  ``delta = atan(2 L sin(alpha) / L_d)``, ``alpha`` the angle from the heading to that
+  point; an integral of the cross-track error is added to the wheel angle.
+* **Stanley**: ``delta = -psi - atan(k e_front / (V + v_soft))`` with the cross-track
+  error of the front axle, plus the same integral term.
+
+Signs as everywhere in the loop: cross-track + = left, heading + = counter-clockwise,
+wheel angle and rate + = left.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from .controller import Measurement
+from .errors import DesignInputError
+
+
+def _check(obj) -> None:
+    for f in fields(obj):
+        v = getattr(obj, f.name)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise DesignInputError(f"{type(obj).__name__}.{f.name} must be a finite number >= 0, got {v!r}")
+
+
+@dataclass(frozen=True)
+class PurePursuitGains:
+    """Tuning of pure pursuit.
+
+    Attributes
+    ----------
+    lookahead_min
+        Shortest look-ahead distance, m.
+    lookahead_time
+        Look-ahead per unit speed, s (``L_d = max(lookahead_min, lookahead_time * V)``).
+    integral
+        Wheel angle per integrated cross-track, rad/(m s).
+    integral_limit
+        Largest wheel angle the integral may add, rad.
+    servo
+        Wheel-angle servo gain, 1/s.
+    max_angle
+        Largest wanted wheel angle, rad.
+    wheelbase
+        m.
+    """
+
+    lookahead_min: float = 3.0
+    lookahead_time: float = 1.5
+    integral: float = 0.02
+    integral_limit: float = 0.05
+    servo: float = 3.0
+    max_angle: float = 0.5
+    wheelbase: float = 2.85
+
+    def __post_init__(self) -> None:
+        _check(self)
+
+
+@dataclass(frozen=True)
+class StanleyGains:
+    """Tuning of the Stanley law.
+
+    Attributes
+    ----------
+    k
+        Cross-track gain, 1/s.
+    v_soft
+        Softening speed, m/s.
+    heading
+        Heading gain (1 in Stanley's original law).
+    integral, integral_limit, servo, max_angle
+        As for pure pursuit.
+    front_axle
+        Control point to front axle, m (the law uses the front axle's cross-track).
+    """
+
+    k: float = 1.0
+    v_soft: float = 0.5
+    heading: float = 1.0
+    integral: float = 0.02
+    integral_limit: float = 0.05
+    servo: float = 3.0
+    max_angle: float = 0.5
+    front_axle: float = 1.71
+
+    def __post_init__(self) -> None:
+        _check(self)
+
+
+class _Servoed:
+    """Integral of cross-track and the wheel-angle servo, shared by both laws."""
+
+    dt: float = 0.05
+
+    def __init__(self, gains) -> None:
+        self.gains = gains
+        self._i = 0.0
+        self._want = 0.0
+
+    def reset(self) -> None:
+        self._i = 0.0
+        self._want = 0.0
+
+    def _integral(self, e: float) -> float:
+        g = self.gains
+        if g.integral > 0:
+            self._i += e * self.dt
+            lim = g.integral_limit / g.integral
+            self._i = min(max(self._i, -lim), lim)
+        return -g.integral * self._i
+
+    def _servo(self, want: float, m: Measurement) -> float:
+        g = self.gains
+        self._want = min(max(want, -g.max_angle), g.max_angle)
+        return g.servo * (self._want - m.wheel_angle)
+
+    def estimate(self) -> tuple[float, ...]:
+        """(integral of cross-track [m s], wanted wheel angle [rad])."""
+        return (self._i, self._want)
+
+
+class PurePursuitController(_Servoed):
+    """Pure pursuit with an integral term (see the module docstring)."""
+
+    name = "pure-pursuit"
+
+    def __init__(self, gains: PurePursuitGains | None = None, dt: float = 0.05) -> None:
+        super().__init__(gains or PurePursuitGains())
+        self.dt = float(dt)
+
+    def step(self, m: Measurement) -> float:
+        g = self.gains
+        ld = max(g.lookahead_min, g.lookahead_time * abs(m.speed))
+        alpha = -math.atan2(m.cross_track, ld) - m.heading_error
+        want = math.atan2(2.0 * g.wheelbase * math.sin(alpha), ld) + self._integral(m.cross_track)
+        return self._servo(want, m)
+
+
+class StanleyController(_Servoed):
+    """Stanley's law with an integral term (see the module docstring)."""
+
+    name = "stanley"
+
+    def __init__(self, gains: StanleyGains | None = None, dt: float = 0.05) -> None:
+        super().__init__(gains or StanleyGains())
+        self.dt = float(dt)
+
+    def step(self, m: Measurement) -> float:
+        g = self.gains
+        e_front = m.cross_track + g.front_axle * math.sin(m.heading_error)
+        want = (-g.heading * m.heading_error - math.atan2(g.k * e_front, abs(m.speed) + g.v_soft)
+                + self._integral(m.cross_track))
+        return self._servo(want, m)

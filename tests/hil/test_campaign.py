@@ -1,0 +1,107 @@
+"""Campaigns (local pool, Dask, resume) and the comparison report."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from hil.campaign import Campaign
+from hil.cli import main as hil_main
+from hil.conditions import condition_for
+from hil.params import SimParams
+from hil.report import cells, write_report
+
+CONDS = [condition_for("disker", 2.24), condition_for("none", 1.0)]
+WALL = {"loop_time_ms_p50", "loop_time_ms_p99", "loop_time_ms_max", "lateness_ms_p99", "deadline_misses"}
+
+
+def strip(results):
+    return [{k: v for k, v in r.items() if k not in WALL} for r in results]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(240)
+def test_dask_local_cluster_gives_the_same_results_as_the_local_pool(tmp_path):
+    from dask.distributed import Client, LocalCluster
+
+    local = Campaign(tmp_path / "local", ["kinematic", "stanley"], CONDS, seeds=[1], duration=10.0)
+    a = local.run("local", workers=2)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        b = Campaign(tmp_path / "dask", ["kinematic", "stanley"], CONDS, seeds=[1], duration=10.0).run(
+            "dask", client=client)
+    assert len(a) == 4 and strip(a) == strip(b)
+
+
+def test_an_interrupted_campaign_resumes_where_it_stopped(tmp_path):
+    camp = Campaign(tmp_path, ["kinematic"], CONDS, seeds=[3], duration=8.0)
+    first = camp.run("local", workers=1)
+    runs = sorted((tmp_path / "runs").glob("*.json"))
+    assert len(runs) == 2
+    kept, lost = runs
+    stamp = kept.stat().st_mtime_ns
+    lost.unlink()                                  # as if the campaign had died before this run finished
+    assert [k.name + ".json" for k in camp.pending()] == [lost.name]
+    calls = []
+    again = camp.run("local", workers=1, progress=lambda d, t: calls.append((d, t)))
+    assert kept.stat().st_mtime_ns == stamp, "a finished run is never repeated"
+    assert calls[0] == (1, 2) and calls[-1] == (2, 2)
+    assert strip(again) == strip(first)
+    other = Campaign(tmp_path, ["kinematic"], CONDS, seeds=[3], duration=8.0,
+                     params=SimParams().with_overrides({"field.roll": 0.0}))
+    with pytest.raises(ValueError, match="other simulator parameters"):
+        other.run("local", workers=1)
+
+
+def test_campaign_options_are_checked(tmp_path):
+    with pytest.raises(ValueError, match="unknown controller 'pid'"):
+        Campaign(tmp_path, ["pid"], CONDS)
+    with pytest.raises(ValueError, match="seeds must be integers >= 0"):
+        Campaign(tmp_path, ["kinematic"], CONDS, seeds=[-1])
+    with pytest.raises(ValueError, match="needs --executor dask"):
+        Campaign(tmp_path, ["kinematic"], CONDS).run("local", scheduler="tcp://127.0.0.1:8786")
+    with pytest.raises(ValueError, match="executor must be one of"):
+        Campaign(tmp_path, ["kinematic"], CONDS).run("slurm")
+
+
+def fake(ctrl, imp, speed, seed, bias, sigma):
+    return {"controller": ctrl, "implement": imp, "speed": speed, "seed": seed, "engaged_fraction": 1.0,
+            "disengagements": 0, "deadline_misses": 0, "loop_time_ms_p99": 0.5, "loop_time_ms_max": 1.0,
+            "measured_bias_m": bias, "measured_sigma_m": sigma, "true_bias_m": bias, "true_sigma_m": sigma}
+
+
+def test_cells_pool_sigma_and_compare_to_the_paper_and_the_oracle():
+    rs = [fake("robust", "disker", 2.24, 0, 0.01, 0.03), fake("robust", "disker", 2.24, 1, 0.03, 0.04),
+          fake("oracle", "disker", 2.24, 0, 0.0, 0.02), fake("oracle", "disker", 2.24, 1, 0.0, 0.02)]
+    rows = {r["controller"]: r for r in cells(rs)}
+    r = rows["robust"]
+    assert r["measured_bias_m"] == pytest.approx(0.02)
+    assert r["measured_sigma_m"] == pytest.approx(math.sqrt((0.03 ** 2 + 0.04 ** 2) / 2))
+    assert r["paper_sigma_m"] == 0.107 and r["sigma_ratio_to_paper"] == pytest.approx(r["measured_sigma_m"] / 0.107)
+    assert r["sigma_ratio_to_oracle"] == pytest.approx(r["measured_sigma_m"] / 0.02)
+
+
+def test_report_files(tmp_path):
+    rs = [fake("robust", imp, v, 0, 0.0, 0.02 * v) for imp in ("none", "disker", "ripper")
+          for v in (1.0, 1.34, 1.79, 2.24, 2.91)]
+    rep = write_report(rs, tmp_path, title="t")
+    for name in ("report.md", "index.html", "cells.csv", "results.json", "fig10_sigma_vs_speed.png"):
+        assert (tmp_path / name).stat().st_size > 100
+    assert "4.7/12.7" not in rep["tables"]["robust"] and "8.5/12.7" in rep["tables"]["robust"]
+    assert len(json.loads((tmp_path / "results.json").read_text())["cells"]) == 15
+    assert (tmp_path / "cells.csv").read_text().count("\n") == 16
+
+
+def test_cli_compare_small_campaign(tmp_path, capsys):
+    rc = hil_main(["compare", "kinematic", "pure-pursuit", "--conditions", "ripper:1.79", "--seeds", "1",
+                   "--duration", "8", "--workers", "1", "--out", str(tmp_path), "--quiet", "--json"])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["passes"] == 2 and set(out["tables"]) == {"kinematic", "pure-pursuit"}
+    assert (tmp_path / "index.html").exists() and (tmp_path / "campaign" / "runs").is_dir()
+    with pytest.raises(SystemExit):
+        hil_main(["compare", "pid", "--out", str(tmp_path)])
+    with pytest.raises(SystemExit):
+        hil_main(["compare", "kinematic", "--conditions", "plough:1.0", "--out", str(tmp_path)])

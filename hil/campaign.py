@@ -26,15 +26,30 @@ from .run import RunSpec, simulated_run, summarize
 EXECUTORS = ("local", "dask")
 
 
-def make_controller(name: str):
-    """Build a controller by name; done inside each worker process."""
+BUILTIN_CONTROLLERS = ("kinematic", "pure-pursuit", "stanley")
+
+
+def make_controller(spec: str):
+    """Build a controller from its name (``kinematic``, ``pure-pursuit``, ``stanley``) or a
+    controller file (``*.json``, see :mod:`design.controller_file`); done inside each worker."""
     from design.baselines import PurePursuitController, StanleyController
     from design.controller import KinematicLQRController
     factories = {"kinematic": KinematicLQRController, "pure-pursuit": PurePursuitController,
                  "stanley": StanleyController}
-    if name not in factories:
-        raise SimulatorConfigError(f"unknown controller {name!r}; known: {sorted(factories)}")
-    return factories[name]()
+    if spec in factories:
+        return factories[spec]()
+    if spec.endswith(".json"):
+        from design.controller_file import load_controller
+        if not Path(spec).is_file():
+            raise SimulatorConfigError(f"controller file {spec!r} does not exist")
+        return load_controller(spec)
+    raise SimulatorConfigError(f"unknown controller {spec!r}; give one of {list(BUILTIN_CONTROLLERS)} "
+                               "or a controller file (.json)")
+
+
+def controller_label(spec: str) -> str:
+    """Short name of a controller spec for tables and file names (a file's stem)."""
+    return Path(spec).stem if spec.endswith(".json") else spec
 
 
 @dataclass(frozen=True)
@@ -49,7 +64,7 @@ class RunKey:
 
     @property
     def name(self) -> str:
-        return f"{self.controller}__{self.implement}_{self.speed:.2f}__seed{self.seed}"
+        return f"{controller_label(self.controller)}__{self.implement}_{self.speed:.2f}__seed{self.seed}"
 
 
 def run_one(key: RunKey, params: dict) -> dict:
@@ -63,7 +78,8 @@ def run_one(key: RunKey, params: dict) -> dict:
              "engaged": ch["engaged"][::every].astype(int).tolist()}
     if "truth_along_track" in ch:
         trace["along"] = ch["truth_along_track"][::every].round(2).tolist()
-    return {**asdict(key), **summarize(log), "trace": trace}
+    return {**asdict(key), "controller": controller_label(key.controller), "controller_spec": key.controller,
+            **summarize(log), "trace": trace}
 
 
 class Campaign:
@@ -121,7 +137,8 @@ class Campaign:
         return [k for k in self.keys if not self._path(k).exists()]
 
     def _save(self, result: dict) -> None:
-        key = RunKey(**{f: result[f] for f in RunKey.__dataclass_fields__})
+        key = RunKey(**{f: result[f] for f in RunKey.__dataclass_fields__ if f != "controller"},
+                     controller=result["controller_spec"])
         path = self._path(key)
         tmp = path.with_suffix(".part")
         tmp.write_text(json.dumps(result, indent=2) + "\n")

@@ -30,7 +30,7 @@ from .faults import LinkFault
 from .params import SimParams, parameter_markdown, parameter_table
 from .plots import plot_pass, plot_run
 from .run import RunSpec, simulated_run, summarize
-from .campaign import EXECUTORS, Campaign, make_controller
+from .campaign import BUILTIN_CONTROLLERS, EXECUTORS, Campaign, controller_label, make_controller
 from .conditions import condition_for
 from .report import write_report
 from .sysid import SysidPlan, make_passes
@@ -89,7 +89,17 @@ def _cmd_params(args: argparse.Namespace) -> dict:
     return out
 
 
-CONTROLLERS = ("kinematic", "pure-pursuit", "stanley")
+def _controller_spec(text: str) -> str:
+    if text in BUILTIN_CONTROLLERS:
+        return text
+    if text.endswith(".json"):
+        if not Path(text).is_file():
+            raise argparse.ArgumentTypeError(f"controller file {text!r} does not exist")
+        return str(Path(text).resolve())
+    raise argparse.ArgumentTypeError(f"expected one of {list(BUILTIN_CONTROLLERS)} or a controller file "
+                                     f"(.json), got {text!r}")
+
+
 FAULT_KINDS = {"override": "override", "stuck-valve": "stuck_valve", "gps-outage": "gps_outage",
                "rtk-float": "rtk_float"}
 LINK_FAULT_KINDS = ("link-garbage", "link-drop", "link-corrupt", "link-delay", "link-cut")
@@ -173,7 +183,7 @@ def _cmd_run(args: argparse.Namespace) -> dict:
     summary = summarize(log)
     log.save(out / "run_log.npz")
     plot_run(log, out / "track.png", summary)
-    result = {"out": str(out), "controller": args.controller, "implement": spec.implement, "speed": spec.speed,
+    result = {"out": str(out), "controller": controller_label(args.controller), "implement": spec.implement, "speed": spec.speed,
               "mode": log.meta["mode"], "summary": summary, "events": list(log.meta["events"]),
               "files": [str(out / "run_log.npz"), str(out / "track.png"), str(out / "summary.json")]}
     (out / "summary.json").write_text(json.dumps(result, indent=2) + "\n")
@@ -202,7 +212,7 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
     summary = summarize(log)
     log.save(out / "run_log.npz")
     plot_run(log, out / "track.png", summary)
-    result = {"out": str(out), "controller": args.controller, "implement": args.implement, "speed": args.speed,
+    result = {"out": str(out), "controller": controller_label(args.controller), "implement": args.implement, "speed": args.speed,
               "mode": "vehicle", "summary": summary, "events": list(log.meta["events"]),
               "files": [str(out / "run_log.npz"), str(out / "track.png"), str(out / "summary.json")]}
     (out / "summary.json").write_text(json.dumps(result, indent=2) + "\n")
@@ -258,9 +268,9 @@ def build_parser() -> argparse.ArgumentParser:
     pl.set_defaults(func=_cmd_plot)
 
     r = sub.add_parser("run", parents=[common], help="one closed-loop pass following an AB line")
-    r.add_argument("--controller", required=True, choices=CONTROLLERS,
-                   help="control law: kinematic (the paper's LQR on the kinematic model at the measured speed), "
-                        "pure-pursuit or stanley")
+    r.add_argument("--controller", required=True, type=_controller_spec,
+                   help="kinematic (the paper's LQR on the kinematic model at the measured speed), pure-pursuit, "
+                        "stanley, or a controller file (.json) from `design`")
     r.add_argument("--implement", choices=IMPLEMENTS, default="none")
     r.add_argument("--speed", type=_float, default=1.79, help="nominal speed, m/s (default 1.79)")
     r.add_argument("--duration", type=_float, default=60.0, help="seconds (default 60)")
@@ -276,8 +286,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     cp = sub.add_parser("compare", parents=[common], help="controllers over the conditions and seeds: a report "
                         "in the paper's Table 2 layout")
-    cp.add_argument("controllers", nargs="+", choices=CONTROLLERS, metavar="CONTROLLER",
-                    help=f"one or more of {list(CONTROLLERS)}")
+    cp.add_argument("controllers", nargs="+", type=_controller_spec, metavar="CONTROLLER",
+                    help=f"one or more of {list(BUILTIN_CONTROLLERS)} or controller files (.json)")
     cp.add_argument("--conditions", type=_conditions, default=None, metavar="all|IMPLEMENT:SPEED,...",
                     help="default: the paper's 15")
     cp.add_argument("--seeds", type=int, default=2, help="passes per condition and controller (default 2)")
@@ -303,7 +313,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--bridge", required=True, help="steering bridge serial device")
     d.add_argument("--position", required=True, help="position receiver serial device")
     d.add_argument("--attitude", help="attitude receiver serial device (default: same as --position)")
-    d.add_argument("--controller", required=True, choices=CONTROLLERS)
+    d.add_argument("--controller", required=True, type=_controller_spec,
+                   help=f"one of {list(BUILTIN_CONTROLLERS)} or a controller file (.json)")
     d.add_argument("--line", required=True, type=_floats(4), metavar="LAT_A,LON_A,LAT_B,LON_B",
                    help="guidance line ends in degrees; A is the local origin (write --line=... when a "
                         "value is negative)")

@@ -1,6 +1,10 @@
 """``design`` command: controller design as a thin layer over :mod:`design`.
 
     design kinematic [--speeds ...] [--dt S | --continuous] [--plot FILE] [--json]
+    design robust --models models/*.npz [--formulation common|extended] [--integral] [--solver clarabel|scs]
+                  [--pole-radius R] [--rate-limit U] --out controllers/robust.json [--json]
+    design lqr --model models/central.npz [--verify-on models/local_*.npz] --out controllers/central-lqr.json
+    design verify CONTROLLER --models models/*.npz
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ import sys
 
 import numpy as np
 
+from . import cli_robust
 from .errors import DesignError
 from .kinematic import KinematicWeights, gains_versus_speed
 
@@ -67,11 +72,14 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--plot", help="write a figure of the gains (png/pdf/svg)")
     k.add_argument("--json", action="store_true", help="print the result as JSON")
     k.set_defaults(func=_cmd_kinematic)
+    cli_robust.add_parsers(sub, _float)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if getattr(args, "name", "unset") is None:
+        args.name = args.default_name
     try:
         result = args.func(args)
     except (DesignError, ValueError) as exc:
@@ -79,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     if args.json:
         print(json.dumps(result, indent=2))
+    elif args.command in ("robust", "lqr", "verify"):
+        print(cli_robust.render(result))
     else:
         print(f"{'speed m/s':>10} {'K_y':>10} {'K_psi':>10} {'K_delta':>10}")
         for row in zip(result["speeds"], result["k_cross_track"], result["k_heading"], result["k_wheel_angle"]):

@@ -1,0 +1,141 @@
+"""Sub-commands ``design robust``, ``design lqr`` and ``design verify`` (thin layer over :mod:`design.robust`)."""
+
+from __future__ import annotations
+
+import argparse
+
+from pathlib import Path
+
+from identification.model import Model
+
+from .controller_file import read_controller_file
+from .errors import DesignInputError
+from .robust import RobustSpec, design_lqr, design_robust
+from .verify import Certificate, certify
+from .weights import OutputWeights
+
+
+def _load_models(paths: list[str]) -> list[Model]:
+    files: list[Path] = []
+    for p in paths:
+        path = Path(p)
+        files.extend(sorted(path.glob("*.npz")) if path.is_dir() else [path])
+    if not files:
+        raise DesignInputError(f"no model files in {paths}")
+    return [Model.load(f) for f in files]
+
+
+def _weights(args: argparse.Namespace) -> OutputWeights:
+    return OutputWeights(tuple(args.y_max), args.u_max, args.i_max)
+
+
+def certificate_table(cert: dict) -> str:
+    """Plain-text per-model table of a certificate dictionary."""
+    head = f"{'model':<22}{'rho':>9}{'GM dB':>8}{'PM deg':>8}{'delay':>7}{'disk':>7}{'DGM dB':>8}{'DPM':>7}" \
+           f"{'peak u':>8}{'settle':>8}"
+    lines = [head]
+    for r in cert["models"]:
+        def f(k, fmt):
+            v = r[k]
+            width = int(fmt.split(".")[0])
+            return format(v, fmt) if isinstance(v, (int, float)) else format(str(v), f">{width}")
+        lines.append(f"{r['name']:<22}{f('spectral_radius', '9.5f')}{f('gain_margin_db', '8.1f')}"
+                     f"{f('phase_margin_deg', '8.1f')}{f('delay_margin_samples', '7.1f')}{f('disk_margin', '7.2f')}"
+                     f"{f('disk_gain_margin_db', '8.1f')}{f('disk_phase_margin_deg', '7.1f')}"
+                     f"{f('peak_rate', '8.3f')}{f('settling_s', '8.1f')}")
+    lines.append(f"worst: {cert['worst']} (spectral radius {cert['max_spectral_radius']:.6f}); "
+                 f"{'all stable' if cert['passed'] else 'NOT STABLE ON EVERY MODEL'}")
+    return "\n".join(lines)
+
+
+def cmd_robust(args: argparse.Namespace) -> dict:
+    models = _load_models(args.models)
+    spec = RobustSpec(_weights(args), args.formulation, args.solver, args.pole_radius, args.rate_limit,
+                      tuple(args.initial_errors), args.integral, args.past, args.command_limit, name=args.name)
+    res = design_robust(models, spec)
+    res.file.save(args.out)
+    d = res.file.design
+    return {"out": str(args.out), "certificate": dict(res.file.certificate), "guaranteed_cost": d["guaranteed_cost"],
+            "conservatism": d["conservatism"], "times_s": d["times_s"], "formulation": spec.formulation,
+            "solver": spec.solver}
+
+
+def cmd_lqr(args: argparse.Namespace) -> dict:
+    model = Model.load(args.model)
+    others = _load_models(args.verify_on) if args.verify_on else []
+    file, cert = design_lqr(model, others, _weights(args), name=args.name, command_limit=args.command_limit,
+                            require=not args.allow_unstable)
+    file.save(args.out)
+    return {"out": str(args.out), "certificate": cert.to_dict()}
+
+
+def cmd_verify(args: argparse.Namespace) -> dict:
+    spec = read_controller_file(args.controller, dt=None)
+    models = _load_models(args.models)
+    cert: Certificate = certify(spec.compensator, models)
+    out = {"controller": str(args.controller), "certificate": cert.to_dict()}
+    stored = {r["name"]: r for r in spec.certificate.get("models", [])}
+    diffs = []
+    for c in cert.checks:
+        if c.name in stored and isinstance(stored[c.name].get("spectral_radius"), float):
+            diffs.append(abs(stored[c.name]["spectral_radius"] - c.spectral_radius))
+    out["max_radius_difference_from_file"] = max(diffs) if diffs else None
+    return out
+
+
+def add_parsers(sub: argparse._SubParsersAction, number) -> None:
+    """Register ``robust``, ``lqr`` and ``verify`` on the ``design`` parser."""
+    def common(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--y-max", type=number, nargs="+", default=[0.05, 0.03, 0.09],
+                       help="Bryson output maxima in model units (y/V s, psi/V rad s/m, delta rad)")
+        p.add_argument("--u-max", type=number, default=0.35, help="Bryson steering rate, rad/s")
+        p.add_argument("--i-max", type=number, default=0.1, help="Bryson integral of y/V, s^2")
+        p.add_argument("--command-limit", type=number, default=0.35, help="command clip, rad/s")
+        p.add_argument("--name", default=None)
+        p.add_argument("--json", action="store_true", help="print the result as JSON")
+
+    r = sub.add_parser("robust", help="one LMI controller verified on every model")
+    r.add_argument("--models", nargs="+", required=True, help="model files or directories")
+    r.add_argument("--out", required=True, help="controller file (.json)")
+    r.add_argument("--formulation", choices=("common", "extended"), default="extended")
+    r.add_argument("--solver", choices=("clarabel", "scs"), default="clarabel")
+    r.add_argument("--integral", action="store_true", help="integral action on cross-track/speed")
+    r.add_argument("--pole-radius", type=number, default=None, help="closed-loop poles in |z| <= R")
+    r.add_argument("--rate-limit", type=number, default=None,
+                   help="bound |u| (rad/s) over the initial-error set (--initial-errors)")
+    r.add_argument("--initial-errors", type=number, nargs="+", default=[0.1, 0.02, 0.0])
+    r.add_argument("--past", type=int, default=1, help="past samples in the measured state")
+    common(r)
+    r.set_defaults(func=cmd_robust, default_name="robust")
+
+    q = sub.add_parser("lqr", help="LQR + Kalman predictor on one model (the paper's controller)")
+    q.add_argument("--model", required=True)
+    q.add_argument("--verify-on", nargs="*", default=[], help="further models to certify it on")
+    q.add_argument("--allow-unstable", action="store_true",
+                   help="write it even if unstable on some --verify-on model (recorded in the certificate)")
+    q.add_argument("--out", required=True)
+    common(q)
+    q.set_defaults(func=cmd_lqr, default_name="lqr")
+
+    v = sub.add_parser("verify", help="re-check a controller file on models")
+    v.add_argument("controller")
+    v.add_argument("--models", nargs="+", required=True)
+    v.add_argument("--json", action="store_true")
+    v.set_defaults(func=cmd_verify)
+
+
+def render(result: dict) -> str:
+    """Text output of the three commands."""
+    lines = [certificate_table(result["certificate"])]
+    if "guaranteed_cost" in result:
+        lines.append(f"guaranteed cost {result['guaranteed_cost']:.6g}, conservatism "
+                     f"{result['conservatism']:.3f}; times " +
+                     ", ".join(f"{k} {v:.3f} s" for k, v in result["times_s"].items()))
+    if result.get("out"):
+        lines.append(f"wrote {result['out']}")
+    if result.get("max_radius_difference_from_file") is not None:
+        lines.append(f"max |spectral radius - file's| = {result['max_radius_difference_from_file']:.3g}")
+    return "\n".join(lines)
+
+
+

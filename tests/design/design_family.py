@@ -1,0 +1,38 @@
+"""A synthetic tractor family for design tests: kinematic model with a steering lag, velocity-normalised.
+
+States ``[y, psi, delta, delta_rate]`` (m, rad, rad, rad/s); input steering-rate command
+(rad/s) through a first-order valve lag ``tau``; outputs ``[y/V, psi/V, delta]``;
+``authority`` scales the wheel's effect on heading (implements reduce it). Discretised
+with a zero-order hold at ``dt``. The model file's predictor gain comes from a
+Riccati equation with unit noises.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+from scipy.signal import cont2discrete
+
+from identification.model import Model
+
+
+def tractor_model(speed: float, authority: float = 1.0, tau: float = 0.1, wheelbase: float = 2.85,
+                  d2: float = 1.14, dt: float = 0.05, name: str | None = None) -> Model:
+    v, ell = speed, wheelbase
+    a = np.array([[0, v, v * d2 / ell * authority, 0],
+                  [0, 0, v / ell * authority, 0],
+                  [0, 0, 0, 1],
+                  [0, 0, 0, -1 / tau]], dtype=float)
+    b = np.array([[0], [0], [0], [1 / tau]])
+    c = np.array([[1 / v, 0, 0, 0], [0, 1 / v, 0, 0], [0, 0, 1, 0]])
+    ad, bd, *_ = cont2discrete((a, b, c, np.zeros((3, 1))), dt, method="zoh")
+    p = sla.solve_discrete_are(ad.T, c.T, np.eye(4) * 1e-4, np.eye(3) * 1e-4)
+    k = ad @ p @ c.T @ np.linalg.inv(c @ p @ c.T + np.eye(3) * 1e-4)
+    meta = {"name": name or f"v{speed:g}_a{authority:g}", "kind": "local", "normalization": "velocity",
+            "output_names": ["y/V", "psi/V", "delta"], "input_names": ["steer_rate_cmd"]}
+    return Model(ad, bd, c, np.zeros((3, 1)), k, dt, meta)
+
+
+def family(speeds=(1.0, 1.79, 2.91), authorities=(1.0, 0.6)) -> list[Model]:
+    """Models at every speed x authority."""
+    return [tractor_model(v, a) for v in speeds for a in authorities]

@@ -38,6 +38,8 @@ class GpsErrors:
     att_noise: np.ndarray      # (..., n_att, 3) rad: yaw, roll, pitch
     att_lost: np.ndarray       # (..., n_att) bool
     att_jitter: np.ndarray     # (..., n_att) s
+    pos_corrupt: np.ndarray    # (..., n_pos) float: < 0 intact, else the fraction of the message where a bit flips
+    att_corrupt: np.ndarray    # (..., n_att) float, likewise
 
 
 def draw_errors(g: GpsParams, duration: float, rng: np.random.Generator) -> GpsErrors:
@@ -56,7 +58,27 @@ def draw_errors(g: GpsParams, duration: float, rng: np.random.Generator) -> GpsE
         att_noise=rng.standard_normal((n_att, 3)) * np.array([g.yaw_noise, g.roll_noise, g.roll_noise]),
         att_lost=episodes(rng, n_att, g.dropout_rate, g.dropout_length * g.attitude_rate),
         att_jitter=rng.uniform(-g.latency_jitter, g.latency_jitter, n_att),
+        pos_corrupt=_corruption(rng, n_pos, g.corrupt_rate),
+        att_corrupt=_corruption(rng, n_att, g.corrupt_rate),
     )
+
+
+def _corruption(rng: np.random.Generator, n: int, rate: float) -> np.ndarray:
+    """Per message: -1 when intact, else where in the message (0..1) a bit flips (bit = 8 * fraction % 8)."""
+    hit = rng.random(n) < rate
+    where = rng.random(n)
+    return np.where(hit, where, -1.0)
+
+
+def corrupt(data: bytes, where: float) -> bytes:
+    """``data`` with one bit flipped at relative position ``where`` (0..1); unchanged if ``where < 0``."""
+    if where < 0 or not data:
+        return data
+    pos = min(int(where * len(data)), len(data) - 1)
+    bit = int(where * len(data) * 8) % 8
+    out = bytearray(data)
+    out[pos] ^= 1 << bit
+    return bytes(out)
 
 
 def stack_errors(items: list[GpsErrors]) -> GpsErrors:

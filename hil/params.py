@@ -185,6 +185,8 @@ class GpsParams(_Group):
     float_rate: float = P(0.0005, "1/epoch", "probability that RTK float starts at a position epoch",
                           hi=1.0)
     float_length: float = P(8.0, "s", "mean duration of an RTK float episode", lo_open=True)
+    corrupt_rate: float = P(0.002, "1/message", "probability that a receiver message reaches the host with "
+                            "one flipped bit (line noise)", hi=1.0)
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """Emulated GPS receivers: the simulator's GPS epochs encoded as NMEA byte streams.
 
 Three layers, as in ArduPilot's simulated GPS: the truth and its errors come from
-the simulator (:mod:`hil.gps`, drawn per pass), the encoding from :mod:`gnss`
+the simulator (:mod:`hil.gps`, drawn per pass: white noise, multipath, latency,
+outages, RTK float episodes, and messages with a flipped bit), the encoding from :mod:`gnss`
 (the same encoders the front-end's tests round-trip), and line timing from a
 UART at the receiver's baud rate. Each receiver is a device on the bench clock
 (``next_wakeup`` / ``step``) writing to a byte link, so the same receiver feeds an
@@ -27,6 +28,7 @@ from gnss.messages import Avr, Gga, Vtg
 from gnss.nmea_encode import encode_avr, encode_gga, encode_vtg
 
 from .errors import SimulatorConfigError
+from .gps import corrupt
 from .links.link import ByteLink
 from .links.uart import LineConfig, UartTx
 from .plant import SimulatedTractor
@@ -74,12 +76,14 @@ class _Receiver:
     """Common device logic: epochs become due at their arrival time; lost ones are skipped."""
 
     def __init__(self, tractor: SimulatedTractor, link: ByteLink, geometry: FieldGeometry,
-                 line: LineConfig, rate: float, latency: float, jitter: np.ndarray, lost: np.ndarray) -> None:
+                 line: LineConfig, rate: float, latency: float, jitter: np.ndarray, lost: np.ndarray,
+                 corruption: np.ndarray) -> None:
         self.tractor = tractor
         self.geometry = geometry
         self.uart = UartTx(line, link)
         self.rate, self.latency = rate, latency
-        self._jitter, self._lost = jitter, lost
+        self._jitter, self._lost, self._corruption = jitter, lost, corruption
+        self.corrupted = 0
         self.k = 0
         self._retry = -math.inf
         self.sent = 0
@@ -103,7 +107,11 @@ class _Receiver:
             t_valid = k / self.rate
             if self._lost[k] or any(a <= t_valid < b for a, b in self.suppressed):
                 continue
-            self.uart.send(self._encode(k, t_valid), now)
+            data = self._encode(k, t_valid)
+            if self._corruption[k] >= 0:
+                data = corrupt(data, float(self._corruption[k]))
+                self.corrupted += 1
+            self.uart.send(data, now)
             self.sent += 1
         self._retry = -math.inf
         self.uart.flush(now)
@@ -134,7 +142,7 @@ class PositionReceiver(_Receiver):
                  line: LineConfig | None = None) -> None:
         g, err = tractor.params.gps, tractor.sim.gps_errors
         super().__init__(tractor, link, geometry, line or LineConfig(baud=38400), g.position_rate,
-                         g.position_latency, err.pos_jitter[0], err.pos_lost[0])
+                         g.position_latency, err.pos_jitter[0], err.pos_lost[0], err.pos_corrupt[0])
         self.downgraded: list[tuple[float, float]] = []     # fault injection: report RTK float instead
 
     def _recorded(self) -> int:
@@ -165,7 +173,7 @@ class AttitudeReceiver(_Receiver):
                  line: LineConfig | None = None) -> None:
         g, err = tractor.params.gps, tractor.sim.gps_errors
         super().__init__(tractor, link, geometry, line or LineConfig(baud=38400), g.attitude_rate,
-                         g.attitude_latency, err.att_jitter[0], err.att_lost[0])
+                         g.attitude_latency, err.att_jitter[0], err.att_lost[0], err.att_corrupt[0])
 
     def _recorded(self) -> int:
         return self.tractor.sim.n_att

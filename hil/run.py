@@ -131,6 +131,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
                            truth=plant.truth)
         loop.run(spec.duration, start=clock.now(), progress=progress)
         stats = driver.stats()
+        frontend_stats = _refused(frontend)
         firmware = bench.firmware.state
     meta = {"implement": cond.implement, "nominal_speed": cond.speed, "gear": cond.gear, "seed": spec.seed,
             "source": "hil.run (closed loop on the simulated tractor)",
@@ -143,8 +144,23 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             "firmware": {k: v for k, v in asdict(firmware).items() if isinstance(v, (int, float, bool))},
             "bridge_stats": {k: v for k, v in stats.__dict__.items() if k != "ping_rtts"},
             "receivers_sent": {"position": receivers[0].sent, "attitude": receivers[1].sent},
+            "receivers_corrupted": {"position": receivers[0].corrupted, "attitude": receivers[1].corrupted},
+            "gnss_refused": frontend_stats,
             "simulator": p.to_dict()}
     return loop.run_log(meta)
+
+
+def _refused(frontend: GnssFrontEnd) -> dict:
+    """Messages the front-end's readers decoded and refused (by reason), summed over the sources."""
+    refused: dict[str, int] = {}
+    decoded = garbage = 0
+    for reader in frontend.readers:
+        st = reader.stats
+        decoded += sum(st.messages.values())
+        garbage += st.garbage_bytes
+        for k, v in st.errors.items():
+            refused[k] = refused.get(k, 0) + v
+    return {"decoded": decoded, "refused": refused, "garbage_bytes": garbage}
 
 
 def summarize(log: PassLog, settle: float = 5.0) -> dict:

@@ -136,3 +136,14 @@ def test_link_fault_options_are_validated():
         LinkFault("drop", 0, 1, rate=2.0)
     with pytest.raises(ValueError, match="direction"):
         LinkFault("drop", 0, 1, direction="sideways")
+
+
+def test_receivers_corrupted_messages_are_all_refused_by_the_front_end(controller):
+    """The receivers' error layer flips a bit in some messages; NMEA checksums catch every one."""
+    p = CLEAN_GPS.with_overrides({"gps.corrupt_rate": 0.05})
+    log = simulated_run(RunSpec(implement="none", speed=1.34, duration=20.0, seed=2), controller, p)
+    sent, bad = log.meta["receivers_sent"], log.meta["receivers_corrupted"]
+    assert bad["position"] + bad["attitude"] >= 10
+    # one GGA + one VTG per position epoch, one AVR per attitude epoch; a flip spoils exactly one message
+    expected = 2 * sent["position"] + sent["attitude"] - bad["position"] - bad["attitude"]
+    assert log.meta["gnss_refused"]["decoded"] == expected

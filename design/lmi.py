@@ -209,9 +209,8 @@ def _build(a_s, b_s, cz, dz, bw, opts: LMIOptions, u_bar: float | None, e0: np.n
 def _solve(prob: cp.Problem, solver: str) -> str:
     try:
         prob.solve(solver=SOLVERS[solver])
-    except cp.error.SolverError as exc:
-        raise SynthesisError(f"solver {solver} failed ({exc}); try --solver "
-                             f"{'scs' if solver == 'clarabel' else 'clarabel'}") from None
+    except cp.error.SolverError:
+        return "solver_error"        # Clarabel gives up on some infeasible problems: diagnosed by the caller
     return str(prob.status)
 
 
@@ -276,8 +275,7 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
     t1 = time.perf_counter()
     status = _solve(prob, opts.solver)
     t2 = time.perf_counter()
-    if status in (cp.INFEASIBLE, cp.INFEASIBLE_INACCURATE, cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE) \
-            or y.value is None:
+    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or y.value is None:
         raise SynthesisError(_diagnose(a_s, b_s, czf, dzf, bws, opts, u_bar, e0, status))
     k = su * (y.value @ np.linalg.inv(gvar.value)) @ si
     bound = float(prob.value)
@@ -314,6 +312,9 @@ def _diagnose(a_s, b_s, czf, dzf, bws, opts: LMIOptions, u_bar, e0, status: str)
             st = _solve(prob, opts.solver)
             if st in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) and y.value is not None:
                 return f"{head}; feasible without {what.split(' (')[0]}: relax {what}"
+    if status == "solver_error":
+        head = (f"solver {opts.solver} failed on the {opts.formulation} LMIs over {len(a_s)} models (likely "
+                f"infeasible; or try --solver {'scs' if opts.solver == 'clarabel' else 'clarabel'})")
     hint = "try --formulation extended (less conservative)" if opts.formulation == "common" else \
         "no single linear controller of this structure was found; drop the most different model, or " \
         "lengthen the measured window (--past)"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "02_gnss_frontend.py"
+NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "05_gnss_frontend.py"
 
 
 @pytest.mark.notebook

@@ -19,7 +19,7 @@ import numpy as np
 from . import era as _era
 from . import markov as _mk
 from .data import IOData
-from .errors import NotFittedError, OptionError, RealizationError
+from .errors import DataError, NotFittedError, OptionError, RealizationError
 from .estimator import kalman_gain, observer_gain
 from .model import Model
 from .refine import refine_bd
@@ -268,7 +268,7 @@ class OKID:
 
 
 def _channel_scales(data: IOData) -> tuple[np.ndarray, np.ndarray]:
-    """RMS of every input and output over all experiments (1 where a channel is all zero).
+    """RMS of every input and output over all experiments; a channel that is all zero is refused.
 
     Identification runs on channels divided by these, so that outputs in
     different units (s, rad·s/m, rad) weigh alike in the least squares and the
@@ -277,6 +277,9 @@ def _channel_scales(data: IOData) -> tuple[np.ndarray, np.ndarray]:
     n = data.n_samples
     su = np.sqrt(sum((u ** 2).sum(axis=0) for u, _ in data.experiments) / n)
     sy = np.sqrt(sum((y ** 2).sum(axis=0) for _, y in data.experiments) / n)
-    su[su == 0] = 1.0
-    sy[sy == 0] = 1.0
+    for kind, scale, names in (("input", su, data.input_names), ("output", sy, data.output_names)):
+        dead = [names[i] for i in np.flatnonzero(~(scale > 0))]
+        if dead:
+            raise DataError(f"{kind} channel(s) {dead} are identically zero over all {n} samples; "
+                            f"there is nothing to identify from (expected a varying {kind})")
     return su, sy

@@ -101,3 +101,28 @@ def test_bad_lag_counts_are_refused():
     ne = mk.accumulate(data, 4)
     with pytest.raises(DataError, match="too short"):
         mk.solve(ne, 4)
+
+
+from hypothesis import given, settings, strategies as st
+
+
+@settings(max_examples=25, deadline=None)
+@given(m=st.integers(1, 3), q=st.integers(1, 3), p=st.integers(1, 6), feedthrough=st.booleans(),
+       lengths=st.lists(st.integers(8, 60), min_size=1, max_size=3), seed=st.integers(0, 2**31 - 1))
+def test_lag_product_normal_equations_equal_the_regression_matrix(m, q, p, feedthrough, lengths, seed):
+    rng = np.random.default_rng(seed)
+    exps = [(rng.normal(size=(n, m)), rng.normal(size=(n, q))) for n in lengths if n > p]
+    if not exps:
+        return
+    ne = mk.accumulate(IOData(tuple(exps)), p, feedthrough, block_rows=7)
+    rows, ys = [], []
+    for u, y in exps:
+        v = np.hstack([u, y])
+        for k in range(p, u.shape[0]):
+            rows.append(np.concatenate(([u[k]] if feedthrough else []) + [v[k - i] for i in range(1, p + 1)]))
+            ys.append(y[k])
+    phi, yy = np.array(rows), np.array(ys)
+    np.testing.assert_allclose(ne.gram, phi.T @ phi, rtol=1e-10, atol=1e-9)
+    np.testing.assert_allclose(ne.cross, phi.T @ yy, rtol=1e-10, atol=1e-9)
+    np.testing.assert_allclose(ne.yy, yy.T @ yy, rtol=1e-10, atol=1e-9)
+    assert ne.n_rows == phi.shape[0]

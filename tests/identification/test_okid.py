@@ -137,3 +137,16 @@ def test_observer_markov_parameters_are_in_physical_units():
     np.testing.assert_allclose(b.observer_markov_parameters_[:, 4:6], a.observer_markov_parameters_[:, 4:6],
                                rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(b.markov_parameters_, 100.0 * a.markov_parameters_, rtol=1e-6, atol=1e-9)
+
+
+def test_short_or_dead_data_are_refused_with_the_problem_named():
+    from identification.errors import DataError
+
+    rng = np.random.default_rng(14)
+    with pytest.raises(DataError, match="too few samples|too short"):
+        OKID().fit(IOData.from_arrays(rng.normal(size=6), rng.normal(size=6)))
+    with pytest.raises(DataError, match=r"input channel\(s\) \['u0'\] are identically zero"):
+        OKID().fit(IOData.from_arrays(np.zeros(200), rng.normal(size=200)))
+    with pytest.raises(DataError, match="experiment 1 has 5 samples"):
+        OKID(markov=8).fit(IOData(((rng.normal(size=100), rng.normal(size=100)),
+                                   (rng.normal(size=5), rng.normal(size=5)))))

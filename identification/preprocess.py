@@ -24,8 +24,11 @@ Choices (documented defaults, all overridable through :class:`Preprocessing`):
   [rad·s/m] and ``δ`` [rad], with ``V`` the mean measured speed of the pass
   (``speed="mean"``), the measured speed at each step (``"measured"``) or
   the nominal speed (``"nominal"``).
-* **Bias removal** per pass: ``"mean"`` subtracts each channel's mean over the
-  pass, ``"none"`` keeps the data as they are.
+* **Bias removal** per experiment: ``"mean"`` subtracts each channel's mean,
+  ``"none"`` keeps the data as they are.
+* **Dropouts**: nothing is interpolated across a gap longer than ``max_gap_s``
+  (0.5 s); the pass is cut there into separate experiments (pieces shorter than
+  ``min_segment_s`` = 5 s are dropped).
 """
 
 from __future__ import annotations
@@ -70,6 +73,11 @@ class Preprocessing:
         or heading.
     min_speed
         Smallest speed used as a divisor, m/s.
+    max_gap_s
+        Longest stretch without a sample that is interpolated over, s; a pass is
+        cut at longer gaps (dropouts).
+    min_segment_s
+        Shortest piece of a cut pass that is kept, s.
     """
 
     dt: float = 0.05
@@ -79,6 +87,8 @@ class Preprocessing:
     outputs_mode: str = "interp"
     outputs: tuple[str, ...] = field(default=TRACTOR_OUTPUTS)
     min_speed: float = 0.2
+    max_gap_s: float = 0.5
+    min_segment_s: float = 5.0
 
     def __post_init__(self) -> None:
         choices = {"normalize": ("velocity", "none"), "speed": ("mean", "measured", "nominal"),
@@ -96,7 +106,8 @@ class Preprocessing:
         """JSON-friendly settings."""
         return {"dt": self.dt, "normalize": self.normalize, "speed": self.speed, "bias": self.bias,
                 "outputs_mode": self.outputs_mode, "outputs": list(self.outputs),
-                "min_speed": self.min_speed}
+                "min_speed": self.min_speed, "max_gap_s": self.max_gap_s,
+                "min_segment_s": self.min_segment_s}
 
 
 def condition_of(log: PassLog) -> dict:
@@ -140,11 +151,16 @@ def _average_command(t: np.ndarray, v: np.ndarray, grid: np.ndarray, dt: float) 
     return (integral(grid + dt) - integral(grid)) / dt
 
 
-def pass_to_experiment(log: PassLog, pre: Preprocessing = Preprocessing()) -> tuple[np.ndarray, np.ndarray, dict]:
-    """One pass as ``(u (N, 1), y (N, q), info)`` on the common grid.
+def pass_to_experiments(log: PassLog, pre: Preprocessing = Preprocessing()
+                        ) -> list[tuple[np.ndarray, np.ndarray, dict]]:
+    """One pass as a list of experiments ``(u (N, 1), y (N, q), info)`` on the common grid.
 
-    ``info`` holds the condition, the grid start time [s], the speed used [m/s]
-    and the removed means.
+    Where a channel used has no sample for longer than ``pre.max_gap_s`` (GPS
+    dropouts), nothing is interpolated across the gap: the pass is cut there and
+    each piece of at least ``pre.min_segment_s`` becomes its own experiment
+    (with its own initial condition and, with ``bias="mean"``, its own means).
+    ``info`` holds the condition, the segment's start time [s], the speed used
+    [m/s], the removed means and the log's content hash.
     """
     chans = {name: _measured_times(log, name) for name in (*pre.outputs, TRACTOR_INPUT, "speed")}
     t0 = max(t[0] for t, _ in chans.values())
@@ -153,8 +169,12 @@ def pass_to_experiment(log: PassLog, pre: Preprocessing = Preprocessing()) -> tu
         raise DataError(f"pass {log.meta.get('implement')}@{log.meta.get('nominal_speed')} m/s: only "
                         f"{max(t1 - t0, 0):.3g} s where every channel has samples; need at least {4 * pre.dt} s")
     grid = t0 + pre.dt * np.arange(int(np.floor((t1 - t0) / pre.dt)) + 1)
+    valid = np.ones(grid.size, dtype=bool)
+    for t, _ in chans.values():
+        for g in np.flatnonzero(np.diff(t) > pre.max_gap_s):
+            valid &= ~((grid > t[g]) & (grid < t[g + 1] + pre.dt))
     tu, vu = chans[TRACTOR_INPUT]
-    u = _average_command(tu, vu, grid, pre.dt)[:, None]
+    u_all = _average_command(tu, vu, grid, pre.dt)[:, None]
     ys = [_resample(*chans[name], grid, pre.outputs_mode) for name in pre.outputs]
     ts, vs = chans["speed"]
     if pre.speed == "measured":
@@ -165,15 +185,26 @@ def pass_to_experiment(log: PassLog, pre: Preprocessing = Preprocessing()) -> tu
         v = np.full(grid.size, max(float(log.meta["nominal_speed"]), pre.min_speed))
     if pre.normalize == "velocity":
         ys = [y / v if _base(name) in _DIVIDED else y for name, y in zip(pre.outputs, ys)]
-    y = np.column_stack(ys)
-    info = {"condition": condition_of(log), "t0": float(grid[0]), "speed": float(np.mean(v)),
-            "hash": log.content_hash()}
-    if pre.bias == "mean":
-        info["u_mean"] = u.mean(axis=0).tolist()
-        info["y_mean"] = y.mean(axis=0).tolist()
-        u = u - u.mean(axis=0)
-        y = y - y.mean(axis=0)
-    return u, y, info
+    y_all = np.column_stack(ys)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], valid.astype(int), [0]))))
+    out = []
+    min_len = max(int(round(pre.min_segment_s / pre.dt)), 4)
+    for a, b in zip(edges[::2], edges[1::2]):
+        if b - a < min_len:
+            continue
+        u, y = u_all[a:b], y_all[a:b]
+        info = {"condition": condition_of(log), "t0": float(grid[a]), "t1": float(grid[b - 1]),
+                "speed": float(np.mean(v[a:b])), "hash": log.content_hash()}
+        if pre.bias == "mean":
+            info["u_mean"] = u.mean(axis=0).tolist()
+            info["y_mean"] = y.mean(axis=0).tolist()
+            u = u - u.mean(axis=0)
+            y = y - y.mean(axis=0)
+        out.append((u, y, info))
+    if not out:
+        raise DataError(f"pass {log.meta.get('implement')}@{log.meta.get('nominal_speed')} m/s: no stretch of "
+                        f"{pre.min_segment_s} s without a gap longer than {pre.max_gap_s} s in its channels")
+    return out
 
 
 def _base(name: str) -> str:
@@ -207,14 +238,15 @@ def passes_to_iodata(logs: Sequence[PassLog], pre: Preprocessing = Preprocessing
     for log in logs:
         if not isinstance(log, PassLog):
             raise DataError(f"expected PassLog objects, got {type(log).__name__}")
-        u, y, info = pass_to_experiment(log, pre)
-        exps.append((u, y))
-        infos.append(info)
+        for u, y, info in pass_to_experiments(log, pre):
+            exps.append((u, y))
+            infos.append(info)
     conds = []
     for i in infos:
         if i["condition"] not in conds:
             conds.append(i["condition"])
+    hashes = list(dict.fromkeys(i["hash"] for i in infos))
     names, units = channel_labels(pre)
     meta = {"preprocessing": pre.as_dict(), "normalization": pre.normalize, "conditions": conds,
-            "passes": infos, "source_hashes": [i["hash"] for i in infos]}
+            "passes": infos, "source_hashes": hashes}
     return IOData(tuple(exps), pre.dt, (TRACTOR_INPUT,), tuple(names), ("rad/s",), tuple(units), meta)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from identification import markov as mk
 from identification.data import IOData
@@ -102,8 +103,6 @@ def test_bad_lag_counts_are_refused():
     with pytest.raises(DataError, match="too short"):
         mk.solve(ne, 4)
 
-
-from hypothesis import given, settings, strategies as st
 
 
 @settings(max_examples=25, deadline=None)

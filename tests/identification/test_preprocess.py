@@ -7,8 +7,7 @@ import pytest
 
 from identification.errors import DataError, OptionError
 from identification.passlog import PassLog
-from identification.preprocess import (Preprocessing, channel_labels, pass_to_experiment,
-                                       passes_to_iodata)
+from identification.preprocess import Preprocessing, channel_labels, pass_to_experiments, passes_to_iodata
 from synth import synthetic_pass
 
 
@@ -28,7 +27,7 @@ def _ramp_log(latency: dict, speed: float = 2.0) -> PassLog:
 def test_latency_is_removed_before_resampling():
     lat = {"cross_track": 0.08, "heading_error": 0.05, "wheel_angle": 0.01, "speed": 0.08}
     pre = Preprocessing(dt=0.1, normalize="none", bias="none")
-    u, y, info = pass_to_experiment(_ramp_log(lat), pre)
+    (u, y, info), = pass_to_experiments(_ramp_log(lat), pre)
     grid = info["t0"] + 0.1 * np.arange(y.shape[0])
     np.testing.assert_allclose(y[:, 0], 0.5 * grid, atol=1e-9)     # cross track at its measurement time
     np.testing.assert_allclose(y[:, 1], 0.02 * grid, atol=1e-9)
@@ -36,18 +35,18 @@ def test_latency_is_removed_before_resampling():
     # the 20 Hz command alternating 0.1 / 0.3 averages to 0.2 over each 0.1 s step
     np.testing.assert_allclose(u[:, 0], 0.2, atol=1e-9)
     # without compensation the cross track would lag by 0.08 s * 0.5 m/s
-    u2, y2, _ = pass_to_experiment(_ramp_log(lat), Preprocessing(dt=0.1, normalize="none", bias="none",
+    (u2, y2, _), = pass_to_experiments(_ramp_log(lat), Preprocessing(dt=0.1, normalize="none", bias="none",
                                                                  outputs_mode="interp"))
     assert np.allclose(y2, y)
 
 
 def test_velocity_normalisation_and_bias_removal():
     log = _ramp_log({}, speed=2.0)
-    _, y_raw, _ = pass_to_experiment(log, Preprocessing(normalize="none", bias="none"))
-    _, y_v, _ = pass_to_experiment(log, Preprocessing(normalize="velocity", bias="none"))
+    (_, y_raw, _), = pass_to_experiments(log, Preprocessing(normalize="none", bias="none"))
+    (_, y_v, _), = pass_to_experiments(log, Preprocessing(normalize="velocity", bias="none"))
     np.testing.assert_allclose(y_v[:, :2], y_raw[:, :2] / 2.0)
     np.testing.assert_allclose(y_v[:, 2], y_raw[:, 2])       # wheel angle is not divided
-    u_b, y_b, info = pass_to_experiment(log, Preprocessing())
+    (u_b, y_b, info), = pass_to_experiments(log, Preprocessing())
     np.testing.assert_allclose(y_b.mean(axis=0), 0.0, atol=1e-12)
     np.testing.assert_allclose(u_b.mean(axis=0), 0.0, atol=1e-12)
     assert len(info["y_mean"]) == 3
@@ -76,3 +75,20 @@ def test_bad_settings_and_short_logs_are_refused():
     short = synthetic_pass(np.random.default_rng(1), duration=0.6)
     with pytest.raises(DataError, match="every channel has samples"):
         passes_to_iodata([short], Preprocessing(dt=0.2))
+
+
+def test_dropouts_cut_a_pass_into_experiments():
+    log = _ramp_log({})
+    keep = (log.times["t_cross_track"] < 6.0) | (log.times["t_cross_track"] > 8.0)   # a 2 s GPS dropout
+    times = dict(log.times)
+    chans = dict(log.channels)
+    times["t_cross_track"] = times["t_cross_track"][keep]
+    chans["cross_track"] = chans["cross_track"][keep]
+    cut = PassLog(times=times, channels=chans, meta=dict(log.meta))
+    pieces = pass_to_experiments(cut, Preprocessing(dt=0.1, normalize="none", bias="none"))
+    assert len(pieces) == 2
+    (u1, y1, i1), (u2, y2, i2) = pieces
+    assert i1["t1"] < 6.0 and i2["t0"] > 8.0
+    np.testing.assert_allclose(y2[:, 0], 0.5 * (i2["t0"] + 0.1 * np.arange(y2.shape[0])), atol=1e-9)
+    data = passes_to_iodata([cut], Preprocessing(dt=0.1))
+    assert data.n_experiments == 2 and len(data.meta["source_hashes"]) == 1

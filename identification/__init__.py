@@ -11,6 +11,7 @@ Public API (import from the modules):
   :func:`~identification.era.modal_singular_values`, :func:`~identification.era.emac`;
 * :func:`identification.estimator.kalman_gain` - stabilising Riccati predictor gain;
 * :class:`identification.model.Model` - ``save`` / ``load`` / ``to_statespace``;
+* :class:`identification.predictor.KalmanPredictor` - the model's estimator, one step at a time;
 * :func:`identification.validation.validate` - free-run / one-step fits, error bias and std;
 * :func:`identification.tractor.identify_tractor` - local, velocity-invariant and central models;
 * ``identification`` command (:mod:`identification.cli`): ``convert``, ``okid``, ``fit``, ``validate``, ``report``.

@@ -68,7 +68,7 @@ def _fit(args: argparse.Namespace) -> dict:
 
     return fit_csv(args.data, args.inputs, args.outputs, args.out, order=args.order, markov=args.markov,
                    dt=args.dt, method=args.method, feedthrough=not args.no_feedthrough,
-                   split=args.split, experiment_column=args.experiment_column)
+                   split=args.split, experiment_column=args.experiment_column, refine=args.refine)
 
 
 def _validate(args: argparse.Namespace) -> dict:
@@ -120,6 +120,8 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--dt", type=float, default=None, help="sample time, s (default: from a time column, else 1)")
     f.add_argument("--method", choices=("era-dc", "era"), default="era-dc")
     f.add_argument("--no-feedthrough", action="store_true", help="fix D = 0")
+    f.add_argument("--refine", choices=("pem", "oe", "none"), default="pem",
+                   help="re-estimate B, D for one-step prediction (pem, default) or simulation (oe)")
     f.add_argument("--split", type=float, default=None,
                    help="fit on this leading fraction of each experiment and validate on the rest")
     f.add_argument("--experiment-column", default=None, help="column that numbers separate experiments")

@@ -74,11 +74,11 @@ def identify_logs(logs: Sequence[str | Path], out_dir: str | Path, order: int | 
 def fit_csv(data: str | Path, inputs: Sequence[str], outputs: Sequence[str], out: str | Path,
             order: int | str = "auto", markov: int | str = "auto", dt: float | None = None,
             method: str = "era-dc", feedthrough: bool = True, split: float | None = None,
-            experiment_column: str | None = None) -> dict:
+            experiment_column: str | None = None, refine: str = "pem") -> dict:
     """Identify a model from a CSV record and write it to ``out`` (.npz)."""
     io = read_csv(data, inputs, outputs, dt, experiment_column)
     fit, val = io.split(split) if split is not None else (io, io)
-    est = OKID(order=order, markov=markov, method=method, feedthrough=feedthrough).fit(
+    est = OKID(order=order, markov=markov, method=method, feedthrough=feedthrough, refine=refine).fit(
         fit, meta={"kind": "generic", "name": Path(out).stem, "source": str(data)})
     m = est.model_
     res = validate(m.A, m.B, m.C, m.D, m.K, val)

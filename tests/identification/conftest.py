@@ -1,4 +1,4 @@
-"""Shared fixtures of the identification tests; helpers live in ``synth.py`` beside this file."""
+"""Identification tests: make the helper module ``idtest_synth.py`` beside this file importable."""
 
 from __future__ import annotations
 
@@ -8,5 +8,3 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 if str(HERE) not in sys.path:
     sys.path.insert(0, str(HERE))
-
-DATA = HERE.parent / "data" / "sysid"

@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import DATA
+from idtest_synth import DATA
 from identification.cli import main
 from identification.model import Model
-from synth import synthetic_pass
+from idtest_synth import synthetic_pass
 
 
 def _robot_csv(tmp_path: Path) -> Path:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from conftest import DATA
+from idtest_synth import DATA
 from identification.data import IOData
 from identification.okid import OKID
 from identification.validation import validate

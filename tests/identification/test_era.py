@@ -7,7 +7,7 @@ import pytest
 
 from identification.era import emac, era, hankel, modal_singular_values, select_order
 from identification.errors import OptionError, RealizationError
-from synth import true_markov, true_system
+from idtest_synth import true_markov, true_system
 
 
 @pytest.mark.parametrize("method", ["era", "era-dc"])

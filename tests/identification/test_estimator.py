@@ -8,7 +8,7 @@ import scipy.linalg as sla
 
 from identification.errors import RealizationError
 from identification.estimator import kalman_gain, observer_gain
-from synth import true_system
+from idtest_synth import true_system
 
 
 def _rho(m):

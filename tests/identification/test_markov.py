@@ -9,7 +9,7 @@ from hypothesis import given, settings, strategies as st
 from identification import markov as mk
 from identification.data import IOData
 from identification.errors import DataError, OptionError
-from synth import true_markov, true_system
+from idtest_synth import true_markov, true_system
 
 
 def _observer_markov(a, b, c, d, g, p):
@@ -82,7 +82,7 @@ def test_regressors_never_straddle_experiments():
 
 
 def test_lag_selection_finds_enough_lags_for_a_4th_order_system():
-    from synth import simulate_data
+    from idtest_synth import simulate_data
 
     rng = np.random.default_rng(9)
     u, y = simulate_data(20000, rng, process=0.0, measurement=0.01)

@@ -10,7 +10,7 @@ import pytest
 
 from identification.errors import ModelFileError
 from identification.model import Model
-from synth import true_system
+from idtest_synth import true_system
 
 
 def _model(**meta):

@@ -16,7 +16,7 @@ import scipy.linalg as sla
 from identification.data import IOData
 from identification.errors import NotFittedError, OptionError
 from identification.okid import OKID
-from synth import simulate_data, true_markov, true_system
+from idtest_synth import simulate_data, true_markov, true_system
 
 
 def _eig_error(a_id: np.ndarray, a_true: np.ndarray) -> float:

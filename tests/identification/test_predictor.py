@@ -9,7 +9,7 @@ from identification.errors import DataError
 from identification.model import Model
 from identification.predictor import KalmanPredictor
 from identification.simulate import predict_one_step
-from synth import simulate_data, true_system
+from idtest_synth import simulate_data, true_system
 
 
 def test_stepping_matches_batch_prediction():

@@ -8,7 +8,7 @@ import pytest
 from identification.errors import DataError, OptionError
 from identification.passlog import PassLog
 from identification.preprocess import Preprocessing, channel_labels, pass_to_experiments, passes_to_iodata
-from synth import synthetic_pass
+from idtest_synth import synthetic_pass
 
 
 def _ramp_log(latency: dict, speed: float = 2.0) -> PassLog:

@@ -7,7 +7,7 @@ import numpy as np
 from identification.model import Model
 from identification.preprocess import Preprocessing
 from identification.tractor import identify_tractor, save_results
-from synth import synthetic_pass
+from idtest_synth import synthetic_pass
 
 
 def test_three_kinds_of_model_with_metadata(tmp_path):

@@ -8,10 +8,15 @@ with the channel rates, latencies and noise of the pass-log contract.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from identification.passlog import PassLog
 from identification.simulate import simulate
+
+#: The DaISy records copied beside the tests.
+DATA = Path(__file__).resolve().parent.parent / "data" / "sysid"
 
 
 def true_system() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -50,12 +50,15 @@ def certificate_table(cert: dict) -> str:
 
 def cmd_robust(args: argparse.Namespace) -> dict:
     models = _load_models(args.models)
+    nominal = Model.load(args.nominal) if args.nominal else None
     spec = RobustSpec(_weights(args), args.formulation, args.solver, args.pole_radius, args.rate_limit,
-                      tuple(args.initial_errors), args.integral, args.past, args.command_limit, name=args.name)
+                      tuple(args.initial_errors), args.integral, args.past, args.command_limit, name=args.name,
+                      structure=args.structure, nominal=nominal)
     res = design_robust(models, spec)
     res.file.save(args.out)
     d = res.file.design
     return {"out": str(args.out), "certificate": dict(res.file.certificate), "guaranteed_cost": d["guaranteed_cost"],
+            "implausible_models": d["implausible_models"],
             "conservatism": d["conservatism"], "times_s": d["times_s"], "formulation": spec.formulation,
             "solver": spec.solver}
 
@@ -105,6 +108,9 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
                    help="bound |u| (rad/s) over the initial-error set (--initial-errors)")
     r.add_argument("--initial-errors", type=number, nargs="+", default=[0.1, 0.02, 0.0])
     r.add_argument("--past", type=int, default=1, help="past samples in the measured state")
+    r.add_argument("--structure", choices=("window", "observer"), default="window",
+                   help="measured-window state feedback, or anchored coordinates + the nominal model's predictor")
+    r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
     r.set_defaults(func=cmd_robust, default_name="robust")
 
@@ -131,6 +137,10 @@ def render(result: dict) -> str:
         lines.append(f"guaranteed cost {result['guaranteed_cost']:.6g}, conservatism "
                      f"{result['conservatism']:.3f}; times " +
                      ", ".join(f"{k} {v:.3f} s" for k, v in result["times_s"].items()))
+    for c in result.get("implausible_models", []):
+        lines.append(f"warning: {c['name']}: a left steering pulse gives outputs "
+                     f"{', '.join(f'{v:+.3g}' for v in c['pulse_outputs'])} after 3 s (expected all > 0); "
+                     "check this model before trusting a design that must also stabilise it")
     if result.get("out"):
         lines.append(f"wrote {result['out']}")
     if result.get("max_radius_difference_from_file") is not None:

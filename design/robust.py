@@ -19,14 +19,18 @@ import numpy as np
 
 from identification.model import Model
 
+from .anchored import anchored, augment_integral, best_anchor, observer_compensator
 from .compensator import Compensator
 from .controller_file import ControllerFile, outputs_for
 from .errors import DesignInputError
 from .iostate import IOStateLayout, feedback_compensator, io_state_model
 from .lmi import LMIOptions, StateFeedbackDesign, closed_loop_cost, robust_state_feedback
 from .lqr import dlqr, lqg_compensator
+from .plausibility import implausible
 from .verify import Certificate, certify, model_hash, require_stable
 from .weights import OutputWeights
+
+STRUCTURES = ("window", "observer")
 
 
 @dataclass(frozen=True)
@@ -53,6 +57,13 @@ class RobustSpec:
         Floor of the speed used for normalisation, m/s.
     name
         Controller name.
+    structure
+        ``"window"``: state feedback on the measured window (design.iostate; the LMI
+        certificate covers the exported compensator exactly), or ``"observer"``:
+        output-anchored coordinates (design.anchored) with the ``nominal`` model's
+        Kalman predictor (filters noise; stability verified after synthesis).
+    nominal
+        The model whose predictor the ``observer`` structure uses (e.g. the central model).
     """
 
     weights: OutputWeights = field(default_factory=OutputWeights)
@@ -66,6 +77,16 @@ class RobustSpec:
     command_limit: float = 0.35
     speed_min: float = 0.3
     name: str = "robust"
+    structure: str = "window"
+    nominal: Model | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.structure not in STRUCTURES:
+            raise DesignInputError(f"structure must be one of {STRUCTURES}, got {self.structure!r}")
+        if self.structure == "observer" and self.nominal is None:
+            raise DesignInputError("the observer structure needs a nominal model (e.g. the central model)")
+        if isinstance(self.past, bool) or not isinstance(self.past, int) or self.past < 1:
+            raise DesignInputError(f"past must be an integer >= 1, got {self.past!r}")
 
 
 @dataclass(frozen=True)
@@ -111,6 +132,8 @@ def design_problem(models: Sequence[Model], spec: RobustSpec) -> tuple[IOStateLa
     _check_family(models)
     q = models[0].n_outputs
     w = spec.weights
+    if spec.structure == "observer":
+        return _anchored_problem(models, spec)
     layout = IOStateLayout(q, 1, spec.past, (0,) if spec.integral else (), models[0].dt)
     a_list, b_list = [], []
     for m in models:
@@ -132,6 +155,35 @@ def design_problem(models: Sequence[Model], spec: RobustSpec) -> tuple[IOStateLa
     return layout, a_list, b_list, data
 
 
+def _anchored_problem(models: Sequence[Model], spec: RobustSpec) -> tuple[IOStateLayout, list, list, dict]:
+    w = spec.weights
+    q = models[0].n_outputs
+    _check_family([*models, spec.nominal])
+    j = best_anchor([*models, spec.nominal])
+    channels = (0,) if spec.integral else ()
+    a_list, b_list = [], []
+    for m in models:
+        am = anchored(m, j)
+        a, b = augment_integral(am.A, am.B, am.dt, channels)
+        a_list.append(a)
+        b_list.append(b)
+    ymax = np.asarray(w.y_max)
+    if ymax.size != q:
+        raise DesignInputError(f"weights.y_max has {ymax.size} entries, the models have {q} outputs")
+    scale = np.concatenate([ymax, [ymax[j]], np.full(len(channels), w.i_max)])
+    nz = scale.size
+    qz = np.zeros((nz, nz))
+    qz[:q, :q] = w.output_matrix(q)
+    for r in range(len(channels)):
+        qz[q + 1 + r, q + 1 + r] = w.i_max ** -2
+    layout = IOStateLayout(q, 1, 1, channels, models[0].dt)       # records the integral channels only
+    data = {"Q": qz, "R": w.input_matrix(1), "Bw": np.diag(scale), "scale": scale, "input_scale": w.u_max,
+            "anchor": j, "coordinates": [*(models[0].meta.get("output_names") or [f"y{i}" for i in range(q)]),
+                                         f"free response of output {j} one step ahead",
+                                         *(["int y/V"] if channels else [])]}
+    return layout, a_list, b_list, data
+
+
 def _initial_set(layout: IOStateLayout, errors: Sequence[float]) -> np.ndarray:
     if len(errors) != layout.n_outputs or any(not math.isfinite(e) or e < 0 for e in errors):
         raise DesignInputError(f"initial_errors needs {layout.n_outputs} finite values >= 0, got {errors!r}")
@@ -141,6 +193,20 @@ def _initial_set(layout: IOStateLayout, errors: Sequence[float]) -> np.ndarray:
             col = np.zeros(layout.order)
             for lag in range(layout.past + 1):
                 col[layout.output_slot(lag).start + j] = e
+            cols.append(col)
+    if not cols:
+        raise DesignInputError("initial_errors are all zero: the input bound needs a non-empty set")
+    return np.column_stack(cols)
+
+
+def _anchored_initial_set(nz: int, errors: Sequence[float]) -> np.ndarray:
+    cols = []
+    for j, e in enumerate(errors):
+        if not math.isfinite(e) or e < 0:
+            raise DesignInputError(f"initial_errors must be finite and >= 0, got {errors!r}")
+        if e > 0:
+            col = np.zeros(nz)
+            col[j] = e
             cols.append(col)
     if not cols:
         raise DesignInputError("initial_errors are all zero: the input bound needs a non-empty set")
@@ -160,25 +226,37 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
     spec = spec or RobustSpec()
     names = _model_names(models)
     layout, a_list, b_list, d = design_problem(models, spec)
-    opts = LMIOptions(spec.formulation, spec.solver, spec.pole_radius, spec.rate_limit,
-                      None if spec.rate_limit is None else _initial_set(layout, spec.initial_errors))
+    e0 = None
+    if spec.rate_limit is not None:
+        e0 = _initial_set(layout, spec.initial_errors) if spec.structure == "window" else \
+            _anchored_initial_set(d["Bw"].shape[0], spec.initial_errors)
+    opts = LMIOptions(spec.formulation, spec.solver, spec.pole_radius, spec.rate_limit, e0)
     syn = robust_state_feedback(a_list, b_list, d["Q"], d["R"], d["Bw"], d["scale"], d["input_scale"],
                                 opts, names)
     lqr_costs = []
     for a, b in zip(a_list, b_list):
         f, _ = dlqr(a, b, d["Q"], d["R"])
         lqr_costs.append(closed_loop_cost(a, b, -f, d["Q"], d["R"], d["Bw"]))
-    comp = feedback_compensator(syn.K, layout)
+    if spec.structure == "window":
+        comp = feedback_compensator(syn.K, layout)
+        coords = "measured window z = " + ", ".join(
+            layout.state_names(list(models[0].meta.get("output_names", ["y1", "y2", "y3"])), ["u"]))
+    else:
+        comp = observer_compensator(anchored(spec.nominal, d["anchor"]), syn.K, models[0].dt, layout.integral)
+        coords = "output-anchored z = " + ", ".join(d["coordinates"])
     cert = certify(comp, models, names)
     require_stable(cert)
     design = {"method": "robust-lmi", "formulation": spec.formulation, "solver": spec.solver,
-              "status": syn.status, "coordinates": "measured window z = " + ", ".join(
-                  layout.state_names(list(models[0].meta.get("output_names", ["y1", "y2", "y3"])), ["u"])),
+              "status": syn.status, "structure": spec.structure, "coordinates": coords,
+              "nominal": None if spec.nominal is None else {"name": spec.nominal.meta.get("name"),
+                                                            "hash": model_hash(spec.nominal)},
               "weights": asdict(spec.weights), "pole_radius": spec.pole_radius, "rate_limit": spec.rate_limit,
               "initial_errors": list(spec.initial_errors), "integral": spec.integral, "past": spec.past,
               "gain_K": syn.K.tolist(), "guaranteed_cost": syn.bound, "costs": list(syn.costs),
               "lqr_costs": lqr_costs, "conservatism": syn.bound / max(lqr_costs),
-              "synthesis_radii": list(syn.radii), "times_s": syn.times}
+              "synthesis_radii": list(syn.radii), "times_s": syn.times,
+              "implausible_models": [{"name": c.name, "pulse_outputs": list(c.outputs)}
+                                     for c in implausible(models, names)]}
     file = ControllerFile(spec.name, comp, outputs_for(models[0].meta), spec.command_limit, spec.speed_min,
                           design, cert.to_dict(),
                           tuple({"name": n, "hash": model_hash(m)} for n, m in zip(names, models)))

@@ -55,7 +55,7 @@ def test_observer_structure_needs_a_nominal_model():
 def test_plausibility_flags_a_model_that_steers_the_wrong_way():
     good = tractor_model(2.0)
     assert pulse_check(good).plausible
-    flipped = Model(good.A, good.B, good.C * np.array([[-1.0], [1.0], [1.0]]), good.D, good.K, good.dt,
-                    {"name": "flipped"})
+    sign = np.array([[-1.0], [1.0], [1.0]])
+    flipped = Model(good.A, good.B, good.C * sign, good.D, good.K * sign.T, good.dt, {"name": "flipped"})
     bad = implausible([good, flipped])
     assert [c.name for c in bad] == ["flipped"] and bad[0].outputs[0] < 0

@@ -29,27 +29,55 @@ EXECUTORS = ("local", "dask")
 BUILTIN_CONTROLLERS = ("kinematic", "pure-pursuit", "stanley")
 
 
+def _split(spec: str) -> tuple[str, dict[str, float]]:
+    """``name?key=value&key=value`` -> (name, {key: value})."""
+    name, _, query = spec.partition("?")
+    opts: dict[str, float] = {}
+    for part in filter(None, query.split("&")):
+        key, eq, value = part.partition("=")
+        try:
+            opts[key] = float(value)
+        except ValueError:
+            raise SimulatorConfigError(f"controller option {part!r} in {spec!r}: expected key=number") from None
+        if not eq:
+            raise SimulatorConfigError(f"controller option {part!r} in {spec!r}: expected key=number")
+    return name, opts
+
+
 def make_controller(spec: str):
-    """Build a controller from its name (``kinematic``, ``pure-pursuit``, ``stanley``) or a
-    controller file (``*.json``, see :mod:`design.controller_file`); done inside each worker."""
-    from design.baselines import PurePursuitController, StanleyController
+    """Build a controller from its spec; done inside each worker.
+
+    A spec is a name, ``kinematic``, ``pure-pursuit`` or ``stanley``, optionally with gains
+    (``pure-pursuit?lookahead_time=1.2&servo=4``, names of
+    :class:`~design.baselines.PurePursuitGains` / :class:`~design.baselines.StanleyGains`), or a
+    controller file (``*.json``, see :mod:`design.controller_file`).
+    """
+    from design.baselines import PurePursuitController, PurePursuitGains, StanleyController, StanleyGains
     from design.controller import KinematicLQRController
-    factories = {"kinematic": KinematicLQRController, "pure-pursuit": PurePursuitController,
-                 "stanley": StanleyController}
-    if spec in factories:
-        return factories[spec]()
     if spec.endswith(".json"):
         from design.controller_file import load_controller
         if not Path(spec).is_file():
             raise SimulatorConfigError(f"controller file {spec!r} does not exist")
         return load_controller(spec)
+    name, opts = _split(spec)
+    gains = {"pure-pursuit": (PurePursuitController, PurePursuitGains), "stanley": (StanleyController, StanleyGains)}
+    if name in gains:
+        cls, gcls = gains[name]
+        known = set(gcls.__dataclass_fields__)
+        if set(opts) - known:
+            raise SimulatorConfigError(f"unknown {name} gain(s) {sorted(set(opts) - known)}; known: {sorted(known)}")
+        return cls(gcls(**opts))
+    if name == "kinematic" and not opts:
+        return KinematicLQRController()
     raise SimulatorConfigError(f"unknown controller {spec!r}; give one of {list(BUILTIN_CONTROLLERS)} "
-                               "or a controller file (.json)")
+                               "(pure-pursuit and stanley take ?gain=value&...) or a controller file (.json)")
 
 
 def controller_label(spec: str) -> str:
-    """Short name of a controller spec for tables and file names (a file's stem)."""
-    return Path(spec).stem if spec.endswith(".json") else spec
+    """Short name of a controller spec for tables and file names (a file's stem; gains kept)."""
+    if spec.endswith(".json"):
+        return Path(spec).stem
+    return spec.replace("?", "[").replace("&", ",") + ("]" if "?" in spec else "")
 
 
 @dataclass(frozen=True)

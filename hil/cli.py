@@ -90,7 +90,11 @@ def _cmd_params(args: argparse.Namespace) -> dict:
 
 
 def _controller_spec(text: str) -> str:
-    if text in BUILTIN_CONTROLLERS:
+    if text.partition("?")[0] in BUILTIN_CONTROLLERS:
+        try:
+            make_controller(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
         return text
     if text.endswith(".json"):
         if not Path(text).is_file():
@@ -160,6 +164,30 @@ def _cmd_compare(args: argparse.Namespace) -> dict:
     bar.close()
     rep = write_report(results, args.out, extra={"campaign": campaign.identity})
     return {"out": args.out, "passes": len(results), "tables": rep["tables"], "files": rep["files"]}
+
+
+def _grid(text: str) -> tuple[str, list[float]]:
+    name, eq, values = text.partition("=")
+    if not eq or not name:
+        raise argparse.ArgumentTypeError(f"expected GAIN=V1,V2,..., got {text!r}")
+    return name, [_float(v) for v in values.split(",")]
+
+
+def _cmd_tune(args: argparse.Namespace) -> dict:
+    from .tune import tune
+    bar = tqdm(total=1, unit="pass", desc="tuning", disable=args.quiet, file=sys.stderr)
+
+    def progress(done: int, total: int) -> None:
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    result = tune(args.controller, dict(args.param), args.out, args.conditions,
+                  seeds=list(range(args.seed, args.seed + args.seeds)), duration=args.duration,
+                  params=_params(args), executor=args.executor, scheduler=args.scheduler, workers=args.workers,
+                  progress=progress)
+    bar.close()
+    return result
 
 
 def _cmd_run(args: argparse.Namespace) -> dict:
@@ -301,6 +329,21 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--quiet", action="store_true")
     cp.set_defaults(func=_cmd_compare)
 
+    tu = sub.add_parser("tune", parents=[common], help="grid-search a baseline's gains on the bench")
+    tu.add_argument("controller", choices=["pure-pursuit", "stanley"])
+    tu.add_argument("--param", action="append", type=_grid, required=True, metavar="GAIN=V1,V2,...",
+                    help="values to try for one gain; repeat for a grid")
+    tu.add_argument("--conditions", type=_conditions, default=None, metavar="all|IMPLEMENT:SPEED,...")
+    tu.add_argument("--seeds", type=int, default=1)
+    tu.add_argument("--seed", type=int, default=100, help="first seed (default 100: apart from compare's)")
+    tu.add_argument("--duration", type=_float, default=40.0)
+    tu.add_argument("--executor", choices=EXECUTORS, default="local")
+    tu.add_argument("--scheduler")
+    tu.add_argument("--workers", type=int, default=None)
+    tu.add_argument("--out", required=True)
+    tu.add_argument("--quiet", action="store_true")
+    tu.set_defaults(func=_cmd_tune)
+
     em = sub.add_parser("emulate", parents=[common], help="an emulated tractor behind three pseudo-terminals, "
                         "in real time (for hil drive)")
     em.add_argument("--implement", choices=IMPLEMENTS, default="none")
@@ -345,6 +388,10 @@ def _print_human(command: str, result: dict) -> None:
             print(f"{r['name']:<38} {r['value']:>11.6g} {r['unit']:<8} {r['source']:<10} {r['doc']}")
     elif command == "emulate":
         print(f"stopped; tractor at cross-track {result['final_truth']['cross_track']:.3f} m")
+    elif command == "tune":
+        for r in result["ranking"]:
+            print(f"{r['score_m'] * 100:8.2f} cm  {r['spec']}")
+        print(f"best: {result['best']['spec']}  (score: {result['score']})")
     elif command == "compare":
         for text in result["tables"].values():
             print(text + "\n")

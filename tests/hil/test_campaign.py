@@ -105,3 +105,15 @@ def test_cli_compare_small_campaign(tmp_path, capsys):
         hil_main(["compare", "pid", "--out", str(tmp_path)])
     with pytest.raises(SystemExit):
         hil_main(["compare", "kinematic", "--conditions", "plough:1.0", "--out", str(tmp_path)])
+
+
+def test_tuning_ranks_candidates_on_the_same_passes(tmp_path):
+    from hil.tune import candidates, tune
+    assert candidates("stanley", {"k": [0.5, 1.0]}) == ["stanley?k=0.5", "stanley?k=1"]
+    with pytest.raises(ValueError, match="unknown stanley gain"):
+        candidates("stanley", {"kp": [1.0]})
+    res = tune("pure-pursuit", {"servo": [0.5, 5.0]}, tmp_path, [condition_for("none", 1.34)], seeds=[1],
+               duration=10.0, workers=1)
+    scores = [r["score_m"] for r in res["ranking"]]
+    assert scores == sorted(scores) and res["best"]["spec"] == "pure-pursuit?servo=5"
+    assert json.loads((tmp_path / "tune.json").read_text())["best"] == res["best"]

@@ -42,18 +42,18 @@ def _run(*cmd: str | os.PathLike[str]) -> None:
         sys.exit(done.returncode)
 
 
-def ensure_env() -> None:
-    """Create ``.venv`` and install the pinned project into it if needed."""
+def ensure_env(extras: str = "test") -> None:
+    """Create ``.venv`` and install the pinned project (with ``extras``) into it if needed."""
     if sys.version_info[:2] != (3, 11):
         sys.exit(f"Python 3.11 is required to build the environment, this is {sys.version.split()[0]}")
     if not PY.exists():
         print(f"creating virtual environment in {VENV}", flush=True)
         venv.EnvBuilder(with_pip=True, clear=True).create(VENV)
-    want = _digest()
+    want = _digest() + " " + extras
     if STAMP.exists() and STAMP.read_text().strip() == want:
         return
     _run(PY, "-m", "pip", "install", "--quiet", "--disable-pip-version-check",
-         "-c", ROOT / "requirements.lock", "-e", f"{ROOT}[test]")
+         "-c", ROOT / "requirements.lock", "-e", f"{ROOT}[{extras}]")
     STAMP.write_text(want + "\n")
 
 
@@ -87,7 +87,8 @@ def test(args: list[str]) -> None:
 
 
 def bench(args: list[str]) -> None:
-    ensure_env()
+    """Benchmarks, with their peer packages (the ``bench`` extra)."""
+    ensure_env("test,bench")
     _run(PY, ROOT / "benchmarks" / "run.py", *args)
 
 

@@ -92,7 +92,7 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
         p.add_argument("--y-max", type=number, nargs="+", default=[0.05, 0.03, 0.09],
                        help="Bryson output maxima in model units (y/V s, psi/V rad s/m, delta rad)")
         p.add_argument("--u-max", type=number, default=0.35, help="Bryson steering rate, rad/s")
-        p.add_argument("--i-max", type=number, default=0.1, help="Bryson integral of y/V, s^2")
+        p.add_argument("--i-max", type=number, default=0.5, help="Bryson integral of y/V, s^2")
         p.add_argument("--command-limit", type=number, default=0.35, help="command clip, rad/s")
         p.add_argument("--name", default=None)
         p.add_argument("--json", action="store_true", help="print the result as JSON")

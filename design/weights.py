@@ -40,7 +40,7 @@ class OutputWeights:
 
     y_max: tuple[float, ...] = (0.05, 0.03, 0.09)
     u_max: float = 0.35
-    i_max: float = 0.1
+    i_max: float = 0.5
 
     def __post_init__(self) -> None:
         if not isinstance(self.y_max, (tuple, list)) or not self.y_max:

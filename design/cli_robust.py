@@ -31,7 +31,7 @@ def _weights(args: argparse.Namespace) -> OutputWeights:
 
 def certificate_table(cert: dict) -> str:
     """Plain-text per-model table of a certificate dictionary."""
-    head = f"{'model':<22}{'rho':>9}{'GM dB':>8}{'PM deg':>8}{'delay':>7}{'disk':>7}{'DGM dB':>8}{'DPM':>7}" \
+    head = f"{'model':<22}{'rho':>9}{'GM dB':>8}{'GRM dB':>8}{'PM deg':>8}{'delay':>7}{'disk':>7}{'DGM dB':>8}{'DPM':>7}" \
            f"{'peak u':>8}{'settle':>8}"
     lines = [head]
     for r in cert["models"]:
@@ -40,6 +40,7 @@ def certificate_table(cert: dict) -> str:
             width = int(fmt.split(".")[0])
             return format(v, fmt) if isinstance(v, (int, float)) else format(str(v), f">{width}")
         lines.append(f"{r['name']:<22}{f('spectral_radius', '9.5f')}{f('gain_margin_db', '8.1f')}"
+                     f"{f('gain_reduction_margin_db', '8.1f')}"
                      f"{f('phase_margin_deg', '8.1f')}{f('delay_margin_samples', '7.1f')}{f('disk_margin', '7.2f')}"
                      f"{f('disk_gain_margin_db', '8.1f')}{f('disk_phase_margin_deg', '7.1f')}"
                      f"{f('peak_rate', '8.3f')}{f('settling_s', '8.1f')}")

@@ -1,7 +1,10 @@
 """Verification of an exported compensator closed around every model (the certificate).
 
 For each model: closed-loop spectral radius (exact eigenvalues of the full plant +
-compensator loop), classical gain / phase margins and the delay margin in samples,
+compensator loop), exact gain margins (bisection on the spectral radius of the loop
+with a scaled plant input; loops around unstable models are conditionally stable, so
+there is a gain-reduction margin too), the phase margin and the delay margin in whole
+samples (exact, by appending delay states),
 the disk margin with its disk-based gain and phase margins (python-control's
 ``disk_margins``, balanced skew) at the plant input, and the response to a
 constant steering-rate disturbance at the plant input (peak command, settling time
@@ -45,10 +48,13 @@ class ModelCheck:
         Model identity.
     spectral_radius
         Of the closed loop (< 1 is stable).
-    gain_margin_db, phase_margin_deg
-        Classical margins of the loop at the plant input (inf when not crossed).
+    gain_margin_db, gain_reduction_margin_db
+        Exact gain margins at the plant input: the loop gain may rise by the first
+        and fall by the second (negative dB) before the loop loses stability.
+    phase_margin_deg
+        Smallest phase margin over the unity-gain crossings of the loop.
     delay_margin_samples
-        Extra loop delay tolerated, in samples (phase margin / (crossover x dt)).
+        Whole samples of extra delay at the plant input the loop tolerates (exact).
     disk_margin, disk_gain_margin_db, disk_phase_margin_deg
         Balanced disk margin at the plant input and its gain / phase margins.
     peak_rate
@@ -63,6 +69,7 @@ class ModelCheck:
     hash: str
     spectral_radius: float
     gain_margin_db: float
+    gain_reduction_margin_db: float
     phase_margin_deg: float
     delay_margin_samples: float
     disk_margin: float
@@ -82,21 +89,101 @@ def _db(x: float) -> float:
     return 20 * math.log10(x) if x > 0 and math.isfinite(x) else math.inf
 
 
-def _margins(model: Model, comp: Compensator) -> tuple[float, float, float, float, float, float]:
+def _scaled_radius(model: Model, comp: Compensator, gain: float) -> float:
+    scaled = Compensator(comp.Ac, comp.Bc, comp.Cc, comp.Dc, comp.dt, comp.Ec)
+    # gain k at the plant input: u_plant = k u
+    return spectral_radius(closed_loop_matrix(model.A, model.B * gain, model.C, model.D * gain, scaled))
+
+
+def gain_margins(model: Model, comp: Compensator, limit: float = 1e3) -> tuple[float, float]:
+    """Exact gain margins at the plant input by bisection on the closed-loop spectral radius.
+
+    Returns
+    -------
+    upper, lower
+        Factors ``k > 1`` and ``k < 1`` at which the loop first loses stability
+        (``inf`` / ``0`` if not within ``[1/limit, limit]``).
+    """
+    def unstable(k: float) -> bool:
+        return _scaled_radius(model, comp, k) >= 1.0
+
+    def bisect(stable: float, bad: float) -> float:     # stable at one gain, unstable at the other (log scale)
+        for _ in range(40):
+            mid = math.sqrt(stable * bad)
+            stable, bad = (mid, bad) if not unstable(mid) else (stable, mid)
+        return bad
+    upper = math.inf
+    grid = np.geomspace(1.0, limit, 25)[1:]
+    prev = 1.0
+    for k in grid:
+        if unstable(k):
+            upper = bisect(prev, k)
+            break
+        prev = k
+    lower = 0.0
+    prev = 1.0
+    for k in 1.0 / grid:
+        if unstable(k):
+            lower = bisect(prev, k)
+            break
+        prev = k
+    return upper, lower
+
+
+def delay_margin_samples(model: Model, comp: Compensator, most: int = 40) -> int:
+    """Largest number of extra whole samples of delay at the plant input that keeps the loop stable."""
+    n, m = model.B.shape
+    for d in range(1, most + 1):
+        # plant with d delay states on its input: x+ = A x + B w_d, w_1+ = u, w_i+ = w_{i-1}
+        nd = n + d * m
+        a = np.zeros((nd, nd))
+        a[:n, :n] = model.A
+        a[:n, n + (d - 1) * m:] = model.B
+        for i in range(1, d):
+            a[n + i * m:n + (i + 1) * m, n + (i - 1) * m:n + i * m] = np.eye(m)
+        b = np.zeros((nd, m))
+        b[n:n + m] = np.eye(m)
+        c = np.hstack([model.C, np.zeros((model.C.shape[0], d * m))])
+        if spectral_radius(closed_loop_matrix(a, b, c, np.zeros_like(model.D), comp)) >= 1.0:
+            return d - 1
+    return most
+
+
+def _loop_response(model: Model, comp: Compensator, omega: np.ndarray) -> np.ndarray:
+    zs = np.exp(1j * omega * model.dt)
+    out = np.empty(zs.size, dtype=complex)
+    n, nc = model.order, comp.order
+    for i, z in enumerate(zs):
+        p = model.C @ np.linalg.solve(z * np.eye(n) - model.A, model.B) + model.D
+        k = comp.Cc @ np.linalg.solve(z * np.eye(nc) - comp.Ac, comp.Bc) + comp.Dc if nc else comp.Dc
+        out[i] = -(k @ p)[0, 0]
+    return out
+
+
+def phase_margin(model: Model, comp: Compensator, omega: np.ndarray) -> tuple[float, float]:
+    """Smallest phase margin over the loop's unity-gain crossings, deg, and its frequency, rad/s."""
+    resp = _loop_response(model, comp, omega)
+    mag = np.abs(resp)
+    idx = np.nonzero(np.diff(np.sign(mag - 1.0)))[0]
+    best, w_best = math.inf, math.nan
+    for i in idx:
+        pm = 180.0 - abs(math.degrees(np.angle(resp[i])))
+        if pm < best:
+            best, w_best = pm, float(omega[i])
+    return best, w_best
+
+
+def _margins(model: Model, comp: Compensator) -> tuple[float, float, float, float, float, float, float]:
+    omega = np.geomspace(1e-3, math.pi / model.dt * 0.999, 1500)
+    up, low = gain_margins(model, comp)
+    pm, _ = phase_margin(model, comp, omega)
+    delay = float(delay_margin_samples(model, comp))
     plant = control.ss(model.A, model.B, model.C, model.D, model.dt)
     kc = control.ss(comp.Ac, comp.Bc, comp.Cc, comp.Dc, comp.dt)
-    loop = -(kc * plant)                      # negative-feedback loop at the plant input
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        gm, pm, _sm, _wpc, wgc, _wms = control.stability_margins(loop)
-        omega = np.linspace(1e-3, math.pi / model.dt * 0.999, 2000)
-        dm, dgm, dpm = control.disk_margins(loop, omega, skew=0.0)
-    gm = float(gm) if gm is not None else math.inf
-    pm = float(pm) if pm is not None else math.inf
-    wgc = float(wgc) if wgc is not None else math.nan
-    delay = pm / 180 * math.pi / (wgc * model.dt) if (math.isfinite(pm) and wgc and wgc > 0 and pm > 0) else \
-        (0.0 if pm <= 0 else math.inf)
-    return _db(gm), pm, delay, float(dm), _db(float(dgm)), float(dpm)
+        dm, dgm, dpm = control.disk_margins(-(kc * plant), omega, skew=0.0)
+    return _db(up), (-_db(1 / low) if low > 0 else -math.inf), pm, delay, float(dm), _db(float(dgm)), float(dpm)
 
 
 def _disturbance(model: Model, comp: Compensator, seconds: float = 30.0,
@@ -124,12 +211,12 @@ def check_model(model: Model, comp: Compensator, name: str | None = None) -> Mod
     rho = spectral_radius(acl)
     nm = name or str(model.meta.get("name", "model"))
     if rho < 1.0:
-        gm, pm, delay, dm, dgm, dpm = _margins(model, comp)
+        gm, grm, pm, delay, dm, dgm, dpm = _margins(model, comp)
         peak, settle, steady = _disturbance(model, comp)
     else:
-        gm = pm = delay = dm = dgm = dpm = 0.0
+        gm = grm = pm = delay = dm = dgm = dpm = 0.0
         peak = settle = steady = math.inf
-    return ModelCheck(nm, model_hash(model), rho, gm, pm, delay, dm, dgm, dpm, peak, settle, steady)
+    return ModelCheck(nm, model_hash(model), rho, gm, grm, pm, delay, dm, dgm, dpm, peak, settle, steady)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,53 @@
+"""Margins of the certificate on a loop with a hand-computed answer."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from design.compensator import Compensator
+from design.errors import VerificationError
+from design.verify import certify, delay_margin_samples, gain_margins, phase_margin
+from identification.model import Model
+
+# Plant P(z) = 1/(z - 1) (a discrete integrator), static compensator u = -0.5 y: closed-loop pole 0.5.
+PLANT = Model(np.array([[1.0]]), np.array([[1.0]]), np.array([[1.0]]), np.zeros((1, 1)), np.array([[0.5]]), 0.05,
+              {"name": "integrator"})
+GAIN = Compensator(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[-0.5]]), 0.05)
+
+
+def test_gain_margins_are_exact():
+    up, low = gain_margins(PLANT, GAIN)
+    assert up == pytest.approx(4.0, rel=1e-6)          # pole 1 - 0.5 k leaves the unit disk at k = 4
+    assert low == 0.0                                   # only k = 0 makes it marginal
+
+
+def test_phase_margin_matches_the_hand_computation():
+    w = 2 * math.asin(0.25)                              # |0.5 / (e^{jw} - 1)| = 1
+    omega = np.linspace(1e-3, math.pi / 0.05 * 0.999, 200001)
+    pm, wc = phase_margin(PLANT, GAIN, omega)
+    assert wc * 0.05 == pytest.approx(w, abs=1e-3)
+    assert pm == pytest.approx(180 - 90 - math.degrees(w / 2), abs=0.05)
+
+
+def test_delay_margin_counts_whole_samples():
+    # characteristic polynomial z^d (z - 1) + 0.5 with d extra samples of delay
+    expect = 0
+    for d in range(1, 10):
+        roots = np.roots(np.r_[1.0, -1.0, np.zeros(d - 1), 0.5])
+        if np.max(np.abs(roots)) >= 1:
+            break
+        expect = d
+    assert delay_margin_samples(PLANT, GAIN) == expect
+
+
+def test_certificate_names_the_failing_model():
+    bad = Model(np.array([[1.0]]), np.array([[-1.0]]), np.array([[1.0]]), np.zeros((1, 1)), np.array([[0.5]]), 0.05,
+                {"name": "reversed"})
+    cert = certify(GAIN, [PLANT, bad])
+    assert cert.worst.name == "reversed" and not cert.passed
+    assert cert.to_dict()["passed"] is False
+    with pytest.raises(VerificationError, match="sample time 0.1 s"):
+        certify(GAIN, [Model(PLANT.A, PLANT.B, PLANT.C, PLANT.D, PLANT.K, 0.1, {"name": "slow"})])

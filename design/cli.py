@@ -5,6 +5,7 @@
                   [--pole-radius R] [--rate-limit U] --out controllers/robust.json [--json]
     design lqr --model models/central.npz [--verify-on models/local_*.npz] --out controllers/central-lqr.json
     design verify CONTROLLER --models models/*.npz
+    design export CONTROLLER --format json|c-header|csv [--out FILE]
 """
 
 from __future__ import annotations
@@ -87,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     if args.json:
         print(json.dumps(result, indent=2))
-    elif args.command in ("robust", "lqr", "verify"):
+    elif args.command in ("robust", "lqr", "verify", "export"):
         print(cli_robust.render(result))
     else:
         print(f"{'speed m/s':>10} {'K_y':>10} {'K_psi':>10} {'K_delta':>10}")

@@ -9,6 +9,7 @@ from pathlib import Path
 from identification.model import Model
 
 from .controller_file import read_controller_file
+from .export import FORMATS, export_controller
 from .errors import DesignInputError
 from .robust import RobustSpec, design_lqr, design_robust
 from .verify import Certificate, certify
@@ -87,6 +88,12 @@ def cmd_verify(args: argparse.Namespace) -> dict:
     return out
 
 
+def cmd_export(args: argparse.Namespace) -> dict:
+    text = export_controller(args.controller, args.format, args.out)
+    return {"controller": str(args.controller), "format": args.format, "out": args.out,
+            "text": None if args.out else text}
+
+
 def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     """Register ``robust``, ``lqr`` and ``verify`` on the ``design`` parser."""
     def common(p: argparse.ArgumentParser) -> None:
@@ -130,9 +137,18 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     v.add_argument("--json", action="store_true")
     v.set_defaults(func=cmd_verify)
 
+    e = sub.add_parser("export", help="write a controller file as JSON, a C header or CSV")
+    e.add_argument("controller")
+    e.add_argument("--format", choices=FORMATS, default="json")
+    e.add_argument("--out", help="output file (default: print)")
+    e.add_argument("--json", action="store_true")
+    e.set_defaults(func=cmd_export)
+
 
 def render(result: dict) -> str:
-    """Text output of the three commands."""
+    """Text output of the commands."""
+    if "format" in result:
+        return result["text"] if result["text"] is not None else f"wrote {result['out']} ({result['format']})"
     lines = [certificate_table(result["certificate"])]
     if "guaranteed_cost" in result:
         lines.append(f"guaranteed cost {result['guaranteed_cost']:.6g}, conservatism "

@@ -1,0 +1,87 @@
+"""Export a linear controller file for the vehicle computer: JSON (canonical), a C header or CSV.
+
+The C header holds plain ``static const double`` arrays in row-major order with
+their dimensions, the sample time, the normalisation of each output and the file's
+checksum in comments; the CSV lists one matrix entry per row (``matrix,row,col,value``)
+after ``#`` comment lines with the same information. Numbers are written with 17
+significant digits so they read back exactly.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+
+from .controller_file import ControllerFile, read_controller_file
+from .errors import DesignInputError
+
+FORMATS = ("json", "c-header", "csv")
+MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec")
+
+
+def _ident(name: str) -> str:
+    s = re.sub(r"[^A-Za-z0-9]", "_", name).upper()
+    return s if s and not s[0].isdigit() else f"C_{s}"
+
+
+def _header_lines(spec: ControllerFile, checksum: str) -> list[str]:
+    c = spec.compensator
+    outs = ", ".join(f"{o.name}{'/speed' if o.normalization == 'speed' else ''} [{o.units}]" for o in spec.outputs)
+    return [f"controller {spec.name}: linear compensator, schema design-controller/1",
+            f"checksum {checksum}",
+            f"dt = {c.dt!r} s; states nc = {c.order}; outputs q = {c.n_measurements}; commands m = 1",
+            f"y (in order) = {outs}; speed floored at {spec.speed_min!r} m/s",
+            "u = steering-rate command [rad/s], clipped to +-" + repr(spec.rate_limit),
+            "xc[k+1] = Ac xc[k] + Bc y[k] + Ec (u_applied[k] - u[k]);  u[k] = Cc xc[k] + Dc y[k]"]
+
+
+def to_c_header(spec: ControllerFile, checksum: str) -> str:
+    """C header text (see module docstring)."""
+    p = _ident(spec.name)
+    c = spec.compensator
+    lines = ["/* " + line + " */" for line in _header_lines(spec, checksum)]
+    lines += [f"#ifndef {p}_CONTROLLER_H", f"#define {p}_CONTROLLER_H", "",
+              f"#define {p}_DT {c.dt!r}", f"#define {p}_NC {c.order}", f"#define {p}_NY {c.n_measurements}",
+              f"#define {p}_RATE_LIMIT {spec.rate_limit!r}", f"#define {p}_SPEED_MIN {spec.speed_min!r}", ""]
+    for o_i, o in enumerate(spec.outputs):
+        lines.append(f"#define {p}_Y{o_i}_DIVIDE_BY_SPEED {1 if o.normalization == 'speed' else 0}  /* {o.name} */")
+    lines.append("")
+    for name in MATRICES:
+        m = getattr(c, name)
+        vals = ", ".join(format(float(v), ".17g") for v in m.ravel()) or "0"
+        size = max(m.size, 1)
+        lines.append(f"/* {name}: {m.shape[0]} x {m.shape[1]}, row-major */")
+        lines.append(f"static const double {p}_{name.upper()}[{size}] = {{{vals}}};")
+    lines += ["", f"#endif /* {p}_CONTROLLER_H */", ""]
+    return "\n".join(lines)
+
+
+def to_csv(spec: ControllerFile, checksum: str) -> str:
+    """CSV text (see module docstring)."""
+    lines = ["# " + line for line in _header_lines(spec, checksum)]
+    lines.append("matrix,row,col,value")
+    for name in MATRICES:
+        m = getattr(spec.compensator, name)
+        for (i, j), v in np.ndenumerate(m):
+            lines.append(f"{name},{i},{j},{float(v):.17g}")
+    return "\n".join(lines) + "\n"
+
+
+def export_controller(path: str | Path, fmt: str, out: str | Path | None = None) -> str:
+    """Read and check a controller file, render it in ``fmt``, write ``out`` if given, return the text."""
+    if fmt not in FORMATS:
+        raise DesignInputError(f"format must be one of {FORMATS}, got {fmt!r}")
+    spec = read_controller_file(path, dt=None)
+    checksum = json.loads(Path(path).read_text())["checksum"]
+    if fmt == "json":
+        text = json.dumps(spec.to_dict(), indent=1) + "\n"
+    elif fmt == "c-header":
+        text = to_c_header(spec, checksum)
+    else:
+        text = to_csv(spec, checksum)
+    if out is not None:
+        Path(out).write_text(text)
+    return text

@@ -58,9 +58,17 @@ def _columns(text: str) -> list[str]:
 def _okid(args: argparse.Namespace) -> dict:
     from .workflow import identify_logs
 
-    return identify_logs(args.logs, args.out, order=args.order, markov=args.markov,
-                         normalize=args.normalize, dt=args.dt, method=args.method,
-                         kinds=args.kinds)
+    from tqdm import tqdm
+
+    with tqdm(total=1, unit="model", desc="identifying", file=sys.stderr, disable=args.json) as bar:
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+
+        return identify_logs(args.logs, args.out, order=args.order, markov=args.markov,
+                             normalize=args.normalize, dt=args.dt, method=args.method,
+                             kinds=args.kinds, progress=progress)
 
 
 def _fit(args: argparse.Namespace) -> dict:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from .data import IOData
 from .okid import OKID
@@ -95,7 +95,8 @@ def identify_group(name: str, kind: str, logs: Sequence[PassLog], pre: Preproces
 
 def identify_tractor(logs: Sequence[PassLog], pre: Preprocessing = Preprocessing(),
                      okid_options: dict[str, Any] | None = None, kinds: Sequence[str] = (
-                         "local", "velocity-invariant", "central")) -> list[TractorResult]:
+                         "local", "velocity-invariant", "central"),
+                     progress: Callable[[int, int], None] | None = None) -> list[TractorResult]:
     """Local, velocity-invariant and central models from pass logs.
 
     Parameters
@@ -108,23 +109,28 @@ def identify_tractor(logs: Sequence[PassLog], pre: Preprocessing = Preprocessing
         Options of :class:`~identification.okid.OKID` (``order``, ``markov``...); ``feedthrough`` is False.
     kinds
         Which kinds of model to build.
+    progress
+        Called as ``progress(models_done, models_total)``.
     """
     opts = dict(okid_options or {})
-    out: list[TractorResult] = []
+    jobs: list[tuple[str, str, list[PassLog]]] = []
     if "local" in kinds:
         groups: dict[tuple[str, str], list[PassLog]] = {}
         for log in logs:
             groups.setdefault(_key(log), []).append(log)
-        for (imp, gear), group in sorted(groups.items()):
-            out.append(identify_group(f"local_{imp}_{gear}", "local", group, pre, opts))
+        jobs += [(f"local_{imp}_{gear}", "local", g) for (imp, gear), g in sorted(groups.items())]
     if "velocity-invariant" in kinds:
         imps: dict[str, list[PassLog]] = {}
         for log in logs:
             imps.setdefault(_key(log)[0], []).append(log)
-        for imp, group in sorted(imps.items()):
-            out.append(identify_group(f"vi_{imp}", "velocity-invariant", group, pre, opts))
+        jobs += [(f"vi_{imp}", "velocity-invariant", g) for imp, g in sorted(imps.items())]
     if "central" in kinds:
-        out.append(identify_group("central", "central", list(logs), pre, opts))
+        jobs.append(("central", "central", list(logs)))
+    out: list[TractorResult] = []
+    for name, kind, group in jobs:
+        out.append(identify_group(name, kind, group, pre, opts))
+        if progress is not None:
+            progress(len(out), len(jobs))
     return out
 
 

@@ -7,7 +7,7 @@ the key ``_text``, a human-readable table).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -43,8 +43,8 @@ def _fmt(values: Sequence[float]) -> str:
 
 def identify_logs(logs: Sequence[str | Path], out_dir: str | Path, order: int | str = "auto",
                   markov: int | str = "auto", normalize: str = "velocity", dt: float = 0.05,
-                  method: str = "era-dc", kinds: Sequence[str] = ("local", "velocity-invariant", "central")
-                  ) -> dict:
+                  method: str = "era-dc", kinds: Sequence[str] = ("local", "velocity-invariant", "central"),
+                  progress: Callable[[int, int], None] | None = None) -> dict:
     """Identify the tractor models from pass logs and write ``<out_dir>/<name>.npz``.
 
     Returns a summary with one row per model: name, kind, conditions, order,
@@ -53,7 +53,8 @@ def identify_logs(logs: Sequence[str | Path], out_dir: str | Path, order: int | 
     files = expand_logs(logs)
     passes = [PassLog.load(f) for f in files]
     pre = Preprocessing(dt=dt, normalize=normalize)
-    results = identify_tractor(passes, pre, {"order": order, "markov": markov, "method": method}, kinds)
+    results = identify_tractor(passes, pre, {"order": order, "markov": markov, "method": method}, kinds,
+                               progress)
     written = save_results(results, out_dir)
     rows = []
     for r, path in zip(results, written):

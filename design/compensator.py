@@ -9,7 +9,10 @@ steering-rate command ``u`` [rad/s]::
 ``Ec`` is the anti-windup (back-calculation) gain: when the loop clips the
 command, the compensator's memory of its own command follows what the plant
 received. In the linear regime ``u_applied = u`` and ``Ec`` plays no part, so
-every closed-loop check below ignores it.
+every closed-loop check below ignores it. ``X0`` is the bumpless engage: on the
+first step after a reset the state is set to ``xc = X0 y`` (e.g. the remembered
+past outputs equal the present ones) instead of zeros, so the compensator does
+not see a step from zero to the present errors.
 """
 
 from __future__ import annotations
@@ -55,6 +58,8 @@ class Compensator:
         Sample time, s (> 0).
     Ec
         (nc, m) anti-windup gain; zeros when not given.
+    X0
+        (nc, q) engage initialisation ``xc = X0 y``; zeros when not given.
     """
 
     Ac: np.ndarray
@@ -63,6 +68,7 @@ class Compensator:
     Dc: np.ndarray
     dt: float
     Ec: np.ndarray | None = None
+    X0: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         dc = as_matrix(self.Dc, "Dc")
@@ -74,10 +80,11 @@ class Compensator:
         bc = as_matrix(self.Bc, "Bc", (nc, q))
         cc = as_matrix(self.Cc, "Cc", (m, nc))
         ec = as_matrix(np.zeros((nc, m)) if self.Ec is None else self.Ec, "Ec", (nc, m))
+        x0 = as_matrix(np.zeros((nc, q)) if self.X0 is None else self.X0, "X0", (nc, q))
         dt = self.dt
         if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not math.isfinite(dt) or dt <= 0:
             raise DesignInputError(f"dt must be a finite sample time > 0 s, got {dt!r}")
-        for name, v in (("Ac", ac), ("Bc", bc), ("Cc", cc), ("Dc", dc), ("Ec", ec)):
+        for name, v in (("Ac", ac), ("Bc", bc), ("Cc", cc), ("Dc", dc), ("Ec", ec), ("X0", x0)):
             object.__setattr__(self, name, v)
         object.__setattr__(self, "dt", float(dt))
 

@@ -5,12 +5,13 @@ Layout (schema ``design-controller/1``, ``kind: "linear"``)::
     {"schema", "kind", "name", "dt",
      "outputs": [{"name": "cross_track", "normalization": "speed" | "none", "units"}, ...],
      "input": {"name": "steer_rate_cmd", "units": "rad/s"},
-     "compensator": {"Ac", "Bc", "Cc", "Dc", "Ec"},        # nested lists
+     "compensator": {"Ac", "Bc", "Cc", "Dc", "Ec", "X0"},  # nested lists
      "limits": {"rate": rad/s, "speed_min": m/s},
      "design": {...}, "certificate": {...}, "models": [{"name", "hash"}],
      "checksum": "sha256:<hex of the canonical JSON of everything else>"}
 
-``xc[k+1] = Ac xc + Bc y + Ec (u_applied - u)``, ``u = Cc xc + Dc y`` with ``y`` the
+``xc[k+1] = Ac xc + Bc y + Ec (u_applied - u)``, ``u = Cc xc + Dc y`` (and ``xc = X0 y``
+on the first step after a reset) with ``y`` the
 listed outputs, each divided by ``max(speed, speed_min)`` when its normalisation is
 ``"speed"``. :func:`load_controller` refuses a file that fails the schema, the
 checksum, the dimensions, finiteness or the sample time.
@@ -34,6 +35,7 @@ from .errors import ControllerFileError, DesignInputError
 SCHEMA = "design-controller/1"
 MEASUREMENTS = ("cross_track", "heading_error", "wheel_angle")
 NORMALIZATIONS = ("speed", "none")
+MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec", "X0")
 TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "compensator", "limits", "design",
             "certificate", "models", "checksum")
 
@@ -99,7 +101,7 @@ class ControllerFile:
                 "outputs": [{"name": o.name, "normalization": o.normalization, "units": o.units}
                             for o in self.outputs],
                 "input": {"name": "steer_rate_cmd", "units": "rad/s"},
-                "compensator": {k: getattr(c, k).tolist() for k in ("Ac", "Bc", "Cc", "Dc", "Ec")},
+                "compensator": {k: getattr(c, k).tolist() for k in MATRICES},
                 "limits": {"rate": self.rate_limit, "speed_min": self.speed_min},
                 "design": dict(self.design), "certificate": dict(self.certificate),
                 "models": [dict(m) for m in self.models]}
@@ -184,10 +186,11 @@ def _from_body(body: Any, dt: float | None) -> ControllerFile:
     if dt is not None and abs(fdt - dt) > 1e-9:
         raise ControllerFileError(f"sample time mismatch: the file is for dt={fdt} s, the loop runs at dt={dt} s")
     comp_d = body["compensator"]
-    if not isinstance(comp_d, dict) or sorted(comp_d) != ["Ac", "Bc", "Cc", "Dc", "Ec"]:
-        raise ControllerFileError("compensator must hold exactly Ac, Bc, Cc, Dc, Ec")
+    if not isinstance(comp_d, dict) or sorted(comp_d) != sorted(MATRICES):
+        got = sorted(comp_d) if isinstance(comp_d, dict) else type(comp_d).__name__
+        raise ControllerFileError(f"compensator must hold exactly {', '.join(MATRICES)}; got {got}")
     mats = {}
-    for k in ("Ac", "Bc", "Cc", "Dc", "Ec"):
+    for k in MATRICES:
         try:
             arr = np.array(comp_d[k], dtype=float)
         except (TypeError, ValueError):
@@ -202,7 +205,7 @@ def _from_body(body: Any, dt: float | None) -> ControllerFile:
         raise ControllerFileError("outputs must be a list of objects")
     specs = tuple(OutputSpec(o.get("name"), o.get("normalization"), str(o.get("units", ""))) for o in outputs)
     q, nc = len(specs), mats["Ac"].shape[0] if mats["Ac"].ndim == 2 else 0
-    shapes = {"Ac": (nc, nc), "Bc": (nc, q), "Cc": (1, nc), "Dc": (1, q), "Ec": (nc, 1)}
+    shapes = {"Ac": (nc, nc), "Bc": (nc, q), "Cc": (1, nc), "Dc": (1, q), "Ec": (nc, 1), "X0": (nc, q)}
     for k, shp in shapes.items():
         if mats[k].size == 0 and 0 in shp:
             mats[k] = mats[k].reshape(shp)
@@ -210,7 +213,7 @@ def _from_body(body: Any, dt: float | None) -> ControllerFile:
             raise ControllerFileError(f"dimension mismatch: {k} has shape {mats[k].shape}, expected {shp} "
                                       f"for {nc} states and {q} outputs")
     try:
-        comp = Compensator(mats["Ac"], mats["Bc"], mats["Cc"], mats["Dc"], float(fdt), mats["Ec"])
+        comp = Compensator(mats["Ac"], mats["Bc"], mats["Cc"], mats["Dc"], float(fdt), mats["Ec"], mats["X0"])
     except DesignInputError as exc:
         raise ControllerFileError(str(exc)) from None
     lim = body["limits"]
@@ -228,7 +231,8 @@ class LinearController:
 
     Each cycle the measured outputs are normalised as the file says, the compensator
     steps, the command is clipped to the file's rate limit and the compensator's
-    memory follows the clipped command (anti-windup).
+    memory follows the clipped command (anti-windup). The first step after
+    :meth:`reset` starts from ``xc = X0 y`` (bumpless engage).
     """
 
     def __init__(self, spec: ControllerFile) -> None:
@@ -238,9 +242,11 @@ class LinearController:
         c = spec.compensator
         self._ac, self._bc, self._cc, self._dc, self._ec = c.Ac, c.Bc, c.Cc[0], c.Dc[0], c.Ec[:, 0]
         self._xc = np.zeros(c.order)
+        self._fresh = True
 
     def reset(self) -> None:
         self._xc = np.zeros(self.spec.compensator.order)
+        self._fresh = True
 
     def outputs(self, m: Measurement) -> np.ndarray:
         """Normalised output vector of one measurement."""
@@ -250,6 +256,9 @@ class LinearController:
 
     def step(self, m: Measurement) -> float:
         y = self.outputs(m)
+        if self._fresh:
+            self._xc = self.spec.compensator.X0 @ y
+            self._fresh = False
         u = float(self._cc @ self._xc + self._dc @ y)
         if not math.isfinite(u):
             self.reset()

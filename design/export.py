@@ -19,7 +19,7 @@ from .controller_file import ControllerFile, read_controller_file
 from .errors import DesignInputError
 
 FORMATS = ("json", "c-header", "csv")
-MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec")
+MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec", "X0")
 
 
 def _ident(name: str) -> str:
@@ -35,7 +35,8 @@ def _header_lines(spec: ControllerFile, checksum: str) -> list[str]:
             f"dt = {c.dt!r} s; states nc = {c.order}; outputs q = {c.n_measurements}; commands m = 1",
             f"y (in order) = {outs}; speed floored at {spec.speed_min!r} m/s",
             "u = steering-rate command [rad/s], clipped to +-" + repr(spec.rate_limit),
-            "xc[k+1] = Ac xc[k] + Bc y[k] + Ec (u_applied[k] - u[k]);  u[k] = Cc xc[k] + Dc y[k]"]
+            "xc[k+1] = Ac xc[k] + Bc y[k] + Ec (u_applied[k] - u[k]);  u[k] = Cc xc[k] + Dc y[k]",
+            "on the first step after an engage: xc = X0 y[k] (bumpless engage)"]
 
 
 def to_c_header(spec: ControllerFile, checksum: str) -> str:

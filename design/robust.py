@@ -242,7 +242,8 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
         coords = "measured window z = " + ", ".join(
             layout.state_names(list(models[0].meta.get("output_names", ["y1", "y2", "y3"])), ["u"]))
     else:
-        comp = observer_compensator(anchored(spec.nominal, d["anchor"]), syn.K, models[0].dt, layout.integral)
+        comp = observer_compensator(anchored(spec.nominal, d["anchor"]), syn.K, models[0].dt, layout.integral,
+                                    d["anchor"])
         coords = "output-anchored z = " + ", ".join(d["coordinates"])
     cert = certify(comp, models, names)
     require_stable(cert)

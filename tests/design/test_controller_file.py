@@ -42,7 +42,7 @@ def _rewrite(path, edit, fix_checksum=True):
 def test_round_trip_keeps_matrices_and_certificate(designed, saved):
     models, res = designed
     spec = read_controller_file(saved)
-    for k in ("Ac", "Bc", "Cc", "Dc", "Ec"):
+    for k in ("Ac", "Bc", "Cc", "Dc", "Ec", "X0"):
         assert np.array_equal(getattr(spec.compensator, k), getattr(res.file.compensator, k))
     recomputed = certify(spec.compensator, models).to_dict()
     for a, b in zip(recomputed["models"], spec.certificate["models"]):
@@ -56,9 +56,11 @@ def test_loaded_controller_implements_the_protocol_and_normalises(saved):
     c = ctrl.spec.compensator
     m = Measurement(t=0.0, cross_track=0.2, heading_error=0.01, wheel_angle=0.005, speed=2.0)
     y = np.array([0.1, 0.005, 0.005])
-    u = ctrl.step(m)
-    assert u == pytest.approx(float(np.clip((c.Dc @ y)[0], -0.35, 0.35)))
-    assert np.allclose(ctrl.estimate(), c.Bc @ y + c.Ec[:, 0] * (u - float((c.Dc @ y)[0])))
+    u = ctrl.step(m)                          # first step after construction: xc = X0 y (bumpless engage)
+    x0 = c.X0 @ y
+    raw = float((c.Cc @ x0 + c.Dc @ y)[0])
+    assert u == pytest.approx(float(np.clip(raw, -0.35, 0.35)))
+    assert np.allclose(ctrl.estimate(), c.Ac @ x0 + c.Bc @ y + c.Ec[:, 0] * (u - raw))
     ctrl.reset()
     assert not any(ctrl.estimate())
 
@@ -127,3 +129,15 @@ def test_cli_robust_and_verify(tmp_path, capsys):
     assert design_main(["robust", "--models", *paths, "--out", str(out), "--formulation", "common",
                         "--pole-radius", "0.01"]) == 1
     assert "relax the pole region" in capsys.readouterr().err
+
+
+def test_engage_is_bumpless_for_a_constant_error(saved):
+    ctrl = load_controller(saved)
+    c = ctrl.spec.compensator
+    m = Measurement(t=0.0, cross_track=0.05, heading_error=0.0, wheel_angle=0.0, speed=1.0)
+    u0 = ctrl.step(m)
+    # remembered outputs start equal to the present ones: no derivative kick from a step out of zero
+    y = np.array([0.05, 0.0, 0.0])
+    kick = float((c.Dc @ y)[0])
+    assert abs(u0) < abs(kick)
+    assert u0 == pytest.approx(float((c.Cc @ (c.X0 @ y) + c.Dc @ y)[0]))

@@ -27,7 +27,7 @@ def test_c_header_arrays_read_back_exactly(controller):
     spec = read_controller_file(controller)
     text = export_controller(controller, "c-header")
     assert json.loads(controller.read_text())["checksum"] in text
-    for name in ("Ac", "Bc", "Cc", "Dc", "Ec"):
+    for name in ("Ac", "Bc", "Cc", "Dc", "Ec", "X0"):
         m = getattr(spec.compensator, name)
         found = re.search(rf"ROBUST_{name.upper()}\[(\d+)\] = {{([^}}]*)}}", text)
         assert found and int(found.group(1)) == max(m.size, 1)
@@ -41,7 +41,7 @@ def test_csv_reads_back_exactly(controller, tmp_path):
     out = tmp_path / "c.csv"
     assert design_main(["export", str(controller), "--format", "csv", "--out", str(out)]) == 0
     rows = [r.split(",") for r in out.read_text().splitlines() if not r.startswith("#")][1:]
-    for name in ("Ac", "Bc", "Cc", "Dc", "Ec"):
+    for name in ("Ac", "Bc", "Cc", "Dc", "Ec", "X0"):
         m = getattr(spec.compensator, name)
         got = np.zeros_like(m)
         for mat, i, j, v in rows:

@@ -134,10 +134,13 @@ def test_cli_robust_and_verify(tmp_path, capsys):
 def test_engage_is_bumpless_for_a_constant_error(saved):
     ctrl = load_controller(saved)
     c = ctrl.spec.compensator
-    m = Measurement(t=0.0, cross_track=0.05, heading_error=0.0, wheel_angle=0.0, speed=1.0)
-    u0 = ctrl.step(m)
-    # remembered outputs start equal to the present ones: no derivative kick from a step out of zero
-    y = np.array([0.05, 0.0, 0.0])
-    kick = float((c.Dc @ y)[0])
-    assert abs(u0) < abs(kick)
-    assert u0 == pytest.approx(float((c.Cc @ (c.X0 @ y) + c.Dc @ y)[0]))
+    m = Measurement(t=0.0, cross_track=0.01, heading_error=0.0, wheel_angle=0.0, speed=1.0)
+    y = np.array([0.01, 0.0, 0.0])
+    u0, u1 = ctrl.step(m), ctrl.step(m)
+    # remembered outputs start equal to the present ones: holding the error, the command only moves by
+    # the integral's growth (K_i dt y) and the remembered command (K_u u0), not by a derivative kick
+    k_i, k_u = abs(float(c.Cc[0, -1])), abs(float(c.Cc[0, 3]))
+    assert abs(u1 - u0) <= k_i * 0.05 * 0.01 + k_u * abs(u0) + 1e-12
+    ctrl.reset()
+    zero_start = float((c.Dc @ y)[0])          # what a zero initial state would have commanded
+    assert abs(ctrl.step(m) - u0) < 1e-15 and abs(u0 - zero_start) > 1e-3

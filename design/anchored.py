@@ -77,8 +77,8 @@ def observer_compensator(nominal: Model, k: np.ndarray, dt: float, channels: Seq
                          anchor: int | None = None) -> Compensator:
     """``u = K [ẑ; i]`` with ``ẑ`` from ``nominal``'s predictor (already anchored) and integrals of ``y_j``.
 
-    Compensator state ``[ẑ; i]``; ``Ec`` keeps the predictor on the applied command and
-    winds the integrals back; ``X0`` starts ``ẑ`` at the measured outputs on engage.
+    Compensator state ``[ẑ; i]``; ``Ec`` keeps the predictor on the applied command;
+    ``X0`` starts ``ẑ`` at the measured outputs on engage.
     """
     a, b, c, lk = nominal.A, nominal.B, nominal.C, nominal.K
     n, q, m = a.shape[0], c.shape[0], b.shape[1]
@@ -97,9 +97,6 @@ def observer_compensator(nominal: Model, k: np.ndarray, dt: float, channels: Seq
         ac[n + r, n + r] = 1.0
         bc[n + r, j] = dt            # integrate the measured output itself
     ec = np.vstack([b, np.zeros((ni, m))])
-    for r in range(ni):
-        if ki[0, r] != 0:
-            ec[n + r, 0] = 0.5 / ki[0, r] / ni
     x0 = np.zeros((nc, q))
     x0[:q] = np.eye(q)              # anchored: the first q states are the outputs
     if anchor is not None:

@@ -319,3 +319,49 @@ def _diagnose(a_s, b_s, czf, dzf, bws, opts: LMIOptions, u_bar, e0, status: str)
         "no single linear controller of this structure was found; drop the most different model, or " \
         "lengthen the measured window (--past)"
     return f"{head}; {hint}"
+
+
+def robust_state_feedback_rounds(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndarray], q: np.ndarray,
+                                 r: np.ndarray, bw: np.ndarray, scale: np.ndarray, input_scale: float,
+                                 options: LMIOptions | None = None, names: Sequence[str] | None = None,
+                                 initial: int = 8, add: int = 4, max_rounds: int = 10) -> tuple[StateFeedbackDesign, int]:
+    """:func:`robust_state_feedback` on a subset, adding the worst violators until every model passes.
+
+    Starts from the ``initial`` models with the largest open-loop spectral radius, solves,
+    checks every model exactly (spectral radius and Lyapunov cost against the bound) and
+    adds the ``add`` worst violators; stops when none is left. The returned design's
+    ``costs``/``radii`` cover all models (its bound holds for every one, checked exactly).
+
+    Returns
+    -------
+    design, rounds
+    """
+    opts = options or LMIOptions()
+    nz, _ = _check_systems(a_list, b_list)
+    names = tuple(names) if names is not None else tuple(f"model {i}" for i in range(len(a_list)))
+    q, r, bw = np.asarray(q, float), np.asarray(r, float), np.asarray(bw, float)
+    order = np.argsort([-spectral_radius(a) for a in a_list])
+    active = list(order[:max(1, min(initial, len(a_list)))])
+    times = {"build": 0.0, "solve": 0.0, "check": 0.0}
+    for rnd in range(1, max_rounds + 1):
+        sub = robust_state_feedback([a_list[i] for i in active], [b_list[i] for i in active], q, r, bw, scale,
+                                    input_scale, opts, [names[i] for i in active])
+        for k in ("build", "solve"):
+            times[k] += sub.times[k]
+        t0 = time.perf_counter()
+        radii, costs, bad = [], [], []
+        limit = 1.0 if opts.pole_radius is None else opts.pole_radius * (1 + 1e-6)
+        for i, (a, b) in enumerate(zip(a_list, b_list)):
+            rho = spectral_radius(a + b @ sub.K)
+            cost = closed_loop_cost(a, b, sub.K, q, r, bw)
+            radii.append(rho)
+            costs.append(cost)
+            if rho >= limit or cost > sub.bound * (1 + opts.cost_tolerance) + 1e-9:
+                bad.append((cost if math.isfinite(cost) else math.inf, rho, i))
+        times["check"] += time.perf_counter() - t0
+        if not bad:
+            return StateFeedbackDesign(sub.K, sub.bound, tuple(costs), tuple(radii), names, sub.status, times), rnd
+        bad.sort(key=lambda t: (t[0], t[1]), reverse=True)
+        active += [i for _, _, i in bad[:add] if i not in active]
+    raise SynthesisError(f"{len(bad)} models still violate the bound after {max_rounds} rounds "
+                         f"(worst: {names[bad[0][2]]}); solve over all models instead")

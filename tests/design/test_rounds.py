@@ -1,0 +1,22 @@
+"""Subset + worst-violator rounds give a design that holds on every model."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from design.lmi import LMIOptions, closed_loop_cost, robust_state_feedback_rounds
+from design.robust import RobustSpec, design_problem
+
+from design_family import tractor_model
+
+
+def test_rounds_cover_every_model():
+    rng = np.random.default_rng(2)
+    models = [tractor_model(float(v), float(a)) for v, a in zip(rng.uniform(1, 3, 30), rng.uniform(0.4, 1.0, 30))]
+    layout, a_list, b_list, d = design_problem(models, RobustSpec(structure="window"))
+    des, rounds = robust_state_feedback_rounds(a_list, b_list, d["Q"], d["R"], d["Bw"], d["scale"],
+                                               d["input_scale"], LMIOptions(), initial=3, add=2)
+    assert rounds >= 1 and len(des.costs) == 30
+    for a, b, cost in zip(a_list, b_list, des.costs):
+        assert np.max(np.abs(np.linalg.eigvals(a + b @ des.K))) < 1
+        assert cost == closed_loop_cost(a, b, des.K, d["Q"], d["R"], d["Bw"]) <= des.bound * 1.001

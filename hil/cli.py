@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -426,10 +427,14 @@ def main(argv: list[str] | None = None) -> int:
     except (HilError, PassLogError, ValueError) as exc:
         print(f"hil {args.command}: error: {exc}", file=sys.stderr)
         return 1
-    if args.json:
-        print(json.dumps(result, indent=2))
-    else:
-        _print_human(args.command, result)
+    try:
+        if args.json:
+            print(json.dumps(result, indent=2))
+        else:
+            _print_human(args.command, result)
+        sys.stdout.flush()
+    except BrokenPipeError:              # e.g. `hil tune ... | head`: the reader left; the work is saved
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 

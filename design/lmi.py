@@ -160,7 +160,7 @@ def _build(a_s, b_s, cz, dz, bw, opts: LMIOptions, u_bar: float | None, e0: np.n
     nz, m = b_s[0].shape
     nw = cz.shape[0]
     eps = opts.strictness
-    iz, ie = np.eye(nz), np.eye(bw.shape[1])
+    ie = np.eye(bw.shape[1])
     y = cp.Variable((m, nz))
     cons = []
     r = opts.pole_radius
@@ -202,7 +202,6 @@ def _build(a_s, b_s, cz, dz, bw, opts: LMIOptions, u_bar: float | None, e0: np.n
         for p, s in zip(lyap, slack):
             cons.append(_sym(cp.bmat([[np.array([[u_bar ** 2]]) * np.eye(m), y], [y.T, s]])) >> 0)
             cons.append(_sym(cp.bmat([[p, e0], [e0.T, np.eye(e0.shape[1])]])) >> 0)
-    del iz
     return cp.Problem(cp.Minimize(objective), cons), y, gvar
 
 

@@ -90,9 +90,8 @@ def _db(x: float) -> float:
 
 
 def _scaled_radius(model: Model, comp: Compensator, gain: float) -> float:
-    scaled = Compensator(comp.Ac, comp.Bc, comp.Cc, comp.Dc, comp.dt, comp.Ec)
     # gain k at the plant input: u_plant = k u
-    return spectral_radius(closed_loop_matrix(model.A, model.B * gain, model.C, model.D * gain, scaled))
+    return spectral_radius(closed_loop_matrix(model.A, model.B * gain, model.C, model.D * gain, comp))
 
 
 def gain_margins(model: Model, comp: Compensator, limit: float = 1e3) -> tuple[float, float]:

@@ -18,7 +18,9 @@ slack ``G``, ``Y = K G``)::
 with ``Cz = [Q^½; 0]``, ``Dz = [0; R^½]``. For one model both give the Riccati cost.
 Options: every closed-loop pole inside the disk ``|s| <= r`` (``[r P, A P + B Y; *, r P] > 0``,
 or its extended analogue), and ``|u| <= u_bar`` on an invariant ellipsoid that contains a
-stated set of initial errors (``[u_bar^2, Y; *, P] > 0``, ``E0 E0' < P``).
+stated set of initial errors (``[u_bar^2, Y; *, P] > 0``, ``E0 E0' < P``; in the extended
+form with its own ellipsoid ``P^e_i`` per model: ``[P^e_i, A_i G + B_i Y; *, G + G' - P^e_i] > 0``,
+``[u_bar^2, Y; *, G + G' - P^e_i] > 0``, ``E0 E0' < P^e_i``).
 
 Problems are scaled before solving (states and input by the caller's Bryson sizes).
 After every solve the design is re-checked exactly on every model (spectral radius and
@@ -198,10 +200,20 @@ def _build(a_s, b_s, cz, dz, bw, opts: LMIOptions, u_bar: float | None, e0: np.n
             slack.append(s)
         objective = gamma
         gvar = g
-    if use_bound:
+    if use_bound and opts.formulation == "common":
         for p, s in zip(lyap, slack):
             cons.append(_sym(cp.bmat([[np.array([[u_bar ** 2]]) * np.eye(m), y], [y.T, s]])) >> 0)
             cons.append(_sym(cp.bmat([[p, e0], [e0.T, np.eye(e0.shape[1])]])) >> 0)
+    elif use_bound:
+        # a separate invariant ellipsoid per model (not the H2 Gramian, whose ellipsoid holds
+        # every Bryson-sized error and makes the bound needlessly conservative)
+        for a, b in zip(a_s, b_s):
+            pe = cp.Variable((nz, nz), symmetric=True)
+            acl = a @ gvar + b @ y
+            se = gvar + gvar.T - pe
+            cons.append(_sym(cp.bmat([[pe, acl], [acl.T, se]])) >> 0)
+            cons.append(_sym(cp.bmat([[np.array([[u_bar ** 2]]) * np.eye(m), y], [y.T, se]])) >> 0)
+            cons.append(_sym(cp.bmat([[pe, e0], [e0.T, np.eye(e0.shape[1])]])) >> 0)
     return cp.Problem(cp.Minimize(objective), cons), y, gvar
 
 

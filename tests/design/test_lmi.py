@@ -90,10 +90,11 @@ def test_pole_region_is_met_when_feasible():
     assert max(d.radii) <= 0.9 + 1e-6
 
 
-def test_input_bound_holds_from_the_initial_set():
+@pytest.mark.parametrize("formulation", ["common", "extended"])
+def test_input_bound_holds_from_the_initial_set(formulation):
     a, b = [np.array([[1.01, 0.05], [0.0, 0.97]])], [np.array([[0.0], [0.1]])]
     e0 = np.array([[1.0], [0.0]])
-    d = _solve(a, b, formulation="common", input_bound=3.0, initial_set=e0)
+    d = _solve(a, b, formulation=formulation, input_bound=3.0, initial_set=e0)
     z = e0[:, 0].copy()
     for _ in range(200):             # |u| <= bound along the trajectory from the corner
         u = float((d.K @ z)[0])

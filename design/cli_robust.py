@@ -55,7 +55,8 @@ def cmd_robust(args: argparse.Namespace) -> dict:
     nominal = Model.load(args.nominal) if args.nominal else None
     spec = RobustSpec(_weights(args), args.formulation, args.solver, args.pole_radius, args.rate_limit,
                       tuple(args.initial_errors), args.integral, args.past, args.command_limit, name=args.name,
-                      structure=args.structure, nominal=nominal)
+                      structure=args.structure, nominal=nominal,
+                      output_clip=tuple(None if c <= 0 else c for c in args.output_clip))
     res = design_robust(models, spec)
     res.file.save(args.out)
     d = res.file.design
@@ -118,6 +119,8 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     r.add_argument("--past", type=int, default=1, help="past samples in the measured state")
     r.add_argument("--structure", choices=("window", "observer"), default="window",
                    help="measured-window state feedback, or anchored coordinates + the nominal model's predictor")
+    r.add_argument("--output-clip", type=number, nargs="+", default=[0.1, 0.05, 0.0],
+                   help="clip of each normalised output before the compensator (0 = none)")
     r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
     r.set_defaults(func=cmd_robust, default_name="robust")

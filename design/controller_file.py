@@ -6,14 +6,16 @@ Layout (schema ``design-controller/1``, ``kind: "linear"``)::
      "outputs": [{"name": "cross_track", "normalization": "speed" | "none", "units"}, ...],
      "input": {"name": "steer_rate_cmd", "units": "rad/s"},
      "compensator": {"Ac", "Bc", "Cc", "Dc", "Ec", "X0"},  # nested lists
-     "limits": {"rate": rad/s, "speed_min": m/s},
+     "limits": {"rate": rad/s, "speed_min": m/s, "output_clip": [number | null per output]},
      "design": {...}, "certificate": {...}, "models": [{"name", "hash"}],
      "checksum": "sha256:<hex of the canonical JSON of everything else>"}
 
 ``xc[k+1] = Ac xc + Bc y + Ec (u_applied - u)``, ``u = Cc xc + Dc y`` (and ``xc = X0 y``
 on the first step after a reset) with ``y`` the
 listed outputs, each divided by ``max(speed, speed_min)`` when its normalisation is
-``"speed"``. :func:`load_controller` refuses a file that fails the schema, the
+``"speed"`` and then clipped to ``±output_clip`` (null = not clipped). The clip keeps a
+large error (a re-engage far from the line) from asking more than the rate-limited
+steering can deliver; inside it the compensator is exactly the certified linear one. :func:`load_controller` refuses a file that fails the schema, the
 checksum, the dimensions, finiteness or the sample time.
 """
 
@@ -79,6 +81,7 @@ class ControllerFile:
     outputs: tuple[OutputSpec, ...]
     rate_limit: float = 0.35
     speed_min: float = 0.3
+    output_clip: tuple[float | None, ...] | None = None
     design: Mapping[str, Any] = field(default_factory=dict)
     certificate: Mapping[str, Any] = field(default_factory=dict)
     models: tuple[Mapping[str, str], ...] = ()
@@ -89,6 +92,13 @@ class ControllerFile:
                                       f"{self.compensator.n_measurements}")
         if self.compensator.n_commands != 1:
             raise ControllerFileError(f"the compensator must write 1 command, got {self.compensator.n_commands}")
+        clip = self.output_clip if self.output_clip is not None else (None,) * len(self.outputs)
+        if len(clip) != len(self.outputs) or any(
+                c is not None and (isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c)
+                                   or c <= 0) for c in clip):
+            raise ControllerFileError(f"limits: output_clip needs {len(self.outputs)} entries, each a finite "
+                                      f"number > 0 or null; got {self.output_clip!r}")
+        object.__setattr__(self, "output_clip", tuple(None if c is None else float(c) for c in clip))
         for nm in ("rate_limit", "speed_min"):
             v = getattr(self, nm)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
@@ -102,7 +112,8 @@ class ControllerFile:
                             for o in self.outputs],
                 "input": {"name": "steer_rate_cmd", "units": "rad/s"},
                 "compensator": {k: getattr(c, k).tolist() for k in MATRICES},
-                "limits": {"rate": self.rate_limit, "speed_min": self.speed_min},
+                "limits": {"rate": self.rate_limit, "speed_min": self.speed_min,
+                           "output_clip": list(self.output_clip)},
                 "design": dict(self.design), "certificate": dict(self.certificate),
                 "models": [dict(m) for m in self.models]}
         body = json.loads(json.dumps(body))
@@ -217,12 +228,15 @@ def _from_body(body: Any, dt: float | None) -> ControllerFile:
     except DesignInputError as exc:
         raise ControllerFileError(str(exc)) from None
     lim = body["limits"]
-    if not isinstance(lim, dict) or sorted(lim) != ["rate", "speed_min"]:
-        raise ControllerFileError(f"limits must hold exactly 'rate' and 'speed_min', got {lim!r}")
+    if not isinstance(lim, dict) or sorted(lim) != ["output_clip", "rate", "speed_min"]:
+        raise ControllerFileError(f"limits must hold exactly 'rate', 'speed_min' and 'output_clip', got {lim!r}")
+    if not isinstance(lim["output_clip"], list):
+        raise ControllerFileError(f"limits: output_clip must be a list, got {lim['output_clip']!r}")
     models = body["models"]
     if not isinstance(models, list):
         raise ControllerFileError("models must be a list")
-    return ControllerFile(str(body["name"]), comp, specs, lim["rate"], lim["speed_min"], body["design"],
+    return ControllerFile(str(body["name"]), comp, specs, lim["rate"], lim["speed_min"], tuple(lim["output_clip"]),
+                          body["design"],
                           body["certificate"], tuple(models))
 
 
@@ -251,8 +265,12 @@ class LinearController:
     def outputs(self, m: Measurement) -> np.ndarray:
         """Normalised output vector of one measurement."""
         v = max(float(m.speed), self.spec.speed_min)
-        return np.array([getattr(m, o.name) / v if o.normalization == "speed" else getattr(m, o.name)
-                         for o in self.spec.outputs])
+        y = np.array([getattr(m, o.name) / v if o.normalization == "speed" else getattr(m, o.name)
+                      for o in self.spec.outputs])
+        for i, c in enumerate(self.spec.output_clip):
+            if c is not None:
+                y[i] = min(max(y[i], -c), c)
+        return y
 
     def step(self, m: Measurement) -> float:
         y = self.outputs(m)

@@ -34,6 +34,7 @@ def _header_lines(spec: ControllerFile, checksum: str) -> list[str]:
             f"checksum {checksum}",
             f"dt = {c.dt!r} s; states nc = {c.order}; outputs q = {c.n_measurements}; commands m = 1",
             f"y (in order) = {outs}; speed floored at {spec.speed_min!r} m/s",
+            "then y clipped to +-(" + ", ".join("none" if c is None else repr(c) for c in spec.output_clip) + ")",
             "u = steering-rate command [rad/s], clipped to +-" + repr(spec.rate_limit),
             "xc[k+1] = Ac xc[k] + Bc y[k] + Ec (u_applied[k] - u[k]);  u[k] = Cc xc[k] + Dc y[k]",
             "on the first step after an engage: xc = X0 y[k] (bumpless engage)"]
@@ -49,6 +50,8 @@ def to_c_header(spec: ControllerFile, checksum: str) -> str:
               f"#define {p}_RATE_LIMIT {spec.rate_limit!r}", f"#define {p}_SPEED_MIN {spec.speed_min!r}", ""]
     for o_i, o in enumerate(spec.outputs):
         lines.append(f"#define {p}_Y{o_i}_DIVIDE_BY_SPEED {1 if o.normalization == 'speed' else 0}  /* {o.name} */")
+        clip = spec.output_clip[o_i]
+        lines.append(f"#define {p}_Y{o_i}_CLIP {'0 /* none */' if clip is None else repr(clip)}")
     lines.append("")
     for name in MATRICES:
         m = getattr(c, name)

@@ -55,6 +55,9 @@ class RobustSpec:
         Clip of the exported controller's command, rad/s (the loop's limit).
     speed_min
         Floor of the speed used for normalisation, m/s.
+    output_clip
+        Clip of each normalised output before the compensator (model units; None = none),
+        so a large error does not ask more than the rate-limited steering can give.
     name
         Controller name.
     structure
@@ -77,6 +80,7 @@ class RobustSpec:
     command_limit: float = 0.35
     speed_min: float = 0.3
     name: str = "robust"
+    output_clip: tuple[float | None, ...] | None = (0.1, 0.05, None)
     structure: str = "window"
     nominal: Model | None = field(default=None, compare=False)
 
@@ -259,7 +263,7 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
               "implausible_models": [{"name": c.name, "pulse_outputs": list(c.outputs)}
                                      for c in implausible(models, names)]}
     file = ControllerFile(spec.name, comp, outputs_for(models[0].meta), spec.command_limit, spec.speed_min,
-                          design, cert.to_dict(),
+                          spec.output_clip, design, cert.to_dict(),
                           tuple({"name": n, "hash": model_hash(m)} for n, m in zip(names, models)))
     return RobustResult(file, cert, syn, tuple(lqr_costs), layout)
 
@@ -290,6 +294,6 @@ def design_lqr(model: Model, verify_on: Sequence[Model] = (), weights: OutputWei
     else:
         require_stable(Certificate(cert.checks[:1]))
     design = {"method": "lqg", "design_model": names[0], "weights": asdict(w)}
-    file = ControllerFile(name, comp, outputs_for(model.meta), command_limit, speed_min, design, cert.to_dict(),
+    file = ControllerFile(name, comp, outputs_for(model.meta), command_limit, speed_min, None, design, cert.to_dict(),
                           tuple({"name": n, "hash": model_hash(m)} for n, m in zip(names, family)))
     return file, cert

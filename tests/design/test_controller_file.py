@@ -144,3 +144,17 @@ def test_engage_is_bumpless_for_a_constant_error(saved):
     ctrl.reset()
     zero_start = float((c.Dc @ y)[0])          # what a zero initial state would have commanded
     assert abs(ctrl.step(m) - u0) < 1e-15 and abs(u0 - zero_start) > 1e-3
+
+
+def test_outputs_are_clipped_after_normalisation(saved):
+    ctrl = load_controller(saved)
+    clip = ctrl.spec.output_clip
+    assert clip == (0.1, 0.05, None)
+    far = Measurement(t=0.0, cross_track=3.0, heading_error=-0.5, wheel_angle=0.3, speed=2.0)
+    assert np.allclose(ctrl.outputs(far), [0.1, -0.05, 0.3])
+
+
+def test_bad_output_clip_is_refused(saved):
+    _rewrite(saved, lambda b: b["limits"].__setitem__("output_clip", [0.1, -1.0, None]))
+    with pytest.raises(ControllerFileError, match="output_clip needs 3 entries, each a finite number > 0 or null"):
+        load_controller(saved)

@@ -56,7 +56,7 @@ def cmd_robust(args: argparse.Namespace) -> dict:
     spec = RobustSpec(_weights(args), args.formulation, args.solver, args.pole_radius, args.rate_limit,
                       tuple(args.initial_errors), args.integral, args.past, args.command_limit, name=args.name,
                       structure=args.structure, nominal=nominal,
-                      output_clip=tuple(None if c <= 0 else c for c in args.output_clip))
+                      output_clip=tuple(None if c <= 0 else c for c in args.output_clip), method=args.method)
     res = design_robust(models, spec)
     res.file.save(args.out)
     d = res.file.design
@@ -111,6 +111,8 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     r.add_argument("--out", required=True, help="controller file (.json)")
     r.add_argument("--formulation", choices=("common", "extended"), default="extended")
     r.add_argument("--solver", choices=("clarabel", "scs"), default="clarabel")
+    r.add_argument("--method", choices=("all", "rounds"), default="all",
+                   help="one LMI over all models, or a subset plus worst-violator rounds")
     r.add_argument("--integral", action="store_true", help="integral action on cross-track/speed")
     r.add_argument("--pole-radius", type=number, default=None, help="closed-loop poles in |z| <= R")
     r.add_argument("--rate-limit", type=number, default=None,

@@ -24,13 +24,15 @@ from .compensator import Compensator
 from .controller_file import ControllerFile, outputs_for
 from .errors import DesignInputError
 from .iostate import IOStateLayout, feedback_compensator, io_state_model
-from .lmi import LMIOptions, StateFeedbackDesign, closed_loop_cost, robust_state_feedback
+from .lmi import (LMIOptions, StateFeedbackDesign, closed_loop_cost, robust_state_feedback,
+                  robust_state_feedback_rounds)
 from .lqr import dlqr, lqg_compensator
 from .plausibility import implausible
 from .verify import Certificate, certify, model_hash, require_stable
 from .weights import OutputWeights
 
 STRUCTURES = ("window", "observer")
+METHODS = ("all", "rounds")
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,9 @@ class RobustSpec:
         Clip of the exported controller's command, rad/s (the loop's limit).
     speed_min
         Floor of the speed used for normalisation, m/s.
+    method
+        ``"all"``: one LMI over every model; ``"rounds"``: a subset plus the worst
+        violators until every model passes its exact check (much faster for many models).
     output_clip
         Clip of each normalised output before the compensator (model units; None = none),
         so a large error does not ask more than the rate-limited steering can give.
@@ -81,6 +86,7 @@ class RobustSpec:
     speed_min: float = 0.3
     name: str = "robust"
     output_clip: tuple[float | None, ...] | None = (0.1, 0.05, None)
+    method: str = "all"
     structure: str = "window"
     nominal: Model | None = field(default=None, compare=False)
 
@@ -89,6 +95,8 @@ class RobustSpec:
             raise DesignInputError(f"structure must be one of {STRUCTURES}, got {self.structure!r}")
         if self.structure == "observer" and self.nominal is None:
             raise DesignInputError("the observer structure needs a nominal model (e.g. the central model)")
+        if self.method not in METHODS:
+            raise DesignInputError(f"method must be one of {METHODS}, got {self.method!r}")
         if isinstance(self.past, bool) or not isinstance(self.past, int) or self.past < 1:
             raise DesignInputError(f"past must be an integer >= 1, got {self.past!r}")
 
@@ -235,8 +243,11 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
         e0 = _initial_set(layout, spec.initial_errors) if spec.structure == "window" else \
             _anchored_initial_set(d["Bw"].shape[0], spec.initial_errors)
     opts = LMIOptions(spec.formulation, spec.solver, spec.pole_radius, spec.rate_limit, e0)
-    syn = robust_state_feedback(a_list, b_list, d["Q"], d["R"], d["Bw"], d["scale"], d["input_scale"],
-                                opts, names)
+    args = (a_list, b_list, d["Q"], d["R"], d["Bw"], d["scale"], d["input_scale"], opts, names)
+    if spec.method == "rounds":
+        syn, _rounds = robust_state_feedback_rounds(*args)
+    else:
+        syn = robust_state_feedback(*args)
     lqr_costs = []
     for a, b in zip(a_list, b_list):
         f, _ = dlqr(a, b, d["Q"], d["R"])
@@ -257,6 +268,7 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
                                                             "hash": model_hash(spec.nominal)},
               "weights": asdict(spec.weights), "pole_radius": spec.pole_radius, "rate_limit": spec.rate_limit,
               "initial_errors": list(spec.initial_errors), "integral": spec.integral, "past": spec.past,
+              "method": spec.method,
               "gain_K": syn.K.tolist(), "guaranteed_cost": syn.bound, "costs": list(syn.costs),
               "lqr_costs": lqr_costs, "conservatism": syn.bound / max(lqr_costs),
               "synthesis_radii": list(syn.radii), "times_s": syn.times,

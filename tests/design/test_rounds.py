@@ -20,3 +20,13 @@ def test_rounds_cover_every_model():
     for a, b, cost in zip(a_list, b_list, des.costs):
         assert np.max(np.abs(np.linalg.eigvals(a + b @ des.K))) < 1
         assert cost == closed_loop_cost(a, b, des.K, d["Q"], d["R"], d["Bw"]) <= des.bound * 1.001
+
+
+def test_design_robust_with_rounds_verifies_every_model():
+    from design.robust import design_robust
+    rng = np.random.default_rng(4)
+    models = [tractor_model(float(v), float(a), name=f"m{i}")
+              for i, (v, a) in enumerate(zip(rng.uniform(1, 3, 20), rng.uniform(0.4, 1.0, 20)))]
+    res = design_robust(models, RobustSpec(method="rounds", integral=True))
+    assert res.certificate.passed and len(res.certificate.checks) == 20
+    assert res.file.design["method"] == "rounds"

@@ -14,15 +14,15 @@ proportional wheel-angle servo, because the steering bridge takes a steering
 Signs as everywhere in the loop: cross-track + = left, heading + = counter-clockwise,
 wheel angle and rate + = left.
 
-Default gains come from a grid search on the bench over the 15 conditions, two seeds
-(100, 101) and 40 s passes: ``hil tune pure-pursuit --param lookahead_time=1.2,1.6,2.0
---param servo=3,5,8 --seeds 2`` (best: 1.2 s, 8 /s; 3.4 cm mean RMS cross-track) and
-``hil tune stanley --param k=0.7,1,1.4 --param servo=3,5,8 --seeds 2`` (best: k = 1.4,
-8 /s; 3.4 cm), after a first round that fixed ``lookahead_min`` at 3 m. The bench was not
-yet calibrated against the paper then: retune after calibration. Like every
-controller here without a model of the rate limit, both can fall into a growing,
-rate-saturated oscillation at 2.24-2.91 m/s when they re-engage with a few tenths of
-a metre of error (seen on some seeds of ``hil compare``).
+Default gains come from grid searches on the bench over the 15 conditions with 60 s
+passes and four seeds (100-103), so that GPS outages and re-engages are part of every
+candidate's test: ``hil tune pure-pursuit --param lookahead_time=1.2,1.6,2.0 --param
+servo=3,5,8 --seeds 4 --duration 60`` (best: 2.0 s, 8 /s; 4.8 cm mean RMS cross-track)
+and ``hil tune stanley --param k=0.7,1,1.4 --param servo=3,5,8 --seeds 4 --duration 60``
+(best: k = 1, 8 /s; 4.6 cm). Shorter searches (two seeds, 40 s) had picked faster gains
+(1.2 s; k = 1.4) that fall into a growing, rate-saturated oscillation at 2.24-2.91 m/s
+after a re-engage with a few tenths of a metre of error. The bench was not yet
+calibrated against the paper then: retune after calibration.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ class PurePursuitGains:
     """
 
     lookahead_min: float = 3.0
-    lookahead_time: float = 1.2
+    lookahead_time: float = 2.0
     integral: float = 0.02
     integral_limit: float = 0.05
     servo: float = 8.0
@@ -93,7 +93,7 @@ class StanleyGains:
         Control point to front axle, m (the law uses the front axle's cross-track).
     """
 
-    k: float = 1.4
+    k: float = 1.0
     v_soft: float = 0.5
     heading: float = 1.0
     integral: float = 0.02

@@ -5,8 +5,9 @@ summary. A :class:`Campaign` saves every result as ``runs/<key>.json`` in its ou
 directory the moment it finishes, so an interrupted campaign resumes where it
 stopped (finished runs are read back, never repeated). Seeding is per run and does
 not depend on the executor, so the local process pool and Dask give identical
-results. Controllers are named (``kinematic``, ``pure-pursuit``, ``stanley``) and
-built inside the worker, so nothing unpicklable crosses process boundaries.
+results. Controllers are named (``kinematic``, ``pure-pursuit``, ``stanley``, ``oracle``,
+or a controller file) and built inside the worker, so nothing unpicklable crosses
+process boundaries.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from .run import RunSpec, simulated_run, summarize
 EXECUTORS = ("local", "dask")
 
 
-BUILTIN_CONTROLLERS = ("kinematic", "pure-pursuit", "stanley")
+BUILTIN_CONTROLLERS = ("kinematic", "pure-pursuit", "stanley", "oracle")
 
 
 def _split(spec: str) -> tuple[str, dict[str, float]]:
@@ -44,8 +45,13 @@ def _split(spec: str) -> tuple[str, dict[str, float]]:
     return name, opts
 
 
-def make_controller(spec: str):
+def make_controller(spec: str, implement: str | None = None, speed: float | None = None,
+                    params: SimParams | None = None):
     """Build a controller from its spec; done inside each worker.
+
+    ``oracle`` is the LQG designed on the condition's truth linearisation
+    (:mod:`hil.oracle`, valve by its secant gain): it needs ``implement`` and ``speed``
+    [m/s] (and the simulator ``params`` it is the oracle of).
 
     A spec is a name, ``kinematic``, ``pure-pursuit`` or ``stanley``, optionally with gains
     (``pure-pursuit?lookahead_time=1.2&servo=4``, names of
@@ -60,6 +66,11 @@ def make_controller(spec: str):
             raise SimulatorConfigError(f"controller file {spec!r} does not exist")
         return load_controller(spec)
     name, opts = _split(spec)
+    if name == "oracle" and not opts:
+        if implement is None or speed is None:
+            return None         # a valid spec; the controller is built per condition (run_one)
+        from .oracle import OracleOptions, oracle_for
+        return oracle_for(implement, speed, params, OracleOptions(invert_valve=False))
     gains = {"pure-pursuit": (PurePursuitController, PurePursuitGains), "stanley": (StanleyController, StanleyGains)}
     if name in gains:
         cls, gcls = gains[name]
@@ -98,7 +109,8 @@ class RunKey:
 def run_one(key: RunKey, params: dict) -> dict:
     """Run one pass in lockstep and return its summary with the key's fields."""
     log = simulated_run(RunSpec(implement=key.implement, speed=key.speed, duration=key.duration, seed=key.seed),
-                        make_controller(key.controller), SimParams.from_dict(params))
+                        make_controller(key.controller, key.implement, key.speed, SimParams.from_dict(params)),
+                        SimParams.from_dict(params))
     t = log.times["t"]
     every = max(1, int(round(0.25 / float(t[1] - t[0]))))      # a 4 Hz trace for the overlay figures
     ch = log.channels

@@ -26,7 +26,7 @@ from identification.errors import PassLogError
 from identification.passlog import PassLog
 
 from .conditions import GEAR_SPEEDS, IMPLEMENTS
-from .errors import HilError
+from .errors import HilError, SimulatorConfigError
 from .faults import LinkFault
 from .params import SimParams, parameter_markdown, parameter_table
 from .plots import plot_pass, plot_run
@@ -133,7 +133,10 @@ def _fault(text: str) -> tuple[str, object]:
 
 
 def _controller(name: str):
-    return make_controller(name)
+    controller = make_controller(name)
+    if controller is None:
+        raise SimulatorConfigError("the oracle is designed on the simulator's truth; it cannot steer a real vehicle")
+    return controller
 
 
 def _conditions(text: str):
@@ -199,7 +202,7 @@ def _cmd_run(args: argparse.Namespace) -> dict:
                    realtime=args.realtime, initial_cross_track=args.initial_cross_track,
                    **{k: tuple(v) for k, v in faults.items()})
     params = _params(args)
-    controller = _controller(args.controller)
+    controller = make_controller(args.controller, spec.implement, spec.speed, params)
     bar = tqdm(total=round(spec.duration), unit="s", desc="closed-loop pass", disable=args.quiet, file=sys.stderr)
 
     def progress(done: float, total: float) -> None:

@@ -48,8 +48,9 @@ def test_stanley_uses_the_front_axle_error():
 def test_integral_term_is_clamped():
     g = PurePursuitGains(integral=0.1, integral_limit=0.02, servo=1.0)
     c = PurePursuitController(g)
+    ld = max(g.lookahead_min, g.lookahead_time * 2.0)
     for _ in range(2000):
-        c.step(meas(e=0.01, psi=-math.atan2(0.01, 3.0)))   # pure pursuit sees no error, integral grows
+        c.step(meas(e=0.01, psi=-math.atan2(0.01, ld)))    # pure pursuit sees no error, integral grows
     assert c.estimate()[1] == pytest.approx(-0.02, abs=1e-6)
 
 

@@ -95,11 +95,14 @@ def test_report_files(tmp_path):
 
 
 def test_cli_compare_small_campaign(tmp_path, capsys):
-    rc = hil_main(["compare", "kinematic", "pure-pursuit", "--conditions", "ripper:1.79", "--seeds", "1",
-                   "--duration", "8", "--workers", "1", "--out", str(tmp_path), "--quiet", "--json"])
+    rc = hil_main(["compare", "kinematic", "oracle", "--conditions", "ripper:1.79", "--seeds", "1",
+                   "--duration", "10", "--workers", "1", "--out", str(tmp_path), "--quiet", "--json"])
     assert rc == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["passes"] == 2 and set(out["tables"]) == {"kinematic", "pure-pursuit"}
+    assert out["passes"] == 2 and set(out["tables"]) == {"kinematic", "oracle"}
+    cells_ = json.loads((tmp_path / "results.json").read_text())["cells"]
+    kin = next(c for c in cells_ if c["controller"] == "kinematic")
+    assert kin["sigma_ratio_to_oracle"] > 1.0, "the oracle is the practical limit"
     assert (tmp_path / "index.html").exists() and (tmp_path / "campaign" / "runs").is_dir()
     with pytest.raises(SystemExit):
         hil_main(["compare", "pid", "--out", str(tmp_path)])

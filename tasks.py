@@ -63,21 +63,31 @@ def demo(args: list[str]) -> None:
     1. identification passes for the 15 conditions and a plot of one (paper's Figure 5);
     2. OKID/ERA-DC local, velocity-invariant and central models, and their report
        (Hankel and modal singular values, reconstruction, Table 1);
-    3. one closed-loop HIL pass (kinematic LQR, disker, 9th gear) through the emulated
-       bridge and receivers, with its track figure and summary.
+    3. the paper's controller (LQR + Kalman predictor on the central model) and the
+       robust LMI controller over the 15 local models, both verified on every model;
+    4. one closed-loop HIL pass (robust controller, disker, 9th gear) through the
+       emulated bridge and receivers, with its track figure and summary;
+    5. a comparison campaign: kinematic LQR, the paper's central LQR, the robust
+       controller and the oracle over the 15 conditions, with its report.
     """
     ensure_env()
     bin_ = VENV / "bin"
     demo_dir = OUT / "demo"
-    logs, models = demo_dir / "logs", demo_dir / "models"
+    logs, models, ctrl = demo_dir / "logs", demo_dir / "models", demo_dir / "controllers"
     _run(bin_ / "hil", "sysid", "--out", logs, "--passes", "3", "--seed", "1997", *args)
     _run(bin_ / "hil", "plot", logs / "ripper_9th_pass0.npz", "--out", demo_dir / "sysid_pass_ripper_9th.png")
     _run(bin_ / "identification", "okid", logs, "--out", models)
     _run(bin_ / "identification", "report", models, "--out", demo_dir / "identification_report",
          "--logs", logs / "ripper_9th_pass2.npz")
-    _run(bin_ / "hil", "run", "--controller", "kinematic", "--implement", "disker", "--speed", "1.79",
-         "--duration", "60", "--seed", "1997", "--out", demo_dir / "run_kinematic_disker_9th")
-    print(f"\nmain job done: everything is in {demo_dir}")
+    local = sorted(models.glob("local_*.npz"))
+    _run(bin_ / "design", "lqr", "--model", models / "central.npz", "--verify-on", *local,
+         "--out", ctrl / "central-lqr.json")
+    _run(bin_ / "design", "robust", "--models", *local, "--integral", "--out", ctrl / "robust.json")
+    _run(bin_ / "hil", "run", "--controller", ctrl / "robust.json", "--implement", "disker", "--speed", "1.79",
+         "--duration", "60", "--seed", "1997", "--out", demo_dir / "run_robust_disker_9th")
+    _run(bin_ / "hil", "compare", "kinematic", ctrl / "central-lqr.json", ctrl / "robust.json", "oracle",
+         "--seeds", "1", "--duration", "60", "--out", demo_dir / "compare")
+    print(f"\nmain job done: everything is in {demo_dir} (comparison report: {demo_dir / 'compare' / 'report.md'})")
 
 
 def test(args: list[str]) -> None:

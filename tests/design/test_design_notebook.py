@@ -1,4 +1,4 @@
-"""notebooks/02_design_robust.py runs top to bottom (jupytext -> nbclient) in a scratch directory."""
+"""notebooks/02_robust_design.py runs top to bottom (jupytext -> nbclient) in a scratch directory."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "02_design_robust.py"
+NOTEBOOK = Path(__file__).resolve().parents[2] / "notebooks" / "02_robust_design.py"
 
 
 @pytest.mark.notebook

@@ -32,11 +32,10 @@ from gnss.frontend import replay_solutions, stamp_from_tags
 from gnss.reader import StreamDecoder, strip_comment_header
 from gnss.summary import summarize_capture
 
-try:
-    HERE = Path(__file__).resolve().parent
-except NameError:  # running inside Jupyter
-    HERE = Path.cwd()
-CAPTURE = HERE.parent.parent / "shared" / "data" / "gnss" / "gpsd_trimble_nmea_rtk" / "nmea-rtk.log"
+import gnss
+
+ROOT = Path(gnss.__file__).resolve().parents[1]  # the repository (the project is installed editable)
+CAPTURE = ROOT.parent / "shared" / "data" / "gnss" / "gpsd_trimble_nmea_rtk" / "nmea-rtk.log"
 
 # %%
 summary, messages, stats = summarize_capture(CAPTURE.read_bytes())

@@ -1,0 +1,26 @@
+"""Shared test fixtures: executing a notebook of ``notebooks/`` the way a user would."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
+
+
+@pytest.fixture
+def run_notebook(tmp_path):
+    """Execute ``notebooks/<name>`` (percent format) with a Jupyter kernel in ``tmp_path``.
+
+    Returns the concatenated text output of its code cells.
+    """
+    def run(name: str, timeout: int = 600) -> str:
+        import jupytext
+        from nbclient import NotebookClient
+
+        nb = jupytext.read(NOTEBOOKS / name)
+        NotebookClient(nb, timeout=timeout, kernel_name="python3",
+                       resources={"metadata": {"path": str(tmp_path)}}).execute()
+        return "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+    return run

@@ -112,12 +112,12 @@ class DiskerParams(_Group):
     draft_offset: float = P(0.25, "m", "line of draft left of the tractor centreline (offset "
                             "harrow, non-symmetrical loading)", lo=None)
     gang_pull: float = P(3000.0, "N", "lateral force of the angled gangs, + = left (the paper: "
-                         "the disker pulls to the left)", "paper", lo=None)
+                         "the disker pulls to the left; the value is assumed)", lo=None)
     gang_cornering_stiffness: float = P(60e3, "N/rad", "lateral stiffness of the gangs in the soil",
                                         lo_open=True)
     tongue_length: float = P(4.5, "m", "hitch pin to the gangs' centre of resistance", lo_open=True)
-    front_load_factor: float = P(0.85, "1", "front-axle load relative to no implement (reduced "
-                                 "front authority)", "paper", lo_open=True, hi=1.5)
+    front_load_factor: float = P(0.85, "1", "front-axle load relative to no implement (the paper: "
+                                 "implements reduce front authority; the value is assumed)", lo_open=True, hi=1.5)
     draft_variation: float = P(0.15, "1", "soil variation of the draft, relative 1-sigma")
     pull_variation: float = P(0.25, "1", "soil variation of the gang pull, relative 1-sigma")
     soil_correlation_length: float = P(4.0, "m", "distance over which soil variation decorrelates",
@@ -129,12 +129,13 @@ class RipperParams(_Group):
     """Hitched (rigid three-point) 3-shank ripper: soil forces pass straight to the tractor."""
 
     shank_behind_rear_axle: float = P(1.5, "m", "shanks' centre of resistance behind the rear axle")
-    lateral_force: float = P(1500.0, "N", "random lateral soil force on the shanks, 1-sigma", "paper")
-    yaw_moment: float = P(1500.0, "N m", "random soil yaw moment, 1-sigma", "paper")
+    lateral_force: float = P(1500.0, "N", "random lateral soil force on the shanks, 1-sigma (the paper: "
+                             "hitched implements pass soil forces to the tractor; the value is assumed)")
+    yaw_moment: float = P(1500.0, "N m", "random soil yaw moment, 1-sigma (value assumed)")
     soil_correlation_length: float = P(2.0, "m", "distance over which the soil forces decorrelate",
                                        lo_open=True)
     front_load_factor: float = P(0.75, "1", "front-axle load relative to no implement (draft "
-                                 "transfers weight to the rear)", "paper", lo_open=True, hi=1.5)
+                                 "transfers weight to the rear; the value is assumed)", lo_open=True, hi=1.5)
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,8 @@
-"""Shared test fixtures: executing a notebook of ``notebooks/`` the way a user would."""
+"""Shared test fixtures: executing a notebook of ``notebooks/`` the way a user would.
+
+It lives at the repository root, not in ``tests/``: a conftest in ``tests/`` would put
+``tests/`` on ``sys.path``, where ``tests/hil`` and friends would shadow the packages.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
+NOTEBOOKS = Path(__file__).resolve().parent / "notebooks"
 
 
 @pytest.fixture

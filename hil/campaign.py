@@ -106,9 +106,10 @@ class RunKey:
         return f"{controller_label(self.controller)}__{self.implement}_{self.speed:.2f}__seed{self.seed}"
 
 
-def run_one(key: RunKey, params: dict) -> dict:
-    """Run one pass in lockstep and return its summary with the key's fields."""
-    log = simulated_run(RunSpec(implement=key.implement, speed=key.speed, duration=key.duration, seed=key.seed),
+def run_one(key: RunKey, params: dict, realtime: bool = False) -> dict:
+    """Run one pass (in lockstep, or in real time over pseudo-terminals) and return its summary."""
+    log = simulated_run(RunSpec(implement=key.implement, speed=key.speed, duration=key.duration, seed=key.seed,
+                                realtime=realtime),
                         make_controller(key.controller, key.implement, key.speed, SimParams.from_dict(params)),
                         SimParams.from_dict(params))
     t = log.times["t"]
@@ -119,7 +120,7 @@ def run_one(key: RunKey, params: dict) -> dict:
     if "truth_along_track" in ch:
         trace["along"] = ch["truth_along_track"][::every].round(2).tolist()
     return {**asdict(key), "controller": controller_label(key.controller), "controller_spec": key.controller,
-            **summarize(log), "trace": trace}
+            "mode": log.meta["mode"], **summarize(log), "trace": trace}
 
 
 class Campaign:
@@ -169,8 +170,8 @@ class Campaign:
                                            "pass duration; use another --out directory")
         ident.write_text(json.dumps(self.identity, indent=2) + "\n")
 
-    def _path(self, key: RunKey) -> Path:
-        return self.out / "runs" / f"{key.name}.json"
+    def _path(self, key: RunKey, realtime: bool = False) -> Path:
+        return self.out / ("runs_realtime" if realtime else "runs") / f"{key.name}.json"
 
     def pending(self) -> list[RunKey]:
         """Runs not finished yet."""
@@ -179,7 +180,8 @@ class Campaign:
     def _save(self, result: dict) -> None:
         key = RunKey(**{f: result[f] for f in RunKey.__dataclass_fields__ if f != "controller"},
                      controller=result["controller_spec"])
-        path = self._path(key)
+        path = self._path(key, result.get("mode") == "realtime-pty")
+        path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".part")
         tmp.write_text(json.dumps(result, indent=2) + "\n")
         tmp.replace(path)
@@ -227,6 +229,24 @@ class Campaign:
                     if progress:
                         progress(done, total)
         return self.results()
+
+    def run_realtime(self, conditions: Sequence[Condition], progress: Callable[[int, int], None] | None = None
+                     ) -> list[dict]:
+        """Run every controller at ``conditions`` with the first seed in real time over pseudo-terminals.
+
+        One pass at a time in this process (the deadline statistics mean something only
+        when the machine is not busy with other passes); saved under ``runs_realtime/``.
+        """
+        self._prepare()
+        seed = self.identity["seeds"][0]
+        keys = [RunKey(ctrl, c.implement, c.speed, seed, float(self.identity["duration"]))
+                for ctrl in self.identity["controllers"] for c in conditions]
+        for i, k in enumerate(keys):
+            if not self._path(k, True).exists():
+                self._save(run_one(k, self.params, realtime=True))
+            if progress:
+                progress(i + 1, len(keys))
+        return [json.loads(self._path(k, True).read_text()) for k in keys]
 
     def _run_dask(self, todo, scheduler, client, progress, done, total) -> None:
         from dask.distributed import Client

@@ -166,7 +166,8 @@ def _cmd_compare(args: argparse.Namespace) -> dict:
 
     results = campaign.run(args.executor, args.scheduler, args.workers, progress)
     bar.close()
-    rep = write_report(results, args.out, extra={"campaign": campaign.identity})
+    realtime = campaign.run_realtime(args.realtime) if args.realtime else []
+    rep = write_report(results, args.out, extra={"campaign": campaign.identity}, realtime=realtime)
     return {"out": args.out, "passes": len(results), "tables": rep["tables"], "files": rep["files"]}
 
 
@@ -328,6 +329,9 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--executor", choices=EXECUTORS, default="local")
     cp.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://10.0.0.5:8786 (with --executor dask)")
     cp.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
+    cp.add_argument("--realtime", type=_conditions, default=None, metavar="IMPLEMENT:SPEED,...",
+                    help="also run these conditions (first seed, every controller) in real time over "
+                         "pseudo-terminals, one after the other; reported apart")
     cp.add_argument("--out", required=True, help="report directory (the campaign's runs are kept in OUT/campaign "
                     "and an interrupted campaign resumes there)")
     cp.add_argument("--quiet", action="store_true")

@@ -143,9 +143,23 @@ def _fig12(results: Sequence[dict], out: Path) -> Path:
     return out
 
 
+def realtime_table(results: Sequence[dict]) -> list[str]:
+    """Markdown rows of the real-time passes: tracking and timing, one row per pass."""
+    rows = ["| controller | condition | bias [cm] | 1-sigma [cm] | deadline misses | loop p50 [ms] | "
+            "loop p99 [ms] | loop max [ms] | lateness p99 [ms] |", "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in results:
+        track = (f"{r['measured_bias_m'] * 100:.1f} | {r['measured_sigma_m'] * 100:.1f}"
+                 if "measured_sigma_m" in r else "- | -")
+        rows.append(f"| {r['controller']} | {r['implement']} {r['speed']:.2f} m/s | {track} | {r['deadline_misses']} | "
+                    f"{r['loop_time_ms_p50']:.2f} | {r['loop_time_ms_p99']:.2f} | {r['loop_time_ms_max']:.2f} | "
+                    f"{r['lateness_ms_p99']:.2f} |")
+    return rows
+
+
 def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL comparison",
-                 extra: dict | None = None) -> dict:
-    """Write every report file for ``results`` into ``out``; return the cells and file names."""
+                 extra: dict | None = None, realtime: Sequence[dict] = ()) -> dict:
+    """Write every report file for ``results`` (lockstep passes) and ``realtime`` (passes in real
+    time over pseudo-terminals, reported apart) into ``out``; return the cells and file names."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     rows = cells(results)
@@ -156,7 +170,9 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
         w.writeheader()
         w.writerows(rows)
     slim = [{k: v for k, v in r.items() if k != "trace"} for r in results]
-    (out / "results.json").write_text(json.dumps({"cells": rows, "runs": slim, **(extra or {})}, indent=2) + "\n")
+    slim_rt = [{k: v for k, v in r.items() if k != "trace"} for r in realtime]
+    (out / "results.json").write_text(json.dumps({"cells": rows, "runs": slim, "realtime_runs": slim_rt,
+                                                  **(extra or {})}, indent=2) + "\n")
     f10 = _fig10(rows, out / "fig10_sigma_vs_speed.png")
     f12 = _fig12(results, out / "fig12_passes.png")
     tables = {c: table2_text(rows, c) for c in ctrls}
@@ -171,6 +187,8 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
     md += ["| controller | deadline misses | loop time p99 max [ms] | loop time max [ms] | disengagements |",
            "|---|---:|---:|---:|---:|", *timing, "",
            f"![Figure 10]({f10.name})", "", f"![Figure 12]({f12.name})", ""]
+    if realtime:
+        md += ["## In real time over pseudo-terminals", "", *realtime_table(realtime), ""]
     (out / "report.md").write_text("\n".join(md))
     body = [f"<h1>{html.escape(title)}</h1>"]
     for c in ctrls:
@@ -181,6 +199,12 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
         cells_ = [html.escape(x.strip()) for x in line.strip("|").split("|")]
         body.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells_) + "</tr>")
     body.append(f"</table><img src='{f10.name}' width=100%><img src='{f12.name}' width=100%>")
+    if realtime:
+        body.append("<h2>In real time over pseudo-terminals</h2><table border=1 cellpadding=4>")
+        for line in realtime_table(realtime)[:1] + realtime_table(realtime)[2:]:
+            cells_ = [html.escape(x.strip()) for x in line.strip("|").split("|")]
+            body.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells_) + "</tr>")
+        body.append("</table>")
     (out / "index.html").write_text("<!doctype html><meta charset=utf-8><title>" + html.escape(title) +
                                     "</title><body>" + "\n".join(body) + "</body>\n")
     return {"cells": rows, "tables": tables,

@@ -120,3 +120,17 @@ def test_tuning_ranks_candidates_on_the_same_passes(tmp_path):
     scores = [r["score_m"] for r in res["ranking"]]
     assert scores == sorted(scores) and res["best"]["spec"] == "pure-pursuit?servo=5"
     assert json.loads((tmp_path / "tune.json").read_text())["best"] == res["best"]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(120)
+def test_a_subset_runs_in_real_time_and_is_reported_apart(tmp_path, capsys):
+    rc = hil_main(["compare", "kinematic", "--conditions", "none:1.34", "--realtime", "none:1.34", "--seeds", "1",
+                   "--duration", "5", "--workers", "1", "--out", str(tmp_path), "--quiet", "--json"])
+    assert rc == 0
+    data = json.loads((tmp_path / "results.json").read_text())
+    (rt,) = data["realtime_runs"]
+    assert rt["mode"] == "realtime-pty" and rt["cycles"] >= 95
+    assert [r["mode"] for r in data["runs"]] == ["lockstep"]
+    assert "## In real time over pseudo-terminals" in (tmp_path / "report.md").read_text()
+    assert len(list((tmp_path / "campaign" / "runs_realtime").glob("*.json"))) == 1

@@ -8,8 +8,10 @@ Engagement: the loop engages only after ``engage_after`` seconds of continuous
 health (GPS integrity healthy, speed in range, bridge reporting without
 override, close enough to the line); it disengages in the cycle it sees any
 fault (GPS not healthy or stale, bridge silent, watchdog, override, the bridge
-not confirming the engage, a link error) and records why. While disengaged it
-never sends a steering command.
+not confirming the engage, a link error, the wheel not following the commands)
+and records why. While disengaged it never sends a steering command. A control
+law that raises or returns a non-finite command is latched off for the rest of
+the run (a person has to look at it before it steers again).
 
 Every cycle is recorded; :meth:`VehicleLoop.run_log` turns the record into a
 pass log (all channels on the cycle time base, so a closed-loop run can feed
@@ -130,6 +132,7 @@ class VehicleLoop:
         self._healthy_since = math.inf
         self._engaged_at = math.nan
         self._confirmed = False
+        self.latched: str | None = None   # a controller failure: no re-engage until a new loop
         self._last = {"cross_track": 0.0, "heading_error": 0.0, "wheel_angle": 0.0, "speed": 0.0}
         self._response: deque[tuple[float, float]] = deque(maxlen=max(2, round(self.config.response_window
                                                                             * self.config.rate) + 1))
@@ -169,6 +172,8 @@ class VehicleLoop:
             reasons.append(f"speed {speed:.2f} m/s outside {cfg.speed_min}-{cfg.speed_max} m/s")
         if rep is not None and rep.manual_override:
             reasons.append("manual override")
+        if self.latched:
+            reasons.append(f"latched off after {self.latched}")
         if self.engaged and rep is not None:
             if rep.engaged:
                 self._confirmed = True
@@ -196,13 +201,23 @@ class VehicleLoop:
                     self._engage(now, link_ok)
         if self.engaged:
             m = Measurement(t=now, cross_track=xte, heading_error=he, wheel_angle=delta, speed=speed)
-            u = float(np.clip(self.controller.step(m), -cfg.max_rate, cfg.max_rate))
-            self._response.append((u, delta))
             try:
-                self.driver.send_rate(u)
-            except BridgeLinkError as exc:
-                self._disengage(now, f"bridge link error: {exc}", False)
-                u = 0.0
+                raw = float(self.controller.step(m))
+            except Exception as exc:  # noqa: BLE001 - a failing control law must disengage, not crash the loop
+                raw, why = math.nan, f"controller failed: {type(exc).__name__}: {exc}"
+            else:
+                why = f"controller returned a non-finite command ({raw!r})"
+            if not math.isfinite(raw):
+                self.latched = why
+                self._disengage(now, why, link_ok)
+            else:
+                u = float(np.clip(raw, -cfg.max_rate, cfg.max_rate))
+                self._response.append((u, delta))
+                try:
+                    self.driver.send_rate(u)
+                except BridgeLinkError as exc:
+                    self._disengage(now, f"bridge link error: {exc}", False)
+                    u = 0.0
         self._last = {"cross_track": xte, "heading_error": he, "wheel_angle": delta, "speed": speed}
         compute = time.perf_counter() - wall0
         late = now - t_due

@@ -147,3 +147,29 @@ def test_receivers_corrupted_messages_are_all_refused_by_the_front_end(controlle
     # one GGA + one VTG per position epoch, one AVR per attitude epoch; a flip spoils exactly one message
     expected = 2 * sent["position"] + sent["attitude"] - bad["position"] - bad["attitude"]
     assert log.meta["gnss_refused"]["decoded"] == expected
+
+
+class _Faulty(KinematicLQRController):
+    """The kinematic LQR, failing in a chosen way after 3 s (to test the loop, not the law)."""
+
+    def __init__(self, how):
+        super().__init__()
+        self.how = how
+
+    def step(self, m):
+        if m.t > 3.0:
+            if self.how == "nan":
+                return float("nan")
+            raise ZeroDivisionError("division by zero in the control law")
+        return super().step(m)
+
+
+@pytest.mark.parametrize("how, reason", [("nan", "non-finite command"), ("raise", "controller failed: ZeroDivision")])
+def test_a_failing_control_law_disengages_and_never_reaches_the_bridge(how, reason):
+    log = simulated_run(RunSpec(implement="none", speed=1.34, duration=6.0, seed=2), _Faulty(how), CLEAN_GPS)
+    off = [e for e in log.meta["events"] if e["event"] == "disengage" and reason in e["reason"]]
+    assert off and 3.0 <= off[0]["t"] <= 3.0 + 2 * CYCLE
+    t, ch = log.times["t"], log.channels
+    assert np.all(np.isfinite(ch["steer_rate_cmd"]))
+    assert np.all(ch["engaged"][t > off[0]["t"]] == 0), "a failed control law stays latched off"
+    assert np.all(ch["steer_rate_cmd"][t > off[0]["t"]] == 0.0)

@@ -42,20 +42,12 @@ from identification.okid import OKID  # noqa: E402
 from identification.simulate import simulate  # noqa: E402
 from identification.validation import validate  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "tests" / "identification"))
+from idtest_synth import true_system  # noqa: E402  (the tests' reference system, one definition)
+
 DAISY = ROOT / "tests" / "data" / "sysid"
 METHODS = ("okid", "control", "sippy-n4sid", "nfoursid")
 LIMIT_S, LIMIT_MB = 300.0, 4096.0
-
-
-def true_system():
-    poles = [0.9 * np.exp(1j * 0.3), 0.8 * np.exp(1j * 1.1)]
-    a = np.zeros((4, 4))
-    for i, p in enumerate(poles):
-        a[2 * i:2 * i + 2, 2 * i:2 * i + 2] = [[p.real, p.imag], [-p.imag, p.real]]
-    b = np.array([[1.0, 0.2], [0.3, -0.5], [0.0, 1.0], [0.7, 0.4]])
-    c = np.array([[1.0, 0.5, -0.4, 0.2], [0.1, -0.3, 0.8, 0.6]])
-    d = np.array([[0.1, 0.0], [0.0, 0.05]])
-    return a, b, c, d
 
 
 def make_data(n: int, seed: int):

@@ -83,7 +83,7 @@ class SimulatedTractor:
 
     def wheel_angle_counts(self) -> int:
         """8-bit ADC reading of the potentiometer now, 0..255."""
-        return int(self.sim.wheel_angle_counts()[0])
+        return self.sim.wheel_angle_count()
 
     def manual_override(self) -> bool:
         """True while the (simulated) driver turns the steering wheel."""
@@ -95,13 +95,15 @@ class SimulatedTractor:
             raise SimulatorConfigError(f"advance needs a finite dt >= 0, got {dt!r}")
         self.time += dt
         self._pending += dt
-        h = self.sim.params.dt
-        while self._pending >= h - 1e-9 and self.sim.k < self.sim.n_steps:
-            was_stuck = self._in(self.stuck_intervals)
-            self.sim.step()
+        sim = self.sim
+        h = sim.params.dt
+        stuck = self.stuck_intervals
+        while self._pending >= h - 1e-9 and sim.k < sim.n_steps:
+            was_stuck = stuck and self._in(stuck)
+            sim.step()
             self._pending -= h
-            if was_stuck and not self._in(self.stuck_intervals):
-                self.sim.set_duty(np.array([self._duty]))   # the spool frees: latest duty applies
+            if was_stuck and not self._in(stuck):
+                sim.set_duty(np.array([self._duty]))   # the spool frees: latest duty applies
 
     def _in(self, intervals: tuple[Interval, ...]) -> bool:
         t = self.sim.time
@@ -110,4 +112,4 @@ class SimulatedTractor:
     # -- truth for logs -----------------------------------------------------------
     def truth(self) -> dict[str, float]:
         """True values now (see :meth:`TractorSimulator.truth`), as floats."""
-        return {k: float(v[0]) for k, v in self.sim.truth().items()}
+        return self.sim.truth_scalar()

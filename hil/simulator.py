@@ -102,6 +102,16 @@ class TractorSimulator:
             raise SimulatorConfigError(f"the scalar path integrates one tractor, this batch has {B}")
         self._scalar_exo = ({f: getattr(self.exo, f)[0].tolist() for f in disturbances.Exogenous.__dataclass_fields__}
                             if scalar else None)
+        if scalar:
+            # the one-tractor path: state, inputs and GPS errors as Python floats (see vehicle.scalar_stepper)
+            e = self._scalar_exo
+            self._stepper = vehicle.scalar_stepper(p)
+            self._step_inputs = list(zip(*(e[f] for f in disturbances.Exogenous.__dataclass_fields__)))
+            self._x = self.state[0].tolist()
+            self._disker0 = float(self._disker[0])
+            self._rate0 = float(self._rate_cmd[0])
+            self._gps0 = gps.ScalarErrors.of(self.gps_errors)
+            self._noise0 = self._sensor_noise[0].tolist()
         g = p.gps
         self._pos_every = int(round(1.0 / (g.position_rate * p.dt)))
         self._att_every = int(round(1.0 / (g.attitude_rate * p.dt)))
@@ -127,6 +137,8 @@ class TractorSimulator:
             raise SimulatorConfigError("valve duty must be finite")
         self.duty = np.clip(d, -1.0, 1.0).copy()
         self._rate_cmd = valve_rate(self.duty, self.params.steering)
+        if self._scalar_exo is not None:
+            self._rate0 = float(self._rate_cmd[0])
 
     def step(self) -> None:
         """Advance every tractor by one integration step ``dt``."""
@@ -134,13 +146,11 @@ class TractorSimulator:
             raise SimulatorConfigError(f"the simulator was built for {self.duration:.2f} s and has reached it")
         k, e = self.k, self.exo
         if self._scalar_exo is not None:
-            x = self._scalar_exo
-            u = vehicle.Inputs(rate_cmd=float(self._rate_cmd[0]), speed=x["speed"][k], roll=x["roll"][k],
-                               force_y=x["force_y"][k], ripper_force=x["ripper_force"][k],
-                               ripper_moment=x["ripper_moment"][k], draft=x["draft"][k],
-                               gang_pull=x["gang_pull"][k], front_load=x["front_load"][k],
-                               disker=float(self._disker[0]))
-            self.state[0] = vehicle.rk4_step_scalar(self.state[0].tolist(), u, self.params)
+            self._x = x = self._stepper(self._x, self._rate0, *self._step_inputs[k], self._disker0)
+            self.state[0] = x
+            self.k = k + 1
+            self._record_epochs_scalar()
+            return
         else:
             u = vehicle.Inputs(rate_cmd=self._rate_cmd, speed=e.speed[:, k],
                                roll=e.roll[:, k], force_y=e.force_y[:, k], ripper_force=e.ripper_force[:, k],
@@ -155,6 +165,24 @@ class TractorSimulator:
         """Potentiometer read by the 8-bit ADC now: int counts 0..255, shape ``(B,)``."""
         p = self.params
         return sensor_counts(self.state[:, DEL], self._sensor_noise[:, self.k], p.sensor, p.steering)
+
+    def wheel_angle_count(self) -> int:
+        """:meth:`wheel_angle_counts` of a one-tractor batch as an int (floats on the scalar path)."""
+        if self._scalar_exo is None:
+            return int(self.wheel_angle_counts()[0])
+        p = self.params
+        s, st = p.sensor, p.steering
+        x = self._x[DEL] / st.max_wheel_angle
+        counts = s.center_counts + s.counts_at_stop * (x + s.cubic * (x ** 3 - x)) + self._noise0[self.k]
+        return int(min(max(round(counts), 0), 255))
+
+    def truth_scalar(self) -> dict[str, float]:
+        """:meth:`truth` of a one-tractor batch, as floats."""
+        if self._scalar_exo is None:
+            return {k: float(v[0]) for k, v in self.truth().items()}
+        x, k, e = self._x, self.k, self._scalar_exo
+        return {"cross_track": x[Y], "heading_error": x[PSI], "wheel_angle": x[DEL], "speed": e["speed"][k],
+                "roll": e["roll"][k], "along_track": x[X], "hitch_angle": x[vehicle.PHI]}
 
     def truth(self) -> dict[str, np.ndarray]:
         """True values now: ``cross_track`` [m, CG, + left], ``heading_error`` [rad],
@@ -182,6 +210,30 @@ class TractorSimulator:
             m = gps.attitude_epoch(s[:, PSI], roll, i, self.gps_errors, p.gps)
             for key, arr in self.att.items():
                 arr[:, i] = m[key]
+            self.n_att += 1
+
+    def _record_epochs_scalar(self) -> None:
+        """:meth:`_record_epochs` for the one-tractor path (the same values, on floats)."""
+        k = self.k
+        pos_due = k % self._pos_every == 0 and self.n_pos < self.pos["lost"].shape[1]
+        att_due = k % self._att_every == 0 and self.n_att < self.att["lost"].shape[1]
+        if not (pos_due or att_due):
+            return
+        p, x, g0 = self.params, self._x, self._gps0
+        roll = self._scalar_exo["roll"][k]
+        if pos_due:
+            i = self.n_pos
+            m = gps.position_epoch_scalar(x[X], x[Y], x[PSI], roll, i, g0, p.gps, p.vehicle)
+            ground = float(np.hypot(self._scalar_exo["speed"][k], x[vehicle.V]))
+            m["speed"] = max(ground + g0.speed_noise[i], 0.0)
+            for key, arr in self.pos.items():
+                arr[0, i] = m[key]
+            self.n_pos += 1
+        if att_due:
+            i = self.n_att
+            m = gps.attitude_epoch_scalar(x[PSI], roll, i, g0, p.gps)
+            for key, arr in self.att.items():
+                arr[0, i] = m[key]
             self.n_att += 1
 
     #: How many of the newest epochs :meth:`latest_position` / :meth:`latest_attitude` look at.

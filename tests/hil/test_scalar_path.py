@@ -1,0 +1,65 @@
+"""The one-tractor fast path (HIL lockstep) computes exactly what the reference code computes.
+
+``vehicle.scalar_stepper`` and the simulator's float bookkeeping exist only for speed: every
+value must be bit-for-bit that of :func:`hil.vehicle.rk4_step_scalar` (the equations as written
+once in ``_rates``) and of the batch path's GPS epochs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hil.conditions import condition_for
+from hil.params import SimParams
+from hil.simulator import TractorSimulator
+from hil.vehicle import DEL, Inputs, rk4_step_scalar, scalar_stepper
+
+P = SimParams()
+STEP = scalar_stepper(P)
+DMAX = P.steering.max_wheel_angle
+
+
+def _f(lo: float, hi: float):
+    return st.floats(lo, hi, allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=400, deadline=None)
+@given(state=st.tuples(_f(-50, 50), _f(-5, 5), _f(-1, 1), _f(-3, 3), _f(-2, 2), _f(-DMAX, DMAX), _f(-2, 2),
+                       _f(-1.5, 1.5)),
+       rate=_f(-0.6, 0.6), speed=st.one_of(st.just(0.0), _f(0.0, 4.0)), roll=_f(-0.2, 0.2),
+       forces=st.tuples(_f(-3e3, 3e3), _f(-3e3, 3e3), _f(-5e3, 5e3), _f(0, 2e4), _f(-4e3, 4e3)),
+       front_load=_f(0.2, 1.3), disker=st.sampled_from([0.0, 1.0]), at_stop=st.sampled_from([0, 1, -1]))
+def test_scalar_stepper_is_bit_identical_to_rk4_step_scalar(state, rate, speed, roll, forces, front_load, disker,
+                                                              at_stop):
+    x = list(state)
+    if at_stop:                                  # exercise the mechanical stops both ways
+        x[DEL] = at_stop * DMAX
+    force_y, ripper_force, ripper_moment, draft, gang_pull = forces
+    u = Inputs(rate_cmd=rate, speed=speed, roll=roll, force_y=force_y, ripper_force=ripper_force,
+               ripper_moment=ripper_moment, draft=draft, gang_pull=gang_pull, front_load=front_load, disker=disker)
+    want = rk4_step_scalar(x, u, P)
+    got = STEP(x, rate, speed, roll, force_y, ripper_force, ripper_moment, draft, gang_pull, front_load, disker)
+    assert got == want   # exact, not approximately
+
+
+def test_one_tractor_path_records_the_batch_codes_epochs_counts_and_truth():
+    """The float bookkeeping of the one-tractor path gives what the array functions give on its states."""
+    cond = condition_for("disker", 1.79)
+    fast = TractorSimulator([cond], 12.0, [3], P, scalar=True)
+    ref = TractorSimulator([cond], 12.0, [3], P, scalar=True)
+    ref._record_epochs_scalar = ref._record_epochs    # the array code (gps.position_epoch, ...) on the same states
+    for k in range(1199):
+        d = 0.9 * np.sin(k * 0.021)
+        fast.set_duty(np.array([d]))
+        ref.set_duty(np.array([d]))
+        fast.step()
+        ref.step()
+        assert fast.wheel_angle_count() == int(fast.wheel_angle_counts()[0])
+    assert np.array_equal(fast.state, ref.state)
+    assert fast.n_pos == ref.n_pos and fast.n_att == ref.n_att and fast.n_pos > 50
+    for block in ("pos", "att"):
+        for key, arr in getattr(ref, block).items():
+            assert np.array_equal(getattr(fast, block)[key], arr), (block, key)
+    assert fast.truth_scalar() == {k: float(v[0]) for k, v in fast.truth().items()}

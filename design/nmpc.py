@@ -1,0 +1,471 @@
+"""Nonlinear MPC on the kinematic bicycle in path coordinates, with curvature preview (casadi).
+
+The model is the paper's kinematic tractor without its small-angle approximations, written
+relative to a curved path (Frenet coordinates of the control point, ``d2`` ahead of the rear
+axle); states ``x = [y, psi, delta]`` (cross-track [m, + left], heading error [rad, + CCW],
+wheel angle [rad, + left]), input ``u`` = steering rate [rad/s]; speed ``V`` [m/s] and the path
+curvature ``kappa`` [1/m, + left] are parameters::
+
+    w      = V tan(delta) / L                        (yaw rate, L = wheelbase)
+    y'     = V sin(psi) + d2 w cos(psi)
+    psi'   = w - kappa (V cos(psi) - d2 w sin(psi)) / (1 - kappa y)
+    delta' = u
+
+Linearised about ``y = psi = delta = 0`` with ``kappa = 0`` this is
+:func:`design.kinematic.kinematic_model`. On an arc of curvature ``kappa`` the control point
+stays on the path with ``psi = -asin(d2 kappa)`` and ``tan(delta) = L kappa / cos(psi)``; the
+cost penalises deviations from that steady state, so a constant curvature is tracked without
+offset.
+
+One optimal-control problem per tick over ``N`` stages of ``dt`` (RK4, input and curvature
+held over a stage; single shooting, so the decision variables are the ``N`` rates and one
+slack)::
+
+    min  sum_k (x_k - r_k)' Q (x_k - r_k) + R u_k^2  +  (x_N - r_N)' P (x_N - r_N)  +  rho1 e + rho2 e^2
+    s.t. |u_k| <= rate_limit                          (hard)
+         |delta_k| <= wheel_limit + e,  e >= 0       (soft, exact penalty: the problem is always feasible)
+
+``Q, R`` are the kinematic LQR's Bryson weights (:class:`~design.kinematic.KinematicWeights`), so
+with small errors, no active limit and the terminal cost ``P`` of the LQR at that speed (the
+default), the first move is the discrete kinematic LQR's. ``P`` is tabulated on a speed grid at
+construction and interpolated, like :class:`~design.controller.KinematicLQRController`'s gains.
+
+The solver is built once (a casadi ``nlpsol`` Function: ``sqpmethod`` with a QP plugin, or
+``ipopt``) and warm-started each tick with the previous solution shifted by one stage.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, fields
+from typing import Any, Mapping
+
+import casadi as ca
+import numpy as np
+
+from .controller import Measurement
+from .errors import DesignInputError, SynthesisError
+from .kinematic import KinematicWeights, kinematic_model
+
+__all__ = ["NMPCSettings", "NMPCSolution", "NonlinearMPC", "steady_state"]
+
+SOLVERS = ("gauss-newton", "sqp", "ipopt")
+_DEFAULT_ITER = {"gauss-newton": 2, "sqp": 10, "ipopt": 50}
+
+
+@dataclass(frozen=True)
+class NMPCSettings:
+    """Options of :class:`NonlinearMPC` (validated; unknown names are refused by :meth:`from_dict`).
+
+    Attributes
+    ----------
+    horizon
+        Number of stages ``N`` (1..400).
+    dt
+        Stage length and loop sample time, s.
+    weights
+        Bryson weights (same meaning as the kinematic LQR's).
+    rate_limit
+        Hard limit on the steering rate, rad/s.
+    wheel_limit
+        Soft limit on the wheel angle, rad.
+    slack_weight
+        Exact-penalty weight ``rho1`` on the wheel-angle slack, per rad (``rho2 = rho1 / wheel_limit``).
+    wheelbase, d2
+        Nominal geometry, m (``0 <= d2 < wheelbase``).
+    solver
+        ``"gauss-newton"``: a fixed number (``max_iter``) of full Gauss-Newton SQP steps, each
+        one QP, unrolled into one casadi Function (deterministic work per tick); ``"sqp"``:
+        casadi's ``sqpmethod`` (exact Hessian, converges to ``tol``); ``"ipopt"``.
+    qpsol
+        QP plugin of ``gauss-newton`` and ``sqp`` (``"daqp"``, ``"qrqp"``, ``"qpoases"``,
+        ``"osqp"``, ... any the casadi build has).
+    max_iter
+        Iteration cap per tick (``None``: 2 Gauss-Newton steps, 10 SQP or 50 ipopt iterations).
+    tol
+        Tolerance: ``sqpmethod``'s primal/dual one, ipopt's ``tol``; a Gauss-Newton solve counts
+        as converged when its last step is below ``1e3 * tol`` rad/s.
+    terminal
+        ``"lqr"``: terminal cost from the discrete Riccati equation at the measured speed; ``"none"``.
+    speed_range
+        Speeds of the terminal-cost table, m/s (clamped outside).
+    """
+
+    horizon: int = 30
+    dt: float = 0.05
+    weights: KinematicWeights = field(default_factory=KinematicWeights)
+    rate_limit: float = 0.30
+    wheel_limit: float = 0.50
+    slack_weight: float = 1.0e4
+    wheelbase: float = 2.85
+    d2: float = 1.14
+    solver: str = "gauss-newton"
+    qpsol: str = "daqp"
+    max_iter: int | None = None
+    tol: float = 1e-6
+    terminal: str = "lqr"
+    speed_range: tuple[float, float] = (0.3, 5.0)
+
+    def __post_init__(self) -> None:
+        n = self.horizon
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 400:
+            raise DesignInputError(f"horizon must be an integer number of stages in 1..400, got {n!r}")
+        for name in ("dt", "rate_limit", "wheel_limit", "slack_weight", "wheelbase", "tol"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise DesignInputError(f"NMPCSettings.{name} must be a finite number > 0, got {v!r}")
+        if not isinstance(self.d2, (int, float)) or not 0 <= self.d2 < self.wheelbase:
+            raise DesignInputError(f"d2 must lie in [0, wheelbase={self.wheelbase}) m, got {self.d2!r}")
+        if not isinstance(self.weights, KinematicWeights):
+            raise DesignInputError(f"weights must be KinematicWeights, got {type(self.weights).__name__}")
+        if self.solver not in SOLVERS:
+            raise DesignInputError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
+        if self.solver != "ipopt" and not (isinstance(self.qpsol, str) and ca.has_conic(self.qpsol)):
+            raise DesignInputError(f"qpsol {self.qpsol!r} is not a QP plugin of this casadi build; try 'qrqp', "
+                                   f"'daqp', 'hpipm' or 'osqp'")
+        if self.max_iter is None:
+            object.__setattr__(self, "max_iter", _DEFAULT_ITER.get(self.solver, 10))
+        m = self.max_iter
+        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not 1 <= m <= 1000:
+            raise DesignInputError(f"max_iter must be an integer in 1..1000, got {m!r}")
+        if self.terminal not in ("lqr", "none"):
+            raise DesignInputError(f"terminal must be 'lqr' or 'none', got {self.terminal!r}")
+        lo, hi = self.speed_range
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+            raise DesignInputError(f"speed_range must be 0 < low < high m/s, got {self.speed_range!r}")
+
+    @classmethod
+    def from_dict(cls, options: Mapping[str, Any]) -> "NMPCSettings":
+        """Settings from a mapping; an unknown name is refused (never ignored)."""
+        known = {f.name for f in fields(cls)}
+        bad = sorted(set(options) - known)
+        if bad:
+            raise DesignInputError(f"unknown NMPC option(s) {bad}; the options are {sorted(known)}")
+        return cls(**dict(options))
+
+
+def steady_state(kappa: np.ndarray | float, wheelbase: float = 2.85, d2: float = 1.14) -> tuple[Any, Any]:
+    """Heading error and wheel angle that keep the control point on an arc of curvature ``kappa``.
+
+    Returns ``(psi, delta)`` in rad: ``psi = -asin(d2 kappa)``, ``delta = atan(L kappa / cos psi)``.
+    Works on numbers, arrays and casadi expressions.
+    """
+    lib = ca if isinstance(kappa, (ca.SX, ca.MX)) else np
+    psi = -lib.arcsin(d2 * kappa) if lib is np else -ca.asin(d2 * kappa)
+    delta = (lib.arctan if lib is np else ca.atan)(wheelbase * kappa / lib.cos(psi))
+    return psi, delta
+
+
+@dataclass(frozen=True, slots=True)
+class NMPCSolution:
+    """One solve of :meth:`NonlinearMPC.solve`.
+
+    Attributes
+    ----------
+    u
+        Steering-rate sequence, rad/s, shape ``(N,)``; ``u[0]`` is the command.
+    states
+        Predicted ``[y, psi, delta]``, shape ``(N + 1, 3)``.
+    slack
+        Wheel-angle slack ``e``, rad.
+    cost
+        Optimal cost.
+    success
+        The solver reported success.
+    status
+        The solver's return status.
+    iterations
+        Solver iterations.
+    solve_time
+        Wall time of the solver call, s.
+    """
+
+    u: np.ndarray
+    states: np.ndarray
+    slack: float
+    cost: float
+    success: bool
+    status: str
+    iterations: int
+    solve_time: float
+
+
+def dare_doubling(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: float, tol: float = 1e-12) -> np.ndarray:
+    """Stabilising solution of the discrete algebraic Riccati equation by structured doubling.
+
+    ``P = Q + A'PA - A'PB (R + B'PB)^-1 B'PA`` for a single input. Small matrices only; used
+    instead of :func:`scipy.linalg.solve_discrete_are`, whose triangular solves can take tens of
+    milliseconds each on a loaded machine (multi-threaded BLAS on tiny matrices).
+    """
+    ak, gk, hk = a.copy(), b @ b.T / r, q.copy()
+    eye = np.eye(a.shape[0])
+    for _ in range(60):
+        w = np.linalg.inv(eye + gk @ hk)
+        a_w = ak @ w
+        h_next = hk + ak.T @ hk @ w @ ak
+        gk = gk + a_w @ gk @ ak.T
+        ak = a_w @ ak
+        if np.max(np.abs(h_next - hk)) <= tol * max(1.0, np.max(np.abs(h_next))):
+            return 0.5 * (h_next + h_next.T)
+        hk = h_next
+    raise SynthesisError("the Riccati doubling iteration did not converge (is the model stabilisable?)")
+
+
+def _rhs(x, u, speed, kappa, wheelbase, d2):
+    y, psi, delta = x[0], x[1], x[2]
+    w = speed * ca.tan(delta) / wheelbase
+    sdot = (speed * ca.cos(psi) - d2 * w * ca.sin(psi)) / (1 - kappa * y)
+    return ca.vertcat(speed * ca.sin(psi) + d2 * w * ca.cos(psi), w - kappa * sdot, u)
+
+
+class NonlinearMPC:
+    """The nonlinear kinematic MPC (see the module docstring); a :class:`~design.controller.Controller`.
+
+    :meth:`step` follows a straight line (zero curvature ahead); :meth:`step_curve` takes the
+    curvature preview of a curved line (e.g. :meth:`gnss.curve.ArcPath.preview` with
+    ``step = V * dt``).
+
+    Parameters
+    ----------
+    settings
+        :class:`NMPCSettings` (defaults if omitted).
+    """
+
+    def __init__(self, settings: NMPCSettings | None = None) -> None:
+        self.settings = s = settings or NMPCSettings()
+        self.name = f"nmpc-{s.solver}" + (f"-{s.qpsol}" if s.solver != "ipopt" else "")
+        self.dt = float(s.dt)
+        n = s.horizon
+        w = s.weights
+        self._q = np.diag([w.y_max ** -2, w.psi_max ** -2, w.delta_max ** -2])
+        self._r = w.u_max ** -2
+        lo, hi = s.speed_range
+        self.speeds = np.linspace(lo, hi, int(round((hi - lo) / 0.05)) + 1)   # the LQR table's grid
+        self._p_table = np.array([self._terminal(v) for v in self.speeds])
+        self._solver = self._build()
+        self._n_w = n + 1
+        self._lbx = np.r_[np.full(n, -s.rate_limit), 0.0]
+        self._ubx = np.r_[np.full(n, s.rate_limit), np.inf]
+        self._lbg = np.r_[np.full(n, -np.inf), np.full(n, -s.wheel_limit)]
+        self._ubg = np.r_[np.full(n, s.wheel_limit), np.full(n, np.inf)]
+        self.reset()
+
+    # -- construction --------------------------------------------------------------
+    def _terminal(self, speed: float) -> np.ndarray:
+        """Terminal weight ``P`` (3x3) at ``speed``: the discrete LQR's Riccati solution, or 0."""
+        s = self.settings
+        if s.terminal == "none":
+            return np.zeros((3, 3))
+        a, b = kinematic_model(float(speed), s.wheelbase, s.d2)
+        # exact zero-order hold: A is nilpotent (A^3 = 0)
+        ad = np.eye(3) + a * s.dt + a @ a * s.dt ** 2 / 2
+        bd = (np.eye(3) * s.dt + a * s.dt ** 2 / 2 + a @ a * s.dt ** 3 / 6) @ b
+        return dare_doubling(ad, bd, self._q, self._r)
+
+    def _build(self) -> ca.Function:
+        s = self.settings
+        n, h = s.horizon, s.dt
+        x = ca.SX.sym("x", 3)
+        u = ca.SX.sym("u")
+        v = ca.SX.sym("v")
+        kap = ca.SX.sym("kappa")
+
+        def f(xx):
+            return _rhs(xx, u, v, kap, s.wheelbase, s.d2)
+
+        k1 = f(x)
+        k2 = f(x + h / 2 * k1)
+        k3 = f(x + h / 2 * k2)
+        k4 = f(x + h * k3)
+        step = ca.Function("rk4", [x, u, v, kap], [x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
+
+        us = ca.SX.sym("u", n)
+        eps = ca.SX.sym("e")
+        x0 = ca.SX.sym("x0", 3)
+        kappas = ca.SX.sym("kappa", n)
+        pt = ca.SX.sym("P", 6)          # upper triangle of the terminal weight, row-major
+        p_mat = ca.vertcat(ca.horzcat(pt[0], pt[1], pt[2]), ca.horzcat(pt[1], pt[3], pt[4]),
+                           ca.horzcat(pt[2], pt[4], pt[5]))
+        sq = ca.DM(np.sqrt(np.diag(self._q)))
+        sr = math.sqrt(self._r)
+        rho1 = s.slack_weight
+        rho2 = s.slack_weight / s.wheel_limit
+        res = []                                  # cost = ||res||^2 + rho1 e
+        xk = x0
+        deltas = []
+        traj = [x0]
+        for k in range(n):
+            psi_r, del_r = steady_state(kappas[k], s.wheelbase, s.d2)
+            res.append(sq * (xk - ca.vertcat(0, psi_r, del_r)))
+            res.append(sr * us[k])
+            xk = step(xk, us[k], v, kappas[k])
+            deltas.append(xk[2])
+            traj.append(xk)
+        psi_r, del_r = steady_state(kappas[n - 1], s.wheelbase, s.d2)
+        res.append(ca.mtimes(ca.chol(p_mat + 1e-12 * ca.DM.eye(3)), xk - ca.vertcat(0, psi_r, del_r)))
+        res.append(math.sqrt(rho2) * eps)
+        r = ca.vertcat(*res)
+        cost = ca.sumsqr(r) + rho1 * eps
+        wv = ca.vertcat(us, eps)
+        pv = ca.vertcat(x0, v, kappas, pt)
+        self._trajectory = ca.Function("trajectory", [x0, us, v, kappas], [ca.horzcat(*traj).T])
+        d = ca.vertcat(*deltas)
+        g = ca.vertcat(d - eps, d + eps)
+        nlp = {"x": wv, "p": pv, "f": cost, "g": g}
+        if s.solver == "ipopt":
+            opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.max_iter": s.max_iter,
+                    "ipopt.tol": s.tol, "ipopt.warm_start_init_point": "yes"}
+            return ca.nlpsol("nmpc", "ipopt", nlp, opts)
+        qp_opts = self._qp_options()
+        if s.solver == "sqp":
+            opts = {"qpsol": s.qpsol, "qpsol_options": qp_opts, "print_time": False, "print_header": False,
+                    "print_iteration": False, "print_status": False, "max_iter": s.max_iter, "tol_pr": s.tol,
+                    "tol_du": s.tol, "error_on_fail": False}
+            return ca.nlpsol("nmpc", "sqpmethod", nlp, opts)
+        return self._gauss_newton(wv, pv, r, g, rho1)
+
+    def _qp_options(self) -> dict[str, Any]:
+        s = self.settings
+        qp_opts: dict[str, Any] = {"error_on_fail": False}
+        if s.qpsol == "qrqp":
+            qp_opts.update(print_iter=False, print_header=False)
+        elif s.qpsol == "osqp":
+            qp_opts["osqp"] = {"verbose": False, "eps_abs": 1e-8, "eps_rel": 1e-8, "polish": True}
+        elif s.qpsol == "qpoases":
+            qp_opts["printLevel"] = "none"
+        return qp_opts
+
+    def _gauss_newton(self, wv: ca.SX, pv: ca.SX, r: ca.SX, g: ca.SX, rho1: float) -> ca.Function:
+        """``max_iter`` full Gauss-Newton steps, each one QP, unrolled into one casadi Function.
+
+        The constraints are linear in the decision variables (``delta_k`` is ``delta_0`` plus a
+        sum of rates), so every iterate after the first QP is feasible; only the cost is
+        linearised. Outputs: the last iterate, its cost, the infinity norm of the last step and
+        the multipliers of the last QP.
+        """
+        s = self.settings
+        nw = wv.numel()
+        jac = ca.jacobian(r, wv)
+        lin = ca.Function("lin", [wv, pv], [r, jac, g])
+        a_mat = ca.DM(ca.evalf(ca.substitute(ca.jacobian(g, wv), ca.vertcat(wv, pv),
+                                             ca.DM.zeros(nw + pv.numel()))))
+        c = ca.DM.zeros(nw)
+        c[nw - 1] = rho1
+        h_sp = ca.Sparsity.dense(nw, nw)
+        qp = ca.conic("nmpc_qp", s.qpsol, {"h": h_sp, "a": a_mat.sparsity()}, self._qp_options())
+        w0, p = ca.MX.sym("w0", nw), ca.MX.sym("p", pv.numel())
+        lbx, ubx = ca.MX.sym("lbx", nw), ca.MX.sym("ubx", nw)
+        lbg, ubg = ca.MX.sym("lbg", g.numel()), ca.MX.sym("ubg", g.numel())
+        w = w0
+        for _ in range(s.max_iter):
+            rr, jj, gg = lin(w, p)
+            hess = 2 * ca.mtimes(jj.T, jj) + 1e-9 * ca.DM.eye(nw)
+            grad = 2 * ca.mtimes(jj.T, rr) + c
+            sol = qp(h=hess, g=grad, a=a_mat, lbx=lbx - w, ubx=ubx - w, lba=lbg - gg, uba=ubg - gg)
+            w = w + sol["x"]
+        rr, _, _ = lin(w, p)
+        cost = ca.sumsqr(rr) + rho1 * w[nw - 1]
+        return ca.Function("nmpc_gn", [w0, p, lbx, ubx, lbg, ubg],
+                           [w, cost, ca.norm_inf(sol["x"]), sol["lam_x"], sol["lam_a"]],
+                           ["x0", "p", "lbx", "ubx", "lbg", "ubg"], ["x", "f", "step", "lam_x", "lam_g"])
+
+    # -- solving -------------------------------------------------------------------
+    def terminal_weight(self, speed: float) -> np.ndarray:
+        """Interpolated terminal weight ``P`` at ``speed`` m/s (3x3)."""
+        v = float(np.clip(speed, self.speeds[0], self.speeds[-1]))
+        i = int(min(np.searchsorted(self.speeds, v, side="right") - 1, len(self.speeds) - 2))
+        t = (v - self.speeds[i]) / (self.speeds[i + 1] - self.speeds[i])
+        return (1 - t) * self._p_table[i] + t * self._p_table[i + 1]
+
+    def solve(self, state: np.ndarray, speed: float, curvature: np.ndarray | None = None,
+              warm: bool = True) -> NMPCSolution:
+        """Solve one problem from ``state = [y, psi, delta]`` at ``speed`` m/s.
+
+        Parameters
+        ----------
+        state
+            Cross-track (m, + left), heading error (rad), wheel angle (rad).
+        speed
+            m/s (> 0).
+        curvature
+            Mean path curvature over each of the ``N`` stages, 1/m, + left (``None``: straight).
+        warm
+            Start from the previous solution shifted by one stage.
+        """
+        s = self.settings
+        n = s.horizon
+        x0 = np.asarray(state, dtype=float).reshape(-1)
+        if x0.shape != (3,) or not np.all(np.isfinite(x0)):
+            raise DesignInputError(f"state must be 3 finite numbers [y m, psi rad, delta rad], got {state!r}")
+        if not (math.isfinite(speed) and speed > 0):
+            raise DesignInputError(f"speed must be a finite number of m/s > 0, got {speed!r}")
+        kap = np.zeros(n) if curvature is None else np.asarray(curvature, dtype=float).reshape(-1)
+        if kap.shape != (n,) or not np.all(np.isfinite(kap)):
+            raise DesignInputError(f"curvature preview must be {n} finite values in 1/m (one per stage), "
+                                   f"got shape {kap.shape}")
+        if np.any(np.abs(kap) * s.d2 >= 0.99) or np.any(np.abs(kap) * s.wheelbase > 2.0):
+            raise DesignInputError(f"curvature preview up to {np.abs(kap).max():.3f} 1/m is tighter than a "
+                                   f"tractor turns; check the path")
+        pm = self.terminal_weight(speed)
+        p = np.r_[x0, speed, kap, pm[0, 0], pm[0, 1], pm[0, 2], pm[1, 1], pm[1, 2], pm[2, 2]]
+        args = {"x0": self._w if warm else np.zeros(self._n_w), "p": p, "lbx": self._lbx, "ubx": self._ubx,
+                "lbg": self._lbg, "ubg": self._ubg}
+        if warm and s.solver != "gauss-newton":
+            args["lam_x0"], args["lam_g0"] = self._lam_x, self._lam_g
+        t0 = time.perf_counter()
+        out = self._solver(**args)
+        elapsed = time.perf_counter() - t0
+        w = np.asarray(out["x"]).reshape(-1)
+        u = w[:n]
+        if s.solver == "gauss-newton":
+            last_step = float(out["step"])
+            success = bool(np.all(np.isfinite(w))) and last_step <= 1e3 * s.tol
+            status, iterations = f"last step {last_step:.1e}", s.max_iter
+        else:
+            st = self._solver.stats()
+            success, status = bool(st.get("success", False)), str(st.get("return_status", ""))
+            iterations = int(st.get("iter_count", -1))
+        if not np.all(np.isfinite(w)):
+            raise SynthesisError(f"NMPC solver returned non-finite values ({status})")
+        # warm start of the next tick: shift by one stage
+        self._w = np.r_[u[1:], u[-1], w[n]]
+        lam_x = np.asarray(out["lam_x"]).reshape(-1)
+        lam_g = np.asarray(out["lam_g"]).reshape(-1)
+        self._lam_x = np.r_[lam_x[1:n], lam_x[n - 1], lam_x[n]]
+        self._lam_g = np.r_[lam_g[1:n], lam_g[n - 1], lam_g[n + 1:], lam_g[-1]]
+        states = self.predict(x0, u, speed, kap)
+        return NMPCSolution(u=u.copy(), states=states, slack=float(w[n]), cost=float(out["f"]),
+                            success=success, status=status, iterations=iterations, solve_time=elapsed)
+
+    def predict(self, state: np.ndarray, u: np.ndarray, speed: float, curvature: np.ndarray) -> np.ndarray:
+        """States ``(N + 1, 3)`` the model predicts for rates ``u`` (same RK4 as the problem)."""
+        return np.asarray(self._trajectory(np.asarray(state, dtype=float), np.asarray(u, dtype=float), speed,
+                                           np.asarray(curvature, dtype=float)))
+
+    # -- Controller protocol -------------------------------------------------------
+    def reset(self) -> None:
+        """Forget the warm start and the statistics."""
+        n = self.settings.horizon
+        self._w = np.zeros(n + 1)
+        self._lam_x = np.zeros(n + 1)
+        self._lam_g = np.zeros(2 * n)
+        self._x = (0.0, 0.0, 0.0)
+        self.last: NMPCSolution | None = None
+        self.failures = 0
+
+    def step_curve(self, m: Measurement, curvature: np.ndarray) -> float:
+        """Steering-rate command, rad/s, for a curved line with the curvature ``preview`` ahead."""
+        self._x = (m.cross_track, m.heading_error, m.wheel_angle)
+        sol = self.solve(np.array(self._x), max(m.speed, self.settings.speed_range[0]), curvature)
+        self.last = sol
+        if not sol.success:
+            self.failures += 1
+        return float(sol.u[0])
+
+    def step(self, m: Measurement) -> float:
+        """Steering-rate command, rad/s, for a straight line (zero curvature ahead)."""
+        return self.step_curve(m, np.zeros(self.settings.horizon))
+
+    def estimate(self) -> tuple[float, ...]:
+        return self._x

@@ -19,7 +19,10 @@ import math
 from functools import reduce
 from operator import xor
 
+from types import SimpleNamespace
+
 from pynmeagps import NMEAReader
+from pynmeagps.nmeatypes_get import NMEA_PAYLOADS_GET
 
 from .errors import ChecksumError, NMEAParseError
 from .messages import Avr, Gga, Gst, Hdt, Hpr, NmeaMessage, NmeaSentence, Rmc, Ths, Vtg
@@ -309,10 +312,48 @@ def parse_nmea(sentence: bytes, *, check: bool = True) -> NmeaMessage:
     if len(fields) < need:
         raise NMEAParseError(f"{address}: expected at least {need} fields, got {len(fields)}: {fields!r}")
     try:
-        raw = sentence if sentence.endswith(b"\r\n") else sentence.rstrip(b"\r\n") + b"\r\n"
-        decoded = NMEAReader.parse(raw, validate=0)
+        if kind in _LIBRARY_LAYOUTS:
+            decoded = _library_values(kind, fields)
+        else:
+            raw = sentence if sentence.endswith(b"\r\n") else sentence.rstrip(b"\r\n") + b"\r\n"
+            decoded = NMEAReader.parse(raw, validate=0)
         return _from_pynmeagps(kind, talker, decoded, fields)
     except NMEAParseError:
         raise
     except Exception as exc:  # pynmeagps raises assorted types on bad fields; normalise them
         raise NMEAParseError(f"{address}: a field is not what the sentence type requires ({exc}); fields {fields!r}") from exc
+
+
+# GGA and VTG (what the position receivers send 5 times a second) are decoded without building a
+# pynmeagps message object, which costs ~50 microseconds of generic machinery per sentence: their
+# layouts are read from pynmeagps's own table and each field gets the conversion pynmeagps gives its
+# type, in the same order, with the same error, so the result is what NMEAReader.parse gives
+# (tests/gnss/test_nmea_fast.py checks this with hypothesis against pynmeagps itself).
+_LIBRARY_LAYOUTS = {kind: tuple(NMEA_PAYLOADS_GET[kind].items()) for kind in ("GGA", "VTG")}
+_NEVER_FAILS = {"CH", "ST", "LAD", "LND", "QS", "HX", "TM", "LA", "LN"}  # pynmeagps maps bad text to "" or keeps it
+
+
+class _LibraryTypeError(ValueError):
+    """The error pynmeagps raises for a field it cannot convert (its text, for identical messages)."""
+
+
+def _library_values(kind: str, fields: list[str]) -> SimpleNamespace:
+    """The attribute values pynmeagps decodes from ``fields`` of a ``kind`` sentence (GET mode).
+
+    ``IN`` fields become ``int``, ``DE`` fields ``float`` (empty text stays ``""``); time and
+    latitude/longitude fields never fail in pynmeagps and are decoded strictly by this module
+    from the raw text instead, so they are kept as text. A payload shorter than the layout ends
+    the attributes (pynmeagps skips the missing ones).
+    """
+    out = {}
+    for (name, typ), text in zip(_LIBRARY_LAYOUTS[kind], fields):
+        if typ == "DE" or typ == "IN":
+            if text != "":
+                try:
+                    text = float(text) if typ == "DE" else int(text)
+                except ValueError:
+                    raise _LibraryTypeError(f"Incorrect type for attribute {name} in msgID {kind}.") from None
+        elif typ not in _NEVER_FAILS:  # pragma: no cover - a layout change in pynmeagps
+            raise NMEAParseError(f"pynmeagps type {typ!r} of {kind}.{name} has no fast decoding")
+        out[name] = text
+    return SimpleNamespace(**out)

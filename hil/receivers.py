@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gnss.geodesy import LocalFrame
+from gnss.geodesy_scalar import ScalarFrame
 from gnss.guidance import ABLine
 from gnss.messages import Avr, Gga, Vtg
 from gnss.nmea_encode import encode_avr, encode_gga, encode_vtg
@@ -82,7 +83,10 @@ class _Receiver:
         self.geometry = geometry
         self.uart = UartTx(line, link)
         self.rate, self.latency = rate, latency
-        self._jitter, self._lost, self._corruption = jitter, lost, corruption
+        # per-epoch values as Python lists (read once per epoch, and next_wakeup is asked often)
+        self._jitter, self._lost, self._corruption = jitter.tolist(), lost.tolist(), corruption.tolist()
+        self._n = len(self._lost)
+        self._due = self._arrival(0) if self._n else math.inf
         self.corrupted = 0
         self.k = 0
         self._retry = -math.inf
@@ -90,26 +94,28 @@ class _Receiver:
         self.suppressed: list[tuple[float, float]] = []   # fault injection: (start, end) with no output
 
     def _arrival(self, k: int) -> float:
-        return k / self.rate + self.latency + float(self._jitter[k])
+        return k / self.rate + self.latency + self._jitter[k]
 
     def next_wakeup(self) -> float:
-        due = self._arrival(self.k) if self.k < len(self._lost) else math.inf
-        return min(max(due, self._retry), self.uart.next_due())
+        due = self._due if self._due > self._retry else self._retry
+        held = self.uart.next_due()
+        return due if due < held else held
 
     def step(self, now: float) -> None:
         self.uart.flush(now)
-        while self.k < len(self._lost) and self._arrival(self.k) <= now + _EPS:
+        while self._due <= now + _EPS:
             if self._recorded() <= self.k:        # the plant has not reached the epoch yet
                 self._retry = now + self.tractor.params.dt
                 return
             k = self.k
             self.k += 1
+            self._due = self._arrival(self.k) if self.k < self._n else math.inf
             t_valid = k / self.rate
             if self._lost[k] or any(a <= t_valid < b for a, b in self.suppressed):
                 continue
             data = self._encode(k, t_valid)
             if self._corruption[k] >= 0:
-                data = corrupt(data, float(self._corruption[k]))
+                data = corrupt(data, self._corruption[k])
                 self.corrupted += 1
             self.uart.send(data, now)
             self.sent += 1
@@ -144,6 +150,7 @@ class PositionReceiver(_Receiver):
         super().__init__(tractor, link, geometry, line or LineConfig(baud=38400), g.position_rate,
                          g.position_latency, err.pos_jitter[0], err.pos_lost[0], err.pos_corrupt[0])
         self.downgraded: list[tuple[float, float]] = []     # fault injection: report RTK float instead
+        self._frame = ScalarFrame(geometry.origin)
 
     def _recorded(self) -> int:
         return self.tractor.sim.n_pos
@@ -153,7 +160,7 @@ class PositionReceiver(_Receiver):
         pos = sim.pos
         east, north = geo.line_to_enu(float(pos["x"][0, k]), float(pos["y"][0, k]))
         up = self.tractor.params.vehicle.antenna_height
-        lat, lon, h = geo.origin.to_geodetic(np.array([east, north, up]))
+        lat, lon, h = self._frame.to_geodetic(east, north, up)
         quality = int(pos["fix"][0, k])
         if any(a <= t_valid < b for a, b in self.downgraded):
             quality = 5

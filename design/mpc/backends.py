@@ -1,0 +1,197 @@
+"""QP back-ends of the MPC: each is set up once and then solves from a new measured state.
+
+* ``casadi``: the condensed QP (:meth:`MPCProblem.condensed`) through ``casadi.conic``
+  with a QP plugin of the installed wheel (``daqp``, ``qpoases``, ``osqp``, ``piqp``,
+  ``proxqp``, ``qrqp``, ``highs``; casadi's ``hpipm`` needs the stage-wise OCP
+  structure, which a condensed QP does not have, so it is not offered), wrapped once in a casadi ``Function`` of
+  ``(z0, x0)`` so one call per tick does the affine update of the gradient and bounds
+  and the solve in C. The default, DAQP (a dual active-set solver), is exact (limits
+  met to its primal tolerance) and the fastest measured (``benchmarks/bench_mpc.py``).
+* ``osqp``: the sparse QP (:meth:`MPCProblem.sparse`) in OSQP, set up once,
+  warm-started from the previous solution, with only the bounds of the initial-state
+  rows updated each tick (STYLE 7). An ADMM solver: cheap when nothing changes, but it
+  may need many iterations after a disturbance, and a capped solve is inexact.
+
+Work per tick is capped by the solver's iteration limit (``max_iter``; OSQP also gets a
+time limit). A back-end never raises on a failed solve: it returns ``ok=False`` and the
+controller falls back (:mod:`design.mpc.controller`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..errors import DesignInputError
+from .problem import MPCProblem
+
+BACKENDS = ("casadi", "osqp")
+CASADI_SOLVERS = ("daqp", "qpoases", "osqp", "piqp", "proxqp", "qrqp", "highs")
+# how each casadi plugin takes an iteration cap
+_ITER_OPTION = {"daqp": ("daqp", "iter_limit"), "qpoases": (None, "nWSR"), "osqp": ("osqp", "max_iter"),
+"piqp": ("piqp", "max_iter"), "proxqp": ("proxqp", "max_iter"),
+                "qrqp": (None, "max_iter"), "highs": (None, None)}
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Which QP solver the MPC uses and how much work it may do per tick.
+
+    Attributes
+    ----------
+    backend
+        ``"casadi"`` (condensed QP, casadi conic plugin) or ``"osqp"`` (sparse QP, osqp package).
+    solver
+        casadi plugin name (``backend="casadi"`` only; ignored by ``"osqp"``).
+    max_iter
+        Iteration cap per tick (the solver's own counter).
+    time_budget
+        Wall-clock budget per tick, s: a solve that takes longer is discarded and the
+        fallback command used (the loop's deadline is 50 ms at 20 Hz).
+    options
+        Extra solver options, passed through; the solver refuses unknown ones.
+    """
+
+    backend: str = "casadi"
+    solver: str = "daqp"
+    max_iter: int = 1000
+    time_budget: float = 0.025
+    options: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.backend not in BACKENDS:
+            raise DesignInputError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
+        if self.backend == "casadi" and self.solver not in CASADI_SOLVERS:
+            raise DesignInputError(f"casadi QP solver must be one of {CASADI_SOLVERS}, got {self.solver!r}")
+        if self.backend == "osqp":
+            object.__setattr__(self, "solver", "osqp")
+        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, int) or self.max_iter < 1:
+            raise DesignInputError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
+        tb = self.time_budget
+        if isinstance(tb, bool) or not isinstance(tb, (int, float)) or not np.isfinite(tb) or tb <= 0:
+            raise DesignInputError(f"time_budget must be a finite number of seconds > 0, got {tb!r}")
+        if not isinstance(self.options, Mapping):
+            raise DesignInputError(f"options must be a mapping, got {type(self.options).__name__}")
+        object.__setattr__(self, "options", dict(self.options))
+
+    def to_dict(self) -> dict:
+        """JSON form (controller files)."""
+        return {"backend": self.backend, "solver": self.solver, "max_iter": self.max_iter,
+                "time_budget": self.time_budget, "options": dict(self.options)}
+
+
+@dataclass
+class RawSolution:
+    """What a back-end returns: the input sequence (rad/s), the slack (rad) and the solver's verdict."""
+
+    u: np.ndarray
+    slack: float
+    ok: bool
+    status: str
+    iterations: int
+
+
+class CasadiConicBackend:
+    """Condensed QP in a casadi ``Function`` around ``casadi.conic`` (see module docstring)."""
+
+    def __init__(self, problem: MPCProblem, settings: SolverSettings) -> None:
+        import casadi as ca
+
+        if not ca.has_conic(settings.solver):
+            raise DesignInputError(f"casadi {ca.__version__} has no QP plugin {settings.solver!r}; "
+                                   f"choose one of {[s for s in CASADI_SOLVERS if ca.has_conic(s)]}")
+        self.name = f"casadi:{settings.solver}"
+        qp = problem.condensed()
+        self._n = problem.horizon
+        opts: dict[str, Any] = {"error_on_fail": False}
+        group, key = _ITER_OPTION[settings.solver]
+        extra = dict(settings.options)
+        if key is not None:
+            if group is None:
+                opts[key] = settings.max_iter
+            else:
+                opts[group] = {key: settings.max_iter, **extra.pop(group, {})}
+        if settings.solver == "qpoases":
+            opts.setdefault("printLevel", "none")
+        if settings.solver in ("qrqp", "osqp"):
+            opts.setdefault("print_problem", False)
+            if settings.solver == "qrqp":
+                opts.setdefault("print_iter", False)
+                opts.setdefault("print_header", False)
+            else:
+                opts.setdefault("osqp", {}).setdefault("verbose", False)
+        opts.update(extra)
+        h, m = ca.DM(qp.H), ca.DM(qp.M)
+        try:
+            solver = ca.conic("mpc_qp", settings.solver, {"h": h.sparsity(), "a": m.sparsity()}, opts)
+        except RuntimeError as exc:
+            raise DesignInputError(f"casadi refused the {settings.solver} options {opts}: {exc}") from None
+        z0 = ca.MX.sym("z0", problem.nz)
+        x0 = ca.MX.sym("x0", self._n + 1)
+        shift = ca.mtimes(ca.DM(qp.Lz), z0)
+        sol = solver(h=h, g=ca.mtimes(ca.DM(qp.G), z0) + ca.DM(qp.c), a=m, lba=ca.DM(qp.lb_a) + shift,
+                     uba=ca.DM(qp.ub_a) + shift, lbx=ca.DM(qp.lb), ubx=ca.DM(qp.ub), x0=x0)
+        self._fn = ca.Function("mpc_step", [z0, x0], [sol["x"]])
+        self._x = np.zeros(self._n + 1)
+
+    def reset(self) -> None:
+        """Forget the warm start."""
+        self._x = np.zeros(self._n + 1)
+
+    def solve(self, z0: np.ndarray) -> RawSolution:
+        x = np.asarray(self._fn(z0, self._x)).ravel()
+        st = self._fn.stats()
+        ok = bool(st.get("success", False)) and bool(np.all(np.isfinite(x)))
+        if ok:
+            self._x = np.r_[x[1:self._n], x[self._n - 1], 0.0]        # shifted guess for the next tick
+        else:
+            self._x = np.zeros(self._n + 1)
+        return RawSolution(x[:self._n], float(x[self._n]), ok, str(st.get("return_status", "")),
+                           int(st.get("iter_count", -1)))
+
+
+class OsqpBackend:
+    """Sparse QP in OSQP, set up once, warm-started, ``update(l, u)`` each tick."""
+
+    def __init__(self, problem: MPCProblem, settings: SolverSettings) -> None:
+        import osqp
+
+        qp = problem.sparse()
+        self.name = "osqp"
+        self._osqp = osqp
+        self._n, self._nx, self._nz = problem.horizon, qp.n_states, problem.nz
+        self._l, self._u = qp.l.copy(), qp.u.copy()
+        s = {"verbose": False, "warm_starting": True, "polishing": True, "eps_abs": 1e-6, "eps_rel": 1e-6,
+             "max_iter": settings.max_iter, "time_limit": settings.time_budget}
+        s.update(settings.options)
+        self._solver = osqp.OSQP()
+        try:
+            self._solver.setup(qp.P, qp.q, qp.A, self._l, self._u, **s)
+        except (ValueError, TypeError) as exc:
+            raise DesignInputError(f"OSQP refused the settings {s}: {exc}") from None
+        self._solved = (osqp.SolverStatus.OSQP_SOLVED,)
+
+    def reset(self) -> None:
+        """Forget the warm start."""
+        self._solver.warm_start(x=np.zeros(self._solver.n), y=np.zeros(self._solver.m))
+
+    def solve(self, z0: np.ndarray) -> RawSolution:
+        self._l[:self._nz] = -z0
+        self._u[:self._nz] = -z0
+        self._solver.update(l=self._l, u=self._u)
+        res = self._solver.solve(raise_error=False)
+        x = res.x
+        ok = res.info.status_val in self._solved and x is not None and bool(np.all(np.isfinite(x)))
+        if not ok:
+            x = np.full(self._solver.n, np.nan)
+        u = np.array(x[self._nx:self._nx + self._n])
+        return RawSolution(u, float(x[-1]), ok, str(res.info.status), int(res.info.iter))
+
+
+def make_backend(problem: MPCProblem, settings: SolverSettings) -> CasadiConicBackend | OsqpBackend:
+    """The back-end ``settings`` names, set up on ``problem``."""
+    if settings.backend == "osqp":
+        return OsqpBackend(problem, settings)
+    return CasadiConicBackend(problem, settings)

@@ -1,0 +1,218 @@
+"""The MPC as a vehicle-loop controller: measured state, one QP per tick, fallback and diagnostics.
+
+Each cycle :meth:`MPCController.step` normalises the measurement as the linear
+controller files do (y/V, psi/V with the speed floored at ``speed_min``, each clipped
+to ``output_clip``), forms the measured state ``z`` (present and past outputs, past
+applied commands, the integral of y/V; :mod:`design.mpc.problem`) and solves the QP.
+If the solver fails, hits its iteration cap, returns something non-finite or out of
+the rate limit, or takes longer than its time budget, the command is the fallback
+law on the same ``z`` (the robust LMI gain when the design was given one, else the
+unconstrained LQR of the Riccati terminal), clipped to the rate limit; the event is
+recorded in :attr:`MPCController.events`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..controller import Measurement
+from ..errors import DesignInputError
+from .backends import SolverSettings, make_backend
+from .problem import MPCProblem
+
+NORMALIZED = ("cross_track", "heading_error")          # divided by speed; wheel_angle is not
+
+
+@dataclass(frozen=True)
+class SolveInfo:
+    """One tick of the MPC.
+
+    Attributes
+    ----------
+    command
+        Steering-rate command sent, rad/s (the QP's first move, or the fallback's).
+    u0
+        The QP's first move, rad/s (nan when the solver failed).
+    slack
+        Wheel-angle excess the QP needed, rad (0 when the soft limit can be met).
+    status
+        Solver status text.
+    iterations
+        Solver iterations.
+    solve_time
+        Wall-clock time of the QP call, s.
+    fallback
+        True if ``command`` is the fallback law's.
+    reason
+        Why it fell back (empty otherwise).
+    """
+
+    command: float
+    u0: float
+    slack: float
+    status: str
+    iterations: int
+    solve_time: float
+    fallback: bool
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class FallbackEvent:
+    """A tick on which the fallback law steered: loop time (s), solver status and reason."""
+
+    t: float
+    status: str
+    reason: str
+
+
+class MPCController:
+    """Linear MPC implementing :class:`design.controller.Controller`.
+
+    Parameters
+    ----------
+    problem
+        The QP data (:func:`design.mpc.problem.mpc_problem`).
+    settings
+        QP solver and per-tick budget.
+    fallback_gain
+        (1, nz) ``K`` of the fallback law ``u = K z`` (default: the LQR, ``-problem.lqr_gain``).
+    fallback_name
+        What the fallback is (``"robust-lmi"`` or ``"lqr"``), for the record.
+    output_clip
+        Clip of each normalised output (None = none), as in the linear controller files.
+    speed_min
+        Floor of the speed used for normalisation, m/s.
+    name
+        Controller name (``name`` attribute is ``"mpc:<name>"``).
+
+    Attributes
+    ----------
+    last
+        :class:`SolveInfo` of the latest tick (None before the first).
+    ticks, fallbacks
+        Counters since construction (not reset on engage).
+    events
+        :class:`FallbackEvent` per fallback tick.
+    solve_times
+        Wall-clock time of every QP call, s.
+    """
+
+    def __init__(self, problem: MPCProblem, settings: SolverSettings | None = None,
+                 fallback_gain: np.ndarray | None = None, fallback_name: str = "lqr",
+                 output_clip: Sequence[float | None] | None = (0.1, 0.05, None), speed_min: float = 0.3,
+                 name: str = "mpc") -> None:
+        self.problem = problem
+        self.settings = settings or SolverSettings()
+        self.backend = make_backend(problem, self.settings)
+        self.name = f"mpc:{name}"
+        self.dt = problem.dt
+        nz = problem.nz
+        k = -problem.lqr_gain if fallback_gain is None else np.asarray(fallback_gain, dtype=float)
+        if k.shape != (1, nz) or not np.all(np.isfinite(k)):
+            raise DesignInputError(f"fallback_gain must be a finite (1, {nz}) matrix, got shape {k.shape}")
+        self.fallback_gain = k.copy()
+        self.fallback_gain.setflags(write=False)
+        self.fallback_name = fallback_name
+        q = problem.layout.n_outputs
+        clip = (None,) * q if output_clip is None else tuple(output_clip)
+        if len(clip) != q or any(c is not None and not (math.isfinite(c) and c > 0) for c in clip):
+            raise DesignInputError(f"output_clip needs {q} entries, each None or a finite number > 0; got {output_clip!r}")
+        self.output_clip = clip
+        if not (math.isfinite(speed_min) and speed_min > 0):
+            raise DesignInputError(f"speed_min must be a finite speed > 0 m/s, got {speed_min!r}")
+        self.speed_min = float(speed_min)
+        self._hi = np.array([np.inf if c is None else c for c in clip])
+        self.last: SolveInfo | None = None
+        self.ticks = 0
+        self.fallbacks = 0
+        self.events: list[FallbackEvent] = []
+        self.solve_times: list[float] = []
+        self._z = np.zeros(nz)
+        self._fresh = True
+
+    # -- the QP --------------------------------------------------------------------
+    def solve_qp(self, z0: np.ndarray) -> SolveInfo:
+        """Solve the MPC's QP from the measured state ``z0`` and choose the command.
+
+        Returns the :class:`SolveInfo` (first move, slack, status, iterations, time,
+        whether the fallback steered). Updates the counters, but not the controller's
+        memory of past outputs and commands (that is :meth:`step`'s).
+        """
+        z0 = np.asarray(z0, dtype=float)
+        lim = self.problem.limits.rate
+        t0 = time.perf_counter()
+        raw = self.backend.solve(z0)
+        dt = time.perf_counter() - t0
+        u0 = float(raw.u[0]) if raw.ok else math.nan
+        reason = ""
+        if not raw.ok:
+            reason = f"solver failed ({raw.status})"
+        elif not (math.isfinite(u0) and abs(u0) <= lim * (1 + 1e-6) + 1e-9):
+            reason = f"first move {u0!r} outside the rate limit {lim} rad/s"
+        elif dt > self.settings.time_budget:
+            reason = f"solve took {dt * 1e3:.2f} ms, over the {self.settings.time_budget * 1e3:.2f} ms budget"
+        if reason:
+            cmd = float(self.fallback_gain[0] @ z0)
+            cmd = min(max(cmd, -lim), lim) if math.isfinite(cmd) else 0.0
+        else:
+            cmd = min(max(u0, -lim), lim)
+        info = SolveInfo(cmd, u0, raw.slack if raw.ok else math.nan, raw.status, raw.iterations, dt, bool(reason),
+                         reason)
+        self.ticks += 1
+        self.solve_times.append(dt)
+        if reason:
+            self.fallbacks += 1
+        self.last = info
+        return info
+
+    # -- the Controller protocol ---------------------------------------------------
+    def outputs(self, m: Measurement) -> np.ndarray:
+        """Normalised, clipped outputs ``[y/V, psi/V, delta]`` of one measurement."""
+        v = max(float(m.speed), self.speed_min)
+        y = np.array([m.cross_track / v, m.heading_error / v, m.wheel_angle])
+        return np.clip(y, -self._hi, self._hi)
+
+    def state(self, y: np.ndarray) -> np.ndarray:
+        """The measured state ``z`` for present outputs ``y`` (does not change the memory)."""
+        lay = self.problem.layout
+        z = self._z.copy()
+        if self._fresh:                        # bumpless engage: past outputs = present, no past command
+            z[:] = 0.0
+            for lag in range(lay.past + 1):
+                z[lay.output_slot(lag)] = y
+        else:
+            z[lay.output_slot(0)] = y
+        return z
+
+    def reset(self) -> None:
+        self._z = np.zeros(self.problem.nz)
+        self._fresh = True
+        self.backend.reset()
+
+    def step(self, m: Measurement) -> float:
+        z = self.state(self.outputs(m))
+        info = self.solve_qp(z)
+        if info.fallback:
+            self.events.append(FallbackEvent(float(m.t), info.status, info.reason))
+        u = info.command
+        self._fresh = False
+        self._z = self.problem.A @ z + self.problem.B[:, 0] * u      # shifts the window, integrates y/V
+        return u
+
+    def estimate(self) -> tuple[float, ...]:
+        """The measured state ``z`` of the latest step (model units)."""
+        return tuple(float(v) for v in self._z)
+
+    def diagnostics(self) -> dict:
+        """Counters and solve-time statistics since construction (times in ms)."""
+        t = np.asarray(self.solve_times) * 1e3
+        stats = {"median_ms": float(np.median(t)), "p99_ms": float(np.percentile(t, 99)),
+                 "max_ms": float(t.max())} if t.size else {}
+        return {"backend": self.backend.name, "ticks": self.ticks, "fallbacks": self.fallbacks,
+                "fallback_law": self.fallback_name, **stats}

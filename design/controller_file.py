@@ -141,6 +141,21 @@ def _reject_constant(token: str) -> float:
     raise ControllerFileError(f"non-finite number {token} in the controller file")
 
 
+def read_json(path: str | Path) -> Any:
+    """The parsed JSON of a controller file; :class:`ControllerFileError` if unreadable, invalid or non-finite."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ControllerFileError(f"{path}: cannot read ({exc})") from None
+    try:
+        return json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise ControllerFileError(f"{path}: not valid JSON ({exc})") from None
+    except ControllerFileError as exc:
+        raise ControllerFileError(f"{path}: {exc}") from None
+
+
 def read_controller_file(path: str | Path, dt: float | None = 0.05) -> ControllerFile:
     """Read and check a controller file.
 
@@ -157,17 +172,7 @@ def read_controller_file(path: str | Path, dt: float | None = 0.05) -> Controlle
         Malformed JSON, unknown schema or kind, bad checksum, wrong dimensions,
         non-finite numbers or a sample-time mismatch.
     """
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ControllerFileError(f"{path}: cannot read ({exc})") from None
-    try:
-        body = json.loads(text, parse_constant=_reject_constant)
-    except json.JSONDecodeError as exc:
-        raise ControllerFileError(f"{path}: not valid JSON ({exc})") from None
-    except ControllerFileError as exc:
-        raise ControllerFileError(f"{path}: {exc}") from None
+    body = read_json(path)
     try:
         return _from_body(body, dt)
     except (ControllerFileError, DesignInputError) as exc:
@@ -290,8 +295,11 @@ class LinearController:
         return tuple(float(v) for v in self._xc)
 
 
-def load_controller(path: str | Path, dt: float | None = 0.05) -> LinearController:
-    """Read, check and instantiate a linear controller file for the vehicle loop.
+def load_controller(path: str | Path, dt: float | None = 0.05):
+    """Read, check and instantiate a controller file for the vehicle loop.
+
+    A file of kind ``"linear"`` gives a :class:`LinearController`, one of kind ``"mpc"``
+    a :class:`design.mpc.MPCController` (:mod:`design.mpc.file`).
 
     Parameters
     ----------
@@ -300,4 +308,8 @@ def load_controller(path: str | Path, dt: float | None = 0.05) -> LinearControll
     dt
         The loop's sample time, s (default 0.05 = 20 Hz); the file must match it.
     """
+    body = read_json(path)
+    if isinstance(body, dict) and body.get("kind") == "mpc":
+        from .mpc.file import load_mpc      # deferred: the QP solvers load only for MPC files (and mpc imports us)
+        return load_mpc(path, dt)
     return LinearController(read_controller_file(path, dt))

@@ -88,8 +88,11 @@ def test_wrong_schema_and_kind_are_refused(saved, tmp_path):
     p = _rewrite(saved, lambda b: b.__setitem__("schema", "design-controller/0"))
     with pytest.raises(ControllerFileError, match="unsupported schema 'design-controller/0'"):
         load_controller(p)
-    p = _rewrite(saved, lambda b: (b.__setitem__("schema", "design-controller/1"), b.__setitem__("kind", "mpc")))
-    with pytest.raises(ControllerFileError, match="kind 'mpc' is not supported"):
+    p = _rewrite(saved, lambda b: (b.__setitem__("schema", "design-controller/1"), b.__setitem__("kind", "pid")))
+    with pytest.raises(ControllerFileError, match="kind 'pid' is not supported"):
+        load_controller(p)
+    p = _rewrite(saved, lambda b: b.__setitem__("kind", "mpc"))      # an MPC file is read as one, and lacks its keys
+    with pytest.raises(ControllerFileError, match=r"missing keys \['model', 'estimator', 'horizon'"):
         load_controller(p)
 
 

@@ -6,6 +6,7 @@
     design lqr --model models/central.npz [--verify-on models/local_*.npz] --out controllers/central-lqr.json
     design verify CONTROLLER --models models/*.npz
     design export CONTROLLER --format json|c-header|csv [--out FILE]
+    design mpc --models models/*.npz --horizon N [--backend casadi|osqp] [--solver daqp|...] --out controllers/mpc.json
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import sys
 
 import numpy as np
 
-from . import cli_robust
+from . import cli_mpc, cli_robust
 from .errors import DesignError
 from .kinematic import KinematicWeights, gains_versus_speed
 
@@ -74,6 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--json", action="store_true", help="print the result as JSON")
     k.set_defaults(func=_cmd_kinematic)
     cli_robust.add_parsers(sub, _float)
+    cli_mpc.add_parser(sub, _float)
     return p
 
 
@@ -90,6 +92,8 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(result, indent=2))
     elif args.command in ("robust", "lqr", "verify", "export"):
         print(cli_robust.render(result))
+    elif args.command == "mpc":
+        print(cli_mpc.render(result))
     else:
         print(f"{'speed m/s':>10} {'K_y':>10} {'K_psi':>10} {'K_delta':>10}")
         for row in zip(result["speeds"], result["k_cross_track"], result["k_heading"], result["k_wheel_angle"]):

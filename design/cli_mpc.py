@@ -1,0 +1,104 @@
+"""Sub-command ``design mpc`` (thin layer over :mod:`design.mpc.design`).
+
+    design mpc --models models/*.npz --horizon N [--backend casadi|osqp] [--solver daqp|qpoases|...]
+               [--fallback controllers/robust.json] --out controllers/mpc.json [--json]
+
+The prediction model is the model of kind ``central`` among ``--models`` (or ``--central``);
+the unconstrained law is checked closed around every other model given.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from identification.model import Model
+
+from .cli_robust import _load_models, certificate_table
+from .errors import DesignInputError
+from .mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
+from .mpc.design import MPCSpec, design_mpc, fallback_from_file
+from .mpc.problem import TERMINALS, MPCLimits, MPCWeights, mpc_problem
+from .weights import OutputWeights
+
+
+def cmd_mpc(args: argparse.Namespace) -> dict:
+    models = _load_models(args.models)
+    if args.central:
+        central = Model.load(args.central)
+        others = models
+    else:
+        centrals = [m for m in models if m.meta.get("kind") == "central"]
+        if len(centrals) != 1:
+            raise DesignInputError(f"expected exactly one model of kind 'central' among --models, found "
+                                   f"{len(centrals)}; name the prediction model with --central")
+        central = centrals[0]
+        others = [m for m in models if m is not central]
+    weights = MPCWeights(OutputWeights(tuple(args.y_max), args.u_max, args.i_max), args.slack_weight,
+                         args.slack_weight * 1e-2, args.terminal)
+    limits = MPCLimits(args.rate_limit, args.wheel_angle_limit)
+    settings = SolverSettings(args.backend, args.solver, args.max_iter, args.time_budget_ms * 1e-3)
+    spec = MPCSpec(args.horizon, weights, limits, settings, args.past,
+                   tuple(None if c <= 0 else c for c in args.output_clip), args.speed_min, args.name)
+    gain = None
+    if args.fallback:
+        gain = fallback_from_file(args.fallback, mpc_problem(central, args.horizon, weights, limits, args.past))
+    res = design_mpc(central, others, spec, gain, require=not args.allow_unstable)
+    res.file.save(args.out)
+    f = res.file
+    return {"out": str(args.out), "horizon": f.horizon, "dt": f.dt, "prediction_model": f.design["design_model"],
+            "weights": {**f.design["weights"], "slack_linear": weights.slack_linear,
+                        "slack_quadratic": weights.slack_quadratic, "terminal": weights.terminal},
+            "limits": {"rate": limits.rate, "wheel_angle": limits.wheel_angle},
+            "solver": settings.to_dict(), "fallback": f.fallback_law,
+            "unconstrained_gain": f.design["unconstrained_gain"], "certificate": dict(f.certificate)}
+
+
+def add_parser(sub: argparse._SubParsersAction, number) -> None:
+    """Register ``mpc`` on the ``design`` parser."""
+    p = sub.add_parser("mpc", help="linear MPC on the central model (controller file of kind 'mpc')")
+    p.add_argument("--models", nargs="+", required=True, help="model files or directories (one central)")
+    p.add_argument("--central", help="prediction model (default: the one of kind 'central' in --models)")
+    p.add_argument("--out", required=True, help="controller file (.json)")
+    p.add_argument("--horizon", type=int, default=50, help="prediction steps (default 50 = 2.5 s at 20 Hz)")
+    p.add_argument("--backend", choices=BACKENDS, default="casadi",
+                   help="casadi: condensed QP through casadi.conic; osqp: sparse QP in OSQP")
+    p.add_argument("--solver", choices=CASADI_SOLVERS, default="daqp", help="casadi QP plugin")
+    p.add_argument("--max-iter", type=int, default=1000, help="solver iteration cap per tick")
+    p.add_argument("--time-budget-ms", type=number, default=25.0,
+                   help="per-tick solve budget, ms; a slower solve is replaced by the fallback law")
+    p.add_argument("--rate-limit", type=number, default=0.35, help="hard steering-rate limit, rad/s")
+    p.add_argument("--wheel-angle-limit", type=number, default=0.5, help="soft wheel-angle limit, rad")
+    p.add_argument("--slack-weight", type=number, default=1e5, help="exact-penalty price of the wheel-angle slack")
+    p.add_argument("--terminal", choices=TERMINALS, default="riccati")
+    p.add_argument("--fallback", help="robust controller file (window structure, --integral) whose gain is the "
+                                      "fallback law (default: the unconstrained LQR)")
+    p.add_argument("--past", type=int, default=1, help="past samples in the measured state")
+    p.add_argument("--output-clip", type=number, nargs=3, default=[0.1, 0.05, 0.0],
+                   help="clip of each normalised output (0 = none)")
+    p.add_argument("--speed-min", type=number, default=0.3, help="speed floor of the normalisation, m/s")
+    p.add_argument("--y-max", type=number, nargs="+", default=[0.05, 0.03, 0.09],
+                   help="Bryson output maxima in model units (y/V s, psi/V rad s/m, delta rad)")
+    p.add_argument("--u-max", type=number, default=0.35, help="Bryson steering rate, rad/s")
+    p.add_argument("--i-max", type=number, default=0.5, help="Bryson integral of y/V, s^2")
+    p.add_argument("--allow-unstable", action="store_true",
+                   help="write it even if the unconstrained law is unstable on some model (recorded)")
+    p.add_argument("--name", default=None)
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.set_defaults(func=cmd_mpc, default_name="mpc")
+
+
+def render(result: dict) -> str:
+    """Text summary of ``design mpc``."""
+    w, lim, s = result["weights"], result["limits"], result["solver"]
+    solver = s["backend"] if s["backend"] == "osqp" else f"casadi conic / {s['solver']}"
+    lines = [f"MPC on {result['prediction_model']}: horizon {result['horizon']} x {result['dt']:g} s "
+             f"= {result['horizon'] * result['dt']:g} s, terminal cost {w['terminal']}",
+             f"weights: y_max {w['y_max']}, u_max {w['u_max']:g} rad/s, i_max {w['i_max']:g}; "
+             f"wheel-angle slack {w['slack_linear']:g} per rad + {w['slack_quadratic']:g} per rad^2",
+             f"limits: rate {lim['rate']:g} rad/s (hard), wheel angle {lim['wheel_angle']:g} rad (soft)",
+             f"solver: {solver}, at most {s['max_iter']} iterations and {s['time_budget'] * 1e3:g} ms per tick; "
+             f"fallback law: {result['fallback']}",
+             "unconstrained law closed around each model:",
+             certificate_table(result["certificate"]),
+             f"wrote {result['out']}"]
+    return "\n".join(lines)

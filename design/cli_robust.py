@@ -56,13 +56,15 @@ def cmd_robust(args: argparse.Namespace) -> dict:
     spec = RobustSpec(_weights(args), args.formulation, args.solver, args.pole_radius, args.rate_limit,
                       tuple(args.initial_errors), args.integral, args.past, args.command_limit, name=args.name,
                       structure=args.structure, nominal=nominal,
-                      output_clip=tuple(None if c <= 0 else c for c in args.output_clip), method=args.method)
+                      output_clip=tuple(None if c <= 0 else c for c in args.output_clip), method=args.method,
+                      backend=args.backend, refine=args.refine)
     res = design_robust(models, spec)
     res.file.save(args.out)
     d = res.file.design
     return {"out": str(args.out), "certificate": dict(res.file.certificate), "guaranteed_cost": d["guaranteed_cost"],
             "implausible_models": d["implausible_models"],
             "conservatism": d["conservatism"], "times_s": d["times_s"], "formulation": spec.formulation,
+            "synthesis_bound": d["synthesis_bound"], "refine_steps": d["refine_steps"],
             "solver": spec.solver}
 
 
@@ -113,6 +115,10 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     r.add_argument("--solver", choices=("clarabel", "scs"), default="clarabel")
     r.add_argument("--method", choices=("all", "rounds"), default="all",
                    help="one LMI over all models, or a subset plus worst-violator rounds")
+    r.add_argument("--backend", choices=("auto", "direct", "cvxpy"), default="auto",
+                   help="LMIs assembled directly for Clarabel, or through cvxpy (auto: direct for clarabel)")
+    r.add_argument("--refine", type=int, default=3,
+                   help="slack-update steps after the synthesis LMI (0 = none; each can only lower the bound)")
     r.add_argument("--integral", action="store_true", help="integral action on cross-track/speed")
     r.add_argument("--pole-radius", type=number, default=None, help="closed-loop poles in |z| <= R")
     r.add_argument("--rate-limit", type=number, default=None,
@@ -156,7 +162,11 @@ def render(result: dict) -> str:
         return result["text"] if result["text"] is not None else f"wrote {result['out']} ({result['format']})"
     lines = [certificate_table(result["certificate"])]
     if "guaranteed_cost" in result:
-        lines.append(f"guaranteed cost {result['guaranteed_cost']:.6g}, conservatism "
+        refined = ""
+        if result.get("refine_steps"):
+            refined = (f" (synthesis LMI {result['synthesis_bound']:.6g}, "
+                       f"{result['refine_steps']} slack-update steps)")
+        lines.append(f"guaranteed cost {result['guaranteed_cost']:.6g}{refined}, conservatism "
                      f"{result['conservatism']:.3f}; times " +
                      ", ".join(f"{k} {v:.3f} s" for k, v in result["times_s"].items()))
     for c in result.get("implausible_models", []):

@@ -1,4 +1,4 @@
-"""Robust state feedback for a finite set of models by LMIs (cvxpy; Clarabel or SCS).
+"""Robust state feedback for a finite set of models by LMIs (cvxpy or direct; Clarabel or SCS).
 
 For ``z[k+1] = A_i z[k] + B_i u[k] + Bw w[k]``, i = 1..N, and ``u = K z``, the
 guaranteed H2 / LQ cost ``J_i = tr((Q + K'RK) L_i)`` with ``L_i`` the closed loop's
@@ -7,21 +7,35 @@ states ``z0`` = columns of ``Bw``) is bounded over all models by ``gamma``:
 
 ``common`` (quadratic stabilisation; one Gramian bound ``P`` for every model, ``Y = K P``)::
 
-    [P - Bw Bw',  A_i P + B_i Y;  *,  P] > 0,    [W,  Cz P + Dz Y;  *,  P] > 0,    tr W < gamma
+    [P - Bw Bw',  A_i P + B_i Y;  *,  P] > 0,    [W,  R^½ Y;  *,  P] > 0,    tr(Q P) + tr W < gamma
 
 ``extended`` (de Oliveira, Geromel & Bernussou 2002: one ``P_i`` per model, a common
-slack ``G``, ``Y = K G``)::
+slack ``G``, ``Y = K G``, ``S_i = G + G' - P_i``)::
 
-    [P_i,  A_i G + B_i Y,  Bw;  *,  G + G' - P_i,  0;  *,  *,  I] > 0,
-    [W_i,  Cz G + Dz Y;  *,  G + G' - P_i] > 0,    tr W_i < gamma
+    [P_i - Bw Bw',  A_i G + B_i Y;  *,  S_i] > 0,    [W_i,  R^½ Y;  *,  S_i] > 0,    tr(Q P_i) + tr W_i < gamma
 
-with ``Cz = [Q^½; 0]``, ``Dz = [0; R^½]``. For one model both give the Riccati cost.
+``P_i`` bounds the Gramian ``L_i`` of model i, so the state part of the cost is the linear
+``tr(Q P_i)``; only the input part needs a Schur complement (``G S_i^-1 G' >= P_i``).
+For one model both forms give the Riccati cost.
+
+The common slack ``G`` is what makes the extended bound conservative over many models:
+on the 15 tractor models (window coordinates with an integral) its bound is about 19 %
+above the worst exact cost of the very gain it returns. ``refine`` slack-update steps
+remove that: with the H2 slack of model i fixed at the exact Gramian of the current gain
+on model i, ``[P_i - Bw Bw', (A_i + B_i K) L_i; *, 2 L_i - P_i] > 0`` and
+``[W_i, R^½ K L_i; *, 2 L_i - P_i] > 0`` are linear in ``K``; the current gain is feasible
+with ``P_i = L_i``, so the new LMI bound is never larger (a pole or input-bound LMI keeps
+its own slack from the previous step the same way). The bound stays an LMI certificate
+for every model of the set.
+
 Options: every closed-loop pole inside the disk ``|s| <= r`` (``[r P, A P + B Y; *, r P] > 0``,
 or its extended analogue), and ``|u| <= u_bar`` on an invariant ellipsoid that contains a
 stated set of initial errors (``[u_bar^2, Y; *, P] > 0``, ``E0 E0' < P``; in the extended
 form with its own ellipsoid ``P^e_i`` per model: ``[P^e_i, A_i G + B_i Y; *, G + G' - P^e_i] > 0``,
 ``[u_bar^2, Y; *, G + G' - P^e_i] > 0``, ``E0 E0' < P^e_i``).
 
+Backends: ``direct`` assembles the conic data itself (:mod:`design.lmi_direct`) and calls
+Clarabel; ``cvxpy`` states the same LMIs in cvxpy (Clarabel or SCS).
 Problems are scaled before solving (states and input by the caller's Bryson sizes).
 After every solve the design is re-checked exactly on every model (spectral radius and
 a Lyapunov equation); a design that fails is refused whatever the solver reported.
@@ -38,11 +52,14 @@ import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
+from . import lmi_direct
 from .compensator import spectral_radius
 from .errors import DesignInputError, SynthesisError
+from .lmi_conic import DIRECT_METHODS
 
 FORMULATIONS = ("common", "extended")
 SOLVERS = {"clarabel": cp.CLARABEL, "scs": cp.SCS}
+BACKENDS = ("auto", "direct", "cvxpy")
 
 
 @dataclass(frozen=True)
@@ -65,6 +82,20 @@ class LMIOptions:
         Margin (scaled units) that turns strict LMIs into non-strict ones.
     cost_tolerance
         Relative tolerance of the exact per-model cost over the returned bound.
+    backend
+        ``"direct"``: the LMIs assembled as sparse conic data and passed to Clarabel's own
+        API (:mod:`design.lmi_direct`; several times faster); ``"cvxpy"``: the cvxpy
+        formulation (Clarabel or SCS); ``"auto"`` (default): direct for Clarabel, cvxpy for SCS.
+    refine
+        Slack-update steps after the synthesis LMI (0 = none): with the H2 slack of each
+        model fixed at the exact Gramian of the current gain on that model, the LMIs are
+        linear in ``K`` and the previous gain is feasible, so each step returns an LMI bound
+        no larger than the last; it stops early when the bound improves by less than
+        ``refine_tolerance`` (relative).
+    refine_tolerance
+        Relative improvement below which the refinement stops.
+    direct_method
+        Clarabel's linear solver on the direct path (``"auto"``, ``"qdldl"``, ``"faer"``).
     """
 
     formulation: str = "extended"
@@ -74,6 +105,10 @@ class LMIOptions:
     initial_set: np.ndarray | None = field(default=None, compare=False)
     strictness: float = 1e-7
     cost_tolerance: float = 1e-3
+    backend: str = "auto"
+    refine: int = 3
+    refine_tolerance: float = 1e-3
+    direct_method: str = "auto"
 
     def __post_init__(self) -> None:
         if self.formulation not in FORMULATIONS:
@@ -88,7 +123,15 @@ class LMIOptions:
             raise DesignInputError(f"input_bound must be a finite number > 0 rad/s, got {u!r}")
         if (u is None) != (self.initial_set is None):
             raise DesignInputError("input_bound and initial_set go together: give both or neither")
-        for name in ("strictness", "cost_tolerance"):
+        if self.backend not in BACKENDS:
+            raise DesignInputError(f"backend must be one of {BACKENDS}, got {self.backend!r}")
+        if self.backend == "direct" and self.solver != "clarabel":
+            raise DesignInputError(f"the direct backend calls Clarabel; solver {self.solver!r} needs backend 'cvxpy'")
+        if self.direct_method not in DIRECT_METHODS:
+            raise DesignInputError(f"direct_method must be one of {DIRECT_METHODS}, got {self.direct_method!r}")
+        if isinstance(self.refine, bool) or not isinstance(self.refine, int) or self.refine < 0:
+            raise DesignInputError(f"refine must be an integer >= 0 (slack-update steps), got {self.refine!r}")
+        for name in ("strictness", "cost_tolerance", "refine_tolerance"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise DesignInputError(f"{name} must be a finite number >= 0, got {v!r}")
@@ -113,7 +156,13 @@ class StateFeedbackDesign:
     status
         Solver status string.
     times
-        Seconds: ``build`` (cvxpy problem), ``solve`` (compile + solver), ``check``.
+        Seconds: ``build`` (the problem: cvxpy expressions, or the sparse conic data),
+        ``compile`` (cvxpy's canonicalisation, or the direct data's assembly and Clarabel's
+        set-up), ``solve`` (the solver itself), ``check`` (exact per-model checks), ``total``.
+    synthesis_bound
+        Bound of the synthesis LMI before refinement (``bound`` is after it; <= this).
+    refine_steps
+        Slack-update steps that lowered the bound.
     """
 
     K: np.ndarray
@@ -123,6 +172,8 @@ class StateFeedbackDesign:
     names: tuple[str, ...]
     status: str
     times: dict
+    synthesis_bound: float = math.nan
+    refine_steps: int = 0
 
 
 def closed_loop_cost(a: np.ndarray, b: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray,
@@ -157,10 +208,9 @@ def _check_systems(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndarray]) -
     return nz, m
 
 
-def _build(a_s, b_s, cz, dz, bw, opts: LMIOptions, u_bar: float | None, e0: np.ndarray | None,
+def _build(a_s, b_s, qs, rs, bw, opts: LMIOptions, u_bar: float | None, e0: np.ndarray | None,
            use_pole: bool, use_bound: bool):
     nz, m = b_s[0].shape
-    nw = cz.shape[0]
     eps = opts.strictness
     ie = np.eye(bw.shape[1])
     y = cp.Variable((m, nz))
@@ -168,15 +218,14 @@ def _build(a_s, b_s, cz, dz, bw, opts: LMIOptions, u_bar: float | None, e0: np.n
     r = opts.pole_radius
     if opts.formulation == "common":
         p = cp.Variable((nz, nz), symmetric=True)
-        w = cp.Variable((nw, nw), symmetric=True)
+        w = cp.Variable((m, m), symmetric=True)
         for a, b in zip(a_s, b_s):
             acl = a @ p + b @ y
             cons.append(_sym(cp.bmat([[p - bw @ bw.T, acl], [acl.T, p]])) >> eps * np.eye(2 * nz))
             if use_pole:
                 cons.append(_sym(cp.bmat([[r * p, acl], [acl.T, r * p]])) >> 0)
-        perf = cz @ p + dz @ y
-        cons.append(_sym(cp.bmat([[w, perf], [perf.T, p]])) >> 0)
-        objective = cp.trace(w)
+        cons.append(_sym(cp.bmat([[w, rs @ y], [(rs @ y).T, p]])) >> 0)
+        objective = cp.trace(qs @ p) + cp.trace(w)
         lyap, gvar = [p], p
         slack = [p]
     else:
@@ -186,14 +235,13 @@ def _build(a_s, b_s, cz, dz, bw, opts: LMIOptions, u_bar: float | None, e0: np.n
         slack = []
         for a, b in zip(a_s, b_s):
             p = cp.Variable((nz, nz), symmetric=True)
-            w = cp.Variable((nw, nw), symmetric=True)
+            w = cp.Variable((m, m), symmetric=True)
             acl = a @ g + b @ y
             s = g + g.T - p
             cons.append(_sym(cp.bmat([[p, acl, bw], [acl.T, s, np.zeros((nz, bw.shape[1]))],
                                       [bw.T, np.zeros((bw.shape[1], nz)), ie]])) >> eps * np.eye(2 * nz + bw.shape[1]))
-            perf = cz @ g + dz @ y
-            cons.append(_sym(cp.bmat([[w, perf], [perf.T, s]])) >> 0)
-            cons.append(cp.trace(w) <= gamma)
+            cons.append(_sym(cp.bmat([[w, rs @ y], [(rs @ y).T, s]])) >> 0)
+            cons.append(cp.trace(qs @ p) + cp.trace(w) <= gamma)
             if use_pole:
                 cons.append(_sym(cp.bmat([[r * p, acl], [acl.T, r * s]])) >> 0)
             lyap.append(p)
@@ -217,12 +265,133 @@ def _build(a_s, b_s, cz, dz, bw, opts: LMIOptions, u_bar: float | None, e0: np.n
     return cp.Problem(cp.Minimize(objective), cons), y, gvar
 
 
+def _build_refine(a_s, b_s, qs, rs, bw, opts: LMIOptions, u_bar, e0, use_pole, use_bound, gh, gp, ge):
+    """cvxpy twin of :func:`design.lmi_direct.build_refine` (slacks fixed, ``K`` free)."""
+    nz, m = b_s[0].shape
+    eps, r = opts.strictness, opts.pole_radius
+    k = cp.Variable((m, nz))
+    gamma = cp.Variable()
+    cons, pp, pe = [], [], []
+    for i, (a, b) in enumerate(zip(a_s, b_s)):
+        p = cp.Variable((nz, nz), symmetric=True)
+        w = cp.Variable((m, m), symmetric=True)
+        s = gh[i] + gh[i].T - p
+        acl = a @ gh[i] + b @ k @ gh[i]
+        cons.append(_sym(cp.bmat([[p - bw @ bw.T, acl], [acl.T, s]])) >> eps * np.eye(2 * nz))
+        perf = rs @ k @ gh[i]
+        cons += [_sym(cp.bmat([[w, perf], [perf.T, s]])) >> 0, cp.trace(qs @ p) + cp.trace(w) <= gamma]
+        if use_pole:
+            q = cp.Variable((nz, nz), symmetric=True)
+            aclp = a @ gp[i] + b @ k @ gp[i]
+            cons.append(_sym(cp.bmat([[r * q, aclp], [aclp.T, r * (gp[i] + gp[i].T - q)]])) >> 0)
+            pp.append(q)
+        if use_bound:
+            q = cp.Variable((nz, nz), symmetric=True)
+            acle, se = a @ ge[i] + b @ k @ ge[i], ge[i] + ge[i].T - q
+            cons.append(_sym(cp.bmat([[q, acle], [acle.T, se]])) >> 0)
+            cons.append(_sym(cp.bmat([[np.array([[u_bar ** 2]]) * np.eye(m), k @ ge[i]], [(k @ ge[i]).T, se]])) >> 0)
+            cons.append(_sym(cp.bmat([[q, e0], [e0.T, np.eye(e0.shape[1])]])) >> 0)
+            pe.append(q)
+    return cp.Problem(cp.Minimize(gamma), cons), k, pp, pe
+
+
 def _solve(prob: cp.Problem, solver: str) -> str:
     try:
         prob.solve(solver=SOLVERS[solver])
     except cp.error.SolverError:
         return "solver_error"        # Clarabel gives up on some infeasible problems: diagnosed by the caller
     return str(prob.status)
+
+
+def _backend(opts: LMIOptions) -> str:
+    if opts.backend == "auto":
+        return "direct" if opts.solver == "clarabel" else "cvxpy"
+    return opts.backend
+
+
+def _run_cvxpy(prob: cp.Problem, solver: str) -> tuple[str, dict]:
+    t0 = time.perf_counter()
+    status = _solve(prob, solver)
+    wall = time.perf_counter() - t0
+    st = getattr(prob, "solver_stats", None)
+    inner = st.solve_time if st is not None and st.solve_time is not None else wall
+    inner = min(inner, wall)
+    return status, {"compile": wall - inner, "solve": inner}
+
+
+def _run_direct(pr, objective, method: str) -> tuple[str, np.ndarray | None, dict]:
+    status, x, info = pr.solve(objective, method)
+    return status, x, {"compile": info["setup_time"], "solve": info["solve_time"]}
+
+
+def _synth(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, use_pole: bool, use_bound: bool) -> dict:
+    """One synthesis LMI: ``status``, scaled gain ``K``, bound, common slack ``G``, times."""
+    t0 = time.perf_counter()
+    if _backend(opts) == "direct":
+        pr, obj, h = lmi_direct.build_synthesis(a_s, b_s, qs, rs, bws, opts.formulation, opts.strictness,
+                                                opts.pole_radius if use_pole else None,
+                                                u_bar if use_bound else None, e0 if use_bound else None)
+        t1 = time.perf_counter()
+        status, x, tm = _run_direct(pr, obj, opts.direct_method)
+        if x is None:
+            return {"status": status, "K": None, "times": {"build": t1 - t0, **tm}}
+        y, g, value = h["Y"].value(x), h["G"].value(x), obj.value(x)[0, 0]
+    else:
+        prob, yv, gv = _build(a_s, b_s, qs, rs, bws, opts, u_bar, e0, use_pole, use_bound)
+        t1 = time.perf_counter()
+        status, tm = _run_cvxpy(prob, opts.solver)
+        if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or yv.value is None:
+            return {"status": status, "K": None, "times": {"build": t1 - t0, **tm}}
+        y, g, value = yv.value, gv.value, prob.value
+    return {"status": str(status), "K": y @ np.linalg.inv(g), "bound": float(value), "G": g,
+            "times": {"build": t1 - t0, **tm}}
+
+
+def _refine(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, use_pole: bool, use_bound: bool,
+            first: dict) -> tuple[dict, int]:
+    """Slack-update steps from the synthesis result ``first``; returns the best result and the steps taken."""
+    best, steps = first, 0
+    n = len(a_s)
+    gp = ge = [first["G"]] * n
+    for _ in range(opts.refine):
+        gh = []
+        for a, b in zip(a_s, b_s):
+            acl = a + b @ best["K"]
+            if spectral_radius(acl) >= 1.0:
+                return best, steps
+            gh.append(sla.solve_discrete_lyapunov(acl, bws @ bws.T))
+        t0 = time.perf_counter()
+        if _backend(opts) == "direct":
+            pr, obj, h = lmi_direct.build_refine(a_s, b_s, qs, rs, bws, opts.strictness,
+                                                 opts.pole_radius if use_pole else None,
+                                                 u_bar if use_bound else None, e0 if use_bound else None, gh, gp, ge)
+            t1 = time.perf_counter()
+            status, x, tm = _run_direct(pr, obj, opts.direct_method)
+            ok = x is not None
+            if ok:
+                k, value = h["K"].value(x), obj.value(x)[0, 0]
+                npp, npe = [q.value(x) for q in h["Pp"]], [q.value(x) for q in h["Pe"]]
+        else:
+            prob, kv, ppv, pev = _build_refine(a_s, b_s, qs, rs, bws, opts, u_bar, e0, use_pole, use_bound,
+                                               gh, gp, ge)
+            t1 = time.perf_counter()
+            status, tm = _run_cvxpy(prob, opts.solver)
+            ok = status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) and kv.value is not None
+            if ok:
+                k, value = kv.value, prob.value
+                npp, npe = [q.value for q in ppv], [q.value for q in pev]
+        for key, v in (("build", t1 - t0), *tm.items()):
+            best["times"][key] += v
+        if not ok or not math.isfinite(value) or value >= best["bound"]:
+            return best, steps
+        steps += 1
+        improved = (best["bound"] - value) / best["bound"]
+        best = {**best, "K": k, "bound": float(value), "status": str(status)}
+        gp = npp if use_pole else gp
+        ge = npe if use_bound else ge
+        if improved < opts.refine_tolerance:
+            break
+    return best, steps
 
 
 def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndarray], q: np.ndarray,
@@ -272,24 +441,23 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
     s, si, su = np.diag(scale), np.diag(1.0 / scale), float(input_scale)
     a_s = [si @ a @ s for a in a_list]
     b_s = [si @ b * su for b in b_list]
-    cz = _sqrt_psd(s @ q @ s)
-    rs = _sqrt_psd(su * su * r)
-    czf = np.vstack([cz, np.zeros((m, nz))])
-    dzf = np.vstack([np.zeros((cz.shape[0], m)), rs])
+    qs = s @ q @ s
+    rs = sla.sqrtm(su * su * r).real
     bws = si @ bw
     e0 = None if opts.initial_set is None else si @ np.asarray(opts.initial_set, float)
     if e0 is not None and e0.shape[0] != nz:
         raise DesignInputError(f"initial_set must have {nz} rows, got {e0.shape[0]}")
     u_bar = None if opts.input_bound is None else opts.input_bound / su
     use_pole, use_bound = opts.pole_radius is not None, opts.input_bound is not None
-    prob, y, gvar = _build(a_s, b_s, czf, dzf, bws, opts, u_bar, e0, use_pole, use_bound)
-    t1 = time.perf_counter()
-    status = _solve(prob, opts.solver)
+    res = _synth(a_s, b_s, qs, rs, bws, opts, u_bar, e0, use_pole, use_bound)
+    status = res["status"]
+    if res["K"] is None:
+        raise SynthesisError(_diagnose(a_s, b_s, qs, rs, bws, opts, u_bar, e0, status))
+    lmi_bound = res["bound"]
+    res, steps = _refine(a_s, b_s, qs, rs, bws, opts, u_bar, e0, use_pole, use_bound, res)
     t2 = time.perf_counter()
-    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or y.value is None:
-        raise SynthesisError(_diagnose(a_s, b_s, czf, dzf, bws, opts, u_bar, e0, status))
-    k = su * (y.value @ np.linalg.inv(gvar.value)) @ si
-    bound = float(prob.value)
+    k = su * res["K"] @ si
+    bound = res["bound"]
     costs, radii = [], []
     for name, a, b in zip(names, a_list, b_list):
         rho = spectral_radius(a + b @ k)
@@ -305,11 +473,13 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
             raise SynthesisError(f"solver reported {status!r} but on {name} the exact cost {cost:.6g} exceeds "
                                  f"the guaranteed bound {bound:.6g}; the design is refused")
     t3 = time.perf_counter()
-    return StateFeedbackDesign(k, bound, tuple(costs), tuple(radii), names, status,
-                               {"build": t1 - t0, "solve": t2 - t1, "check": t3 - t2})
+    times = {**res["times"], "check": t3 - t2}
+    times["total"] = t3 - t0
+    return StateFeedbackDesign(k, bound, tuple(costs), tuple(radii), names, res["status"], times,
+                               synthesis_bound=lmi_bound, refine_steps=steps)
 
 
-def _diagnose(a_s, b_s, czf, dzf, bws, opts: LMIOptions, u_bar, e0, status: str) -> str:
+def _diagnose(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, status: str) -> str:
     head = f"the {opts.formulation} LMIs are infeasible over {len(a_s)} models (solver status {status!r})"
     extras = [(opts.pole_radius is not None, "the pole region (raise --pole-radius towards 1 or drop it)"),
               (opts.input_bound is not None, "the input bound (raise --rate-limit or shrink the initial-error set)")]
@@ -317,15 +487,14 @@ def _diagnose(a_s, b_s, czf, dzf, bws, opts: LMIOptions, u_bar, e0, status: str)
         for drop_pole, drop_bound, what in ((True, False, extras[0][1]), (False, True, extras[1][1])):
             if (drop_pole and opts.pole_radius is None) or (drop_bound and opts.input_bound is None):
                 continue
-            prob, y, _ = _build(a_s, b_s, czf, dzf, bws, opts, u_bar, e0,
-                                opts.pole_radius is not None and not drop_pole,
-                                opts.input_bound is not None and not drop_bound)
-            st = _solve(prob, opts.solver)
-            if st in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) and y.value is not None:
+            res = _synth(a_s, b_s, qs, rs, bws, opts, u_bar, e0, opts.pole_radius is not None and not drop_pole,
+                         opts.input_bound is not None and not drop_bound)
+            if res["K"] is not None:
                 return f"{head}; feasible without {what.split(' (')[0]}: relax {what}"
-    if status == "solver_error":
-        head = (f"solver {opts.solver} failed on the {opts.formulation} LMIs over {len(a_s)} models (likely "
-                f"infeasible; or try --solver {'scs' if opts.solver == 'clarabel' else 'clarabel'})")
+    if status not in ("infeasible", "infeasible_inaccurate", "optimal", "optimal_inaccurate"):
+        other = "scs" if opts.solver == "clarabel" else "clarabel"
+        head = (f"solver {opts.solver} failed on the {opts.formulation} LMIs over {len(a_s)} models (status "
+                f"{status!r}; likely infeasible; or try --solver {other})")
     hint = "try --formulation extended (less conservative)" if opts.formulation == "common" else \
         "no single linear controller of this structure was found; drop the most different model, or " \
         "lengthen the measured window (--past)"
@@ -353,11 +522,12 @@ def robust_state_feedback_rounds(a_list: Sequence[np.ndarray], b_list: Sequence[
     q, r, bw = np.asarray(q, float), np.asarray(r, float), np.asarray(bw, float)
     order = np.argsort([-spectral_radius(a) for a in a_list])
     active = list(order[:max(1, min(initial, len(a_list)))])
-    times = {"build": 0.0, "solve": 0.0, "check": 0.0}
+    times = {"build": 0.0, "compile": 0.0, "solve": 0.0, "check": 0.0}
+    t_start = time.perf_counter()
     for rnd in range(1, max_rounds + 1):
         sub = robust_state_feedback([a_list[i] for i in active], [b_list[i] for i in active], q, r, bw, scale,
                                     input_scale, opts, [names[i] for i in active])
-        for k in ("build", "solve"):
+        for k in ("build", "compile", "solve", "check"):
             times[k] += sub.times[k]
         t0 = time.perf_counter()
         radii, costs, bad = [], [], []
@@ -371,7 +541,9 @@ def robust_state_feedback_rounds(a_list: Sequence[np.ndarray], b_list: Sequence[
                 bad.append((cost if math.isfinite(cost) else math.inf, rho, i))
         times["check"] += time.perf_counter() - t0
         if not bad:
-            return StateFeedbackDesign(sub.K, sub.bound, tuple(costs), tuple(radii), names, sub.status, times), rnd
+            times["total"] = time.perf_counter() - t_start
+            return StateFeedbackDesign(sub.K, sub.bound, tuple(costs), tuple(radii), names, sub.status, times,
+                                       sub.synthesis_bound, sub.refine_steps), rnd
         bad.sort(key=lambda t: (t[0], t[1]), reverse=True)
         active += [i for _, _, i in bad[:add] if i not in active]
     raise SynthesisError(f"{len(bad)} models still violate the bound after {max_rounds} rounds "

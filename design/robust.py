@@ -72,6 +72,8 @@ class RobustSpec:
         Kalman predictor (filters noise; stability verified after synthesis).
     nominal
         The model whose predictor the ``observer`` structure uses (e.g. the central model).
+    backend, refine
+        See :class:`design.lmi.LMIOptions` (direct conic build or cvxpy; slack-update steps).
     """
 
     weights: OutputWeights = field(default_factory=OutputWeights)
@@ -89,6 +91,8 @@ class RobustSpec:
     method: str = "all"
     structure: str = "window"
     nominal: Model | None = field(default=None, compare=False)
+    backend: str = "auto"
+    refine: int = 3
 
     def __post_init__(self) -> None:
         if self.structure not in STRUCTURES:
@@ -242,7 +246,8 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
     if spec.rate_limit is not None:
         e0 = _initial_set(layout, spec.initial_errors) if spec.structure == "window" else \
             _anchored_initial_set(d["Bw"].shape[0], spec.initial_errors)
-    opts = LMIOptions(spec.formulation, spec.solver, spec.pole_radius, spec.rate_limit, e0)
+    opts = LMIOptions(spec.formulation, spec.solver, spec.pole_radius, spec.rate_limit, e0,
+                      backend=spec.backend, refine=spec.refine)
     args = (a_list, b_list, d["Q"], d["R"], d["Bw"], d["scale"], d["input_scale"], opts, names)
     if spec.method == "rounds":
         syn, _rounds = robust_state_feedback_rounds(*args)
@@ -271,6 +276,9 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
               "method": spec.method,
               "gain_K": syn.K.tolist(), "guaranteed_cost": syn.bound, "costs": list(syn.costs),
               "lqr_costs": lqr_costs, "conservatism": syn.bound / max(lqr_costs),
+              "backend": spec.backend, "refine": spec.refine, "refine_steps": syn.refine_steps,
+              "synthesis_bound": syn.synthesis_bound,
+              "conservatism_before_refine": syn.synthesis_bound / max(lqr_costs),
               "synthesis_radii": list(syn.radii), "times_s": syn.times,
               "implausible_models": [{"name": c.name, "pulse_outputs": list(c.outputs)}
                                      for c in implausible(models, names)]}

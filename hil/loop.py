@@ -30,7 +30,7 @@ import numpy as np
 
 from design.controller import Controller, Measurement
 from gnss.frontend import GnssFrontEnd
-from gnss.guidance import ABLine
+from gnss.guidance import ABLine, TrackErrors
 from identification.passlog import PassLog
 
 from .bridge.driver import BridgeDriver, BridgeLinkError
@@ -126,7 +126,9 @@ class VehicleLoop:
         controller.reset()
         self.engaged = False
         self.events: list[dict] = []
-        self._rows: dict[str, list[float]] = {k: [] for k in _COLUMNS}
+        self._rows: list[tuple[float, ...]] = []   # one tuple per cycle, fields in _COLUMNS order
+        self._line_errors = _scalar_line_errors(line)
+        self._center, self._rad_per_count = float(calibration.center_counts), float(calibration.rad_per_count)
         self._truth_rows: dict[str, list[float]] = {}
         self._estimates: list[tuple[float, ...]] = []
         self._healthy_since = math.inf
@@ -154,15 +156,14 @@ class VehicleLoop:
         rep = self.driver.latest
         bridge_valid = rep is not None and self.driver.is_alive()
         if bridge_valid:
-            delta = float(self.calibration.to_angle(rep.adc_counts))
+            delta = (float(rep.adc_counts) - self._center) * self._rad_per_count   # calibration.to_angle
         else:
             delta = self._last["wheel_angle"]
             reasons.append("bridge silent")
         nav = self.frontend.step(now)
         gps_valid = math.isfinite(nav.east) and math.isfinite(nav.north) and math.isfinite(nav.yaw)
         if gps_valid:
-            err = self.line.errors(nav.east, nav.north, nav.yaw)
-            xte, he = float(err.cross_track), float(err.heading_error)
+            xte, he = self._line_errors(nav.east, nav.north, nav.yaw)
         else:
             xte, he = self._last["cross_track"], self._last["heading_error"]
         speed = nav.speed if math.isfinite(nav.speed) else self._last["speed"]
@@ -211,7 +212,7 @@ class VehicleLoop:
                 self.latched = why
                 self._disengage(now, why, link_ok)
             else:
-                u = float(np.clip(raw, -cfg.max_rate, cfg.max_rate))
+                u = min(max(raw, -cfg.max_rate), cfg.max_rate)
                 self._response.append((u, delta))
                 try:
                     self.driver.send_rate(u)
@@ -222,14 +223,10 @@ class VehicleLoop:
         compute = time.perf_counter() - wall0
         late = now - t_due
         done = self.clock.now()
-        row = {"t": now, "cross_track": xte, "heading_error": he, "wheel_angle": delta, "speed": speed,
-               "steer_rate_cmd": u, "engaged": float(self.engaged), "healthy": float(healthy),
-               "gps_valid": float(gps_valid), "bridge_valid": float(bridge_valid),
-               "integrity": float(INTEGRITY_CODES.get(nav.integrity.state.name, 9)),
-               "fix_quality": float(int(nav.fix)), "compute_time": compute, "lateness": late,
-               "deadline_miss": float(done - t_due > 1.0 / cfg.rate), "adc_counts": float(rep.adc_counts) if rep else -1.0}
-        for k, v in row.items():
-            self._rows[k].append(v)
+        self._rows.append((now, xte, he, delta, speed, u, float(self.engaged), float(healthy), float(gps_valid),
+                           float(bridge_valid), float(INTEGRITY_CODES.get(nav.integrity.state.name, 9)),
+                           float(int(nav.fix)), compute, late, float(done - t_due > 1.0 / cfg.rate),
+                           float(rep.adc_counts) if rep else -1.0))   # _COLUMNS order
         self._estimates.append(tuple(self.controller.estimate()))
         if self.truth is not None:
             for k, v in self.truth().items():
@@ -293,7 +290,8 @@ class VehicleLoop:
 
     def run_log(self, meta: dict) -> PassLog:
         """The record as a pass log (cycle time base for every channel) with ``meta`` added."""
-        r = {k: np.asarray(v, dtype=float) for k, v in self._rows.items()}
+        table = np.array(self._rows, dtype=float).reshape(-1, len(_COLUMNS))
+        r = {k: table[:, i].copy() for i, k in enumerate(_COLUMNS)}
         t = r.pop("t")
         if t.size < 2:
             raise SimulatorConfigError("a run log needs at least two cycles")
@@ -320,3 +318,28 @@ class VehicleLoop:
                      "time_stamps": "loop cycle time; missing GPS/bridge values hold the last one (see *_valid)"}
         return PassLog(times={"t": t, "t_cross_track": t, "t_heading_error": t, "t_speed": t},
                        channels=chans, meta=full_meta)
+
+
+def _scalar_line_errors(line: ABLine) -> Callable[[float, float, float], tuple[float, float]]:
+    """``(cross_track, heading_error)`` of one point, as ``line.errors`` gives them, on floats.
+
+    For an :class:`~gnss.guidance.ABLine` the same arithmetic as ``ABLine.errors`` (and
+    ``gnss.frames.wrap_angle``) in the same order, with the line's direction and angle taken
+    once, so the values are bit-for-bit those of ``line.errors`` without its per-call arrays;
+    any other line goes through its own ``errors``.
+    """
+    if type(line) is not ABLine:
+        def generic(east: float, north: float, yaw: float) -> tuple[float, float]:
+            err: TrackErrors = line.errors(east, north, yaw)
+            return float(err.cross_track), float(err.heading_error)
+        return generic
+    d0, d1 = (float(v) for v in line.direction)
+    a0, a1 = (float(v) for v in line.a)
+    angle = line.angle
+    pi, two_pi, half_pi = np.pi, 2.0 * np.pi, np.pi / 2
+
+    def ab(east: float, north: float, yaw: float) -> tuple[float, float]:
+        re, rn = east - a0, north - a1
+        enu = (half_pi - yaw + pi) % two_pi - pi
+        return rn * d0 - re * d1, (enu - angle + pi) % two_pi - pi
+    return ab

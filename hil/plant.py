@@ -79,7 +79,7 @@ class SimulatedTractor:
             raise SimulatorConfigError(f"valve duty must be finite, got {duty!r}")
         self._duty = float(duty)
         if not self._in(self.stuck_intervals):
-            self.sim.set_duty(np.array([self._duty]))
+            self.sim.set_duty_scalar(self._duty)
 
     def wheel_angle_counts(self) -> int:
         """8-bit ADC reading of the potentiometer now, 0..255."""
@@ -88,6 +88,17 @@ class SimulatedTractor:
     def manual_override(self) -> bool:
         """True while the (simulated) driver turns the steering wheel."""
         return self._in(self.override_intervals)
+
+    def override_steady_until(self) -> float:
+        """Earliest time, s, at which :meth:`manual_override` may change (``inf``: never).
+
+        The bridge firmware polls the override switch every ``input_poll_period``; on the
+        bench it skips the polls that cannot see a change. The simulator's time lags the
+        clock by less than a step and runs ahead of it by at most 1e-9 s, hence the margin.
+        """
+        t = self.sim.time
+        nxt = min((c for ab in self.override_intervals for c in ab if c > t), default=math.inf)
+        return nxt - 1e-6
 
     def advance(self, dt: float) -> None:
         """Let ``dt`` seconds pass (steps the simulator on its own grid)."""
@@ -103,9 +114,11 @@ class SimulatedTractor:
             sim.step()
             self._pending -= h
             if was_stuck and not self._in(stuck):
-                sim.set_duty(np.array([self._duty]))   # the spool frees: latest duty applies
+                sim.set_duty_scalar(self._duty)   # the spool frees: latest duty applies
 
     def _in(self, intervals: tuple[Interval, ...]) -> bool:
+        if not intervals:
+            return False
         t = self.sim.time
         return any(a <= t < b for a, b in intervals)
 

@@ -17,6 +17,7 @@ Typical use (one tractor, as the emulated bridge drives it)::
 
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
@@ -25,7 +26,7 @@ from . import disturbances, gps, vehicle
 from .conditions import Condition
 from .errors import SimulatorConfigError
 from .params import SimParams
-from .steering import sensor_counts, valve_rate
+from .steering import sensor_counts, valve_rate, valve_rate_scalar
 from .vehicle import DEL, N_STATE, PSI, X, Y
 
 SeedLike = int | np.random.SeedSequence
@@ -139,6 +140,18 @@ class TractorSimulator:
         self._rate_cmd = valve_rate(self.duty, self.params.steering)
         if self._scalar_exo is not None:
             self._rate0 = float(self._rate_cmd[0])
+
+    def set_duty_scalar(self, duty: float) -> None:
+        """:meth:`set_duty` for a one-tractor batch, from a float (no arrays on the scalar path)."""
+        if self._scalar_exo is None:
+            self.set_duty(np.array([duty]))
+            return
+        if not math.isfinite(duty):
+            raise SimulatorConfigError("valve duty must be finite")
+        d = min(max(float(duty), -1.0), 1.0)
+        self.duty[0] = d
+        self._rate0 = valve_rate_scalar(d, self.params.steering)
+        self._rate_cmd[0] = self._rate0
 
     def step(self) -> None:
         """Advance every tractor by one integration step ``dt``."""

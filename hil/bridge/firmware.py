@@ -21,7 +21,9 @@ Behaviour (the contract the host and the tests rely on)
 * Manual override (sampled at every step, and at least every
   ``input_poll_period``): while active the valve is closed, the bridge is
   disengaged and the OVERRIDE flag is set; re-engaging needs an ``Engage``
-  after the driver lets go.
+  after the driver lets go. A plant that has ``override_steady_until()`` (the
+  simulated tractor) says when the switch can next change; the firmware then
+  skips the polls before that time, which could only read an unchanged switch.
 * ``Ping``: answered with a ``Pong`` carrying the same token (does not feed
   the watchdog).
 * Bad frames (CRC, length, unknown id, reserved bits, or a bridge-to-host
@@ -174,6 +176,7 @@ class BridgeFirmware:
         self._commands = 0
         self._refused = 0
         self._link_errors = 0
+        self._steady_until = getattr(plant, "override_steady_until", None)
 
     # -- device interface ------------------------------------------------------------------
     def next_wakeup(self) -> float:
@@ -197,7 +200,7 @@ class BridgeFirmware:
             self._plant.set_valve_duty(0.0)
             self._duty = 0.0
         self._last_step = now
-        self._next_poll = now + self.config.input_poll_period
+        self._next_poll = self._poll_after(now)
         self._ingest(now)
         self._sample_override()
         # Bounded: the inbox only holds events already decoded.
@@ -217,6 +220,18 @@ class BridgeFirmware:
             self._tx.flush(now)
         except OSError:
             self._link_errors += 1
+
+    def _poll_after(self, now: float) -> float:
+        """When to poll the inputs next: ``input_poll_period`` after ``now``; on a plant that
+        says when its override switch can next change (``override_steady_until``), the first
+        such poll from then on (the polls before it would only read an unchanged switch)."""
+        period = self.config.input_poll_period
+        t = now + period
+        if self._steady_until is not None:
+            until = self._steady_until()
+            if until > t:
+                t = now + math.ceil((until - now) / period) * period if math.isfinite(until) else math.inf
+        return t
 
     # -- state -----------------------------------------------------------------------------
     @property
@@ -320,7 +335,7 @@ class BridgeFirmware:
         self._reports += 1
         self._send(WheelAngleReport(
             adc_counts=counts,
-            flags=self.state.flags,
+            flags=_FLAG_VALUES[self._engaged | self._tripped << 1 | self._override << 2],   # = self.state.flags
             command_seq=max(self._cmd_seq, 0),
             duty=self._duty,
             bad_frames=self._bad & 0xFFFF,
@@ -330,3 +345,4 @@ class BridgeFirmware:
 
 
 _ID_OF = {layout.cls: msg_id for msg_id, layout in MESSAGE_TABLE.items()}
+_FLAG_VALUES = tuple(StatusFlags(i) for i in range(8))   # ENGAGED | WATCHDOG << 1 | OVERRIDE << 2

@@ -162,7 +162,8 @@ class StreamDecoder:
                 keep = 1 if buf[-1:] == SYNC[:1] else 0
                 self._discard(len(buf) - keep)
                 return events
-            self._discard(i)
+            if i:
+                self._discard(i)
             if len(buf) < HEADER_LEN:
                 return events
             msg_id, length = buf[2], buf[4]

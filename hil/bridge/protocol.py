@@ -273,6 +273,13 @@ MESSAGE_TABLE: dict[int, Layout] = {
 _BY_CLASS: dict[type, Layout] = {layout.cls: layout for layout in MESSAGE_TABLE.values()}
 _STRUCTS: dict[int, struct.Struct] = {i: layout.struct for i, layout in MESSAGE_TABLE.items()}
 _CRC = struct.Struct(">H")
+_BIG = 1e300   # finite floats in this range take the fast path of encode_frame
+_HEADERS: dict[int, tuple[bytes, ...]] = {   # id, sequence, length for every sequence number
+    i: tuple(bytes((i, seq, st.size)) for seq in range(256)) for i, st in _STRUCTS.items()}
+_FLAGS: tuple[StatusFlags, ...] = tuple(StatusFlags(i) for i in range(_FLAG_MASK + 1))
+_DECODERS: dict[int, tuple] = {   # per id: class, struct, and per field (kind, scale)
+    i: (layout.cls, _STRUCTS[i], tuple((f.kind, f.scale) for f in layout.fields))
+    for i, layout in MESSAGE_TABLE.items()}
 
 
 def layout_of(message: Message) -> Layout:
@@ -339,14 +346,25 @@ def encode_frame(message: Message, seq: int) -> bytes:
     EncodeError
         Unknown message type, sequence out of range, or a field that cannot be encoded.
     """
-    layout = layout_of(message)
-    if isinstance(seq, bool) or not isinstance(seq, int) or not 0 <= seq <= 0xFF:
-        raise EncodeError(f"sequence number must be an int in 0..255, got {seq!r}")
-    name = layout.cls.__name__
-    raws = [_to_wire(f, getattr(message, f.name), name) for f in layout.fields]
-    payload = _STRUCTS[layout.msg_id].pack(*raws)
-    body = bytes((layout.msg_id, seq, len(payload))) + payload
-    return SYNC + body + _CRC.pack(crc16(body))
+    layout = _BY_CLASS.get(type(message)) or layout_of(message)
+    if seq.__class__ is not int or not 0 <= seq <= 0xFF:
+        if isinstance(seq, bool) or not isinstance(seq, int) or not 0 <= seq <= 0xFF:
+            raise EncodeError(f"sequence number must be an int in 0..255, got {seq!r}")
+    raws = []
+    for f in layout.fields:
+        value = getattr(message, f.name)
+        if f.kind == "scaled" and value.__class__ is float and -_BIG < value < _BIG:
+            raw = round(value / f.scale)     # the common case of _to_wire, same arithmetic
+            lo, hi = _RANGES[f.code]
+            if not lo <= raw <= hi:
+                raw = _to_wire(f, value, layout.cls.__name__)    # raises with the message
+        elif f.kind == "int" and value.__class__ is int and _RANGES[f.code][0] <= value <= _RANGES[f.code][1]:
+            raw = value
+        else:
+            raw = _to_wire(f, value, layout.cls.__name__)
+        raws.append(raw)
+    body = _HEADERS[layout.msg_id][seq] + _STRUCTS[layout.msg_id].pack(*raws)
+    return SYNC + body + _CRC.pack(binascii.crc_hqx(body, CRC_INIT))
 
 
 def decode_payload(msg_id: int, payload: bytes) -> Message:
@@ -365,22 +383,23 @@ def decode_payload(msg_id: int, payload: bytes) -> Message:
     if layout is None:
         raise UnknownMessageError(f"unknown message id 0x{msg_id:02x}; known: "
                                   f"{', '.join(f'0x{i:02x}' for i in MESSAGE_TABLE)}")
-    st = _STRUCTS[msg_id]
+    cls, st, kinds = _DECODERS[msg_id]
     if len(payload) != st.size:
         raise LengthError(f"message 0x{msg_id:02x} ({layout.cls.__name__}) has a {st.size}-byte payload, "
                           f"got {len(payload)}")
-    values = {}
-    for field, raw in zip(layout.fields, st.unpack(payload)):
-        if field.kind == "scaled":
-            values[field.name] = raw * field.scale  # type: ignore[operator]
-        elif field.kind == "flags":
+    values = []
+    for (kind, scale), raw in zip(kinds, st.unpack(payload)):
+        if kind == "scaled":
+            values.append(raw * scale)
+        elif kind == "flags":
             if raw & ~_FLAG_MASK:
-                raise FieldError(f"{layout.cls.__name__}.{field.name}=0x{raw:02x} sets reserved bits "
+                name = next(f.name for f in layout.fields if f.kind == "flags")
+                raise FieldError(f"{layout.cls.__name__}.{name}=0x{raw:02x} sets reserved bits "
                                  f"(allowed mask 0x{_FLAG_MASK:02x})")
-            values[field.name] = StatusFlags(raw)
+            values.append(_FLAGS[raw])
         else:
-            values[field.name] = raw
-    return layout.cls(**values)
+            values.append(raw)
+    return cls(*values)   # fields in wire order are the dataclass's fields in order
 
 
 def decode_frame(data: bytes) -> Frame:

@@ -50,6 +50,8 @@ class _Pipe:
         return min(len(data), int((now + _EPS - first) / spacing) + 1)
 
     def available(self, now: float) -> int:
+        if not self.chunks:
+            return 0
         total = 0
         for chunk in self.chunks:
             n = self._ready(chunk, now)
@@ -112,8 +114,10 @@ class MemoryEndpoint:
         LinkClosedError
             This end was closed.
         """
-        self._check_open()
-        return self._rx.available(self._clock.now())
+        if self._closed:
+            self._check_open()
+        rx = self._rx
+        return rx.available(self._clock.now()) if rx.chunks else 0
 
     def read(self, size: int = 1) -> bytes:
         """Up to ``size`` readable bytes; never waits (returns b"" when none).

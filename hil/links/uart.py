@@ -145,6 +145,8 @@ class UartTx:
 
     def flush(self, now: float) -> int:
         """Write the held bytes due by ``now``; returns how many were written."""
+        if not self._pending:
+            return 0
         out = bytearray()
         for _ in range(len(self._pending)):
             first, bt, data = self._pending[0]

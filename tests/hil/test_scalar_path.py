@@ -63,3 +63,21 @@ def test_one_tractor_path_records_the_batch_codes_epochs_counts_and_truth():
         for key, arr in getattr(ref, block).items():
             assert np.array_equal(getattr(fast, block)[key], arr), (block, key)
     assert fast.truth_scalar() == {k: float(v[0]) for k, v in fast.truth().items()}
+
+
+@settings(max_examples=300, deadline=None)
+@given(b=st.tuples(_f(-500, 500), _f(-500, 500)).filter(lambda b: abs(b[0]) + abs(b[1]) > 1),
+       a=st.tuples(_f(-50, 50), _f(-50, 50)), east=_f(-2000, 2000), north=_f(-2000, 2000), yaw=_f(-7, 7))
+def test_loop_line_errors_are_bit_identical_to_ab_line_errors(b, a, east, north, yaw):
+    from gnss.guidance import ABLine
+    from hil.loop import _scalar_line_errors
+    line = ABLine(np.array(a), np.array(a) + np.array(b))
+    err = line.errors(east, north, yaw)
+    assert _scalar_line_errors(line)(east, north, yaw) == (float(err.cross_track), float(err.heading_error))
+
+
+@settings(max_examples=300, deadline=None)
+@given(duty=st.one_of(_f(-1.5, 1.5), st.sampled_from([0.0, -0.0, 1.0, -1.0, 0.05, -0.05])))
+def test_valve_rate_scalar_is_bit_identical_to_valve_rate(duty):
+    from hil.steering import valve_rate, valve_rate_scalar
+    assert valve_rate_scalar(duty, P.steering) == float(valve_rate(np.array([duty]), P.steering)[0])

@@ -108,10 +108,10 @@ class RunKey:
 
 def run_one(key: RunKey, params: dict, realtime: bool = False) -> dict:
     """Run one pass (in lockstep, or in real time over pseudo-terminals) and return its summary."""
+    ctrl = make_controller(key.controller, key.implement, key.speed, SimParams.from_dict(params))
     log = simulated_run(RunSpec(implement=key.implement, speed=key.speed, duration=key.duration, seed=key.seed,
-                                realtime=realtime),
-                        make_controller(key.controller, key.implement, key.speed, SimParams.from_dict(params)),
-                        SimParams.from_dict(params))
+                                realtime=realtime), ctrl, SimParams.from_dict(params))
+    solver = ctrl.diagnostics() if callable(getattr(ctrl, "diagnostics", None)) else None
     t = log.times["t"]
     every = max(1, int(round(0.25 / float(t[1] - t[0]))))      # a 4 Hz trace for the overlay figures
     ch = log.channels
@@ -120,7 +120,7 @@ def run_one(key: RunKey, params: dict, realtime: bool = False) -> dict:
     if "truth_along_track" in ch:
         trace["along"] = ch["truth_along_track"][::every].round(2).tolist()
     return {**asdict(key), "controller": controller_label(key.controller), "controller_spec": key.controller,
-            "mode": log.meta["mode"], **summarize(log), "trace": trace}
+            "mode": log.meta["mode"], **summarize(log), **({"solver": solver} if solver else {}), "trace": trace}
 
 
 class Campaign:

@@ -29,6 +29,7 @@ import numpy as np  # noqa: E402
 
 from .conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for  # noqa: E402
 from .paper import TABLE2  # noqa: E402
+from .targets import Roles, check_targets, targets_markdown  # noqa: E402
 
 ORACLE = "oracle"
 
@@ -156,13 +157,44 @@ def realtime_table(results: Sequence[dict]) -> list[str]:
     return rows
 
 
+def solver_table(results: Sequence[dict]) -> list[str]:
+    """Markdown rows of the optimisation-based controllers' solve times (ms) and fall-backs, per controller.
+
+    Median of the passes' medians; the largest p99 and max over the passes.
+    """
+    by: dict[str, list[dict]] = {}
+    for r in results:
+        if r.get("solver") and "median_ms" in r["solver"]:
+            by.setdefault(r["controller"], []).append(r["solver"])
+    if not by:
+        return []
+    rows = ["| controller | solver | ticks | fall-backs | solve median [ms] | solve p99 max [ms] | solve max [ms] |",
+            "|---|---|---:|---:|---:|---:|---:|"]
+    for c, ss in sorted(by.items()):
+        rows.append(f"| {c} | {ss[0].get('backend', '?')} | {sum(s['ticks'] for s in ss)} | "
+                    f"{sum(s['fallbacks'] for s in ss)} | {float(np.median([s['median_ms'] for s in ss])):.3f} | "
+                    f"{max(s['p99_ms'] for s in ss):.3f} | {max(s['max_ms'] for s in ss):.3f} |")
+    return rows
+
+
+def _md_to_html_table(lines: Sequence[str]) -> str:
+    body = ["<table border=1 cellpadding=4>"]
+    for line in [ln for ln in lines if ln.startswith("|") and not set(ln) <= set("|-: ")]:
+        cells_ = [html.escape(x.strip()) for x in line.strip("|").split("|")]
+        body.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells_) + "</tr>")
+    return "\n".join(body + ["</table>"])
+
+
 def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL comparison",
-                 extra: dict | None = None, realtime: Sequence[dict] = ()) -> dict:
+                 extra: dict | None = None, realtime: Sequence[dict] = (), roles: Roles | None = None) -> dict:
     """Write every report file for ``results`` (lockstep passes) and ``realtime`` (passes in real
-    time over pseudo-terminals, reported apart) into ``out``; return the cells and file names."""
+    time over pseudo-terminals, reported apart) into ``out``; return the cells, the target
+    checks (see :mod:`hil.targets`; ``roles`` default: detected from the labels) and file names."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     rows = cells(results)
+    roles = roles or Roles.detect([r["controller"] for r in rows])
+    checks = check_targets(rows, roles)
     ctrls = sorted({r["controller"] for r in rows})
     with open(out / "cells.csv", "w", newline="") as fh:
         keys = sorted({k for r in rows for k in r})
@@ -171,8 +203,8 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
         w.writerows(rows)
     slim = [{k: v for k, v in r.items() if k != "trace"} for r in results]
     slim_rt = [{k: v for k, v in r.items() if k != "trace"} for r in realtime]
-    (out / "results.json").write_text(json.dumps({"cells": rows, "runs": slim, "realtime_runs": slim_rt,
-                                                  **(extra or {})}, indent=2) + "\n")
+    (out / "results.json").write_text(json.dumps({"cells": rows, "targets": checks, "runs": slim,
+                                                  "realtime_runs": slim_rt, **(extra or {})}, indent=2) + "\n")
     f10 = _fig10(rows, out / "fig10_sigma_vs_speed.png")
     f12 = _fig12(results, out / "fig12_passes.png")
     tables = {c: table2_text(rows, c) for c in ctrls}
@@ -185,8 +217,12 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
     for c in ctrls:
         md += ["```", tables[c], "```", ""]
     md += ["| controller | deadline misses | loop time p99 max [ms] | loop time max [ms] | disengagements |",
-           "|---|---:|---:|---:|---:|", *timing, "",
-           f"![Figure 10]({f10.name})", "", f"![Figure 12]({f12.name})", ""]
+           "|---|---:|---:|---:|---:|", *timing, ""]
+    solve = solver_table(results)
+    if solve:
+        md += ["Solve times of the optimisation-based controllers (CPU, inside the loop):", "", *solve, ""]
+    target_md = targets_markdown(checks, roles)
+    md += [*target_md, f"![Figure 10]({f10.name})", "", f"![Figure 12]({f12.name})", ""]
     if realtime:
         md += ["## In real time over pseudo-terminals", "", *realtime_table(realtime), ""]
     (out / "report.md").write_text("\n".join(md))
@@ -198,7 +234,12 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
     for line in timing:
         cells_ = [html.escape(x.strip()) for x in line.strip("|").split("|")]
         body.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells_) + "</tr>")
-    body.append(f"</table><img src='{f10.name}' width=100%><img src='{f12.name}' width=100%>")
+    body.append("</table>")
+    if solve:
+        body.append("<h2>Solve times</h2>" + _md_to_html_table(solve))
+    if target_md:
+        body.append("<h2>Targets</h2>" + _md_to_html_table(target_md))
+    body.append(f"<img src='{f10.name}' width=100%><img src='{f12.name}' width=100%>")
     if realtime:
         body.append("<h2>In real time over pseudo-terminals</h2><table border=1 cellpadding=4>")
         for line in realtime_table(realtime)[:1] + realtime_table(realtime)[2:]:
@@ -207,6 +248,6 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
         body.append("</table>")
     (out / "index.html").write_text("<!doctype html><meta charset=utf-8><title>" + html.escape(title) +
                                     "</title><body>" + "\n".join(body) + "</body>\n")
-    return {"cells": rows, "tables": tables,
+    return {"cells": rows, "tables": tables, "targets": checks,
             "files": [str(out / n) for n in ("report.md", "index.html", "cells.csv", "results.json",
                                              f10.name, f12.name)]}

@@ -3,6 +3,7 @@
     hil sysid --out logs/ [--speeds ...] [--implements ...] [--passes N] [--duration S] [--seed S]
     hil plot LOG.npz --out figure.png
     hil params [--set group.name=value ...]
+    hil calibrate --out out/calibration [--controller central-lqr.json] [--budget 32] [--seeds 2]
     hil run --controller kinematic --implement none --speed 1.79 --duration 60 --out runs/NAME
         [--realtime] [--seed N] [--fault KIND:START-END ...]
     hil drive --bridge PORT --position PORT [--attitude PORT] --controller kinematic \
@@ -195,6 +196,25 @@ def _cmd_tune(args: argparse.Namespace) -> dict:
     return result
 
 
+def _cmd_calibrate(args: argparse.Namespace) -> dict:
+    from .calibrate import CalibrationOptions
+    from .calibrate_pipeline import run_calibration
+    opts = CalibrationOptions(seeds=tuple(range(args.seed, args.seed + args.seeds)), duration=args.duration,
+                              budget=args.budget, knobs=tuple(args.knobs) if args.knobs else CalibrationOptions.knobs)
+
+    def report(i: int, rec: dict, accepted: bool) -> None:
+        if not args.quiet:
+            ob = rec["objective"]
+            moved = {k: round(2 ** v, 3) for k, v in rec["log2_scales"].items() if v}
+            print(f"evaluation {i:3d}: objective {ob['value']:.4f}, {ob['within_30pct']:2d}/15 within +-30 % "
+                  f"{'accepted' if accepted else '        '} scales {moved}", file=sys.stderr, flush=True)
+
+    confirm = None if args.no_confirm else tuple(range(args.confirm_seed, args.confirm_seed + args.seeds))
+    res = run_calibration(args.out, opts, args.controller, confirm, args.workers, report)
+    return {"out": args.out, "objective": res["objective"], "values": res["values"],
+            "confirmation": None if not res["confirmation"] else res["confirmation"]["objective"]}
+
+
 def _cmd_run(args: argparse.Namespace) -> dict:
     faults: dict[str, list] = {}
     for kind, span in args.fault or []:
@@ -352,6 +372,22 @@ def build_parser() -> argparse.ArgumentParser:
     tu.add_argument("--quiet", action="store_true")
     tu.set_defaults(func=_cmd_tune)
 
+    ca = sub.add_parser("calibrate", help="tune the disturbance parameters so the paper's method lands on "
+                        "Table 2 (see hil.calibrate)")
+    ca.add_argument("--out", required=True, help="directory of the search; an interrupted search resumes there")
+    ca.add_argument("--controller", type=_controller_spec, default=None,
+                    help="the paper's central LQR (.json); default: identified at the reference parameters")
+    ca.add_argument("--seeds", type=int, default=2, help="seeds per evaluation (default 2)")
+    ca.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    ca.add_argument("--confirm-seed", type=int, default=10, help="first seed of the confirmation (default 10)")
+    ca.add_argument("--no-confirm", action="store_true", help="skip the re-identification at the end")
+    ca.add_argument("--duration", type=_float, default=60.0, help="seconds per pass (default 60)")
+    ca.add_argument("--budget", type=int, default=32, help="evaluations (default 32)")
+    ca.add_argument("--knobs", nargs="+", default=None, help="knobs to search (default: all)")
+    ca.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
+    ca.add_argument("--quiet", action="store_true")
+    ca.set_defaults(func=_cmd_calibrate)
+
     em = sub.add_parser("emulate", parents=[common], help="an emulated tractor behind three pseudo-terminals, "
                         "in real time (for hil drive)")
     em.add_argument("--implement", choices=IMPLEMENTS, default="none")
@@ -400,6 +436,12 @@ def _print_human(command: str, result: dict) -> None:
         for r in result["ranking"]:
             print(f"{r['score_m'] * 100:8.2f} cm  {r['spec']}")
         print(f"best: {result['best']['spec']}  (score: {result['score']})")
+    elif command == "calibrate":
+        ob = result["objective"]
+        print(f"objective {ob['value']:.4f}; {ob['within_30pct']}/15 cells within +-30 % of the paper's 1-sigma")
+        if result["confirmation"]:
+            print(f"confirmation (re-identified): {result['confirmation']['within_30pct']}/15 within +-30 %")
+        print(f"report: {Path(result['out']) / 'report.md'}")
     elif command == "compare":
         for text in result["tables"].values():
             print(text + "\n")

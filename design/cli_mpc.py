@@ -63,7 +63,8 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--backend", choices=BACKENDS, default="casadi",
                    help="casadi: condensed QP through casadi.conic; osqp: sparse QP in OSQP")
     p.add_argument("--solver", choices=CASADI_SOLVERS, default="daqp", help="casadi QP plugin")
-    p.add_argument("--max-iter", type=int, default=1000, help="solver iteration cap per tick")
+    p.add_argument("--max-iter", type=int, default=None,
+                   help="solver iteration cap per tick (default 1000 for casadi plugins, 4000 for osqp)")
     p.add_argument("--time-budget-ms", type=number, default=25.0,
                    help="per-tick solve budget, ms; a slower solve is replaced by the fallback law")
     p.add_argument("--rate-limit", type=number, default=0.35, help="hard steering-rate limit, rad/s")

@@ -42,7 +42,7 @@ __all__ = ["BACKENDS", "CASADI_SOLVERS", "FallbackEvent", "MPCController", "MPCL
 
 
 def build_mpc(model: Model, horizon: int = 50, weights: MPCWeights | None = None, limits: MPCLimits | None = None,
-              backend: str = "casadi", solver: str = "daqp", max_iter: int = 1000, time_budget: float = 0.025,
+              backend: str = "casadi", solver: str = "daqp", max_iter: int | None = None, time_budget: float = 0.025,
               fallback_gain: np.ndarray | None = None, fallback_name: str | None = None, past: int = 1,
               output_clip: Sequence[float | None] | None = (0.1, 0.05, None), speed_min: float = 0.3,
               solver_options: dict | None = None, name: str = "mpc") -> MPCController:

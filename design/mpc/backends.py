@@ -10,7 +10,9 @@
 * ``osqp``: the sparse QP (:meth:`MPCProblem.sparse`) in OSQP, set up once,
   warm-started from the previous solution, with only the bounds of the initial-state
   rows updated each tick (STYLE 7). An ADMM solver: cheap when nothing changes, but it
-  may need many iterations after a disturbance, and a capped solve is inexact.
+  may need many iterations after a disturbance, and a capped solve is inexact. Its
+  tolerances are 1e-4 with solution polishing (an exact solve of the KKT system of
+  the active set it found), which gives the exact solution when the active set is right.
 
 Work per tick is capped by the solver's iteration limit (``max_iter``; OSQP also gets a
 time limit). A back-end never raises on a failed solve: it returns ``ok=False`` and the
@@ -46,7 +48,9 @@ class SolverSettings:
     solver
         casadi plugin name (``backend="casadi"`` only; ignored by ``"osqp"``).
     max_iter
-        Iteration cap per tick (the solver's own counter).
+        Iteration cap per tick (the solver's own counter); None = 1000 for the casadi
+        plugins (an active-set solver needs a few dozen), 4000 for OSQP (ADMM: hundreds
+        after a disturbance).
     time_budget
         Wall-clock budget per tick, s: a solve that takes longer is discarded and the
         fallback command used (the loop's deadline is 50 ms at 20 Hz).
@@ -56,7 +60,7 @@ class SolverSettings:
 
     backend: str = "casadi"
     solver: str = "daqp"
-    max_iter: int = 1000
+    max_iter: int | None = None
     time_budget: float = 0.025
     options: Mapping[str, Any] = field(default_factory=dict)
 
@@ -67,6 +71,8 @@ class SolverSettings:
             raise DesignInputError(f"casadi QP solver must be one of {CASADI_SOLVERS}, got {self.solver!r}")
         if self.backend == "osqp":
             object.__setattr__(self, "solver", "osqp")
+        if self.max_iter is None:
+            object.__setattr__(self, "max_iter", 4000 if self.backend == "osqp" else 1000)
         if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, int) or self.max_iter < 1:
             raise DesignInputError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
         tb = self.time_budget
@@ -163,7 +169,7 @@ class OsqpBackend:
         self._osqp = osqp
         self._n, self._nx, self._nz = problem.horizon, qp.n_states, problem.nz
         self._l, self._u = qp.l.copy(), qp.u.copy()
-        s = {"verbose": False, "warm_starting": True, "polishing": True, "eps_abs": 1e-6, "eps_rel": 1e-6,
+        s = {"verbose": False, "warm_starting": True, "polishing": True, "eps_abs": 1e-4, "eps_rel": 1e-4,
              "max_iter": settings.max_iter, "time_limit": settings.time_budget}
         s.update(settings.options)
         self._solver = osqp.OSQP()

@@ -25,7 +25,7 @@ from ..errors import DesignInputError
 from .backends import SolverSettings, make_backend
 from .problem import MPCProblem
 
-NORMALIZED = ("cross_track", "heading_error")          # divided by speed; wheel_angle is not
+RATE_TOLERANCE = 1e-3       # a first move within 0.1 % of the rate limit is the solver's tolerance: clipped, used
 
 
 @dataclass(frozen=True)
@@ -153,8 +153,8 @@ class MPCController:
         reason = ""
         if not raw.ok:
             reason = f"solver failed ({raw.status})"
-        elif not (math.isfinite(u0) and abs(u0) <= lim * (1 + 1e-6) + 1e-9):
-            reason = f"first move {u0!r} outside the rate limit {lim} rad/s"
+        elif not (math.isfinite(u0) and abs(u0) <= lim * (1 + RATE_TOLERANCE)):
+            reason = f"first move {u0!r} rad/s outside the rate limit {lim} rad/s (beyond the solver's tolerance)"
         elif dt > self.settings.time_budget:
             reason = f"solve took {dt * 1e3:.2f} ms, over the {self.settings.time_budget * 1e3:.2f} ms budget"
         if reason:

@@ -163,23 +163,31 @@ class MPCProblem:
         for j in range(N + 1):
             phi[j * n:(j + 1) * n] = ap
             ap = self.A @ ap
-        col = self.B[:, 0]
+        apb = np.zeros((N, n))               # A^k B, k = 0..N-1
+        v = self.B[:, 0]
+        for k in range(N):
+            apb[k] = v
+            v = self.A @ v
         for j in range(1, N + 1):            # z_j depends on u_i, i < j, through A^(j-1-i) B
-            for i in range(j):
-                gam[j * n:(j + 1) * n, i] = gam[(j - 1) * n:j * n, i] @ self.A.T if i < j - 1 else col
+            gam[j * n:(j + 1) * n, :j] = apb[j - 1::-1].T
         return phi, gam
 
     def condensed(self) -> "CondensedQP":
         """The condensed QP (see module docstring)."""
         n, N = self.nz, self.horizon
         phi, gam = self.prediction()
-        qbar = sp.block_diag([self.Q] * N + [self.P]).toarray()
-        huu = 2.0 * (gam.T @ qbar @ gam + float(self.R[0, 0]) * np.eye(N))
+        def weigh(x: np.ndarray) -> np.ndarray:          # blockdiag(Q, ..., Q, P) @ x without forming it
+            x3 = x.reshape(N + 1, n, -1)
+            out = np.einsum("ab,jbk->jak", self.Q, x3)
+            out[N] = self.P @ x3[N]
+            return out.reshape(x.shape)
+
+        huu = 2.0 * (gam.T @ weigh(gam) + float(self.R[0, 0]) * np.eye(N))
         h = np.zeros((N + 1, N + 1))
         h[:N, :N] = 0.5 * (huu + huu.T)
         h[N, N] = 2.0 * self.weights.slack_quadratic
         g = np.zeros((N + 1, n))
-        g[:N] = 2.0 * gam.T @ qbar @ phi
+        g[:N] = 2.0 * gam.T @ weigh(phi)
         c = np.zeros(N + 1)
         c[N] = self.weights.slack_linear
         e = self.wheel_row

@@ -210,3 +210,28 @@ def test_bad_calls_are_refused(nmpc30):
         nmpc30.solve([0.0, 0.0, 0.0], 2.0, np.zeros(29))
     with pytest.raises(DesignInputError, match="tighter than a tractor turns"):
         nmpc30.solve([0.0, 0.0, 0.0], 2.0, np.full(30, 1.0))
+
+
+def test_same_inputs_give_the_same_run_and_reset_forgets_the_warm_start(nmpc30):
+    def run(c):
+        c.reset()
+        x, out = np.array([0.8, -0.05, 0.1]), []
+        for _ in range(40):
+            sol = c.solve(x, 1.79)
+            x = sol.states[1]
+            out.append(sol.u[0])
+        return np.array(out)
+
+    first = run(nmpc30)
+    assert np.array_equal(first, run(nmpc30))
+    assert np.array_equal(first, run(NonlinearMPC(NMPCSettings(horizon=30))))
+
+
+def test_sqpmethod_reaches_the_same_optimum():
+    sq = NonlinearMPC(NMPCSettings(horizon=30, solver="sqp", qpsol="qrqp"))
+    ip = NonlinearMPC(NMPCSettings(horizon=30, solver="ipopt", tol=1e-10))   # interior point: tight near bounds
+    x = [0.9, 0.05, -0.1]
+    kap = np.full(30, 0.02)
+    a, b = sq.solve(x, 2.0, kap, warm=False), ip.solve(x, 2.0, kap, warm=False)
+    assert a.success and b.success
+    assert np.max(np.abs(a.u - b.u)) < 1e-4 and a.cost == pytest.approx(b.cost, rel=1e-6)

@@ -10,7 +10,7 @@ The constrained closed loop is non-linear; the tests and the HIL bench check it.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Sequence
 
@@ -24,6 +24,7 @@ from ..iostate import feedback_compensator
 from ..robust import _model_names
 from ..verify import Certificate, certify, model_hash, require_stable
 from .backends import SolverSettings
+from .controller import MPCController
 from .file import MPCFile
 from .problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 
@@ -106,7 +107,8 @@ def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | No
     VerificationError
         The unconstrained law does not stabilise a model.
     SynthesisError
-        The solver's first move from a small state is not the unconstrained law's.
+        The solver (given time to converge) does not reproduce the unconstrained law's
+        first move from a small state: its settings are wrong.
     """
     spec = spec or MPCSpec()
     problem = mpc_problem(model, spec.horizon, spec.weights, spec.limits, spec.past)
@@ -132,7 +134,11 @@ def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | No
 
 
 def _check_solver(file: MPCFile, k: np.ndarray) -> None:
-    ctrl = file.controller()
+    """The solver, with the file's settings but time to converge, reproduces the unconstrained law."""
+    relaxed = replace(file.settings, time_budget=max(file.settings.time_budget, 5.0),
+                      max_iter=max(file.settings.max_iter, 20000))
+    ctrl = MPCController(mpc_problem(file.model, file.horizon, file.weights, file.limits, file.past), relaxed,
+                         file.fallback_gain, file.fallback_law, file.output_clip, file.speed_min, file.name)
     nz = ctrl.problem.nz
     z = np.zeros(nz)
     z[ctrl.problem.layout.output_slot(0)] = (1e-3, 5e-4, 1e-3)       # small: no limit binds

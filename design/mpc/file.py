@@ -213,6 +213,8 @@ def mpc_from_body(body: Any, dt: float | None = 0.05) -> MPCFile:
         settings = SolverSettings(sol["backend"], sol["solver"], _integer(sol["max_iter"], "solver.max_iter"),
                                   _number(sol["time_budget"], "solver.time_budget"), sol["options"])
         gain = np.array(fb["gain"], dtype=float)
+    except ControllerFileError:
+        raise
     except DesignInputError as exc:
         raise ControllerFileError(str(exc)) from None
     except (TypeError, ValueError):

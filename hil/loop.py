@@ -31,6 +31,7 @@ import numpy as np
 from design.controller import Controller, Measurement
 from gnss.frontend import GnssFrontEnd
 from gnss.guidance import ABLine, TrackErrors
+from gnss.integrity import IntegrityState
 from identification.passlog import PassLog
 
 from .bridge.driver import BridgeDriver, BridgeLinkError
@@ -39,6 +40,7 @@ from .links.clock import Clock
 from .steering import WheelAngleCalibration
 
 INTEGRITY_CODES = {"RTK_FIXED": 0, "RTK_FLOAT": 1, "DEGRADED": 2, "STALE": 3, "LOST": 4}
+_INTEGRITY_BY_STATE = {s: float(INTEGRITY_CODES.get(s.name, 9)) for s in IntegrityState}
 
 
 @dataclass(frozen=True)
@@ -129,7 +131,7 @@ class VehicleLoop:
         self._rows: list[tuple[float, ...]] = []   # one tuple per cycle, fields in _COLUMNS order
         self._line_errors = _scalar_line_errors(line)
         self._center, self._rad_per_count = float(calibration.center_counts), float(calibration.rad_per_count)
-        self._truth_rows: dict[str, list[float]] = {}
+        self._truths: list[dict[str, float]] = []   # the truth of every cycle
         self._estimates: list[tuple[float, ...]] = []
         self._healthy_since = math.inf
         self._engaged_at = math.nan
@@ -224,20 +226,19 @@ class VehicleLoop:
         late = now - t_due
         done = self.clock.now()
         self._rows.append((now, xte, he, delta, speed, u, float(self.engaged), float(healthy), float(gps_valid),
-                           float(bridge_valid), float(INTEGRITY_CODES.get(nav.integrity.state.name, 9)),
+                           float(bridge_valid), _INTEGRITY_BY_STATE.get(nav.integrity.state, 9.0),
                            float(int(nav.fix)), compute, late, float(done - t_due > 1.0 / cfg.rate),
                            float(rep.adc_counts) if rep else -1.0))   # _COLUMNS order
         self._estimates.append(tuple(self.controller.estimate()))
         if self.truth is not None:
-            for k, v in self.truth().items():
-                self._truth_rows.setdefault(k, []).append(v)
+            self._truths.append(self.truth())
 
     def _steering_response(self, delta: float) -> str | None:
         """Reason if the wheel has not followed the commands over the monitor's window."""
         cfg = self.config
         if len(self._response) < self._response.maxlen:
             return None
-        commanded = sum(u for u, _ in list(self._response)[:-1]) / cfg.rate
+        commanded = sum([u for u, _ in self._response][:-1]) / cfg.rate
         moved = delta - self._response[0][1]
         if abs(commanded) >= cfg.response_min_command and moved / commanded < cfg.response_min_ratio:
             return (f"steering not responding: commanded {math.degrees(commanded):.1f} deg in "
@@ -308,7 +309,11 @@ class VehicleLoop:
         for i in range(est.shape[1] if est.ndim == 2 else 0):
             chans[f"estimate_{i}"] = est[:, i]
             extra[f"estimate_{i}"] = {"time": "t", "unit": "controller state"}
-        for k, v in self._truth_rows.items():
+        truth_rows: dict[str, list[float]] = {}
+        for d in self._truths:
+            for k, v in d.items():
+                truth_rows.setdefault(k, []).append(v)
+        for k, v in truth_rows.items():
             chans[f"truth_{k}"] = np.asarray(v, dtype=float)
             extra[f"truth_{k}"] = {"time": "t", "unit": "SI"}
         full_meta = {**meta, "extra_channels": extra, "events": self.events,

@@ -96,6 +96,8 @@ class SimulatedTractor:
         bench it skips the polls that cannot see a change. The simulator's time lags the
         clock by less than a step and runs ahead of it by at most 1e-9 s, hence the margin.
         """
+        if not self.override_intervals:
+            return math.inf
         t = self.sim.time
         nxt = min((c for ab in self.override_intervals for c in ab if c > t), default=math.inf)
         return nxt - 1e-6

@@ -185,11 +185,18 @@ class BridgeFirmware:
             return -math.inf
         if self._link_in_waiting() > 0:
             return self._last_step
-        t = min(self._next_report, self._next_poll, self._tx.next_due())
-        if self._inbox:
-            t = min(t, self._inbox[0][0])
+        t = self._next_report
+        if self._next_poll < t:
+            t = self._next_poll
+        held = self._tx.next_due()
+        if held < t:
+            t = held
+        if self._inbox and self._inbox[0][0] < t:
+            t = self._inbox[0][0]
         if self._engaged:
-            t = min(t, self._last_cmd_time + self.config.watchdog_timeout)
+            w = self._last_cmd_time + self.config.watchdog_timeout
+            if w < t:
+                t = w
         return t
 
     def step(self, now: float) -> None:

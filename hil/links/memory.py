@@ -130,8 +130,13 @@ class MemoryEndpoint:
         self._check_open()
         if isinstance(size, bool) or not isinstance(size, int) or size < 0:
             raise LinkConfigError(f"read size must be a non-negative int, got {size!r}")
-        data = self._rx.take(size, self._clock.now())
-        if not data and self._rx.closed and not self._rx.chunks:
+        rx = self._rx
+        if not rx.chunks:
+            if rx.closed:
+                raise LinkClosedError(f"{self.name}: the other end of the in-memory link is closed")
+            return b""
+        data = rx.take(size, self._clock.now())
+        if not data and rx.closed and not rx.chunks:
             raise LinkClosedError(f"{self.name}: the other end of the in-memory link is closed")
         self.bytes_read += len(data)
         return data

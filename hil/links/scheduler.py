@@ -1,7 +1,8 @@
 """Lockstep scheduler: steps event-driven devices and the plant on a virtual clock.
 
 A device says when it next wants to run (:meth:`Device.next_wakeup`) and does
-its work in :meth:`Device.step`. The scheduler advances virtual time to the
+its work in :meth:`Device.step`; devices are asked in order and a due device is
+stepped before the next one is asked. The scheduler advances virtual time to the
 earliest wake-up (never further than ``max_step`` at once, so the plant is
 integrated in bounded steps), advances the plant by the elapsed time, and steps
 every device that is due. Devices that see unread input return a wake-up at or
@@ -105,14 +106,21 @@ class LockstepScheduler:
             same = 0
             # Each pass either advances time by > 0 or counts towards the stall limit.
             devices = self.devices
+            plant = self.plant
+            inf = math.inf
             while True:
-                wakes = [d.next_wakeup() for d in devices]
+                # One pass over the devices in order: each is asked when it wants to run and, if
+                # due, stepped at once (so it sees what the devices before it did at this instant).
                 stepped = False
-                for device, wake in zip(devices, wakes):
+                t_next = inf
+                for device in devices:
+                    wake = device.next_wakeup()
                     if wake <= now:
                         device.step(now)
                         self.device_steps += 1
                         stepped = True
+                    elif wake < t_next:
+                        t_next = wake
                 if stepped:
                     same += 1
                     if same > self.max_same_instant:
@@ -123,11 +131,12 @@ class LockstepScheduler:
                 same = 0
                 if now >= t_end:
                     return
-                t_next = min(min(wakes, default=math.inf), t_end)
-                if self.plant is not None:
-                    t_next = min(t_next, now + self.max_step)
-                if self.plant is not None:
-                    self.plant.advance(t_next - now)
+                if t_end < t_next:
+                    t_next = t_end
+                if plant is not None:
+                    if now + self.max_step < t_next:
+                        t_next = now + self.max_step
+                    plant.advance(t_next - now)
                     self.plant_steps += 1
                 clock.advance_to(t_next)
                 now = t_next

@@ -1,28 +1,39 @@
 #!/usr/bin/env python3
-"""Robust LMI synthesis: time and conservatism versus number of models, order, formulation and solver.
+"""Robust LMI synthesis: time and conservatism versus number of models, order, method and backend.
 
 For N synthetic tractor models (kinematic model with a valve lag; speed 1-3 m/s,
-wheel authority 0.4-1, lag 0.05-0.2 s; or the model files given with --models)
-in the two design coordinates (order 4: output-anchored; order 8: measured window
-with an integral), it times the cvxpy problem build, compile + solve, and the exact
-per-model check, for: one LMI over all models (Clarabel, SCS) and a subset plus
-worst-violator rounds (Clarabel). Conservatism = guaranteed cost / the largest
-per-model LQR cost (>= 1). Ratios are against the all-models Clarabel run in the
-same process, because these machines are shared and noisy.
+wheel authority 0.4-1, lag 0.05-0.2 s), in the two design coordinates (order 4:
+output-anchored, no integral; order 8: measured window with an integral),
+and for the identified local models in ``out/demo/models`` when they exist, it times
+each method with both backends in the same process:
+
+* ``all``: one extended LMI over every model, then ``--refine`` slack-update steps;
+* ``rounds``: the same on a subset plus the worst violators until every model passes
+  its exact check.
+
+Backends: ``direct`` (the LMIs assembled as sparse conic data, Clarabel's API called
+directly) and ``cvxpy`` (the same LMIs through cvxpy, Clarabel; SCS for 15 models).
+Columns: ``build`` (problem construction), ``compile`` (cvxpy canonicalisation, or the
+direct data's assembly and Clarabel set-up), ``solve`` (the solver), ``check`` (exact
+per-model checks), ``total`` (wall time of the synthesis call); ``x cvxpy`` = the
+cvxpy row's total over this row's (same method, same run). Conservatism = guaranteed
+cost (the LMI bound) / the largest per-model LQR cost, before (``synth``) and after
+(``refined``) the refinement. These machines are shared and noisy: read the ratios.
 """
 
 from __future__ import annotations
 
 import argparse
 import glob
-
+import os
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "design"))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "design"))
 
 from design.lmi import LMIOptions, closed_loop_cost, robust_state_feedback, robust_state_feedback_rounds  # noqa: E402
 from design.lqr import dlqr  # noqa: E402
@@ -42,12 +53,18 @@ def problem(models: list[Model], order: int):
         spec = RobustSpec(structure="observer", nominal=models[0])
     else:
         spec = RobustSpec(structure="window", integral=True)
-    return design_problem(models, spec)
+    _, a, b, d = design_problem(models, spec)
+    lqr = []
+    for ai, bi in zip(a, b):
+        f, _ = dlqr(ai, bi, d["Q"], d["R"])
+        lqr.append(closed_loop_cost(ai, bi, -f, d["Q"], d["R"], d["Bw"]))
+    return a, b, d, max(lqr)
 
 
-def run(models, order, method, solver):
-    _, a, b, d = problem(models, order)
-    args = (a, b, d["Q"], d["R"], d["Bw"], d["scale"], d["input_scale"], LMIOptions("extended", solver))
+def run(data, method: str, backend: str, solver: str, refine: int) -> dict:
+    a, b, d, lqr_max = data
+    opts = LMIOptions("extended", solver, backend=backend, refine=refine)
+    args = (a, b, d["Q"], d["R"], d["Bw"], d["scale"], d["input_scale"], opts)
     t0 = time.perf_counter()
     rounds = 1
     if method == "rounds":
@@ -55,42 +72,55 @@ def run(models, order, method, solver):
     else:
         des = robust_state_feedback(*args)
     total = time.perf_counter() - t0
-    lqr = []
-    for ai, bi in zip(a, b):
-        f, _ = dlqr(ai, bi, d["Q"], d["R"])
-        lqr.append(closed_loop_cost(ai, bi, -f, d["Q"], d["R"], d["Bw"]))
-    return {"build": des.times["build"], "solve": des.times["solve"], "check": des.times["check"], "total": total,
-            "rounds": rounds, "conservatism": des.bound / max(lqr), "rho": max(des.radii)}
+    return {**{k: des.times.get(k, 0.0) for k in ("build", "compile", "solve", "check")}, "total": total,
+            "rounds": rounds, "synth": des.synthesis_bound / lqr_max, "refined": des.bound / lqr_max,
+            "rho": max(des.radii)}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--models", nargs="*", help="model files (default: synthetic)")
-    ap.add_argument("--sizes", type=int, nargs="+", default=[15, 100])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[15, 100, 1000])
     ap.add_argument("--orders", type=int, nargs="+", default=[4, 8])
-    ap.add_argument("--quick", action="store_true", help="15 models only")
+    ap.add_argument("--refine", type=int, default=1)
+    ap.add_argument("--all-up-to", type=int, default=100, help="largest N solved as one LMI over all models")
+    ap.add_argument("--cvxpy-all-up-to", type=int, default=15, help="largest N for the cvxpy all-models rows")
+    ap.add_argument("--quick", action="store_true", help="15 models and the demo models only")
     a = ap.parse_args()
     sizes = [15] if a.quick else a.sizes
-    print(f"{'models':>7}{'order':>6}  {'method':<16}{'build s':>9}{'solve s':>9}{'check s':>9}{'total s':>9}"
-          f"{'x ref':>7}{'rounds':>7}{'conserv.':>9}{'max rho':>9}")
-    sets = [(len(files := sorted(sum((glob.glob(m) for m in a.models), []))), [Model.load(f) for f in files])] \
-        if a.models else [(n, synthetic(n)) for n in sizes]
-    for n, models in sets:
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at start")
+    print(f"{'family':>9}{'order':>6}  {'method/backend':<22}{'build':>8}{'compile':>8}{'solve':>8}{'check':>8}"
+          f"{'total s':>9}{'x cvxpy':>8}{'rounds':>7}{'synth':>8}{'refined':>8}{'max rho':>9}")
+    sets = [(str(n), synthetic(n)) for n in sizes]
+    demo = sorted(glob.glob(str(ROOT / "out" / "demo" / "models" / "local_*.npz")))
+    if demo:
+        sets.insert(0, ("demo", [Model.load(f) for f in demo]))
+    for label, models in sets:
+        n = len(models)
         for order in a.orders:
-            ref = None
-            for method, solver in (("all", "clarabel"), ("all", "scs"), ("rounds", "clarabel")):
-                if method == "all" and solver == "scs" and n > 15:
+            data = problem(models, order)
+            for method in ("all", "rounds"):
+                if method == "all" and n > a.all_up_to:
                     continue
-                try:
-                    r = run(models, order, method, solver)
-                except Exception as exc:       # report and go on: a benchmark row, not a design
-                    print(f"{n:>7}{order:>6}  {method + '/' + solver:<16} failed: {str(exc)[:80]}")
-                    continue
-                ref = ref or r["total"]
-                print(f"{n:>7}{order:>6}  {method + '/' + solver:<16}{r['build']:>9.3f}{r['solve']:>9.3f}"
-                      f"{r['check']:>9.3f}{r['total']:>9.3f}{r['total'] / ref:>7.2f}{r['rounds']:>7}"
-                      f"{r['conservatism']:>9.3f}{r['rho']:>9.4f}", flush=True)
-
+                rows = [("cvxpy", "clarabel"), ("direct", "clarabel")]
+                if method == "all" and n > a.cvxpy_all_up_to:
+                    rows = rows[1:]
+                if method == "all" and n <= 15:
+                    rows.append(("cvxpy", "scs"))
+                ref = None
+                for backend, solver in rows:
+                    tag = f"{method}/{backend}" + ("" if solver == "clarabel" else "/scs")
+                    try:
+                        r = run(data, method, backend, solver, a.refine)
+                    except Exception as exc:       # report and go on: a benchmark row, not a design
+                        print(f"{label:>9}{order:>6}  {tag:<22} failed: {str(exc)[:90]}", flush=True)
+                        continue
+                    if backend == "cvxpy" and solver == "clarabel":
+                        ref = r["total"]
+                    speed = f"{ref / r['total']:>8.2f}" if ref else f"{'-':>8}"
+                    print(f"{label:>9}{order:>6}  {tag:<22}{r['build']:>8.3f}{r['compile']:>8.3f}{r['solve']:>8.3f}"
+                          f"{r['check']:>8.3f}{r['total']:>9.3f}{speed}{r['rounds']:>7}{r['synth']:>8.3f}"
+                          f"{r['refined']:>8.3f}{r['rho']:>9.4f}", flush=True)
+    print(f"load average {os.getloadavg()[0]:.1f} at the end")
 
 
 if __name__ == "__main__":

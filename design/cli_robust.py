@@ -117,13 +117,15 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
                    help="one LMI over all models, or a subset plus worst-violator rounds")
     r.add_argument("--backend", choices=("auto", "direct", "cvxpy"), default="auto",
                    help="LMIs assembled directly for Clarabel, or through cvxpy (auto: direct for clarabel)")
-    r.add_argument("--refine", type=int, default=3,
+    r.add_argument("--refine", type=int, default=1,
                    help="slack-update steps after the synthesis LMI (0 = none; each can only lower the bound)")
     r.add_argument("--integral", action="store_true", help="integral action on cross-track/speed")
     r.add_argument("--pole-radius", type=number, default=None, help="closed-loop poles in |z| <= R")
     r.add_argument("--rate-limit", type=number, default=None,
                    help="bound |u| (rad/s) over the initial-error set (--initial-errors)")
-    r.add_argument("--initial-errors", type=number, nargs="+", default=[0.1, 0.02, 0.0])
+    r.add_argument("--initial-errors", type=number, nargs="+", default=[0.03, 0.01, 0.0],
+                   help="half-widths of the initial-error set of --rate-limit, model units (y/V s, psi/V rad s/m, "
+                        "delta rad); the default is on-line tracking error size")
     r.add_argument("--past", type=int, default=1, help="past samples in the measured state")
     r.add_argument("--structure", choices=("window", "observer"), default="window",
                    help="measured-window state feedback, or anchored coordinates + the nominal model's predictor")

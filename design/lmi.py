@@ -106,7 +106,7 @@ class LMIOptions:
     strictness: float = 1e-7
     cost_tolerance: float = 1e-3
     backend: str = "auto"
-    refine: int = 3
+    refine: int = 1
     refine_tolerance: float = 1e-3
     direct_method: str = "auto"
 
@@ -352,7 +352,8 @@ def _refine(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, use_pole: bool, 
     """Slack-update steps from the synthesis result ``first``; returns the best result and the steps taken."""
     best, steps = first, 0
     n = len(a_s)
-    gp = ge = [first["G"]] * n
+    gp = [first["G"]] * n
+    ge = [first.get("Ge", first["G"])] * n
     for _ in range(opts.refine):
         gh = []
         for a, b in zip(a_s, b_s):
@@ -449,10 +450,33 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
         raise DesignInputError(f"initial_set must have {nz} rows, got {e0.shape[0]}")
     u_bar = None if opts.input_bound is None else opts.input_bound / su
     use_pole, use_bound = opts.pole_radius is not None, opts.input_bound is not None
-    res = _synth(a_s, b_s, qs, rs, bws, opts, u_bar, e0, use_pole, use_bound)
+    lam = 1.0
+    if use_bound:
+        # The input-bound LMIs share the H2 slack G, whose ellipsoid holds every Bryson-sized
+        # state; the initial-error set is far smaller, so with slack G the bound is checked on
+        # an ellipsoid far too big. Slack lam*G instead (any fixed multiple is valid), with
+        # lam putting the initial set on the boundary of G's ellipsoid; in the scaled LMIs
+        # that is E0 / sqrt(lam) and u_bar / sqrt(lam).
+        h2 = _synth(a_s, b_s, qs, rs, bws, opts, None, None, use_pole, False)
+        if h2["K"] is None:
+            raise SynthesisError(_diagnose(a_s, b_s, qs, rs, bws, opts, u_bar, e0, h2["status"]))
+        g0 = 0.5 * (h2["G"] + h2["G"].T)
+        lam = float(np.linalg.eigvalsh(e0.T @ np.linalg.solve(g0, e0)).max())
+    res = _synth(a_s, b_s, qs, rs, bws, opts, None if u_bar is None else u_bar / math.sqrt(lam),
+                 None if e0 is None else e0 / math.sqrt(lam), use_pole, use_bound)
+    if use_bound:
+        for key in ("build", "compile", "solve"):
+            res["times"][key] = res["times"].get(key, 0.0) + h2["times"][key]
     status = res["status"]
     if res["K"] is None:
-        raise SynthesisError(_diagnose(a_s, b_s, qs, rs, bws, opts, u_bar, e0, status))
+        msg = _diagnose(a_s, b_s, qs, rs, bws, opts, u_bar, e0, status, lam)
+        if use_bound and "relax the input bound" in msg:
+            first = su * float(np.abs(h2["K"] @ e0).max())
+            msg += (f"; without the bound the design commands {first:.3g} rad/s at the first sample from a "
+                    f"corner of the initial-error set (bound {opts.input_bound:.3g} rad/s), so the set and the "
+                    "bound ask for a much slower controller than the weights")
+        raise SynthesisError(msg)
+    res["Ge"] = lam * res["G"]
     lmi_bound = res["bound"]
     res, steps = _refine(a_s, b_s, qs, rs, bws, opts, u_bar, e0, use_pole, use_bound, res)
     t2 = time.perf_counter()
@@ -479,7 +503,7 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
                                synthesis_bound=lmi_bound, refine_steps=steps)
 
 
-def _diagnose(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, status: str) -> str:
+def _diagnose(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, status: str, lam: float = 1.0) -> str:
     head = f"the {opts.formulation} LMIs are infeasible over {len(a_s)} models (solver status {status!r})"
     extras = [(opts.pole_radius is not None, "the pole region (raise --pole-radius towards 1 or drop it)"),
               (opts.input_bound is not None, "the input bound (raise --rate-limit or shrink the initial-error set)")]
@@ -487,7 +511,8 @@ def _diagnose(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, status: str) -
         for drop_pole, drop_bound, what in ((True, False, extras[0][1]), (False, True, extras[1][1])):
             if (drop_pole and opts.pole_radius is None) or (drop_bound and opts.input_bound is None):
                 continue
-            res = _synth(a_s, b_s, qs, rs, bws, opts, u_bar, e0, opts.pole_radius is not None and not drop_pole,
+            res = _synth(a_s, b_s, qs, rs, bws, opts, None if u_bar is None else u_bar / math.sqrt(lam),
+                         None if e0 is None else e0 / math.sqrt(lam), opts.pole_radius is not None and not drop_pole,
                          opts.input_bound is not None and not drop_bound)
             if res["K"] is not None:
                 return f"{head}; feasible without {what.split(' (')[0]}: relax {what}"

@@ -29,79 +29,86 @@ DIRECT_METHODS = ("auto", "qdldl", "faer")
 
 
 class Aff:
-    """An affine matrix expression ``X = const + mat(S x)`` (shape ``(r, c)``, ``vec`` column-major)."""
+    """An affine matrix expression ``X = const + mat(S x)`` (shape ``(r, c)``, ``vec`` column-major).
 
-    __slots__ = ("shape", "coef", "const")
+    ``S`` is kept as coordinate triplets (``rows`` into ``vec(X)``, ``cols`` into ``x``,
+    ``vals``; duplicates are summed when the problem is assembled), so products with
+    constants are a few vectorised numpy operations, without sparse-matrix overhead.
+    """
 
-    def __init__(self, shape: tuple[int, int], coef: sp.csr_matrix, const: np.ndarray):
+    __slots__ = ("shape", "rows", "cols", "vals", "const")
+
+    def __init__(self, shape: tuple[int, int], rows: np.ndarray, cols: np.ndarray, vals: np.ndarray,
+                 const: np.ndarray):
         self.shape = shape
-        self.coef = coef
+        self.rows, self.cols, self.vals = rows, cols, vals
         self.const = const
 
     @staticmethod
-    def constant(m: np.ndarray, nvar: int) -> "Aff":
+    def constant(m: np.ndarray) -> "Aff":
         m = np.atleast_2d(np.asarray(m, dtype=float))
-        return Aff(m.shape, sp.csr_matrix((m.size, nvar)), m)
-
-    def _pad(self, nvar: int) -> sp.csr_matrix:
-        c = self.coef
-        if c.shape[1] == nvar:
-            return c
-        c = c.tocsr(copy=True)
-        c.resize((c.shape[0], nvar))
-        return c
+        e = np.zeros(0, dtype=np.int64)
+        return Aff(m.shape, e, e, np.zeros(0), m)
 
     def __add__(self, other: "Aff | np.ndarray") -> "Aff":
         if not isinstance(other, Aff):
-            return Aff(self.shape, self.coef, self.const + np.asarray(other, dtype=float))
+            return Aff(self.shape, self.rows, self.cols, self.vals, self.const + np.asarray(other, dtype=float))
         if other.shape != self.shape:
             raise ValueError(f"shapes {self.shape} and {other.shape} do not add")
-        n = max(self.coef.shape[1], other.coef.shape[1])
-        return Aff(self.shape, self._pad(n) + other._pad(n), self.const + other.const)
+        return Aff(self.shape, np.concatenate([self.rows, other.rows]), np.concatenate([self.cols, other.cols]),
+                   np.concatenate([self.vals, other.vals]), self.const + other.const)
 
     def __neg__(self) -> "Aff":
-        return Aff(self.shape, -self.coef, -self.const)
+        return Aff(self.shape, self.rows, self.cols, -self.vals, -self.const)
 
     def __sub__(self, other: "Aff | np.ndarray") -> "Aff":
         return self + (-other if isinstance(other, Aff) else -np.asarray(other, dtype=float))
 
     def scale(self, s: float) -> "Aff":
-        return Aff(self.shape, self.coef * s, self.const * s)
+        return Aff(self.shape, self.rows, self.cols, self.vals * s, self.const * s)
 
     def lmul(self, m: np.ndarray) -> "Aff":
-        """``M @ X``: ``vec(M X) = (I_c kron M) vec(X)``."""
+        """``M @ X``: entry ``(i, j)`` gathers ``M[i, k] X[k, j]``."""
         m = np.atleast_2d(np.asarray(m, dtype=float))
         r, c = self.shape
         if m.shape[1] != r:
             raise ValueError(f"cannot multiply {m.shape} by {self.shape}")
-        op = sp.kron(sp.identity(c, format="csr"), sp.csr_matrix(m), format="csr")
-        return Aff((m.shape[0], c), op @ self.coef, m @ self.const)
+        p = m.shape[0]
+        rr, cc = self.rows % r, self.rows // r
+        coef = m[:, rr]                                             # (p, nnz)
+        i = np.nonzero(coef)
+        rows = i[0] + cc[i[1]] * p
+        return Aff((p, c), rows, self.cols[i[1]], coef[i] * self.vals[i[1]], m @ self.const)
 
     def rmul(self, m: np.ndarray) -> "Aff":
-        """``X @ M``: ``vec(X M) = (M' kron I_r) vec(X)``."""
+        """``X @ M``: entry ``(i, j)`` gathers ``X[i, k] M[k, j]``."""
         m = np.atleast_2d(np.asarray(m, dtype=float))
         r, c = self.shape
         if m.shape[0] != c:
             raise ValueError(f"cannot multiply {self.shape} by {m.shape}")
-        op = sp.kron(sp.csr_matrix(m.T), sp.identity(r, format="csr"), format="csr")
-        return Aff((r, m.shape[1]), op @ self.coef, self.const @ m)
+        rr, cc = self.rows % r, self.rows // r
+        coef = m[cc, :].T                                           # (q, nnz)
+        j = np.nonzero(coef)
+        rows = rr[j[1]] + j[0] * r
+        return Aff((r, m.shape[1]), rows, self.cols[j[1]], coef[j] * self.vals[j[1]], self.const @ m)
 
     @property
     def T(self) -> "Aff":
         r, c = self.shape
-        perm = np.arange(r * c).reshape((r, c), order="F").ravel(order="C")   # vec(X')[k] = vec(X)[perm[k]]
-        return Aff((c, r), self.coef[perm], self.const.T.copy())
+        rr, cc = self.rows % r, self.rows // r
+        return Aff((c, r), cc + rr * c, self.cols, self.vals, self.const.T.copy())
 
     def trace(self) -> "Aff":
         r, c = self.shape
         if r != c:
             raise ValueError(f"trace of a non-square {self.shape} expression")
-        rows = np.arange(r) * (r + 1)
-        coef = sp.csr_matrix(self.coef[rows].sum(axis=0))
-        return Aff((1, 1), coef, np.array([[np.trace(self.const)]]))
+        keep = self.rows % r == self.rows // r
+        return Aff((1, 1), np.zeros(int(keep.sum()), dtype=np.int64), self.cols[keep], self.vals[keep],
+                   np.array([[np.trace(self.const)]]))
 
     def value(self, x: np.ndarray) -> np.ndarray:
-        v = self.const.ravel(order="F") + self._pad(x.size) @ x
+        r, c = self.shape
+        v = self.const.ravel(order="F") + np.bincount(self.rows, weights=self.vals * x[self.cols], minlength=r * c)
         return v.reshape(self.shape, order="F")
 
 
@@ -110,7 +117,7 @@ class ConicProblem:
 
     def __init__(self) -> None:
         self.nvar = 0
-        self._rows: list[sp.coo_matrix] = []      # -A blocks (expression coefficients)
+        self._rows: list[tuple] = []              # (rows, cols, vals, m) of each cone's expression
         self._b: list[np.ndarray] = []
         self._cones: list = []
 
@@ -128,12 +135,11 @@ class ConicProblem:
             idx = self.nvar + np.arange(r * c).reshape((r, c), order="F")
             count = r * c
         self.nvar += count
-        flat = idx.ravel(order="F")
-        coef = sp.csr_matrix((np.ones(flat.size), (np.arange(flat.size), flat)), shape=(flat.size, self.nvar))
-        return Aff((r, c), coef, np.zeros((r, c)))
+        flat = idx.ravel(order="F").astype(np.int64)
+        return Aff((r, c), np.arange(flat.size, dtype=np.int64), flat, np.ones(flat.size), np.zeros((r, c)))
 
     def const(self, m: np.ndarray) -> Aff:
-        return Aff.constant(m, self.nvar)
+        return Aff.constant(m)
 
     def psd(self, blocks: Sequence[Sequence["Aff | np.ndarray | None"]], margin: float = 0.0) -> None:
         """The symmetric block matrix is PSD (``>= margin I``).
@@ -158,17 +164,21 @@ class ConicProblem:
                 e = blk if isinstance(blk, Aff) else self.const(blk)
                 if e.shape != (sizes[i], sizes[j]):
                     raise ValueError(f"block ({i}, {j}) has shape {e.shape}, expected {(sizes[i], sizes[j])}")
-                rr, cc = np.unravel_index(np.arange(e.shape[0] * e.shape[1]), e.shape, order="F")
-                gr, gc = rr + offs[i], cc + offs[j]
+                r = e.shape[0]
+                # constant part, every entry
+                cr, cc = np.unravel_index(np.arange(e.const.size), e.shape, order="F")
+                gr, gc = cr + offs[i], cc + offs[j]
                 keep = gr <= gc
                 pos = gc * (gc + 1) // 2 + gr
                 scale = np.where(gr < gc, _SQRT2, 1.0)
                 b[pos[keep]] += (e.const.ravel(order="F") * scale)[keep]
-                coo = e._pad(self.nvar)[np.flatnonzero(keep)].tocoo()
-                kp, ks = pos[keep], scale[keep]
-                rows.append(kp[coo.row])
-                cols.append(coo.col)
-                vals.append(coo.data * ks[coo.row])
+                # variable part, triplet by triplet
+                gr, gc = e.rows % r + offs[i], e.rows // r + offs[j]
+                keep = gr <= gc
+                gr, gc = gr[keep], gc[keep]
+                rows.append(gc * (gc + 1) // 2 + gr)
+                cols.append(e.cols[keep])
+                vals.append(e.vals[keep] * np.where(gr < gc, _SQRT2, 1.0))
         if margin:
             d = np.arange(n)
             b[d * (d + 1) // 2 + d] -= margin
@@ -176,8 +186,7 @@ class ConicProblem:
 
     def nonneg(self, e: Aff) -> None:
         """Every entry of ``e`` is >= 0."""
-        coo = e._pad(self.nvar).tocoo()
-        self._add([coo.row], [coo.col], [coo.data], e.const.ravel(order="F").copy(),
+        self._add([e.rows], [e.cols], [e.vals], e.const.ravel(order="F").copy(),
                   clarabel.NonnegativeConeT(e.shape[0] * e.shape[1]))
 
     def _add(self, rows, cols, vals, b, cone) -> None:
@@ -199,8 +208,12 @@ class ConicProblem:
         a = sp.csc_matrix((np.concatenate(vs), (np.concatenate(rs), np.concatenate(cs))), shape=(off, self.nvar))
         return a, np.concatenate(self._b), list(self._cones)
 
-    def solve(self, objective: Aff, method: str = "auto", verbose: bool = False) -> tuple[str, np.ndarray | None, dict]:
+    def solve(self, objective: Aff, method: str = "auto", verbose: bool = False,
+              threads: int = 1) -> tuple[str, np.ndarray | None, dict]:
         """Minimise the scalar ``objective``; returns ``(status, x, info)``.
+
+        ``threads``: Clarabel's linear-algebra threads (1 by default: the machines this
+        runs on are shared; 0 = all cores).
 
         ``status`` is ``"optimal"``, ``"optimal_inaccurate"``, ``"infeasible"`` or Clarabel's
         own status name; ``x`` is None unless a solution was found.
@@ -209,10 +222,11 @@ class ConicProblem:
             raise ValueError(f"direct_solve_method must be one of {DIRECT_METHODS}, got {method!r}")
         t0 = time.perf_counter()
         a, b, cones = self.data()
-        q = np.asarray(objective._pad(self.nvar).todense()).ravel()
+        q = np.bincount(objective.cols, weights=objective.vals, minlength=self.nvar).astype(float)
         settings = clarabel.DefaultSettings()
         settings.verbose = verbose
         settings.direct_solve_method = method
+        settings.max_threads = threads
         solver = clarabel.DefaultSolver(sp.csc_matrix((self.nvar, self.nvar)), q, a, b, cones, settings)
         t1 = time.perf_counter()
         sol = solver.solve()

@@ -86,6 +86,7 @@ class TractorSimulator:
         self.gps_errors = gps.stack_errors(errs)
         self._sensor_noise = np.stack(sens)
         self._disker = np.array([c.implement == "disker" for c in conditions], dtype=float)
+        self._x: list[float] | None = None   # the one-tractor path's state (floats), see `state`
         self.state = np.zeros((B, N_STATE))
         for name, values in (initial or {}).items():
             if name not in vehicle.STATE_NAMES:
@@ -93,9 +94,9 @@ class TractorSimulator:
             arr = np.broadcast_to(np.asarray(values, dtype=float), (B,))
             if not np.all(np.isfinite(arr)):
                 raise SimulatorConfigError(f"initial {name} must be finite")
-            self.state[:, vehicle.STATE_NAMES.index(name)] = arr
+            self._state[:, vehicle.STATE_NAMES.index(name)] = arr
         dmax = p.steering.max_wheel_angle
-        self.state[:, DEL] = np.clip(self.state[:, DEL], -dmax, dmax)
+        self._state[:, DEL] = np.clip(self._state[:, DEL], -dmax, dmax)
         self.k = 0
         self.duty = np.zeros(B)
         self._rate_cmd = valve_rate(self.duty, p.steering)
@@ -108,7 +109,7 @@ class TractorSimulator:
             e = self._scalar_exo
             self._stepper = vehicle.scalar_stepper(p)
             self._step_inputs = list(zip(*(e[f] for f in disturbances.Exogenous.__dataclass_fields__)))
-            self._x = self.state[0].tolist()
+            self._x = self._state[0].tolist()
             self._disker0 = float(self._disker[0])
             self._rate0 = float(self._rate_cmd[0])
             self._gps0 = gps.ScalarErrors.of(self.gps_errors)
@@ -124,6 +125,18 @@ class TractorSimulator:
         self.att["lost"] = np.zeros((B, n_att), dtype=bool)
         self.n_pos = self.n_att = 0
         self._record_epochs()
+
+    @property
+    def state(self) -> np.ndarray:
+        """State of every tractor, shape ``(B, 8)`` (columns :data:`hil.vehicle.STATE_NAMES`); a copy
+        on the one-tractor path, which keeps the state as floats."""
+        return self._state if self._x is None else np.array([self._x])
+
+    @state.setter
+    def state(self, value: np.ndarray) -> None:
+        if self._x is not None:
+            raise SimulatorConfigError("the one-tractor path owns its state; it cannot be assigned")
+        self._state = value
 
     # -- time ---------------------------------------------------------------------
     @property
@@ -159,8 +172,7 @@ class TractorSimulator:
             raise SimulatorConfigError(f"the simulator was built for {self.duration:.2f} s and has reached it")
         k, e = self.k, self.exo
         if self._scalar_exo is not None:
-            self._x = x = self._stepper(self._x, self._rate0, *self._step_inputs[k], self._disker0)
-            self.state[0] = x
+            self._x = self._stepper(self._x, self._rate0, *self._step_inputs[k], self._disker0)
             self.k = k + 1
             self._record_epochs_scalar()
             return

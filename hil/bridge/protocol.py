@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import binascii
 import enum
+import functools
 import math
 import struct
 from dataclasses import dataclass
@@ -237,12 +238,12 @@ class Layout:
     direction: str
     fields: tuple[Field, ...]
 
-    @property
+    @functools.cached_property
     def struct(self) -> struct.Struct:
-        """Compiled big-endian struct of the payload."""
+        """Compiled big-endian struct of the payload (compiled once)."""
         return struct.Struct(">" + "".join(f.code for f in self.fields))
 
-    @property
+    @functools.cached_property
     def size(self) -> int:
         """Payload length, bytes."""
         return self.struct.size

@@ -63,12 +63,14 @@ def demo(args: list[str]) -> None:
     1. identification passes for the 15 conditions and a plot of one (paper's Figure 5);
     2. OKID/ERA-DC local, velocity-invariant and central models, and their report
        (Hankel and modal singular values, reconstruction, Table 1);
-    3. the paper's controller (LQR + Kalman predictor on the central model) and the
-       robust LMI controller over the 15 local models, both verified on every model;
-    4. one closed-loop HIL pass (robust controller, disker, 9th gear) through the
-       emulated bridge and receivers, with its track figure and summary;
-    5. a comparison campaign: kinematic LQR, the paper's central LQR, the robust
-       controller and the oracle over the 15 conditions, with its report.
+    3. the paper's controller (LQR + Kalman predictor on the central model), the
+       robust LMI controller over the 15 local models, both verified on every model, and
+       the MPC on the central model with the robust law as its fall-back;
+    4. one closed-loop HIL pass each of the robust controller and the MPC (disker, 9th
+       gear) through the emulated bridge and receivers, with track figures and summaries;
+    5. a comparison campaign over the 15 conditions with two seeds: the paper's central
+       LQR, the robust controller, the MPC, pure pursuit, Stanley, the oracle and the
+       kinematic LQR, with its report (Table 2 layout, targets, figures).
     """
     ensure_env()
     bin_ = VENV / "bin"
@@ -83,10 +85,13 @@ def demo(args: list[str]) -> None:
     _run(bin_ / "design", "lqr", "--model", models / "central.npz", "--verify-on", *local,
          "--out", ctrl / "central-lqr.json")
     _run(bin_ / "design", "robust", "--models", *local, "--integral", "--out", ctrl / "robust.json")
-    _run(bin_ / "hil", "run", "--controller", ctrl / "robust.json", "--implement", "disker", "--speed", "1.79",
-         "--duration", "60", "--seed", "1997", "--out", demo_dir / "run_robust_disker_9th")
-    _run(bin_ / "hil", "compare", "kinematic", ctrl / "central-lqr.json", ctrl / "robust.json", "oracle",
-         "--seeds", "1", "--duration", "60", "--out", demo_dir / "compare")
+    _run(bin_ / "design", "mpc", "--models", models, "--fallback", ctrl / "robust.json", "--out", ctrl / "mpc.json")
+    for name in ("robust", "mpc"):
+        _run(bin_ / "hil", "run", "--controller", ctrl / f"{name}.json", "--implement", "disker", "--speed", "1.79",
+             "--duration", "60", "--seed", "1997", "--out", demo_dir / f"run_{name}_disker_9th")
+    _run(bin_ / "hil", "compare", ctrl / "central-lqr.json", ctrl / "robust.json", ctrl / "mpc.json",
+         "pure-pursuit", "stanley", "oracle", "kinematic", "--seeds", "2", "--duration", "60",
+         "--out", demo_dir / "compare")
     print(f"\nmain job done: everything is in {demo_dir} (comparison report: {demo_dir / 'compare' / 'report.md'})")
 
 

@@ -113,7 +113,7 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     r.add_argument("--out", required=True, help="controller file (.json)")
     r.add_argument("--formulation", choices=("common", "extended"), default="extended")
     r.add_argument("--solver", choices=("clarabel", "scs"), default="clarabel")
-    r.add_argument("--method", choices=("all", "rounds"), default="all",
+    r.add_argument("--method", choices=("all", "rounds"), default="rounds",
                    help="one LMI over all models, or a subset plus worst-violator rounds")
     r.add_argument("--backend", choices=("auto", "direct", "cvxpy"), default="auto",
                    help="LMIs assembled directly for Clarabel, or through cvxpy (auto: direct for clarabel)")

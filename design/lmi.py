@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import cvxpy as cp
@@ -398,7 +398,8 @@ def _refine(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, use_pole: bool, 
 def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndarray], q: np.ndarray,
                           r: np.ndarray, bw: np.ndarray, scale: np.ndarray, input_scale: float,
                           options: LMIOptions | None = None,
-                          names: Sequence[str] | None = None) -> StateFeedbackDesign:
+                          names: Sequence[str] | None = None,
+                          start_gain: np.ndarray | None = None) -> StateFeedbackDesign:
     """One gain ``K`` for every model, minimising the guaranteed cost bound.
 
     Parameters
@@ -417,6 +418,9 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
         :class:`LMIOptions`.
     names
         Model names for messages.
+    start_gain
+        (m, nz) gain that stabilises every model: skip the synthesis LMI and refine from it
+        (its worst exact cost is the starting bound; not with a pole region or input bound).
 
     Raises
     ------
@@ -450,6 +454,20 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
         raise DesignInputError(f"initial_set must have {nz} rows, got {e0.shape[0]}")
     u_bar = None if opts.input_bound is None else opts.input_bound / su
     use_pole, use_bound = opts.pole_radius is not None, opts.input_bound is not None
+    if start_gain is not None:
+        if use_pole or use_bound:
+            raise DesignInputError("a start gain is refined without a pole region or input bound only")
+        k0 = np.asarray(start_gain, dtype=float)
+        if k0.shape != (m, nz):
+            raise DesignInputError(f"start_gain has shape {k0.shape}, expected {(m, nz)}")
+        start = [closed_loop_cost(a, b, k0, q, r, bw) for a, b in zip(a_list, b_list)]
+        if not all(math.isfinite(c) for c in start):
+            bad = names[int(np.argmax([not math.isfinite(c) for c in start]))]
+            raise SynthesisError(f"the start gain does not stabilise {bad}; start from the synthesis LMI instead")
+        res = {"status": "start", "K": k0 @ s / su, "bound": max(start), "G": None,
+               "times": {"build": 0.0, "compile": 0.0, "solve": 0.0}}
+        res, steps = _refine(a_s, b_s, qs, rs, bws, opts, None, None, False, False, res)
+        return _checked(res, max(start), steps, names, a_list, b_list, q, r, bw, su, si, opts, t0)
     lam = 1.0
     if use_bound:
         # The input-bound LMIs share the H2 slack G, whose ellipsoid holds every Bryson-sized
@@ -479,6 +497,13 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
     res["Ge"] = lam * res["G"]
     lmi_bound = res["bound"]
     res, steps = _refine(a_s, b_s, qs, rs, bws, opts, u_bar, e0, use_pole, use_bound, res)
+    return _checked(res, lmi_bound, steps, names, a_list, b_list, q, r, bw, su, si, opts, t0)
+
+
+def _checked(res: dict, lmi_bound: float, steps: int, names, a_list, b_list, q, r, bw, su: float,
+             si: np.ndarray, opts: LMIOptions, t0: float) -> StateFeedbackDesign:
+    """The design in model units, re-checked exactly on every model; refuses one that fails."""
+    status = res["status"]
     t2 = time.perf_counter()
     k = su * res["K"] @ si
     bound = res["bound"]
@@ -529,13 +554,19 @@ def _diagnose(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, status: str, l
 def robust_state_feedback_rounds(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndarray], q: np.ndarray,
                                  r: np.ndarray, bw: np.ndarray, scale: np.ndarray, input_scale: float,
                                  options: LMIOptions | None = None, names: Sequence[str] | None = None,
-                                 initial: int = 8, add: int = 4, max_rounds: int = 10) -> tuple[StateFeedbackDesign, int]:
+                                 initial: int = 4, add: int = 4, max_rounds: int = 10) -> tuple[StateFeedbackDesign, int]:
     """:func:`robust_state_feedback` on a subset, adding the worst violators until every model passes.
 
     Starts from the ``initial`` models with the largest open-loop spectral radius, solves,
     checks every model exactly (spectral radius and Lyapunov cost against the bound) and
     adds the ``add`` worst violators; stops when none is left. The returned design's
     ``costs``/``radii`` cover all models (its bound holds for every one, checked exactly).
+
+    With refinement (``options.refine > 0``) and neither a pole region nor an input bound,
+    the synthesis LMI (whose cost grows quickly with the number of models: one slack
+    couples them all) is solved on the subset only until its gain stabilises every model;
+    the refinement steps (linear in the number of models) then run on a working set, the
+    subset plus the models that cost most, which grows by the worst violators the same way.
 
     Returns
     -------
@@ -546,30 +577,68 @@ def robust_state_feedback_rounds(a_list: Sequence[np.ndarray], b_list: Sequence[
     names = tuple(names) if names is not None else tuple(f"model {i}" for i in range(len(a_list)))
     q, r, bw = np.asarray(q, float), np.asarray(r, float), np.asarray(bw, float)
     order = np.argsort([-spectral_radius(a) for a in a_list])
-    active = list(order[:max(1, min(initial, len(a_list)))])
+    active = [int(i) for i in order[:max(1, min(initial, len(a_list)))]]
     times = {"build": 0.0, "compile": 0.0, "solve": 0.0, "check": 0.0}
     t_start = time.perf_counter()
-    for rnd in range(1, max_rounds + 1):
-        sub = robust_state_feedback([a_list[i] for i in active], [b_list[i] for i in active], q, r, bw, scale,
-                                    input_scale, opts, [names[i] for i in active])
-        for k in ("build", "compile", "solve", "check"):
-            times[k] += sub.times[k]
+    split = opts.refine > 0 and opts.pole_radius is None and opts.input_bound is None
+    sub_opts = replace(opts, refine=0) if split else opts
+    limit = 1.0 if opts.pole_radius is None else opts.pole_radius * (1 + 1e-6)
+
+    def sub(idx, o, k0=None):
+        d = robust_state_feedback([a_list[i] for i in idx], [b_list[i] for i in idx], q, r, bw, scale,
+                                  input_scale, o, [names[i] for i in idx], start_gain=k0)
+        for key in ("build", "compile", "solve", "check"):
+            times[key] += d.times[key]
+        return d
+
+    def check(des):
         t0 = time.perf_counter()
         radii, costs, bad = [], [], []
-        limit = 1.0 if opts.pole_radius is None else opts.pole_radius * (1 + 1e-6)
         for i, (a, b) in enumerate(zip(a_list, b_list)):
-            rho = spectral_radius(a + b @ sub.K)
-            cost = closed_loop_cost(a, b, sub.K, q, r, bw)
+            rho = spectral_radius(a + b @ des.K)
+            cost = closed_loop_cost(a, b, des.K, q, r, bw)
             radii.append(rho)
             costs.append(cost)
-            if rho >= limit or cost > sub.bound * (1 + opts.cost_tolerance) + 1e-9:
+            if rho >= limit or cost > des.bound * (1 + opts.cost_tolerance) + 1e-9:
                 bad.append((cost if math.isfinite(cost) else math.inf, rho, i))
         times["check"] += time.perf_counter() - t0
-        if not bad:
-            times["total"] = time.perf_counter() - t_start
-            return StateFeedbackDesign(sub.K, sub.bound, tuple(costs), tuple(radii), names, sub.status, times,
-                                       sub.synthesis_bound, sub.refine_steps), rnd
         bad.sort(key=lambda t: (t[0], t[1]), reverse=True)
+        return radii, costs, bad
+
+    rnd, bad, des = 0, [], None
+    while rnd < max_rounds:
+        rnd += 1
+        des = sub(active, sub_opts)
+        radii, costs, bad = check(des)
+        if not bad:
+            break
+        if split and all(math.isfinite(c) for c, _, _ in bad):
+            break                              # stabilises every model: refine from here
         active += [i for _, _, i in bad[:add] if i not in active]
-    raise SynthesisError(f"{len(bad)} models still violate the bound after {max_rounds} rounds "
-                         f"(worst: {names[bad[0][2]]}); solve over all models instead")
+    else:
+        raise SynthesisError(f"{len(bad)} models still violate the bound after {max_rounds} rounds "
+                             f"(worst: {names[bad[0][2]]}); solve over all models instead")
+    # before refinement: the subset LMI's bound, or the worst exact cost over all models if higher
+    synthesis_bound = max(des.synthesis_bound, max(costs))
+    if split:
+        work = list(active)
+        for _, _, i in bad[:add]:
+            if i not in work:
+                work.append(i)
+        steps = 0
+        while True:
+            des = sub(work, opts, des.K)
+            steps += des.refine_steps
+            radii, costs, bad = check(des)
+            if not bad:
+                break
+            if rnd >= max_rounds:
+                raise SynthesisError(f"{len(bad)} models still exceed the refined bound after {max_rounds} rounds "
+                                     f"(worst: {names[bad[0][2]]}); solve over all models instead")
+            rnd += 1
+            work += [i for _, _, i in bad[:add] if i not in work]
+    else:
+        steps = des.refine_steps
+    times["total"] = time.perf_counter() - t_start
+    return StateFeedbackDesign(des.K, des.bound, tuple(costs), tuple(radii), names, des.status, times,
+                               synthesis_bound, steps), rnd

@@ -21,7 +21,7 @@ def _rows(cand_bias: float, cand_sigma: float, oracle_sigma: float = 4.0) -> lis
 
 
 def test_roles_detect_baselines_and_candidates() -> None:
-    labels = ["robust", "central-lqr", "oracle", "pure-pursuit[servo=4]", "stanley", "kinematic", "mpc"]
+    labels = ["robust", "central-lqr", "oracle", "pure-pursuit[servo=4]", "stanley", "kinematic", "mpc", "stanley"]
     roles = Roles.detect(labels)
     assert roles.baselines == ("pure-pursuit[servo=4]", "stanley")
     assert roles.candidates(labels) == ["mpc", "robust"]

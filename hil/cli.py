@@ -3,7 +3,7 @@
     hil sysid --out logs/ [--speeds ...] [--implements ...] [--passes N] [--duration S] [--seed S]
     hil plot LOG.npz --out figure.png
     hil params [--set group.name=value ...]
-    hil calibrate --out out/calibration [--controller central-lqr.json] [--budget 32] [--seeds 2]
+    hil calibrate --out out/calibration [--controller central-lqr.json] [--budget 30] [--seeds 2]
     hil run --controller kinematic --implement none --speed 1.79 --duration 60 --out runs/NAME
         [--realtime] [--seed N] [--fault KIND:START-END ...]
     hil drive --bridge PORT --position PORT [--attitude PORT] --controller kinematic \
@@ -382,10 +382,11 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--confirm-seed", type=int, default=10, help="first seed of the confirmation (default 10)")
     ca.add_argument("--no-confirm", action="store_true", help="skip the re-identification at the end")
     ca.add_argument("--duration", type=_float, default=60.0, help="seconds per pass (default 60)")
-    ca.add_argument("--budget", type=int, default=32, help="evaluations (default 32)")
+    ca.add_argument("--budget", type=int, default=30, help="evaluations (default 30)")
     ca.add_argument("--knobs", nargs="+", default=None, help="knobs to search (default: all)")
     ca.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
     ca.add_argument("--quiet", action="store_true")
+    ca.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     ca.set_defaults(func=_cmd_calibrate)
 
     em = sub.add_parser("emulate", parents=[common], help="an emulated tractor behind three pseudo-terminals, "

@@ -104,3 +104,13 @@ def test_bad_options_are_refused_with_a_clear_message(kw, match):
 def test_cli_refuses_an_unknown_knob(tmp_path, capsys):
     assert main(["calibrate", "--out", str(tmp_path), "--controller", "kinematic", "--knobs", "mud"]) == 1
     assert "knobs must be distinct names among" in capsys.readouterr().err
+
+
+def test_search_stops_at_the_physical_upper_bound_of_a_knob():
+    """Multipath is capped at x4 (about 2 cm): a bowl whose minimum lies beyond it ends at the cap."""
+    def bowl(x):
+        return {"log2_scales": dict(x), "objective": {"value": (x["multipath"] - 3.5) ** 2, "within_30pct": 0}}
+
+    found = search(bowl, CalibrationOptions(knobs=("multipath",), budget=20))
+    assert found["best"]["log2_scales"] == {"multipath": 2.0}
+    assert max(h["log2_scales"]["multipath"] for h in found["history"]) == 2.0

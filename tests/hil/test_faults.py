@@ -38,8 +38,8 @@ def controller():
     return KinematicLQRController()
 
 
-def run(controller, **faults):
-    return simulated_run(RunSpec(implement="none", speed=1.34, duration=14.0, seed=2, **faults), controller,
+def run(controller, seed=2, **faults):
+    return simulated_run(RunSpec(implement="none", speed=1.34, duration=14.0, seed=seed, **faults), controller,
                          CLEAN_GPS)
 
 
@@ -115,7 +115,10 @@ def test_lost_bridge_link_disengages_at_once_and_reengages_when_back(controller)
 
 
 def test_stuck_valve_is_detected_by_the_steering_response_monitor(controller):
-    log = run(controller, stuck_valve=((5.0, 9.0),))
+    # seed 3: a pass where the loop asks for wheel motion while the valve is stuck (with the
+    # calibrated soil forces, seed 2 stays so close to the line that it commands under the
+    # monitor's 0.12 rad per second, and rightly raises no alarm)
+    log = run(controller, seed=3, stuck_valve=((5.0, 9.0),))
     off = disengagements(log, "steering not responding", 5.0, 8.0)
     assert off, log.meta["events"]
     assert not disengagements(log, "steering not responding", 0.0, 5.0), "no false alarm before the fault"

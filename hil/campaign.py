@@ -230,17 +230,44 @@ class Campaign:
                         progress(done, total)
         return self.results()
 
-    def run_realtime(self, conditions: Sequence[Condition], progress: Callable[[int, int], None] | None = None
-                     ) -> list[dict]:
-        """Run every controller at ``conditions`` with the first seed in real time over pseudo-terminals.
+    def realtime_plan(self, controllers: Sequence[str] | None = None, duration: float | None = None
+                      ) -> tuple[list[str], float]:
+        """Check the real-time subset's options; return its controller specs and pass duration, s."""
+        specs = list(self.identity["controllers"])
+        if controllers is not None:
+            labels = {controller_label(c): c for c in specs}
+            unknown = [c for c in controllers if c not in labels]
+            if unknown or not controllers:
+                raise SimulatorConfigError(f"real-time controllers {unknown or list(controllers)!r} are not in the "
+                                           f"campaign; give labels among {sorted(labels)}")
+            specs = [labels[c] for c in controllers]
+        dur = float(self.identity["duration"]) if duration is None else float(duration)
+        RunSpec(duration=dur)   # validates the duration
+        return specs, dur
+
+    def run_realtime(self, conditions: Sequence[Condition], progress: Callable[[int, int], None] | None = None,
+                     controllers: Sequence[str] | None = None, duration: float | None = None) -> list[dict]:
+        """Run controllers at ``conditions`` with the first seed in real time over pseudo-terminals.
 
         One pass at a time in this process (the deadline statistics mean something only
         when the machine is not busy with other passes); saved under ``runs_realtime/``.
+
+        Parameters
+        ----------
+        conditions
+            Conditions to run.
+        progress
+            Called with (done, total) after each pass.
+        controllers
+            Labels (see :func:`controller_label`) of the campaign's controllers to run;
+            default: all of them.
+        duration
+            Seconds per real-time pass; default: the campaign's.
         """
+        specs, dur = self.realtime_plan(controllers, duration)
         self._prepare()
         seed = self.identity["seeds"][0]
-        keys = [RunKey(ctrl, c.implement, c.speed, seed, float(self.identity["duration"]))
-                for ctrl in self.identity["controllers"] for c in conditions]
+        keys = [RunKey(ctrl, c.implement, c.speed, seed, dur) for ctrl in specs for c in conditions]
         for i, k in enumerate(keys):
             if not self._path(k, True).exists():
                 self._save(run_one(k, self.params, realtime=True))

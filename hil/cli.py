@@ -159,6 +159,10 @@ def _cmd_compare(args: argparse.Namespace) -> dict:
     campaign = Campaign(Path(args.out) / "campaign", args.controllers, args.conditions,
                         seeds=list(range(args.seed, args.seed + args.seeds)), duration=args.duration,
                         params=_params(args))
+    if (args.realtime_controllers or args.realtime_duration is not None) and not args.realtime:
+        raise SimulatorConfigError("--realtime-controllers and --realtime-duration need --realtime IMPLEMENT:SPEED")
+    if args.realtime:
+        campaign.realtime_plan(args.realtime_controllers, args.realtime_duration)   # refuse bad options up front
     bar = tqdm(total=len(campaign.keys), unit="pass", desc="campaign", disable=args.quiet, file=sys.stderr)
 
     def progress(done: int, total: int) -> None:
@@ -167,7 +171,8 @@ def _cmd_compare(args: argparse.Namespace) -> dict:
 
     results = campaign.run(args.executor, args.scheduler, args.workers, progress)
     bar.close()
-    realtime = campaign.run_realtime(args.realtime) if args.realtime else []
+    realtime = campaign.run_realtime(args.realtime, controllers=args.realtime_controllers,
+                                     duration=args.realtime_duration) if args.realtime else []
     rep = write_report(results, args.out, extra={"campaign": campaign.identity}, realtime=realtime)
     return {"out": args.out, "passes": len(results), "tables": rep["tables"], "files": rep["files"]}
 
@@ -352,6 +357,11 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--realtime", type=_conditions, default=None, metavar="IMPLEMENT:SPEED,...",
                     help="also run these conditions (first seed, every controller) in real time over "
                          "pseudo-terminals, one after the other; reported apart")
+    cp.add_argument("--realtime-controllers", type=lambda t: [c for c in t.split(",") if c], default=None,
+                    metavar="LABEL,...", help="only these controllers in real time (labels as in the report, e.g. "
+                    "robust,mpc; default: all)")
+    cp.add_argument("--realtime-duration", type=_float, default=None, metavar="S",
+                    help="seconds per real-time pass (default: --duration)")
     cp.add_argument("--out", required=True, help="report directory (the campaign's runs are kept in OUT/campaign "
                     "and an interrupted campaign resumes there)")
     cp.add_argument("--quiet", action="store_true")

@@ -125,12 +125,27 @@ def test_tuning_ranks_candidates_on_the_same_passes(tmp_path):
 @pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_a_subset_runs_in_real_time_and_is_reported_apart(tmp_path, capsys):
-    rc = hil_main(["compare", "kinematic", "--conditions", "none:1.34", "--realtime", "none:1.34", "--seeds", "1",
+    rc = hil_main(["compare", "kinematic", "stanley", "--conditions", "none:1.34", "--realtime", "none:1.34",
+                   "--realtime-controllers", "stanley", "--realtime-duration", "4", "--seeds", "1",
                    "--duration", "5", "--workers", "1", "--out", str(tmp_path), "--quiet", "--json"])
     assert rc == 0
     data = json.loads((tmp_path / "results.json").read_text())
     (rt,) = data["realtime_runs"]
-    assert rt["mode"] == "realtime-pty" and rt["cycles"] >= 95
-    assert [r["mode"] for r in data["runs"]] == ["lockstep"]
+    assert rt["mode"] == "realtime-pty" and rt["controller"] == "stanley"
+    assert rt["duration"] == 4.0 and 75 <= rt["cycles"] <= 81
+    assert [r["mode"] for r in data["runs"]] == ["lockstep", "lockstep"]
     assert "## In real time over pseudo-terminals" in (tmp_path / "report.md").read_text()
     assert len(list((tmp_path / "campaign" / "runs_realtime").glob("*.json"))) == 1
+
+
+def test_realtime_subset_options_are_checked(tmp_path, capsys):
+    rc = hil_main(["compare", "kinematic", "--conditions", "none:1.34", "--realtime", "none:1.34",
+                   "--realtime-controllers", "mpc", "--seeds", "1", "--duration", "5", "--workers", "1",
+                   "--out", str(tmp_path), "--quiet"])
+    assert rc != 0
+    assert "real-time controllers ['mpc'] are not in the campaign; give labels among ['kinematic']" in \
+        capsys.readouterr().err
+    assert not list(tmp_path.glob("campaign/runs*/*.json"))     # refused before any pass ran
+    rc = hil_main(["compare", "kinematic", "--conditions", "none:1.34", "--realtime-duration", "3", "--seeds", "1",
+                   "--duration", "5", "--workers", "1", "--out", str(tmp_path / "b"), "--quiet"])
+    assert rc != 0 and "need --realtime" in capsys.readouterr().err

@@ -70,7 +70,8 @@ def demo(args: list[str]) -> None:
        gear) through the emulated bridge and receivers, with track figures and summaries;
     5. a comparison campaign over the 15 conditions with two seeds: the paper's central
        LQR, the robust controller, the MPC, pure pursuit, Stanley, the oracle and the
-       kinematic LQR, with its report (Table 2 layout, targets, figures).
+       kinematic LQR, with its report (Table 2 layout, targets, figures), and the robust
+       controller and the MPC for 30 s each in real time over pseudo-terminals.
     """
     ensure_env()
     bin_ = VENV / "bin"
@@ -91,6 +92,7 @@ def demo(args: list[str]) -> None:
              "--duration", "60", "--seed", "1997", "--out", demo_dir / f"run_{name}_disker_9th")
     _run(bin_ / "hil", "compare", ctrl / "central-lqr.json", ctrl / "robust.json", ctrl / "mpc.json",
          "pure-pursuit", "stanley", "oracle", "kinematic", "--seeds", "2", "--duration", "60",
+         "--realtime", "disker:2.91", "--realtime-controllers", "robust,mpc", "--realtime-duration", "30",
          "--out", demo_dir / "compare")
     print(f"\nmain job done: everything is in {demo_dir} (comparison report: {demo_dir / 'compare' / 'report.md'})")
 

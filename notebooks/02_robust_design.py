@@ -91,15 +91,19 @@ print("central LQG stable on every local model:", all(c.stable for c in lqg_loca
 
 # %% [markdown]
 # ## 4. One robust controller over all local models
-# Extended (de Oliveira-Geromel-Bernussou) LMIs, Clarabel, integral action on y/V.
+# Extended (de Oliveira-Geromel-Bernussou) LMIs on a subset of the models until the gain
+# stabilises all of them, then slack-update refinement steps (each an LMI linear in the gain)
+# on the models that cost most; every model is checked exactly. Clarabel, called on the
+# directly assembled conic data; integral action on y/V.
 
 # %%
 res = design_robust(local, RobustSpec(integral=True, name="robust"))
 res.file.save(OUT / "robust.json")
 d = res.file.design
 print(f"coordinates: {d['coordinates']}")
-print(f"guaranteed cost {d['guaranteed_cost']:.4g}, conservatism {d['conservatism']:.3f}, "
-      f"solve {d['times_s']['solve']:.2f} s")
+print(f"guaranteed cost {d['guaranteed_cost']:.4g}, conservatism {d['conservatism']:.3f} "
+      f"(before refinement {d['conservatism_before_refine']:.3f}), synthesis {d['times_s']['total']:.2f} s")
+assert d["guaranteed_cost"] >= max(d["costs"]) * (1 - 1e-3), "the bound must hold on every model"
 print(f"{'model':<20}{'rho robust':>11}{'rho LQG':>9}{'disk robust':>12}{'disk LQG':>10}{'delay':>7}")
 for r, q in zip(res.certificate.checks, lqg_local):
     print(f"{r.name:<20}{r.spectral_radius:>11.5f}{q.spectral_radius:>9.5f}{r.disk_margin:>12.2f}"

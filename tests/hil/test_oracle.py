@@ -130,7 +130,10 @@ def test_on_the_bench_the_oracle_beats_the_kinematic_lqr_and_has_no_disker_bias(
         kin = summarize(simulated_run(spec, make_controller("kinematic")))
         assert oracle["true_sigma_m"] < 0.85 * kin["true_sigma_m"], (implement, speed)
         if implement == "disker":
-            assert abs(oracle["true_bias_m"]) < 0.01
+            # integral action zeroes the bias it measures; the true bias is then minus the pass's
+            # mean multipath error (calibrated: 2 cm 1-sigma, 30 s), not the disker's pull
+            assert abs(oracle["measured_bias_m"]) < 0.01
+            assert abs(oracle["true_bias_m"]) < 0.03
 
 
 @pytest.mark.parametrize("call,match", [

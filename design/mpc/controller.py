@@ -8,7 +8,8 @@ If the solver fails, hits its iteration cap, returns something non-finite or out
 the rate limit, or takes longer than its time budget, the command is the fallback
 law on the same ``z`` (the robust LMI gain when the design was given one, else the
 unconstrained LQR of the Riccati terminal), clipped to the rate limit; the event is
-recorded in :attr:`MPCController.events`.
+recorded in :attr:`MPCController.events`. A non-finite measurement gives a zero
+command and a fresh start on the next tick, as the linear controller files do.
 """
 
 from __future__ import annotations
@@ -146,6 +147,13 @@ class MPCController:
         """
         z0 = np.asarray(z0, dtype=float)
         lim = self.problem.limits.rate
+        if not np.all(np.isfinite(z0)):
+            info = SolveInfo(0.0, math.nan, math.nan, "not solved", 0, 0.0, True,
+                             "non-finite measured state: no steering (memory reset)")
+            self.ticks += 1
+            self.fallbacks += 1
+            self.last = info
+            return info
         t0 = time.perf_counter()
         raw = self.backend.solve(z0)
         dt = time.perf_counter() - t0
@@ -201,6 +209,9 @@ class MPCController:
         if info.fallback:
             self.events.append(FallbackEvent(float(m.t), info.status, info.reason))
         u = info.command
+        if not np.all(np.isfinite(z)):          # as the linear controller: forget, and start afresh next tick
+            self.reset()
+            return u
         self._fresh = False
         self._z = self.problem.A @ z + self.problem.B[:, 0] * u      # shifts the window, integrates y/V
         return u

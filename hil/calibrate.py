@@ -125,6 +125,9 @@ class CalibrationOptions:
         Initial log2 scale factors per knob (default 0 = the reference).
     conditions
         Cells evaluated, ``(implement, gear)`` pairs of Table 2 (default: all 15).
+    min_improvement
+        A move is kept only when it lowers the objective by more than this (so the search
+        does not chase the seeds' scatter).
     """
 
     seeds: tuple[int, ...] = (0, 1)
@@ -137,6 +140,7 @@ class CalibrationOptions:
     bias_scale: float = 0.03
     start: Mapping[str, float] = field(default_factory=dict)
     conditions: tuple[tuple[str, int], ...] = tuple(TABLE2)
+    min_improvement: float = 0.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "conditions", tuple((str(i), int(g)) for i, g in self.conditions))
@@ -149,14 +153,14 @@ class CalibrationOptions:
         object.__setattr__(self, "start", dict(self.start))
         if not self.seeds or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in self.seeds):
             raise SimulatorConfigError(f"seeds must be integers >= 0, got {list(self.seeds)!r}")
-        unknown = [k for k in (*self.knobs, *self.start) if k not in KNOBS]
-        if unknown or not self.knobs or len(set(self.knobs)) != len(self.knobs):
-            raise SimulatorConfigError(f"knobs must be distinct names among {list(KNOBS)}, got "
-                                       f"{list(self.knobs)!r} (start: {sorted(self.start)})")
-        for name in ("duration", "step", "min_step", "bias_weight", "bias_scale"):
+        if any(k not in KNOBS for k in self.knobs) or not self.knobs or len(set(self.knobs)) != len(self.knobs):
+            raise SimulatorConfigError(f"knobs must be distinct names among {list(KNOBS)}, got {list(self.knobs)!r}")
+        if any(k not in self.knobs for k in self.start):
+            raise SimulatorConfigError(f"start may only name searched knobs {list(self.knobs)}, got {sorted(self.start)}")
+        for name in ("duration", "step", "min_step", "bias_weight", "bias_scale", "min_improvement"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \
-                    or (v == 0 and name != "bias_weight"):
+                    or (v == 0 and name not in ("bias_weight", "min_improvement")):
                 raise SimulatorConfigError(f"CalibrationOptions.{name} must be a finite number > 0, got {v!r}")
         if self.duration < 10:
             raise SimulatorConfigError(f"duration must be >= 10 s (statistics start 5 s after the engage), "
@@ -333,7 +337,7 @@ def search(evaluate: Callable[[Mapping[str, float]], dict], options: Calibration
                     if cand[knob] == x[knob]:
                         break
                     rec = run(cand)
-                    ok = rec["objective"]["value"] < best["objective"]["value"]
+                    ok = rec["objective"]["value"] < best["objective"]["value"] - options.min_improvement
                     if report:
                         report(len(history), rec, ok)
                     if not ok:

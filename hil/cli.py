@@ -205,7 +205,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> dict:
     from .calibrate import CalibrationOptions
     from .calibrate_pipeline import run_calibration
     opts = CalibrationOptions(seeds=tuple(range(args.seed, args.seed + args.seeds)), duration=args.duration,
-                              budget=args.budget, knobs=tuple(args.knobs) if args.knobs else CalibrationOptions.knobs)
+                              budget=args.budget, knobs=tuple(args.knobs) if args.knobs else CalibrationOptions.knobs,
+                              step=args.step, min_improvement=args.min_improvement, start=dict(args.start or []))
 
     def report(i: int, rec: dict, accepted: bool) -> None:
         if not args.quiet:
@@ -394,6 +395,11 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--duration", type=_float, default=60.0, help="seconds per pass (default 60)")
     ca.add_argument("--budget", type=int, default=30, help="evaluations (default 30)")
     ca.add_argument("--knobs", nargs="+", default=None, help="knobs to search (default: all)")
+    ca.add_argument("--start", action="append", type=_override, metavar="KNOB=LOG2",
+                    help="start from log2 of a knob's scale factor (default 0, the reference); repeatable")
+    ca.add_argument("--step", type=_float, default=1.0, help="initial step in log2 (default 1: a factor 2)")
+    ca.add_argument("--min-improvement", type=_float, default=0.0,
+                    help="keep a move only when it lowers the objective by more than this (default 0)")
     ca.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
     ca.add_argument("--quiet", action="store_true")
     ca.add_argument("--json", action="store_true", help="print the result as JSON on stdout")

@@ -95,6 +95,8 @@ def test_parameter_values_scale_the_reference_and_cap_at_the_bound():
     ({"step": 0.0}, "step must be a finite number > 0"),
     ({"start": {"soil": 9.0}}, r"start\['soil'\] must be a log2 scale factor"),
     ({"conditions": (("none", 6),)}, "conditions must be .implement, gear. cells of Table 2"),
+    ({"knobs": ("soil",), "start": {"hop": 1.0}}, "start may only name searched knobs"),
+    ({"min_improvement": -0.1}, "min_improvement must be a finite number"),
 ])
 def test_bad_options_are_refused_with_a_clear_message(kw, match):
     with pytest.raises(SimulatorConfigError, match=match):
@@ -114,3 +116,15 @@ def test_search_stops_at_the_physical_upper_bound_of_a_knob():
     found = search(bowl, CalibrationOptions(knobs=("multipath",), budget=20))
     assert found["best"]["log2_scales"] == {"multipath": 2.0}
     assert max(h["log2_scales"]["multipath"] for h in found["history"]) == 2.0
+
+
+def test_a_move_must_beat_the_minimum_improvement():
+    """The same bowl: with a threshold larger than any single move's gain nothing is accepted."""
+    def bowl(x):
+        return {"log2_scales": dict(x), "objective": {"value": (x["soil"] - 1.0) ** 2, "within_30pct": 0}}
+
+    free = search(bowl, CalibrationOptions(knobs=("soil",), budget=10))
+    strict = search(bowl, CalibrationOptions(knobs=("soil",), budget=10, min_improvement=1.5))
+    assert free["best"]["log2_scales"] == {"soil": 1.0}
+    assert strict["best"]["log2_scales"] == {"soil": 0.0}
+    assert [h["accepted"] for h in strict["history"]].count(True) == 1      # only the start

@@ -55,7 +55,7 @@ import scipy.linalg as sla
 from . import lmi_direct
 from .compensator import spectral_radius
 from .errors import DesignInputError, SynthesisError
-from .lmi_conic import DIRECT_METHODS
+from .lmi_conic import DIRECT_METHODS, ConicProblem
 
 FORMULATIONS = ("common", "extended")
 SOLVERS = {"clarabel": cp.CLARABEL, "scs": cp.SCS}
@@ -348,12 +348,12 @@ def _synth(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, use_pole: bool, u
 
 
 def _refine(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, use_pole: bool, use_bound: bool,
-            first: dict) -> tuple[dict, int]:
+            first: dict, monotone: bool = True) -> tuple[dict, int]:
     """Slack-update steps from the synthesis result ``first``; returns the best result and the steps taken."""
     best, steps = first, 0
     n = len(a_s)
     gp = [first["G"]] * n
-    ge = [first.get("Ge", first["G"])] * n
+    ge = first["Ge"] if isinstance(first.get("Ge"), list) else [first.get("Ge", first["G"])] * n
     for _ in range(opts.refine):
         gh = []
         for a, b in zip(a_s, b_s):
@@ -383,11 +383,13 @@ def _refine(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, use_pole: bool, 
                 npp, npe = [q.value for q in ppv], [q.value for q in pev]
         for key, v in (("build", t1 - t0), *tm.items()):
             best["times"][key] += v
-        if not ok or not math.isfinite(value) or value >= best["bound"]:
+        if not ok or not math.isfinite(value) or (monotone and value >= best["bound"]):
             return best, steps
         steps += 1
         improved = (best["bound"] - value) / best["bound"]
         best = {**best, "K": k, "bound": float(value), "status": str(status)}
+        if use_bound:
+            best["Ge"] = npe
         gp = npp if use_pole else gp
         ge = npe if use_bound else ge
         if improved < opts.refine_tolerance:
@@ -480,6 +482,26 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
             raise SynthesisError(_diagnose(a_s, b_s, qs, rs, bws, opts, u_bar, e0, h2["status"]))
         g0 = 0.5 * (h2["G"] + h2["G"].T)
         lam = float(np.linalg.eigvalsh(e0.T @ np.linalg.solve(g0, e0)).max())
+        # If the refined unbounded gain already keeps |u| <= u_bar on an invariant ellipsoid of
+        # every model (one ellipsoid per model, checked by a small LMI), start the bounded
+        # refinement from it: the bound then costs nothing it does not need to.
+        h2r, _ = _refine(a_s, b_s, qs, rs, bws, opts, None, None, False, False, dict(h2, times=dict(h2["times"])))
+        ell = None if use_pole else _ellipsoids(a_s, b_s, h2r["K"], e0, opts.direct_method)
+        if ell is not None and ell[0] <= 2.0 * u_bar:
+            # homotopy: lower the bound 10 % a step from the gain's own, each step an LMI in K
+            # whose slacks are the previous step's ellipsoids (feasible from there)
+            res = {**h2r, "Ge": ell[1], "times": {k: h2r["times"][k] for k in ("build", "compile", "solve")}}
+            lmi_bound, u_cur, steps = res["bound"], ell[0], 0
+            while u_cur > u_bar * (1 + 1e-9) and steps < 12:
+                u_next = max(u_bar, 0.9 * u_cur)
+                nxt, n = _refine(a_s, b_s, qs, rs, bws, replace(opts, refine=1), u_next, e0, False, True, res,
+                                 monotone=False)
+                if n == 0:
+                    break
+                res, u_cur, steps = nxt, u_next, steps + 1
+            if u_cur <= u_bar * (1 + 1e-9):
+                res, more = _refine(a_s, b_s, qs, rs, bws, opts, u_bar, e0, False, True, res)
+                return _checked(res, lmi_bound, steps + more, names, a_list, b_list, q, r, bw, su, si, opts, t0)
     res = _synth(a_s, b_s, qs, rs, bws, opts, None if u_bar is None else u_bar / math.sqrt(lam),
                  None if e0 is None else e0 / math.sqrt(lam), use_pole, use_bound)
     if use_bound:
@@ -498,6 +520,29 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
     lmi_bound = res["bound"]
     res, steps = _refine(a_s, b_s, qs, rs, bws, opts, u_bar, e0, use_pole, use_bound, res)
     return _checked(res, lmi_bound, steps, names, a_list, b_list, q, r, bw, su, si, opts, t0)
+
+
+def _ellipsoids(a_s, b_s, k: np.ndarray, e0: np.ndarray, method: str) -> tuple[float, list] | None:
+    """Smallest ``u`` with ``|K z| <= u`` on an invariant ellipsoid of each closed loop containing ``E0``.
+
+    One ellipsoid ``Pe_i`` per model (scaled data): ``[Pe_i, Acl_i Pe_i; *, Pe_i] >= 0``,
+    ``Pe_i >= E0 E0'``, ``K Pe_i K' <= u^2``. Returns ``(u, [Pe_i])`` or None if unsolved.
+    """
+    if k.shape[0] != 1:
+        return None
+    pr = ConicProblem()
+    t = pr.variable((1, 1))
+    pes = []
+    for a, b in zip(a_s, b_s):
+        pe = pr.variable(a.shape, symmetric=True)
+        pr.psd([[pe, pe.lmul(a + b @ k)], [None, pe]])
+        pr.psd([[pe, e0], [None, np.eye(e0.shape[1])]])
+        pr.psd([[t, pe.lmul(k)], [None, pe]])
+        pes.append(pe)
+    status, x, _ = pr.solve(t, method)
+    if x is None:
+        return None
+    return math.sqrt(max(t.value(x)[0, 0], 0.0)), [p.value(x) for p in pes]
 
 
 def _checked(res: dict, lmi_bound: float, steps: int, names, a_list, b_list, q, r, bw, su: float,

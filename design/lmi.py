@@ -488,16 +488,17 @@ def robust_state_feedback(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndar
         h2r, _ = _refine(a_s, b_s, qs, rs, bws, opts, None, None, False, False, dict(h2, times=dict(h2["times"])))
         ell = None if use_pole else _ellipsoids(a_s, b_s, h2r["K"], e0, opts.direct_method)
         if ell is not None and ell[0] <= 2.0 * u_bar:
-            # homotopy: lower the bound 10 % a step from the gain's own, each step an LMI in K
+            # homotopy: lower the bound 10 % a step (less if that fails) from the gain's own, each an LMI in K
             # whose slacks are the previous step's ellipsoids (feasible from there)
             res = {**h2r, "Ge": ell[1], "times": {k: h2r["times"][k] for k in ("build", "compile", "solve")}}
-            lmi_bound, u_cur, steps = res["bound"], ell[0], 0
-            while u_cur > u_bar * (1 + 1e-9) and steps < 12:
-                u_next = max(u_bar, 0.9 * u_cur)
+            lmi_bound, u_cur, steps, cut = res["bound"], ell[0], 0, 0.1
+            while u_cur > u_bar * (1 + 1e-9) and steps < 20 and cut > 0.01:
+                u_next = max(u_bar, (1 - cut) * u_cur)
                 nxt, n = _refine(a_s, b_s, qs, rs, bws, replace(opts, refine=1), u_next, e0, False, True, res,
                                  monotone=False)
                 if n == 0:
-                    break
+                    cut /= 2                     # too big a step: take a smaller one
+                    continue
                 res, u_cur, steps = nxt, u_next, steps + 1
             if u_cur <= u_bar * (1 + 1e-9):
                 res, more = _refine(a_s, b_s, qs, rs, bws, opts, u_bar, e0, False, True, res)

@@ -51,10 +51,11 @@ class RobustSpec:
         Per-output half-widths of the initial-error set (model output units); 0 = not in the set.
         The default, y/V 0.03 s and psi/V 0.01 rad s/m (3-9 cm and 0.6-1.7 deg from 1 to 2.91 m/s),
         is the size of on-line tracking errors: with ``rate_limit=0.35`` the command then stays
-        inside the valve's rate limit while tracking, at a cost about 1.8 times the LQR's on the
-        demo's 15 models. Larger errors (0.1 s) cannot be covered at 0.35 rad/s without a much
-        slower controller: the unbounded design already asks 0.78 rad/s at the first sample
-        from 0.1 s, 0.02 rad s/m; the output clip handles them instead.
+        inside the valve's rate limit while tracking, at a guaranteed cost 1.035 times the
+        largest LQR cost on the demo's 15 models. Much larger errors cannot be covered at
+        0.35 rad/s without a much slower controller: the unbounded design already asks about
+        0.8 rad/s at the first sample from 0.1 s, 0.02 rad s/m (the synthesis then says so);
+        the output clip handles them instead.
     integral
         Integrate the first output (cross-track / speed) so a steady pull leaves no bias.
     past

@@ -115,16 +115,16 @@ class DiskerParams(_Group):
                             "harrow, non-symmetrical loading)", lo=None)
     gang_pull: float = P(187.5, "N", "lateral force of the angled gangs, + = left (the paper: "
                          "the disker pulls to the left; here its offset line of draft does most of it) "
-                         "(calibrated: x0.0625 of the reference 3000, knob 'disker_pull')", "calibrated", lo=None)
+                         "(calibrated, knob 'disker_pull')", "calibrated", lo=None)
     gang_cornering_stiffness: float = P(60e3, "N/rad", "lateral stiffness of the gangs in the soil",
                                         lo_open=True)
     tongue_length: float = P(4.5, "m", "hitch pin to the gangs' centre of resistance", lo_open=True)
     front_load_factor: float = P(0.85, "1", "front-axle load relative to no implement (the paper: "
                                  "implements reduce front authority; the value is assumed)", lo_open=True, hi=1.5)
-    draft_variation: float = P(0.6, "1", "soil variation of the draft, relative 1-sigma (calibrated: x4 "
-                               "of the reference 0.15, knob 'disker_variation')", "calibrated")
-    pull_variation: float = P(1.0, "1", "soil variation of the gang pull, relative 1-sigma (calibrated: x4 "
-                              "of the reference 0.25, knob 'disker_variation')", "calibrated")
+    draft_variation: float = P(0.6, "1", "soil variation of the draft, relative 1-sigma (calibrated, "
+                               "knob 'disker_variation')", "calibrated")
+    pull_variation: float = P(1.0, "1", "soil variation of the gang pull, relative 1-sigma (calibrated, "
+                              "knob 'disker_variation')", "calibrated")
     soil_correlation_length: float = P(4.0, "m", "distance over which soil variation decorrelates",
                                        lo_open=True)
 
@@ -135,10 +135,10 @@ class RipperParams(_Group):
 
     shank_behind_rear_axle: float = P(1.5, "m", "shanks' centre of resistance behind the rear axle")
     lateral_force: float = P(375.0, "N", "random lateral soil force on the shanks, 1-sigma (the paper: "
-                             "hitched implements pass soil forces to the tractor) (calibrated: x0.25 of the "
-                             "reference 1500, knob 'ripper_soil')", "calibrated")
-    yaw_moment: float = P(375.0, "N m", "random soil yaw moment, 1-sigma (calibrated: x0.25 of the reference "
-                          "1500, knob 'ripper_soil')", "calibrated")
+                             "hitched implements pass soil forces to the tractor) (calibrated, "
+                             "knob 'ripper_soil')", "calibrated")
+    yaw_moment: float = P(375.0, "N m", "random soil yaw moment, 1-sigma (calibrated, "
+                          "knob 'ripper_soil')", "calibrated")
     soil_correlation_length: float = P(2.0, "m", "distance over which the soil forces decorrelate",
                                        lo_open=True)
     front_load_factor: float = P(0.75, "1", "front-axle load relative to no implement (draft "
@@ -150,7 +150,7 @@ class HopParams(_Group):
     """Power hop: the tractor bounces on its tyres under draft, front contact varies in time."""
 
     amplitude: float = P(0.125, "1", "largest fraction of front load lost at the peak of a bounce "
-                         "(calibrated: x0.25 of the reference 0.5, knob 'hop')", "calibrated",
+                         "(calibrated, knob 'hop')", "calibrated",
                          hi=0.95)
     center_speed: float = P(2.24, "m/s", "speed at which hop is strongest (11th gear)", lo_open=True)
     speed_width: float = P(0.35, "m/s", "1-sigma width of the hop band in speed", lo_open=True)
@@ -162,13 +162,13 @@ class HopParams(_Group):
 class FieldParams(_Group):
     """The field: side slope, general soil forces and the speed held by the engine and gearbox."""
 
-    roll: float = P(0.035, "rad", "side-slope roll, 1-sigma (about 2 deg) (calibrated: the search kept "
-                    "the reference, knob 'slope')", "calibrated")
+    roll: float = P(0.035, "rad", "side-slope roll, 1-sigma (about 2 deg) (calibrated, "
+                    "knob 'slope')", "calibrated")
     roll_mean: float = P(0.0, "rad", "mean side slope along the pass, + = left side up", lo=None)
     roll_correlation_length: float = P(25.0, "m", "distance over which the slope changes",
                                        lo_open=True)
-    lateral_force: float = P(4800.0, "N", "soil lateral force on the tractor itself, 1-sigma (calibrated: "
-                             "x16 of the reference 300, knob 'soil', at the search's bound)", "calibrated")
+    lateral_force: float = P(4800.0, "N", "soil lateral force on the tractor itself, 1-sigma (calibrated, "
+                             "knob 'soil')", "calibrated")
     force_correlation_length: float = P(3.0, "m", "correlation length of that force", lo_open=True)
     speed_variation: float = P(0.02, "1", "relative 1-sigma of speed about the gear's nominal value")
     speed_time_constant: float = P(4.0, "s", "time constant of the speed variation", lo_open=True)
@@ -182,8 +182,8 @@ class GpsParams(_Group):
     attitude_rate: float = P(10.0, "Hz", "attitude output rate", "paper", lo_open=True)
     position_noise: float = P(0.01, "m", "white position noise per horizontal axis, RTK fixed",
                               "design")
-    multipath: float = P(0.02, "m", "slowly varying (multipath) error per axis, 1-sigma (calibrated: x4 of "
-                         "the reference 0.005, knob 'multipath', at its bound)", "calibrated")
+    multipath: float = P(0.02, "m", "slowly varying (multipath) error per axis, 1-sigma (calibrated, "
+                         "knob 'multipath')", "calibrated")
     multipath_time_constant: float = P(30.0, "s", "time constant of the multipath error", lo_open=True)
     float_noise: float = P(0.05, "m", "white position noise per axis during RTK float")
     yaw_noise: float = P(0.00175, "rad", "yaw noise (0.1 deg)", "paper")

@@ -376,7 +376,7 @@ def main() -> None:
     warnings.filterwarnings("ignore", category=FutureWarning, module="casadi")   # do-mpc's numpy-on-casadi notice
     steps, horizons = (300, [20, 50]) if a.quick else (a.steps, a.horizons)
 
-    from design.mpc import MPCLimits, SolverSettings, mpc_problem
+    from design.mpc import CASADI_SOLVERS, MPCLimits, SolverSettings, mpc_problem
     from design.mpc.backends import make_backend
 
     model, model_note = load_model(a.model)
@@ -398,8 +398,8 @@ def main() -> None:
         reference = CvxpyPeer(pb, tight=True).solve
         cases: list[tuple[str, Callable[[], Callable[[np.ndarray], float]], str]] = []
         # the project's MPC through its Controller interface: measurement -> state z -> QP -> command
-        for backend, solver in (("casadi", "daqp"), ("casadi", "qpoases"), ("casadi", "piqp"),
-                                ("casadi", "osqp"), ("osqp", "osqp")):
+        plugins = [s for s in ("daqp", "qpoases", "piqp", "hpipm", "osqp") if s in CASADI_SOLVERS]
+        for backend, solver in [("casadi", s) for s in plugins] + [("osqp", "osqp")]:
             label = f"project {backend}:{solver}" if backend == "casadi" else "project osqp (sparse)"
             cases.append((label, lambda backend=backend, solver=solver: ProjectMPC(model, n, limits, backend, solver),
                           ""))

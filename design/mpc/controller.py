@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -26,6 +27,7 @@ from ..errors import DesignInputError
 from .backends import SolverSettings, make_backend
 from .problem import MPCProblem
 
+KEEP_TIMES = 72_000          # solve times kept for the diagnostics (an hour of ticks at 20 Hz)
 RATE_TOLERANCE = 1e-3       # a first move within 0.1 % of the rate limit is the solver's tolerance: clipped, used
 
 
@@ -101,7 +103,7 @@ class MPCController:
     events
         :class:`FallbackEvent` per fallback tick.
     solve_times
-        Wall-clock time of every QP call, s.
+        Wall-clock time of the QP calls, s (the latest :data:`KEEP_TIMES`: an hour at 20 Hz).
     """
 
     def __init__(self, problem: MPCProblem, settings: SolverSettings | None = None,
@@ -133,7 +135,7 @@ class MPCController:
         self.ticks = 0
         self.fallbacks = 0
         self.events: list[FallbackEvent] = []
-        self.solve_times: list[float] = []
+        self.solve_times: deque[float] = deque(maxlen=KEEP_TIMES)
         self._z = np.zeros(nz)
         self._fresh = True
 
@@ -221,7 +223,7 @@ class MPCController:
         return tuple(float(v) for v in self._z)
 
     def diagnostics(self) -> dict:
-        """Counters and solve-time statistics since construction (times in ms)."""
+        """Counters since construction and statistics of the kept solve times (ms)."""
         t = np.asarray(self.solve_times) * 1e3
         stats = {"median_ms": float(np.median(t)), "p99_ms": float(np.percentile(t, 99)),
                  "max_ms": float(t.max())} if t.size else {}

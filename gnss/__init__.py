@@ -9,7 +9,8 @@ Main entry points
   :class:`gnss.frontend.NavSolution`: what the vehicle loop calls each tick.
 - :class:`gnss.reader.GnssReader`, :class:`gnss.reader.StreamDecoder`: mixed NMEA/UBX/RTCM streams.
 - :mod:`gnss.nmea_encode`, :mod:`gnss.ubx`, :mod:`gnss.rtcm`: encoders (SI in, bytes out).
-- :class:`gnss.guidance.ABLine`, :class:`gnss.guidance.ParallelLines`, :class:`gnss.guidance.CurvedLine`.
+- :class:`gnss.guidance.ABLine`, :class:`gnss.guidance.ParallelLines`, :class:`gnss.guidance.CurvedLine`;
+  :class:`gnss.curve.ArcPath` (straight and circular-arc segments, exact curvature preview).
 - :class:`gnss.geodesy.LocalFrame`, :func:`gnss.attitude.solve_attitude`,
   :func:`gnss.lever_arm.control_point_enu`.
 """

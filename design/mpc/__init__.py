@@ -13,7 +13,8 @@ integral gives offset-free tracking of a steady pull. Each tick one QP::
 
 with ``P`` the Riccati solution (first move = LQR when no limit binds). The QP solver
 is a setting (:class:`SolverSettings`): the condensed QP through ``casadi.conic`` with
-any plugin (default DAQP), or the sparse QP in OSQP. A failed or over-budget solve
+the DAQP (default), qpOASES or PIQP plugin, or the sparse QP in OSQP (see
+:mod:`design.mpc.backends` for the measurements behind that choice). A failed or over-budget solve
 falls back to the robust (or LQR) law on the same state and is recorded.
 
 API

@@ -21,7 +21,6 @@ from identification.model import Model
 from ..controller_file import read_controller_file
 from ..errors import DesignInputError, SynthesisError
 from ..iostate import feedback_compensator
-from ..robust import _model_names
 from ..verify import Certificate, certify, model_hash, require_stable
 from .backends import SolverSettings
 from .controller import MPCController
@@ -51,6 +50,11 @@ class MPCDesign:
     problem: MPCProblem
     certificate: Certificate
     unconstrained_gain: np.ndarray
+
+
+def _model_names(models: Sequence[Model]) -> list[str]:
+    names = [str(m.meta.get("name", f"model {i}")) for i, m in enumerate(models)]
+    return names if len(set(names)) == len(names) else [f"{n}#{i}" for i, n in enumerate(names)]
 
 
 def unconstrained_gain(problem: MPCProblem) -> np.ndarray:

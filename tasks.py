@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import shutil
 import subprocess
 import sys
 import venv
@@ -90,6 +91,7 @@ def demo(args: list[str]) -> None:
     for name in ("robust", "mpc"):
         _run(bin_ / "hil", "run", "--controller", ctrl / f"{name}.json", "--implement", "disker", "--speed", "1.79",
              "--duration", "60", "--seed", "1997", "--out", demo_dir / f"run_{name}_disker_9th")
+    shutil.rmtree(demo_dir / "compare", ignore_errors=True)    # the controllers were just re-designed: run afresh
     _run(bin_ / "hil", "compare", ctrl / "central-lqr.json", ctrl / "robust.json", ctrl / "mpc.json",
          "pure-pursuit", "stanley", "oracle", "kinematic", "--seeds", "2", "--duration", "60",
          "--realtime", "disker:2.91", "--realtime-controllers", "robust,mpc", "--realtime-duration", "30",

@@ -12,6 +12,7 @@ process boundaries.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -158,7 +159,9 @@ class Campaign:
         self.keys = [RunKey(ctrl, c.implement, c.speed, int(s), float(duration))
                      for ctrl in controllers for c in conditions for s in seeds]
         self.identity = {"controllers": list(controllers), "seeds": [int(s) for s in seeds], "duration": duration,
-                         "conditions": [[c.implement, c.speed] for c in conditions], "params": self.params}
+                         "conditions": [[c.implement, c.speed] for c in conditions], "params": self.params,
+                         "controller_files": {c: hashlib.sha256(Path(c).read_bytes()).hexdigest()
+                                              for c in controllers if c.endswith(".json")}}
 
     def _prepare(self) -> None:
         (self.out / "runs").mkdir(parents=True, exist_ok=True)
@@ -168,6 +171,12 @@ class Campaign:
             if old.get("params") != self.params or old.get("duration") != self.identity["duration"]:
                 raise SimulatorConfigError(f"{ident} belongs to a campaign with other simulator parameters or "
                                            "pass duration; use another --out directory")
+            before = old.get("controller_files", {})
+            changed = sorted(c for c, h in self.identity["controller_files"].items() if before.get(c, h) != h)
+            if changed:
+                raise SimulatorConfigError(f"controller file(s) {changed} changed since {ident} ran them; their "
+                                           "saved passes are stale: use another --out directory")
+            self.identity["controller_files"] = {**before, **self.identity["controller_files"]}
         ident.write_text(json.dumps(self.identity, indent=2) + "\n")
 
     def _path(self, key: RunKey, realtime: bool = False) -> Path:

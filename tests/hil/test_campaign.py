@@ -149,3 +149,25 @@ def test_realtime_subset_options_are_checked(tmp_path, capsys):
     rc = hil_main(["compare", "kinematic", "--conditions", "none:1.34", "--realtime-duration", "3", "--seeds", "1",
                    "--duration", "5", "--workers", "1", "--out", str(tmp_path / "b"), "--quiet"])
     assert rc != 0 and "need --realtime" in capsys.readouterr().err
+
+
+def test_a_changed_controller_file_is_not_resumed(tmp_path):
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "design"))
+    from design.robust import RobustSpec, design_robust
+    from design_family import family
+
+    ctrl = design_robust(family(speeds=(1.0, 2.0), authorities=(1.0,)), RobustSpec(integral=True)).file.save(
+        tmp_path / "robust.json")
+    camp = Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0)
+    camp._prepare()
+    Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0)._prepare()   # unchanged: resumes
+    ctrl.write_text(ctrl.read_text().replace('"name": "', '"name": "x', 1))      # an edit (checksum aside)
+    body = json.loads(ctrl.read_text())
+    from design.controller_file import checksum
+    body["checksum"] = checksum(body)
+    ctrl.write_text(json.dumps(body))
+    with pytest.raises(ValueError, match=r"changed since .* ran them; their saved passes are stale"):
+        Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0)._prepare()

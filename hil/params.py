@@ -162,7 +162,7 @@ class HopParams(_Group):
 class FieldParams(_Group):
     """The field: side slope, general soil forces and the speed held by the engine and gearbox."""
 
-    roll: float = P(0.035, "rad", "side-slope roll, 1-sigma (about 2 deg) (calibrated, "
+    roll: float = P(0.0175, "rad", "side-slope roll, 1-sigma (about 1 deg) (calibrated, "
                     "knob 'slope')", "calibrated")
     roll_mean: float = P(0.0, "rad", "mean side slope along the pass, + = left side up", lo=None)
     roll_correlation_length: float = P(25.0, "m", "distance over which the slope changes",

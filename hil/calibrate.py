@@ -156,7 +156,8 @@ class CalibrationOptions:
         if any(k not in KNOBS for k in self.knobs) or not self.knobs or len(set(self.knobs)) != len(self.knobs):
             raise SimulatorConfigError(f"knobs must be distinct names among {list(KNOBS)}, got {list(self.knobs)!r}")
         if any(k not in self.knobs for k in self.start):
-            raise SimulatorConfigError(f"start may only name searched knobs {list(self.knobs)}, got {sorted(self.start)}")
+            raise SimulatorConfigError(f"start may only name searched knobs {list(self.knobs)}, "
+                                       f"got {sorted(self.start)}")
         for name in ("duration", "step", "min_step", "bias_weight", "bias_scale", "min_improvement"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \

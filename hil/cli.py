@@ -204,9 +204,10 @@ def _cmd_tune(args: argparse.Namespace) -> dict:
 def _cmd_calibrate(args: argparse.Namespace) -> dict:
     from .calibrate import CalibrationOptions
     from .calibrate_pipeline import run_calibration
+    knobs = {"knobs": tuple(args.knobs)} if args.knobs else {}
     opts = CalibrationOptions(seeds=tuple(range(args.seed, args.seed + args.seeds)), duration=args.duration,
-                              budget=args.budget, knobs=tuple(args.knobs) if args.knobs else CalibrationOptions.knobs,
-                              step=args.step, min_improvement=args.min_improvement, start=dict(args.start or []))
+                              budget=args.budget, step=args.step, min_improvement=args.min_improvement,
+                              start=dict(args.start or []), **knobs)
 
     def report(i: int, rec: dict, accepted: bool) -> None:
         if not args.quiet:

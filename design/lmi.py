@@ -19,8 +19,9 @@ slack ``G``, ``Y = K G``, ``S_i = G + G' - P_i``)::
 For one model both forms give the Riccati cost.
 
 The common slack ``G`` is what makes the extended bound conservative over many models:
-on the 15 tractor models (window coordinates with an integral) its bound is about 19 %
-above the worst exact cost of the very gain it returns. ``refine`` slack-update steps
+on the 15 tractor models (window coordinates with an integral) its bound is 15-20 %
+above the worst exact cost of the very gain it returns (not the convex hull: sampled
+convex combinations of the models cost no more than the worst model). ``refine`` slack-update steps
 remove that: with the H2 slack of model i fixed at the exact Gramian of the current gain
 on model i, ``[P_i - Bw Bw', (A_i + B_i K) L_i; *, 2 L_i - P_i] > 0`` and
 ``[W_i, R^½ K L_i; *, 2 L_i - P_i] > 0`` are linear in ``K``; the current gain is feasible

@@ -67,8 +67,8 @@ class RobustSpec:
     method
         ``"rounds"`` (default): the synthesis LMI on a subset, then the refinement on a
         working set, each grown by the worst violators until every model passes its exact
-        check (:func:`design.lmi.robust_state_feedback_rounds`; much faster, and on the demo's
-        15 models no more conservative); ``"all"``: one LMI over every model.
+        check (:func:`design.lmi.robust_state_feedback_rounds`; several times faster, and on the
+        demo's 15 models about as tight: 1.037 against 1.034); ``"all"``: one LMI over every model.
     output_clip
         Clip of each normalised output before the compensator (model units; None = none),
         so a large error does not ask more than the rate-limited steering can give.

@@ -164,8 +164,10 @@ class OsqpBackend:
         self._osqp = osqp
         self._n, self._nx, self._nz = problem.horizon, qp.n_states, problem.nz
         self._l, self._u = qp.l.copy(), qp.u.copy()
+        # adaptive_rho_interval fixed: OSQP's default (0) times its set-up and adapts rho on a wall-clock
+        # schedule, so the iterates (and the answer within tolerance) would depend on the machine's load.
         s = {"verbose": False, "warm_starting": True, "polishing": True, "eps_abs": 1e-4, "eps_rel": 1e-4,
-             "max_iter": settings.max_iter, "time_limit": settings.time_budget}
+             "max_iter": settings.max_iter, "time_limit": settings.time_budget, "adaptive_rho_interval": 25}
         s.update(settings.options)
         self._solver = osqp.OSQP()
         try:

@@ -601,10 +601,12 @@ def _diagnose(a_s, b_s, qs, rs, bws, opts: LMIOptions, u_bar, e0, status: str, l
 def robust_state_feedback_rounds(a_list: Sequence[np.ndarray], b_list: Sequence[np.ndarray], q: np.ndarray,
                                  r: np.ndarray, bw: np.ndarray, scale: np.ndarray, input_scale: float,
                                  options: LMIOptions | None = None, names: Sequence[str] | None = None,
-                                 initial: int = 4, add: int = 4, max_rounds: int = 10) -> tuple[StateFeedbackDesign, int]:
+                                 initial: int = 6, add: int = 4, max_rounds: int = 10) -> tuple[StateFeedbackDesign, int]:
     """:func:`robust_state_feedback` on a subset, adding the worst violators until every model passes.
 
-    Starts from the ``initial`` models with the largest open-loop spectral radius, solves,
+    Starts from the ``initial`` models with the largest open-loop spectral radius (6: on the
+    identified tractor family, order 8 with an integral, a start from 4 reached a conservatism of
+    1.10-1.14 in 0.20-0.25 s, from 6 1.04-1.06 in 0.42-0.44 s, from 8 the same as 6 in 0.51 s), solves,
     checks every model exactly (spectral radius and Lyapunov cost against the bound) and
     adds the ``add`` worst violators; stops when none is left. The returned design's
     ``costs``/``radii`` cover all models (its bound holds for every one, checked exactly).

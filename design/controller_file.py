@@ -26,7 +26,7 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -179,23 +179,29 @@ def read_controller_file(path: str | Path, dt: float | None = 0.05) -> Controlle
         raise ControllerFileError(f"{path}: {exc}") from None
 
 
-def _from_body(body: Any, dt: float | None) -> ControllerFile:
+def check_envelope(body: Any, kind: str, top_keys: Sequence[str]) -> None:
+    """Check what every controller file shares: a JSON object of ``SCHEMA`` and ``kind`` with
+    exactly ``top_keys`` and a checksum that matches its content; raise :class:`ControllerFileError`."""
     if not isinstance(body, dict):
         raise ControllerFileError(f"expected a JSON object, got {type(body).__name__}")
     if body.get("schema") != SCHEMA:
         raise ControllerFileError(f"unsupported schema {body.get('schema')!r}; expected {SCHEMA!r}")
-    if body.get("kind") != "linear":
-        raise ControllerFileError(f"kind {body.get('kind')!r} is not supported here; expected 'linear'")
-    missing = [k for k in TOP_KEYS if k not in body]
+    if body.get("kind") != kind:
+        raise ControllerFileError(f"kind {body.get('kind')!r} is not supported here; expected {kind!r}")
+    missing = [k for k in top_keys if k not in body]
     if missing:
         raise ControllerFileError(f"missing keys {missing}")
-    unknown = sorted(set(body) - set(TOP_KEYS))
+    unknown = sorted(set(body) - set(top_keys))
     if unknown:
         raise ControllerFileError(f"unknown keys {unknown}")
     want = checksum(body)
     if body["checksum"] != want:
         raise ControllerFileError(f"checksum mismatch: file says {body['checksum']!r}, content gives {want!r} "
                                   "(the file was edited or corrupted)")
+
+
+def _from_body(body: Any, dt: float | None) -> ControllerFile:
+    check_envelope(body, "linear", TOP_KEYS)
     fdt = body["dt"]
     if isinstance(fdt, bool) or not isinstance(fdt, (int, float)) or not math.isfinite(fdt) or fdt <= 0:
         raise ControllerFileError(f"dt must be a finite sample time > 0 s, got {fdt!r}")

@@ -32,7 +32,7 @@ import numpy as np
 from identification.errors import ModelFileError
 from identification.model import Model
 
-from ..controller_file import SCHEMA, VELOCITY_OUTPUTS, checksum, read_json
+from ..controller_file import SCHEMA, VELOCITY_OUTPUTS, check_envelope, checksum, read_json
 from ..errors import ControllerFileError, DesignInputError
 from ..verify import model_hash
 from ..weights import OutputWeights
@@ -154,22 +154,7 @@ def _integer(v: Any, what: str) -> int:
 
 def mpc_from_body(body: Any, dt: float | None = 0.05) -> MPCFile:
     """Check a parsed MPC file (see module docstring) and return its contents."""
-    if not isinstance(body, dict):
-        raise ControllerFileError(f"expected a JSON object, got {type(body).__name__}")
-    if body.get("schema") != SCHEMA:
-        raise ControllerFileError(f"unsupported schema {body.get('schema')!r}; expected {SCHEMA!r}")
-    if body.get("kind") != "mpc":
-        raise ControllerFileError(f"kind {body.get('kind')!r} is not an MPC file; expected 'mpc'")
-    missing = [k for k in TOP_KEYS if k not in body]
-    if missing:
-        raise ControllerFileError(f"missing keys {missing}")
-    unknown = sorted(set(body) - set(TOP_KEYS))
-    if unknown:
-        raise ControllerFileError(f"unknown keys {unknown}")
-    want = checksum(body)
-    if body["checksum"] != want:
-        raise ControllerFileError(f"checksum mismatch: file says {body['checksum']!r}, content gives {want!r} "
-                                  "(the file was edited or corrupted)")
+    check_envelope(body, "mpc", TOP_KEYS)
     fdt = _number(body["dt"], "dt")
     if fdt <= 0:
         raise ControllerFileError(f"dt must be a sample time > 0 s, got {fdt!r}")

@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .controller_file import ControllerFile, read_controller_file
+from .controller_file import ControllerFile, read_controller_file, read_json
 from .errors import DesignInputError
+from .mpc.file import read_mpc_file
 
 FORMATS = ("json", "c-header", "csv")
 MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec", "X0")
@@ -78,6 +79,16 @@ def export_controller(path: str | Path, fmt: str, out: str | Path | None = None)
     """Read and check a controller file, render it in ``fmt``, write ``out`` if given, return the text."""
     if fmt not in FORMATS:
         raise DesignInputError(f"format must be one of {FORMATS}, got {fmt!r}")
+    body = read_json(path)
+    if isinstance(body, dict) and body.get("kind") == "mpc":
+        if fmt != "json":
+            raise DesignInputError(f"{path} is an MPC controller: it is exported as JSON (model, weights, limits, "
+                                   "horizon and solver for the vehicle's MPC); c-header and csv hold a linear "
+                                   "compensator only")
+        text = json.dumps(read_mpc_file(path, dt=None).to_dict(), indent=1) + "\n"
+        if out is not None:
+            Path(out).write_text(text)
+        return text
     spec = read_controller_file(path, dt=None)
     checksum = json.loads(Path(path).read_text())["checksum"]
     if fmt == "json":

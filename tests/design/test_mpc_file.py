@@ -150,3 +150,17 @@ def test_cli_refuses_ambiguous_models_and_bad_values(tmp_path, capsys):
     assert "horizon must be an integer >= 1" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         design_main(["mpc", "--models", *paths, "--solver", "hpipm", "--out", "x.json"])
+
+
+def test_export_writes_the_mpc_file_as_json_and_refuses_other_formats(saved, tmp_path):
+    from design.export import export_controller
+
+    src = saved
+    out = tmp_path / "exported.json"
+    text = export_controller(src, "json", out)
+    assert json.loads(text)["checksum"] == json.loads(src.read_text())["checksum"]
+    assert read_mpc_file(out).to_dict() == read_mpc_file(src).to_dict()
+    for fmt in ("c-header", "csv"):
+        with pytest.raises(DesignInputError, match="is an MPC controller: it is exported as JSON"):
+            export_controller(src, fmt, tmp_path / f"x.{fmt}")
+        assert not (tmp_path / f"x.{fmt}").exists()

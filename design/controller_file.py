@@ -122,12 +122,17 @@ class ControllerFile:
 
     def save(self, path: str | Path) -> Path:
         """Write the file atomically."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".part")
-        tmp.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
-        tmp.replace(path)
-        return path
+        return write_atomically(path, self.to_dict())
+
+
+def write_atomically(path: str | Path, body: Mapping[str, Any]) -> Path:
+    """Write a controller file's JSON object to ``path`` (a temporary file renamed into place)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(json.dumps(body, indent=1) + "\n")
+    tmp.replace(path)
+    return path
 
 
 def checksum(body: Mapping[str, Any]) -> str:

@@ -32,7 +32,7 @@ import numpy as np
 from identification.errors import ModelFileError
 from identification.model import Model
 
-from ..controller_file import SCHEMA, VELOCITY_OUTPUTS, check_envelope, checksum, read_json
+from ..controller_file import SCHEMA, VELOCITY_OUTPUTS, check_envelope, checksum, read_json, write_atomically
 from ..errors import ControllerFileError, DesignInputError
 from ..verify import model_hash
 from ..weights import OutputWeights
@@ -124,12 +124,7 @@ class MPCFile:
 
     def save(self, path: str | Path) -> Path:
         """Write the file atomically."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".part")
-        tmp.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
-        tmp.replace(path)
-        return path
+        return write_atomically(path, self.to_dict())
 
 
 def _object(body: Mapping[str, Any], key: str, keys: tuple[str, ...]) -> dict:

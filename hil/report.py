@@ -177,12 +177,29 @@ def solver_table(results: Sequence[dict]) -> list[str]:
     return rows
 
 
-def _md_to_html_table(lines: Sequence[str]) -> str:
-    body = ["<table border=1 cellpadding=4>"]
-    for line in [ln for ln in lines if ln.startswith("|") and not set(ln) <= set("|-: ")]:
-        cells_ = [html.escape(x.strip()) for x in line.strip("|").split("|")]
-        body.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells_) + "</tr>")
-    return "\n".join(body + ["</table>"])
+def _md_to_html(lines: Sequence[str]) -> str:
+    """HTML of simple Markdown: runs of ``| ... |`` rows become a table (separator rows dropped),
+    ``## `` lines headings, other non-empty lines paragraphs."""
+    body: list[str] = []
+    in_table = False
+    for line in lines:
+        row = line.startswith("|")
+        if in_table and not row:
+            body.append("</table>")
+        if row and not in_table:
+            body.append("<table border=1 cellpadding=4>")
+        in_table = row
+        if row:
+            if not set(line) <= set("|-: "):
+                cells_ = [html.escape(x.strip()) for x in line.strip("|").split("|")]
+                body.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells_) + "</tr>")
+        elif line.startswith("## "):
+            body.append(f"<h2>{html.escape(line[3:])}</h2>")
+        elif line.strip():
+            body.append(f"<p>{html.escape(line)}</p>")
+    if in_table:
+        body.append("</table>")
+    return "\n".join(body)
 
 
 def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL comparison",
@@ -208,44 +225,28 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
     f10 = _fig10(rows, out / "fig10_sigma_vs_speed.png")
     f12 = _fig12(results, out / "fig12_passes.png")
     tables = {c: table2_text(rows, c) for c in ctrls}
-    timing = [f"| {c} | {sum(r['deadline_misses'] for r in rows if r['controller'] == c)} | "
-              f"{max(r['loop_time_ms_p99'] for r in rows if r['controller'] == c):.2f} | "
-              f"{max(r['loop_time_ms_max'] for r in rows if r['controller'] == c):.2f} | "
-              f"{sum(r['disengagements'] for r in rows if r['controller'] == c)} |" for c in ctrls]
+    timing = ["| controller | deadline misses | loop time p99 max [ms] | loop time max [ms] | disengagements |",
+              "|---|---:|---:|---:|---:|"]
+    timing += [f"| {c} | {sum(r['deadline_misses'] for r in rows if r['controller'] == c)} | "
+               f"{max(r['loop_time_ms_p99'] for r in rows if r['controller'] == c):.2f} | "
+               f"{max(r['loop_time_ms_max'] for r in rows if r['controller'] == c):.2f} | "
+               f"{sum(r['disengagements'] for r in rows if r['controller'] == c)} |" for c in ctrls]
+    solve = solver_table(results)
+    if solve:
+        solve = ["Solve times of the optimisation-based controllers (CPU, inside the loop):", "", *solve, ""]
+    target_md = targets_markdown(checks, roles)
+    rt_md = ["## In real time over pseudo-terminals", "", *realtime_table(realtime), ""] if realtime else []
     md = [f"# {title}", "", f"{len(results)} passes: {len(ctrls)} controller(s), "
           f"{len({(r['implement'], r['speed']) for r in rows})} condition(s).", ""]
     for c in ctrls:
         md += ["```", tables[c], "```", ""]
-    md += ["| controller | deadline misses | loop time p99 max [ms] | loop time max [ms] | disengagements |",
-           "|---|---:|---:|---:|---:|", *timing, ""]
-    solve = solver_table(results)
-    if solve:
-        md += ["Solve times of the optimisation-based controllers (CPU, inside the loop):", "", *solve, ""]
-    target_md = targets_markdown(checks, roles)
-    md += [*target_md, f"![Figure 10]({f10.name})", "", f"![Figure 12]({f12.name})", ""]
-    if realtime:
-        md += ["## In real time over pseudo-terminals", "", *realtime_table(realtime), ""]
+    md += [*timing, "", *solve, *target_md, f"![Figure 10]({f10.name})", "", f"![Figure 12]({f12.name})", "",
+           *rt_md]
     (out / "report.md").write_text("\n".join(md))
     body = [f"<h1>{html.escape(title)}</h1>"]
-    for c in ctrls:
-        body.append(f"<pre>{html.escape(tables[c])}</pre>")
-    body.append("<table border=1 cellpadding=4><tr><th>controller</th><th>deadline misses</th>"
-                "<th>loop time p99 [ms]</th><th>loop time max [ms]</th><th>disengagements</th></tr>")
-    for line in timing:
-        cells_ = [html.escape(x.strip()) for x in line.strip("|").split("|")]
-        body.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells_) + "</tr>")
-    body.append("</table>")
-    if solve:
-        body.append("<h2>Solve times</h2>" + _md_to_html_table(solve))
-    if target_md:
-        body.append("<h2>Targets</h2>" + _md_to_html_table(target_md))
-    body.append(f"<img src='{f10.name}' width=100%><img src='{f12.name}' width=100%>")
-    if realtime:
-        body.append("<h2>In real time over pseudo-terminals</h2><table border=1 cellpadding=4>")
-        for line in realtime_table(realtime)[:1] + realtime_table(realtime)[2:]:
-            cells_ = [html.escape(x.strip()) for x in line.strip("|").split("|")]
-            body.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells_) + "</tr>")
-        body.append("</table>")
+    body += [f"<pre>{html.escape(tables[c])}</pre>" for c in ctrls]
+    body += [_md_to_html([*timing, "", *solve, *target_md]),
+             f"<img src='{f10.name}' width=100%><img src='{f12.name}' width=100%>", _md_to_html(rt_md)]
     (out / "index.html").write_text("<!doctype html><meta charset=utf-8><title>" + html.escape(title) +
                                     "</title><body>" + "\n".join(body) + "</body>\n")
     return {"cells": rows, "tables": tables, "targets": checks,

@@ -106,6 +106,12 @@ def check_targets(rows: Sequence[dict], roles: Roles) -> list[dict]:
     return out
 
 
+def _worst(values) -> float:
+    """The largest value; NaN (a reference missing in some cell) when any is NaN."""
+    vals = list(values)
+    return math.nan if any(math.isnan(v) for v in vals) else max(vals)
+
+
 def _fmt(x: float, spec: str) -> str:
     return "-" if math.isnan(x) else format(x, spec)
 
@@ -122,10 +128,10 @@ def targets_markdown(checks: Sequence[dict], roles: Roles) -> list[str]:
              "max ratio to oracle | cells ahead of baselines |", "|---|---:|---:|---:|---:|---:|"]
     for cand in sorted({c["controller"] for c in checks}):
         cs = [c for c in checks if c["controller"] == cand]
-        mx = lambda key: max((c[key] for c in cs), key=lambda x: -math.inf if math.isnan(x) else x)  # noqa: E731
         lines.append(f"| {cand} | {sum(c['all_ok'] for c in cs)}/{len(cs)} | "
-                     f"{_fmt(max(abs(c['bias_cm']) for c in cs), '.2f')} | {_fmt(mx('ratio_paper_method'), '.2f')} | "
-                     f"{_fmt(mx('ratio_oracle'), '.2f')} | {sum(c['baselines_ok'] for c in cs)}/{len(cs)} |")
+                     f"{_fmt(_worst(abs(c['bias_cm']) for c in cs), '.2f')} | "
+                     f"{_fmt(_worst(c['ratio_paper_method'] for c in cs), '.2f')} | "
+                     f"{_fmt(_worst(c['ratio_oracle'] for c in cs), '.2f')} | {sum(c['baselines_ok'] for c in cs)}/{len(cs)} |")
     missed = [c for c in checks if not c["all_ok"]]
     if missed:
         lines += ["", "Cells that miss a target:", "",

@@ -9,11 +9,26 @@ Riccati equation with unit noises.
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+from typing import Callable
+
 import numpy as np
 import scipy.linalg as sla
 from scipy.signal import cont2discrete
 
+from design.controller_file import checksum
 from identification.model import Model
+
+
+def rewrite(path: Path, edit: Callable[[dict], object], fix_checksum: bool = True) -> Path:
+    """Edit a controller file's JSON in place (``edit`` mutates the body); re-seal the checksum unless told not to."""
+    body = json.loads(path.read_text())
+    edit(body)
+    if fix_checksum:
+        body["checksum"] = checksum(body)
+    path.write_text(json.dumps(body))
+    return path
 
 
 def tractor_model(speed: float, authority: float = 1.0, tau: float = 0.1, wheelbase: float = 2.85,

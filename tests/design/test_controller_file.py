@@ -10,12 +10,12 @@ import pytest
 
 from design.cli import main as design_main
 from design.controller import Controller, Measurement
-from design.controller_file import checksum, load_controller, read_controller_file
+from design.controller_file import load_controller, read_controller_file
 from design.errors import ControllerFileError
 from design.robust import RobustSpec, design_robust
 from design.verify import certify
 
-from design_family import family
+from design_family import family, rewrite
 
 
 @pytest.fixture(scope="module")
@@ -28,15 +28,6 @@ def designed():
 def saved(designed, tmp_path):
     _, res = designed
     return res.file.save(tmp_path / "robust.json")
-
-
-def _rewrite(path, edit, fix_checksum=True):
-    body = json.loads(path.read_text())
-    edit(body)
-    if fix_checksum:
-        body["checksum"] = checksum(body)
-    path.write_text(json.dumps(body))
-    return path
 
 
 def test_round_trip_keeps_matrices_and_certificate(designed, saved):
@@ -73,7 +64,7 @@ def test_command_is_clipped_and_memory_follows_the_clip(saved):
 
 
 def test_tampered_file_is_refused(saved):
-    _rewrite(saved, lambda b: b["compensator"]["Dc"][0].__setitem__(0, 1.0), fix_checksum=False)
+    rewrite(saved, lambda b: b["compensator"]["Dc"][0].__setitem__(0, 1.0), fix_checksum=False)
     with pytest.raises(ControllerFileError, match="checksum mismatch"):
         load_controller(saved)
 
@@ -85,19 +76,19 @@ def test_non_finite_number_is_refused(saved):
 
 
 def test_wrong_schema_and_kind_are_refused(saved, tmp_path):
-    p = _rewrite(saved, lambda b: b.__setitem__("schema", "design-controller/0"))
+    p = rewrite(saved, lambda b: b.__setitem__("schema", "design-controller/0"))
     with pytest.raises(ControllerFileError, match="unsupported schema 'design-controller/0'"):
         load_controller(p)
-    p = _rewrite(saved, lambda b: (b.__setitem__("schema", "design-controller/1"), b.__setitem__("kind", "pid")))
+    p = rewrite(saved, lambda b: (b.__setitem__("schema", "design-controller/1"), b.__setitem__("kind", "pid")))
     with pytest.raises(ControllerFileError, match="kind 'pid' is not supported"):
         load_controller(p)
-    p = _rewrite(saved, lambda b: b.__setitem__("kind", "mpc"))      # an MPC file is read as one, and lacks its keys
+    p = rewrite(saved, lambda b: b.__setitem__("kind", "mpc"))      # an MPC file is read as one, and lacks its keys
     with pytest.raises(ControllerFileError, match=r"missing keys \['model', 'estimator', 'horizon'"):
         load_controller(p)
 
 
 def test_dimension_mismatch_is_refused(saved):
-    _rewrite(saved, lambda b: b["compensator"].__setitem__("Bc", [row[:2] for row in b["compensator"]["Bc"]]))
+    rewrite(saved, lambda b: b["compensator"].__setitem__("Bc", [row[:2] for row in b["compensator"]["Bc"]]))
     with pytest.raises(ControllerFileError, match=r"dimension mismatch: Bc has shape \(\d+, 2\), expected \(\d+, 3\)"):
         load_controller(saved)
 
@@ -112,7 +103,7 @@ def test_malformed_json_and_unknown_keys_are_refused(saved, tmp_path):
     bad.write_text("{not json")
     with pytest.raises(ControllerFileError, match="not valid JSON"):
         load_controller(bad)
-    p = _rewrite(saved, lambda b: b.__setitem__("gains", [1, 2]))
+    p = rewrite(saved, lambda b: b.__setitem__("gains", [1, 2]))
     with pytest.raises(ControllerFileError, match=r"unknown keys \['gains'\]"):
         load_controller(p)
 
@@ -158,6 +149,6 @@ def test_outputs_are_clipped_after_normalisation(saved):
 
 
 def test_bad_output_clip_is_refused(saved):
-    _rewrite(saved, lambda b: b["limits"].__setitem__("output_clip", [0.1, -1.0, None]))
+    rewrite(saved, lambda b: b["limits"].__setitem__("output_clip", [0.1, -1.0, None]))
     with pytest.raises(ControllerFileError, match="output_clip needs 3 entries, each a finite number > 0 or null"):
         load_controller(saved)

@@ -9,14 +9,14 @@ import pytest
 
 from design.cli import main as design_main
 from design.controller import Measurement
-from design.controller_file import checksum, load_controller
+from design.controller_file import load_controller
 from design.errors import ControllerFileError, DesignInputError, VerificationError
 from design.mpc import MPCController, MPCLimits, SolverSettings
 from design.mpc.design import MPCSpec, design_mpc, fallback_from_file
 from design.mpc.file import read_mpc_file
 from design.robust import RobustSpec, design_robust
 
-from design_family import family, tractor_model
+from design_family import family, rewrite, tractor_model
 
 CENTRAL = tractor_model(1.79, name="central").with_meta(kind="central")
 
@@ -30,15 +30,6 @@ def designed():
 @pytest.fixture()
 def saved(designed, tmp_path):
     return designed.file.save(tmp_path / "mpc.json")
-
-
-def _rewrite(path, edit, fix_checksum=True):
-    body = json.loads(path.read_text())
-    edit(body)
-    if fix_checksum:
-        body["checksum"] = checksum(body)
-    path.write_text(json.dumps(body))
-    return path
 
 
 def test_design_checks_the_unconstrained_law_on_every_model(designed):
@@ -66,7 +57,7 @@ def test_round_trip_gives_the_same_controller(designed, saved):
 def test_loop_dt_mismatch_and_tampering_are_refused(saved):
     with pytest.raises(ControllerFileError, match="sample time mismatch: the file is for dt=0.05 s, the loop runs at dt=0.1 s"):
         load_controller(saved, dt=0.1)
-    _rewrite(saved, lambda b: b["limits"].__setitem__("wheel_angle", 0.5), fix_checksum=False)
+    rewrite(saved, lambda b: b["limits"].__setitem__("wheel_angle", 0.5), fix_checksum=False)
     with pytest.raises(ControllerFileError, match="checksum mismatch"):
         load_controller(saved)
 
@@ -89,7 +80,7 @@ def test_loop_dt_mismatch_and_tampering_are_refused(saved):
     (lambda b: b.__setitem__("schema", "design-controller/0"), "unsupported schema"),
 ])
 def test_malformed_files_are_refused(saved, edit, match):
-    _rewrite(saved, edit)
+    rewrite(saved, edit)
     with pytest.raises(ControllerFileError, match=match):
         load_controller(saved)
 

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import pytest
 
+from design.robust import RobustSpec, design_robust
 from hil.campaign import Campaign
 from hil.cli import main as hil_main
 from hil.conditions import condition_for
@@ -92,6 +94,9 @@ def test_report_files(tmp_path):
     assert "4.7/12.7" not in rep["tables"]["robust"] and "8.5/12.7" in rep["tables"]["robust"]
     assert len(json.loads((tmp_path / "results.json").read_text())["cells"]) == 15
     assert (tmp_path / "cells.csv").read_text().count("\n") == 16
+    page = (tmp_path / "index.html").read_text().replace("\n", "")   # robust is a candidate: its targets, in HTML too
+    assert "<h2>Targets</h2>" in page and page.count("<table") == page.count("</table>")
+    assert "<tr><td>robust</td><td>0/15</td>" in page    # no oracle or paper's method ran: nothing met
 
 
 def test_cli_compare_small_campaign(tmp_path, capsys):
@@ -151,23 +156,14 @@ def test_realtime_subset_options_are_checked(tmp_path, capsys):
     assert rc != 0 and "need --realtime" in capsys.readouterr().err
 
 
-def test_a_changed_controller_file_is_not_resumed(tmp_path):
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).parents[1] / "design"))
-    from design.robust import RobustSpec, design_robust
-    from design_family import family
+def test_a_changed_controller_file_is_not_resumed(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "design"))
+    from design_family import family, rewrite
 
     ctrl = design_robust(family(speeds=(1.0, 2.0), authorities=(1.0,)), RobustSpec(integral=True)).file.save(
         tmp_path / "robust.json")
-    camp = Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0)
-    camp._prepare()
+    Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0)._prepare()
     Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0)._prepare()   # unchanged: resumes
-    ctrl.write_text(ctrl.read_text().replace('"name": "', '"name": "x', 1))      # an edit (checksum aside)
-    body = json.loads(ctrl.read_text())
-    from design.controller_file import checksum
-    body["checksum"] = checksum(body)
-    ctrl.write_text(json.dumps(body))
+    rewrite(ctrl, lambda b: b.__setitem__("name", "retuned"))                              # a valid, other file
     with pytest.raises(ValueError, match=r"changed since .* ran them; their saved passes are stale"):
         Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0)._prepare()

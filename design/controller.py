@@ -11,6 +11,7 @@ the vehicle.
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -92,20 +93,41 @@ class KinematicLQRController:
         self.weights = weights or KinematicWeights()
         self.speeds = np.linspace(lo, hi, int(round((hi - lo) / 0.05)) + 1)
         self.gains = gains_versus_speed(self.speeds, self.dt, self.weights, wheelbase, d2)
+        self._grid = self.speeds.tolist()
+        self._rows = [tuple(r) for r in self.gains.tolist()]   # per grid speed: (K_y, K_psi, K_delta)
         self._x = (0.0, 0.0, 0.0)
 
     def gain(self, speed: float) -> np.ndarray:
         """Interpolated gain ``[K_y, K_psi, K_delta]`` at ``speed`` m/s."""
         return np.array([np.interp(speed, self.speeds, self.gains[:, i]) for i in range(3)])
 
+    def _gain_scalar(self, speed: float) -> tuple[float, float, float]:
+        """:meth:`gain` for a finite speed, on floats: one grid search for the three gains and
+        ``np.interp``'s arithmetic (clamped ends, the grid value on a grid point, else
+        ``slope * (v - v_j) + K_j``), so the values are bit-for-bit those of :meth:`gain`."""
+        grid, rows = self._grid, self._rows
+        j = bisect_right(grid, speed) - 1
+        if j < 0:
+            return rows[0]
+        if j >= len(grid) - 1 or grid[j] == speed:
+            return rows[j]
+        v0, v1 = grid[j], grid[j + 1]
+        a, b = rows[j], rows[j + 1]
+        dv, dx = v1 - v0, speed - v0
+        return ((b[0] - a[0]) / dv * dx + a[0], (b[1] - a[1]) / dv * dx + a[1], (b[2] - a[2]) / dv * dx + a[2])
+
     def reset(self) -> None:
         self._x = (0.0, 0.0, 0.0)
 
     def step(self, m: Measurement) -> float:
-        x = (m.cross_track, m.heading_error, m.wheel_angle)
+        x0, x1, x2 = x = (m.cross_track, m.heading_error, m.wheel_angle)
         self._x = x
-        k = self.gain(m.speed)
-        return -float(k[0] * x[0] + k[1] * x[1] + k[2] * x[2])
+        speed = m.speed
+        if math.isfinite(speed):
+            k0, k1, k2 = self._gain_scalar(speed)
+            return -(k0 * x0 + k1 * x1 + k2 * x2)
+        k = self.gain(speed)
+        return -float(k[0] * x0 + k[1] * x1 + k[2] * x2)
 
     def estimate(self) -> tuple[float, ...]:
         return self._x

@@ -185,6 +185,24 @@ class TractorSimulator:
         self.k += 1
         self._record_epochs()
 
+    def step_scalar(self, n: int) -> None:
+        """:meth:`step` ``n`` times on the one-tractor path, with the duty held (the same steps and
+        GPS epochs as ``n`` calls of :meth:`step`, without the per-step call overhead)."""
+        if self._scalar_exo is None or self.k + n > self.n_steps:
+            for _ in range(n):
+                self.step()
+            return
+        stepper, inputs, rate, disker = self._stepper, self._step_inputs, self._rate0, self._disker0
+        pos_every, att_every = self._pos_every, self._att_every
+        x, k = self._x, self.k
+        for _ in range(n):
+            x = stepper(x, rate, *inputs[k], disker)
+            k += 1
+            if k % pos_every == 0 or k % att_every == 0:
+                self._x, self.k = x, k
+                self._record_epochs_scalar()
+        self._x, self.k = x, k
+
     # -- sensors ------------------------------------------------------------------
     def wheel_angle_counts(self) -> np.ndarray:
         """Potentiometer read by the 8-bit ADC now: int counts 0..255, shape ``(B,)``."""

@@ -159,14 +159,89 @@ def rk4_step_scalar(x: list[float], u: Inputs, p: SimParams) -> list[float]:
     return out
 
 
+# One stage of the RK4 step of :func:`scalar_stepper`: :func:`_rates` on floats with the
+# parameters and the step's input-only terms bound, the same operations in the same order
+# (``max(x, c)`` written ``c if c > x else x``, which is what ``max`` returns). ``{o}`` names
+# the stage's derivatives ``{o}0 .. {o}7``; ``{args}`` is the state the stage is evaluated at.
+_STAGE = """
+    psi, v, r, dl, om, phi = {args}
+    cd, sd = cos(dl), sin(dl)
+    vfa = v + a * r
+    uf = spd * cd + vfa * sd
+    vf = neg_spd * sd + vfa * cd
+    auf = abs(uf)
+    ff = neg_fmax_f * tanh(cf_load * (vf / (floor if floor > auf else auf)) / fmax_f_div)
+    fr = neg_fmax_r * tanh(cr * ((v - b * r) / spd_floor) / fmax_r)
+    cp, sp = cos(phi), sin(phi)
+    f_hitch_x = neg_draft * cp
+    f_hitch_y = neg_draft * sp
+    v_hitch = v + x_hitch * r
+    cpsi, spsi = cos(psi), sin(psi)
+    {o}0 = spd * cpsi - v * spsi
+    {o}1 = spd * spsi + v * cpsi
+    {o}2 = r
+    {o}3 = (ff * cd + fr + moving * (fy_in + f_hitch_y)) / mass - spd * r
+    {o}4 = (a * ff * cd - b * fr + moving * (mz_in + (x_hitch * f_hitch_y - offset * f_hitch_x))) / inertia
+    {o}5 = 0.0 if ((dl >= dmax and om > 0) or (dl <= neg_dmax and om < 0)) else om
+    {o}6 = (rate_cmd - om) / lag
+    {o}7 = ((neg_spd * sp + v_hitch * cp - alpha_t * (spd * cp + v_hitch * sp)) / tongue - r) * disker * moving
+"""
+
+_STEP_HEAD = """
+def step(x, rate_cmd, spd, roll, force_y, ripper_force, ripper_moment, draft, gang_pull, front_load, disker):
+    moving = float(spd >= standstill)
+    nf = nf0 * front_load
+    fmax_f = mu * nf
+    neg_fmax_f = -fmax_f
+    cf_load = cf * front_load
+    fmax_f_div = 1e-9 if 1e-9 > fmax_f else fmax_f
+    spd_floor = floor if floor > spd else spd
+    neg_spd = -spd
+    neg_draft = -draft
+    fy_in = neg_mg * sin(roll) + force_y + ripper_force
+    mz_in = x_shank * ripper_force + ripper_moment
+    alpha_t = gang_pull / gang_cs
+    x0, y0, psi0, v0, r0, d0, om0, phi0 = x
+"""
+
+_STEP_TAIL = """
+    dl = d0 + h6 * (a5 + 2.0 * b5 + 2.0 * c5 + e5)
+    if neg_dmax > dl:
+        dl = neg_dmax
+    if dmax < dl:
+        dl = dmax
+    return [x0 + h6 * (a0 + 2.0 * b0 + 2.0 * c0 + e0),
+            y0 + h6 * (a1 + 2.0 * b1 + 2.0 * c1 + e1),
+            psi0 + h6 * (a2 + 2.0 * b2 + 2.0 * c2 + e2),
+            v0 + h6 * (a3 + 2.0 * b3 + 2.0 * c3 + e3),
+            r0 + h6 * (a4 + 2.0 * b4 + 2.0 * c4 + e4),
+            dl,
+            om0 + h6 * (a6 + 2.0 * b6 + 2.0 * c6 + e6),
+            phi0 + h6 * (a7 + 2.0 * b7 + 2.0 * c7 + e7)]
+"""
+
+
+def _stepper_source() -> str:
+    """Source of :func:`scalar_stepper`'s step: the four stages of :data:`_STAGE` written out."""
+    parts = [_STEP_HEAD, _STAGE.format(o="a", args="psi0, v0, r0, d0, om0, phi0")]
+    for o, prev, f in (("b", "a", "hh"), ("c", "b", "hh"), ("e", "c", "h")):
+        args = ", ".join(f"{s}0 + {f} * {prev}{i}"
+                         for s, i in (("psi", 2), ("v", 3), ("r", 4), ("d", 5), ("om", 6), ("phi", 7)))
+        parts.append(_STAGE.format(o=o, args=args))
+    parts.append(_STEP_TAIL)
+    return "".join(parts)
+
+
 def scalar_stepper(p: SimParams):
     """A fast :func:`rk4_step_scalar` for one tractor, with the parameters bound once.
 
     Same equations, same floating-point operations in the same order as
     :func:`_rates` on floats (so the result is bit-for-bit that of
     :func:`rk4_step_scalar`); what it saves is the per-call overhead: parameter
-    look-ups, the :class:`Inputs` object, list building, and the terms that depend
-    only on the step's inputs, computed once per step instead of once per stage.
+    look-ups, the :class:`Inputs` object, list building, the terms that depend
+    only on the step's inputs (computed once per step instead of once per stage),
+    and the four calls of the derivative (its body is written out once per stage
+    from :data:`_STAGE`, which mirrors :func:`_rates`).
 
     Returns
     -------
@@ -177,87 +252,21 @@ def scalar_stepper(p: SimParams):
     vp, st = p.vehicle, p.steering
     a = vp.cg_to_front_axle
     b = vp.wheelbase - a
-    floor = vp.slip_speed_floor
-    nf0 = vp.mass * G * b / vp.wheelbase          # nf = nf0 * front_load, as (m G b / L) * load
-    mu = vp.friction_coefficient
-    cf = vp.front_cornering_stiffness
     fmax_r = vp.friction_coefficient * vp.mass * G * a / vp.wheelbase
-    neg_fmax_r = -fmax_r
-    cr = vp.rear_cornering_stiffness
-    standstill = vp.standstill_speed
-    x_shank = -(b + p.ripper.shank_behind_rear_axle)
-    x_hitch = -(b + vp.hitch_behind_rear_axle)
-    neg_mg = -vp.mass * G
-    offset = p.disker.draft_offset
-    gang_cs = p.disker.gang_cornering_stiffness
-    tongue = p.disker.tongue_length
-    mass, inertia = vp.mass, vp.yaw_inertia
-    dmax = st.max_wheel_angle
-    neg_dmax = -dmax
-    lag = st.lag
     h = p.dt
-    hh = 0.5 * h
-    h6 = h / 6.0
-    cos, sin, tanh = math.cos, math.sin, math.tanh
-
-    def step(x, rate_cmd, spd, roll, force_y, ripper_force, ripper_moment, draft, gang_pull, front_load, disker):
-        # terms that depend only on this step's inputs (each computed exactly as _rates does)
-        moving = float(spd >= standstill)
-        nf = nf0 * front_load
-        fmax_f = mu * nf
-        neg_fmax_f = -fmax_f
-        cf_load = cf * front_load
-        fmax_f_div = max(fmax_f, 1e-9)
-        spd_floor = max(spd, floor)
-        neg_spd = -spd
-        neg_draft = -draft
-        fy_in = neg_mg * sin(roll) + force_y + ripper_force
-        mz_in = x_shank * ripper_force + ripper_moment
-        alpha_t = gang_pull / gang_cs
-
-        def rates(psi, v, r, dl, om, phi):
-            cd, sd = cos(dl), sin(dl)
-            vfa = v + a * r
-            uf = spd * cd + vfa * sd
-            vf = neg_spd * sd + vfa * cd
-            alpha_f = vf / max(abs(uf), floor)
-            ff = neg_fmax_f * tanh(cf_load * alpha_f / fmax_f_div)
-            alpha_r = (v - b * r) / spd_floor
-            fr = neg_fmax_r * tanh(cr * alpha_r / fmax_r)
-            cp, sp = cos(phi), sin(phi)
-            f_hitch_x = neg_draft * cp
-            f_hitch_y = neg_draft * sp
-            m_hitch = x_hitch * f_hitch_y - offset * f_hitch_x
-            fy_ext = moving * (fy_in + f_hitch_y)
-            mz_ext = moving * (mz_in + m_hitch)
-            v_hitch = v + x_hitch * r
-            phidot = ((neg_spd * sp + v_hitch * cp - alpha_t * (spd * cp + v_hitch * sp))
-                      / tongue - r) * disker * moving
-            blocked = (dl >= dmax and om > 0) or (dl <= neg_dmax and om < 0)
-            cpsi, spsi = cos(psi), sin(psi)
-            return (spd * cpsi - v * spsi, spd * spsi + v * cpsi, r,
-                    (ff * cd + fr + fy_ext) / mass - spd * r,
-                    (a * ff * cd - b * fr + mz_ext) / inertia,
-                    0.0 if blocked else om,
-                    (rate_cmd - om) / lag,
-                    phidot)
-
-        x0, y0, psi0, v0, r0, d0, om0, phi0 = x
-        a0, a1, a2, a3, a4, a5, a6, a7 = rates(psi0, v0, r0, d0, om0, phi0)
-        b0, b1, b2, b3, b4, b5, b6, b7 = rates(psi0 + hh * a2, v0 + hh * a3, r0 + hh * a4, d0 + hh * a5,
-                                               om0 + hh * a6, phi0 + hh * a7)
-        c0, c1, c2, c3, c4, c5, c6, c7 = rates(psi0 + hh * b2, v0 + hh * b3, r0 + hh * b4, d0 + hh * b5,
-                                               om0 + hh * b6, phi0 + hh * b7)
-        e0, e1, e2, e3, e4, e5, e6, e7 = rates(psi0 + h * c2, v0 + h * c3, r0 + h * c4, d0 + h * c5,
-                                               om0 + h * c6, phi0 + h * c7)
-        dl = d0 + h6 * (a5 + 2.0 * b5 + 2.0 * c5 + e5)
-        return [x0 + h6 * (a0 + 2.0 * b0 + 2.0 * c0 + e0),
-                y0 + h6 * (a1 + 2.0 * b1 + 2.0 * c1 + e1),
-                psi0 + h6 * (a2 + 2.0 * b2 + 2.0 * c2 + e2),
-                v0 + h6 * (a3 + 2.0 * b3 + 2.0 * c3 + e3),
-                r0 + h6 * (a4 + 2.0 * b4 + 2.0 * c4 + e4),
-                min(max(dl, neg_dmax), dmax),
-                om0 + h6 * (a6 + 2.0 * b6 + 2.0 * c6 + e6),
-                phi0 + h6 * (a7 + 2.0 * b7 + 2.0 * c7 + e7)]
-
-    return step
+    env = {
+        "a": a, "b": b, "floor": vp.slip_speed_floor,
+        "nf0": vp.mass * G * b / vp.wheelbase,          # nf = nf0 * front_load, as (m G b / L) * load
+        "mu": vp.friction_coefficient, "cf": vp.front_cornering_stiffness,
+        "fmax_r": fmax_r, "neg_fmax_r": -fmax_r, "cr": vp.rear_cornering_stiffness,
+        "standstill": vp.standstill_speed,
+        "x_shank": -(b + p.ripper.shank_behind_rear_axle), "x_hitch": -(b + vp.hitch_behind_rear_axle),
+        "neg_mg": -vp.mass * G, "offset": p.disker.draft_offset,
+        "gang_cs": p.disker.gang_cornering_stiffness, "tongue": p.disker.tongue_length,
+        "mass": vp.mass, "inertia": vp.yaw_inertia,
+        "dmax": st.max_wheel_angle, "neg_dmax": -st.max_wheel_angle, "lag": st.lag,
+        "h": h, "hh": 0.5 * h, "h6": h / 6.0,
+        "cos": math.cos, "sin": math.sin, "tanh": math.tanh, "abs": abs, "float": float,
+    }
+    exec(compile(_stepper_source(), "<hil.vehicle.scalar_stepper>", "exec"), env)
+    return env["step"]

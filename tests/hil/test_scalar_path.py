@@ -11,6 +11,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from design.controller import KinematicLQRController, Measurement
 from hil.conditions import condition_for
 from hil.params import SimParams
 from hil.simulator import TractorSimulator
@@ -19,6 +20,7 @@ from hil.vehicle import DEL, Inputs, rk4_step_scalar, scalar_stepper
 P = SimParams()
 STEP = scalar_stepper(P)
 DMAX = P.steering.max_wheel_angle
+KINEMATIC = KinematicLQRController()
 
 
 def _f(lo: float, hi: float):
@@ -81,3 +83,36 @@ def test_loop_line_errors_are_bit_identical_to_ab_line_errors(b, a, east, north,
 def test_valve_rate_scalar_is_bit_identical_to_valve_rate(duty):
     from hil.steering import valve_rate, valve_rate_scalar
     assert valve_rate_scalar(duty, P.steering) == float(valve_rate(np.array([duty]), P.steering)[0])
+
+
+def test_step_scalar_takes_the_same_steps_and_epochs_as_single_steps():
+    """``TractorSimulator.step_scalar(n)`` (what the plant's ``advance`` uses) is ``n`` calls of ``step``."""
+    cond = condition_for("ripper", 2.2)
+    one = TractorSimulator([cond], 8.0, [4], P, scalar=True)
+    many = TractorSimulator([cond], 8.0, [4], P, scalar=True)
+    rng = np.random.default_rng(1)
+    while one.k < one.n_steps:
+        n = int(min(rng.integers(1, 13), one.n_steps - one.k))
+        d = float(rng.uniform(-1, 1))
+        one.set_duty_scalar(d)
+        many.set_duty_scalar(d)
+        for _ in range(n):
+            one.step()
+        many.step_scalar(n)
+        assert one.k == many.k and one._x == many._x
+    assert one.n_pos == many.n_pos and one.n_att == many.n_att
+    for block in ("pos", "att"):
+        for key, arr in getattr(one, block).items():
+            assert np.array_equal(getattr(many, block)[key], arr), (block, key)
+
+
+@settings(max_examples=500, deadline=None)
+@given(speed=st.one_of(_f(-1.0, 6.0), st.sampled_from([0.3, 5.0, 0.35, 1.79, 2.91, 0.0, -0.0])),
+       x=st.tuples(_f(-3, 3), _f(-1, 1), _f(-0.7, 0.7)))
+def test_kinematic_lqr_scalar_gain_is_bit_identical_to_np_interp(speed, x):
+    """The controller's float interpolation (its step) gives np.interp's gains and the same command."""
+    c = KINEMATIC
+    k = c.gain(speed)
+    assert list(c._gain_scalar(speed)) == k.tolist()
+    want = -float(k[0] * x[0] + k[1] * x[1] + k[2] * x[2])
+    assert c.step(Measurement(t=0.0, cross_track=x[0], heading_error=x[1], wheel_angle=x[2], speed=speed)) == want

@@ -56,6 +56,18 @@ def hop_depth(cond: Condition, p: SimParams) -> float:
     return float(h.amplitude * np.exp(-0.5 * ((cond.speed - h.center_speed) / h.speed_width) ** 2))
 
 
+def soil_force_sigma(cond: Condition, p: SimParams) -> float:
+    """1-sigma of the soil lateral force on the tractor at this condition's nominal speed, N.
+
+    ``field.lateral_force * (V / field.force_reference_speed) ** field.force_speed_exponent``
+    (the plain ``lateral_force`` at a standstill or with exponent 0).
+    """
+    f = p.field
+    if cond.speed <= 0 or f.force_speed_exponent == 0:
+        return f.lateral_force
+    return float(f.lateral_force * (cond.speed / f.force_reference_speed) ** f.force_speed_exponent)
+
+
 def generate(cond: Condition, p: SimParams, n: int, rng: np.random.Generator) -> Exogenous:
     """Draw the exogenous sequences of one pass.
 
@@ -75,7 +87,7 @@ def generate(cond: Condition, p: SimParams, n: int, rng: np.random.Generator) ->
     vref = max(v0, 0.1)  # spatial correlation -> time constant (a standstill never moves anyway)
     speed = np.maximum(v0 * (1.0 + ou_noise(rng, n, dt, f.speed_variation, f.speed_time_constant)), 0.0)
     roll = f.roll_mean + ou_noise(rng, n, dt, f.roll, f.roll_correlation_length / vref)
-    force_y = ou_noise(rng, n, dt, f.lateral_force, f.force_correlation_length / vref)
+    force_y = ou_noise(rng, n, dt, soil_force_sigma(cond, p), f.force_correlation_length / vref)
     zeros = np.zeros(n)
     ripper_force = ripper_moment = draft = gang_pull = zeros
     load_static = 1.0

@@ -55,7 +55,7 @@ from scipy.optimize import least_squares
 from design.controller import Measurement
 
 from .conditions import Condition, condition_for
-from .disturbances import hop_depth
+from .disturbances import hop_depth, soil_force_sigma
 from .errors import SimulatorConfigError
 from .params import SimParams
 from .steering import WheelAngleCalibration, nominal_duty, sensor_counts_float, valve_rate
@@ -337,7 +337,7 @@ def _processes(condition: Condition, p: SimParams, lin: Linearization, opt: Orac
     v0, imp = condition.speed, condition.implement
     col = {name: lin.E[:, i] for i, name in enumerate(EXOGENOUS)}
     out = [("roll", col["roll"], p.field.roll, p.field.roll_correlation_length / v0),
-           ("force_y", col["force_y"], p.field.lateral_force, p.field.force_correlation_length / v0)]
+           ("force_y", col["force_y"], soil_force_sigma(condition, p), p.field.force_correlation_length / v0)]
     if imp == "ripper":
         tau = p.ripper.soil_correlation_length / v0
         out += [("ripper_force", col["ripper_force"], p.ripper.lateral_force, tau),

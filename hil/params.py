@@ -167,9 +167,14 @@ class FieldParams(_Group):
     roll_mean: float = P(0.0, "rad", "mean side slope along the pass, + = left side up", lo=None)
     roll_correlation_length: float = P(25.0, "m", "distance over which the slope changes",
                                        lo_open=True)
-    lateral_force: float = P(4800.0, "N", "soil lateral force on the tractor itself, 1-sigma (calibrated, "
-                             "knob 'soil')", "calibrated")
+    lateral_force: float = P(4800.0, "N", "soil lateral force on the tractor itself, 1-sigma at "
+                             "force_reference_speed (calibrated, knob 'soil')", "calibrated")
     force_correlation_length: float = P(3.0, "m", "correlation length of that force", lo_open=True)
+    force_speed_exponent: float = P(0.0, "1", "growth of that force with speed: its 1-sigma is lateral_force "
+                                    "x (V / force_reference_speed)^exponent at nominal speed V (ruts and clods "
+                                    "kick the tyres sideways harder the faster the tractor goes)", hi=2.0)
+    force_reference_speed: float = P(1.79, "m/s", "speed at which that force's 1-sigma is lateral_force "
+                                     "(9th gear, the middle of the paper's range)", lo_open=True)
     speed_variation: float = P(0.02, "1", "relative 1-sigma of speed about the gear's nominal value")
     speed_time_constant: float = P(4.0, "s", "time constant of the speed variation", lo_open=True)
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hil.conditions import Condition, condition_for
-from hil.disturbances import hop_depth
+from hil.disturbances import generate, hop_depth, soil_force_sigma
 from hil.params import SimParams
 from hil.simulator import TractorSimulator
 from hil.steering import WheelAngleCalibration, sensor_counts_float, valve_rate
@@ -117,6 +117,20 @@ def test_hop_only_with_an_implement_and_near_its_speed():
     load = sim.exo.front_load[0]
     assert load.max() <= p.disker.front_load_factor + 1e-12
     assert load.min() < (1 - 0.7 * p.hop.amplitude) * p.disker.front_load_factor   # bounces reach the depth
+
+
+@pytest.mark.parametrize("exponent", [0.0, 0.5, 1.0])
+def test_soil_force_grows_with_speed_by_its_exponent(exponent):
+    p = SimParams().with_overrides({"field.force_speed_exponent": exponent})
+    ref = p.field.force_reference_speed
+    slow, fast = condition_for("none", 1.0), condition_for("none", 2.91)
+    assert soil_force_sigma(condition_for("none", 1.79), p) == pytest.approx(p.field.lateral_force * (1.79 / ref) ** exponent)
+    ratio = soil_force_sigma(fast, p) / soil_force_sigma(slow, p)
+    assert ratio == pytest.approx(2.91 ** exponent)
+    # the drawn force really has that 1-sigma (long pass: the OU correlation time is 1-3 s)
+    n = 200_000
+    stds = [generate(c, p, n, np.random.default_rng(7)).force_y.std() for c in (slow, fast)]
+    assert stds[1] / stds[0] == pytest.approx(ratio, rel=0.06)
 
 
 def test_side_slope_pushes_the_tractor_downhill():

@@ -90,9 +90,9 @@ def write(result: dict, out: str | Path) -> list[Path]:
           f"objective {ob['value']:.4f} (1-sigma term {ob['sigma_term']:.4f}, bias term {ob['bias_term']:.4f}); "
           f"**{ob['within_30pct']} of 15** cells within +-30 % of the paper's 1-sigma.", "",
           "## Scale factors (relative to the reference, uncalibrated values)", "",
-          "| knob | parameters | scale | meaning |", "|---|---|---:|---|"]
+          "| knob | parameters | setting | meaning |", "|---|---|---:|---|"]
     for k, v in result["knobs"].items():
-        md.append(f"| {k} | {', '.join(f'`{p}`' for p in v['parameters'])} | {v['scale']:.3g} | {v['meaning']} |")
+        md.append(f"| {k} | {', '.join(f'`{p}`' for p in v['parameters'])} | {v.get('text') or format(v['scale'], '.3g')} | {v['meaning']} |")
     md += ["", "Set by judgement, not searched:", ""]
     md += [f"* `{k}` = {v['value']:g}: {v['reason']}" for k, v in result["fixed"].items()]
     md += ["", "## Calibrated values", "", "| parameter | reference | calibrated |", "|---|---:|---:|"]

@@ -202,17 +202,17 @@ def _cmd_tune(args: argparse.Namespace) -> dict:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> dict:
-    from .calibrate import CalibrationOptions
+    from .calibrate import CalibrationOptions, knob_text
     from .calibrate_pipeline import run_calibration
     knobs = {"knobs": tuple(args.knobs)} if args.knobs else {}
     opts = CalibrationOptions(seeds=tuple(range(args.seed, args.seed + args.seeds)), duration=args.duration,
                               budget=args.budget, step=args.step, min_improvement=args.min_improvement,
-                              start=dict(args.start or []), **knobs)
+                              start=dict(args.start or []), clean_passes=not args.all_passes, band=args.band, **knobs)
 
     def report(i: int, rec: dict, accepted: bool) -> None:
         if not args.quiet:
             ob = rec["objective"]
-            moved = {k: round(2 ** v, 3) for k, v in rec["log2_scales"].items() if v}
+            moved = {k: knob_text(k, v) for k, v in rec["log2_scales"].items() if v}
             print(f"evaluation {i:3d}: objective {ob['value']:.4f}, {ob['within_30pct']:2d}/15 within +-30 % "
                   f"{'accepted' if accepted else '        '} scales {moved}", file=sys.stderr, flush=True)
 
@@ -401,6 +401,10 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--step", type=_float, default=1.0, help="initial step in log2 (default 1: a factor 2)")
     ca.add_argument("--min-improvement", type=_float, default=0.0,
                     help="keep a move only when it lowers the objective by more than this (default 0)")
+    ca.add_argument("--band", action="store_true",
+                    help="score 1-sigma by its distance outside the +-30 %% band (default: ln(ratio)^2)")
+    ca.add_argument("--all-passes", action="store_true",
+                    help="score cells on every pass, also those with a disengagement (default: clean passes)")
     ca.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
     ca.add_argument("--quiet", action="store_true")
     ca.add_argument("--json", action="store_true", help="print the result as JSON on stdout")

@@ -60,7 +60,7 @@ result = json.loads((DOCS / "result.json").read_text())
 
 # %%
 for k, v in result["knobs"].items():
-    print(f"{k:>17}: x{v['scale']:<7.3g} {', '.join(v['parameters'])}")
+    print(f"{k:>17}: {v.get('text') or 'x' + format(v['scale'], '.3g'):<8} {', '.join(v['parameters'])}")
 for k, v in result["fixed"].items():
     print(f"{k:>28} = {v['value']:g} (fixed: {v['reason'][:60]}...)")
 defaults = SimParams()

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from hil.calibrate import FIXED, REFERENCE, CalibrationOptions, Evaluator, objective, parameter_values, search
+from hil.calibrate import (FIXED, LOG2_LOWER, REFERENCE, CalibrationOptions, Evaluator, clean_results, knob_text,
+                           objective, parameter_values, search)
 from hil.cli import main
 from hil.errors import SimulatorConfigError
 
@@ -84,6 +85,41 @@ def test_parameter_values_scale_the_reference_and_cap_at_the_bound():
     assert v["hop.amplitude"] == 0.95                                # 4 x 0.5 capped at its upper bound
     assert v["ripper.lateral_force"] == v["ripper.yaw_moment"] == pytest.approx(750.0)
     assert v["gps.dropout_rate"] == FIXED["gps.dropout_rate"][0]
+
+
+def test_band_objective_counts_only_the_distance_outside_the_band_plus_a_tenth_inside():
+    inside = [_cell("none", 5, 0.0, 0.032 * 1.25, 0.0, 0.032)]          # 25 % high: inside the band
+    outside = [_cell("none", 5, 0.0, 0.032 * 2.0, 0.0, 0.032)]          # twice the paper's
+    assert objective(inside, band=True)["sigma_term"] == pytest.approx(0.1 * math.log(1.25) ** 2)
+    assert objective(outside, band=True)["sigma_term"] == pytest.approx(
+        (math.log(2.0) - math.log(1.3)) ** 2 + 0.1 * math.log(2.0) ** 2)
+    low = [_cell("none", 5, 0.0, 0.032 * 0.5, 0.0, 0.032)]              # the band is +-30 %: 0.7 below
+    assert objective(low, band=True)["sigma_term"] == pytest.approx(
+        (math.log(0.7) - math.log(0.5)) ** 2 + 0.1 * math.log(0.5) ** 2)
+
+
+def test_clean_results_drop_disengaged_passes_unless_a_cell_has_no_other():
+    def run(imp, seed, dis):
+        return {"controller": "c", "implement": imp, "speed": 1.0, "seed": seed, "disengagements": dis}
+    rs = [run("none", 0, 0), run("none", 1, 2), run("ripper", 0, 1), run("ripper", 1, 1)]
+    kept = clean_results(rs)
+    assert [(r["implement"], r["seed"]) for r in kept] == [("none", 0), ("ripper", 0), ("ripper", 1)]
+
+
+def test_linear_knob_adds_its_unit_and_bounded_knobs_stay_physical():
+    v = parameter_values({"soil_speed": 1.5, "ripper_front_load": LOG2_LOWER["ripper_front_load"]})
+    assert v["field.force_speed_exponent"] == pytest.approx(0.75)       # 0 + 1.5 x 0.5
+    assert v["ripper.front_load_factor"] == pytest.approx(0.6)
+    assert knob_text("soil_speed", 1.5) == "= 0.75" and knob_text("soil", 2.0) == "x4"
+    # the search never moves a knob past its bounds: soil_speed starts at its lower bound 0
+    seen = []
+
+    def record(x):
+        seen.append(dict(x))
+        return {"log2_scales": dict(x), "objective": {"value": (x["soil_speed"] + 1) ** 2, "within_30pct": 0}}
+
+    search(record, CalibrationOptions(knobs=("soil_speed",), budget=5, step=1.0, min_step=0.5))
+    assert min(x["soil_speed"] for x in seen) == 0.0
 
 
 @pytest.mark.parametrize("kw, match", [

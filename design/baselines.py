@@ -31,6 +31,8 @@ final calibration (side slope 0.0175 rad):
   oscillate at the fast speeds).
 
 The integral gains were not searched (0.02 rad/(m s), limited to 0.05 rad of wheel angle).
+As in every integral controller of the toolkit, the integral starts after an engage only once
+the line is captured (:mod:`design.capture`).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from .capture import INTEGRAL_CAPTURE_M, LineCapture
 from .controller import Measurement
 from .errors import DesignInputError
 
@@ -119,18 +122,20 @@ class _Servoed:
 
     dt: float = 0.05
 
-    def __init__(self, gains) -> None:
+    def __init__(self, gains, integral_capture: float = INTEGRAL_CAPTURE_M) -> None:
         self.gains = gains
         self._i = 0.0
         self._want = 0.0
+        self._capture = LineCapture(integral_capture)
 
     def reset(self) -> None:
         self._i = 0.0
         self._want = 0.0
+        self._capture.reset()
 
     def _integral(self, e: float) -> float:
         g = self.gains
-        if g.integral > 0:
+        if g.integral > 0 and self._capture.update(e):
             self._i += e * self.dt
             lim = g.integral_limit / g.integral
             self._i = min(max(self._i, -lim), lim)

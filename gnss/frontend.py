@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import ConfigError
+from .fastinit import positional_maker
 from .geodesy import LocalFrame
 from .geodesy_scalar import ScalarFrame
 from .integrity import FixQuality, Integrity, IntegrityConfig, assess_integrity, fix_from_gga, fix_from_nav_pvt
@@ -198,6 +199,8 @@ class GnssFrontEnd:
         self._tow = TagClock(_WEEK)
         self._arm = np.asarray(config.lever_arm)
         self._zero_arm = np.zeros(3)
+        rotation = np.empty((3, 3))
+        self._rotation = (rotation, rotation.reshape(9))   # scratch for _rotate_arm
         self._frame = ScalarFrame(config.origin)
         self._pos: tuple[float, float, float] | None = None
         self._pos_tv = self._pos_ta = -math.inf
@@ -325,19 +328,22 @@ class GnssFrontEnd:
             dt = min(max(t - self._pos_tv, 0.0), cfg.max_extrapolation)
             att_known = math.isfinite(yaw)
             arm = _rotate_arm(yaw if att_known else 0.0, pitch if math.isfinite(pitch) else 0.0,
-                              roll if math.isfinite(roll) else 0.0, self._arm if att_known else self._zero_arm)
+                              roll if math.isfinite(roll) else 0.0, self._arm if att_known else self._zero_arm,
+                              self._rotation)
             p = self._pos
             east, north, up = (p[0] + vel[0] * dt - arm[0], p[1] + vel[1] * dt - arm[1], p[2] + vel[2] * dt - arm[2])
-        speed = float(np.hypot(vel[0], vel[1]))
         if math.isfinite(yaw):
             speed = float(vel[0] * math.sin(yaw) + vel[1] * math.cos(yaw))
-        return NavSolution(
-            t=t, t_validity=self._pos_tv if self._pos is not None else nan,
-            t_arrival=self._pos_ta if self._pos_ta > -math.inf else nan,
-            east=east, north=north, up=up, yaw=yaw,
-            pitch=pitch if math.isfinite(pitch) else 0.0, roll=roll if math.isfinite(roll) else 0.0,
-            yaw_rate=rate, speed=speed, velocity_east=float(vel[0]), velocity_north=float(vel[1]),
-            fix=self._fix, integrity=integrity,
+        else:
+            speed = float(np.hypot(vel[0], vel[1]))
+        return _make_solution(   # NavSolution(t, t_validity, t_arrival, east, north, up, yaw, pitch, roll,
+            t,                   #             yaw_rate, speed, velocity_east, velocity_north, fix, integrity)
+            self._pos_tv if self._pos is not None else nan,
+            self._pos_ta if self._pos_ta > -math.inf else nan,
+            east, north, up, yaw,
+            pitch if math.isfinite(pitch) else 0.0, roll if math.isfinite(roll) else 0.0,
+            rate, speed, float(vel[0]), float(vel[1]),
+            self._fix, integrity,
         )
 
     def step(self, t: float | None = None) -> NavSolution:
@@ -346,20 +352,30 @@ class GnssFrontEnd:
         return self.solution(self.clock() if t is None else t)
 
 
-def _rotate_arm(yaw: float, pitch: float, roll: float, arm: np.ndarray) -> list[float]:
+def _rotate_arm(yaw: float, pitch: float, roll: float, arm: np.ndarray,
+                out: tuple[np.ndarray, np.ndarray] | None = None) -> list[float]:
     """``R(yaw, pitch, roll) @ arm`` (ENU, m) for one attitude: :func:`gnss.lever_arm.control_point_enu`'s
     rotation (:func:`gnss.frames.rotation_enu_from_body`) built on floats, the product in numpy as there,
-    so the control point is bit-for-bit the same at a fraction of the cost."""
+    so the control point is bit-for-bit the same at a fraction of the cost. ``out``, a 3 x 3 float array
+    and its flat view, receives the rotation (the front-end keeps one instead of building one every tick)."""
     psi = _HALF_PI - yaw
     c, s = math.cos(psi), math.sin(psi)
     ct, st = math.cos(pitch), math.sin(pitch)
     cp, sp = math.cos(roll), math.sin(roll)
     m0 = (ct, -st * sp, -st * cp)
     m1 = (0.0, cp, -sp)
-    r = np.array(((c * m0[0] - s * m1[0], c * m0[1] - s * m1[1], c * m0[2] - s * m1[2]),
-                  (s * m0[0] + c * m1[0], s * m0[1] + c * m1[1], s * m0[2] + c * m1[2]),
-                  (st, ct * sp, ct * cp)))
+    if out is None:
+        r = np.empty((3, 3))
+        flat = r.reshape(9)
+    else:
+        r, flat = out
+    flat[:] = (c * m0[0] - s * m1[0], c * m0[1] - s * m1[1], c * m0[2] - s * m1[2],
+               s * m0[0] + c * m1[0], s * m0[1] + c * m1[1], s * m0[2] + c * m1[2],
+               st, ct * sp, ct * cp)
     return (r @ arm).tolist()
+
+
+_make_solution = positional_maker(NavSolution)
 
 
 def _tag(m: object, use_tod: bool) -> float | None:

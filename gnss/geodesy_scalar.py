@@ -67,8 +67,11 @@ class ScalarFrame:
         x = self._x0 + (co * t - so * east)
         y = self._y0 + (so * t + co * east)
         z = self._z0 + w
-        r = _sqrt(x**2 + y**2 + z**2)
-        u = _sqrt(0.5 * (r**2 - _E2) + 0.5 * float(_np_hypot(r**2 - _E2, 2 * _E * z)))
+        # pymap3d squares its arrays (x**2 of an array is x * x); a float's x**2 is libm's pow(x, 2),
+        # which can differ from x * x in the last place, so the squares of the point are written x * x
+        r = _sqrt(x * x + y * y + z * z)
+        r2 = r * r
+        u = _sqrt(0.5 * (r2 - _E2) + 0.5 * float(_np_hypot(r2 - _E2, 2 * _E * z)))
         hxy = float(_np_hypot(x, y))
         hue = float(_np_hypot(u, _E))
         try:
@@ -79,6 +82,6 @@ class ScalarFrame:
         lat = float(np.arctan(_A / _B * float(np.tan(beta))))
         lon = float(np.arctan2(y, x))
         alt = float(_np_hypot(z - _B * _sin(beta), hxy - _A * _cos(beta)))
-        if x**2 / _A**2 + y**2 / _A**2 + z**2 / _B**2 < 1:
+        if x * x / _A**2 + y * y / _A**2 + z * z / _B**2 < 1:
             alt = -alt
         return lat, lon, alt

@@ -162,7 +162,12 @@ def assess_integrity(
     if h_acc is not None and h_acc > config.max_h_acc:
         return Integrity(S.DEGRADED, f"horizontal accuracy {h_acc:.3f} m exceeds {config.max_h_acc:.3f} m")
     if fix is FixQuality.RTK_FIXED:
-        return Integrity(S.RTK_FIXED, "RTK fixed")
+        return _RTK_FIXED
     if fix is FixQuality.RTK_FLOAT:
-        return Integrity(S.RTK_FLOAT, "RTK float: carrier ambiguities not fixed")
+        return _RTK_FLOAT
     return Integrity(S.DEGRADED, f"fix quality {fix.name} is not RTK")
+
+
+# The verdicts whose reason has no numbers: one (immutable) instance each.
+_RTK_FIXED = Integrity(IntegrityState.RTK_FIXED, "RTK fixed")
+_RTK_FLOAT = Integrity(IntegrityState.RTK_FLOAT, "RTK float: carrier ambiguities not fixed")

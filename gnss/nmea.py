@@ -16,15 +16,11 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from functools import reduce
-from operator import xor
-
-from types import SimpleNamespace
-
 from pynmeagps import NMEAReader
 from pynmeagps.nmeatypes_get import NMEA_PAYLOADS_GET
 
 from .errors import ChecksumError, NMEAParseError
+from .fastinit import positional_maker
 from .messages import Avr, Gga, Gst, Hdt, Hpr, NmeaMessage, NmeaSentence, Rmc, Ths, Vtg
 
 __all__ = ["nmea_checksum", "split_sentence", "parse_nmea", "KNOT", "NMEA_MAX_LENGTH"]
@@ -36,6 +32,7 @@ NMEA_MAX_LENGTH = 255
 """Longest accepted sentence in bytes, ``$`` to ``\\n`` (the standard says 82; proprietary ones are longer)."""
 
 _TWO_PI = 2.0 * math.pi
+_make_gga, _make_vtg, _make_avr = (positional_maker(c) for c in (Gga, Vtg, Avr))
 _MIN_FIELDS = {"GGA": 14, "VTG": 8, "RMC": 11, "GST": 8, "HDT": 2, "THS": 2}
 
 
@@ -52,7 +49,19 @@ def nmea_checksum(body: bytes) -> int:
     int
         Checksum, 0-255.
     """
-    return reduce(xor, body, 0)
+    # The XOR of all bytes, ``reduce(xor, body, 0)``, computed on the body as one integer: fold
+    # the high half onto the low half until 8 bytes remain, then fold those 8 bytes into one.
+    x = int.from_bytes(body, "little")
+    n = len(body)
+    while n > 8:
+        half = (n + 1) >> 1
+        bits = half << 3
+        x = (x ^ (x >> bits)) & ((1 << bits) - 1)
+        n = half
+    x ^= x >> 32
+    x ^= x >> 16
+    x ^= x >> 8
+    return x & 0xFF
 
 
 def split_sentence(sentence: bytes, *, check: bool = True) -> tuple[str, list[str]]:
@@ -178,15 +187,15 @@ def _avr(fields: list[str]) -> Avr:
         raise NMEAParseError(
             f"expected $PTNL,AVR,time,yaw,Yaw,tilt,Tilt,roll,Roll,range,quality,pdop,nsv, got fields {fields!r}"
         )
-    return Avr(
-        time=_time_field(fields[0]),
-        yaw=_heading(fields[1]),
-        tilt=_rad(fields[3]),
-        roll=_rad(fields[5]),
-        range=_opt(fields[7]),
-        quality=int(fields[8]) if fields[8] else 0,
-        pdop=_opt(fields[9]),
-        num_sv=_opt_int(fields[10]),
+    return _make_avr(   # Avr(time, yaw, tilt, roll, range, quality, pdop, num_sv)
+        _time_field(fields[0]),
+        _heading(fields[1]),
+        _rad(fields[3]),
+        _rad(fields[5]),
+        _opt(fields[7]),
+        int(fields[8]) if fields[8] else 0,
+        _opt(fields[9]),
+        _opt_int(fields[10]),
     )
 
 
@@ -204,29 +213,30 @@ def _hpr(fields: list[str]) -> Hpr:
 
 
 def _from_pynmeagps(kind: str, talker: str, m: object, fields: list[str]) -> NmeaMessage:
-    g = m.__dict__.get  # pynmeagps stores decoded fields as instance attributes
+    # pynmeagps stores decoded fields as instance attributes; the fast path gives them as a dict
+    g = m.get if isinstance(m, dict) else m.__dict__.get
     if kind == "GGA":
-        return Gga(
-            talker=talker,
-            time=_time_field(fields[0]),
-            lat=_latlon(fields[1], fields[2], 2),
-            lon=_latlon(fields[3], fields[4], 3),
-            quality=int(g("quality") or 0),
-            num_sv=_opt_int(g("numSV")),
-            hdop=_opt(g("HDOP")),
-            alt=_opt(g("alt")),
-            geoid_sep=_opt(g("sep")),
-            diff_age=_opt(g("diffAge")),
-            station_id=_opt_int(g("diffStation")),
+        return _make_gga(   # Gga(talker, time, lat, lon, quality, num_sv, hdop, alt, geoid_sep, diff_age, station_id)
+            talker,
+            _time_field(fields[0]),
+            _latlon(fields[1], fields[2], 2),
+            _latlon(fields[3], fields[4], 3),
+            int(g("quality") or 0),
+            _opt_int(g("numSV")),
+            _opt(g("HDOP")),
+            _opt(g("alt")),
+            _opt(g("sep")),
+            _opt(g("diffAge")),
+            _opt_int(g("diffStation")),
         )
     if kind == "VTG":
         sogn = _opt(g("sogn"))
-        return Vtg(
-            talker=talker,
-            course=_heading(g("cogt")),
-            course_mag=_heading(g("cogm")),
-            speed=None if sogn is None else sogn * KNOT,
-            mode=g("posMode") or None,
+        return _make_vtg(   # Vtg(talker, course, course_mag, speed, mode)
+            talker,
+            _heading(g("cogt")),
+            _heading(g("cogm")),
+            None if sogn is None else sogn * KNOT,
+            g("posMode") or None,
         )
     if kind == "RMC":
         spd = _opt(g("spd"))
@@ -337,8 +347,8 @@ class _LibraryTypeError(ValueError):
     """The error pynmeagps raises for a field it cannot convert (its text, for identical messages)."""
 
 
-def _library_values(kind: str, fields: list[str]) -> SimpleNamespace:
-    """The attribute values pynmeagps decodes from ``fields`` of a ``kind`` sentence (GET mode).
+def _library_values(kind: str, fields: list[str]) -> dict:
+    """The attribute values pynmeagps decodes from ``fields`` of a ``kind`` sentence (GET mode), by name.
 
     ``IN`` fields become ``int``, ``DE`` fields ``float`` (empty text stays ``""``); time and
     latitude/longitude fields never fail in pynmeagps and are decoded strictly by this module
@@ -356,4 +366,4 @@ def _library_values(kind: str, fields: list[str]) -> SimpleNamespace:
         elif typ not in _NEVER_FAILS:  # pragma: no cover - a layout change in pynmeagps
             raise NMEAParseError(f"pynmeagps type {typ!r} of {kind}.{name} has no fast decoding")
         out[name] = text
-    return SimpleNamespace(**out)
+    return out

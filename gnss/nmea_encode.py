@@ -53,7 +53,7 @@ def _num(x: float | None, decimals: int, sign: bool = False) -> str:
         return ""
     if not math.isfinite(x):
         raise EncodeError(f"expected a finite number, got {x!r}; send None for an empty field")
-    return f"{x:+.{decimals}f}" if sign else f"{x:.{decimals}f}"
+    return ("%+.*f" if sign else "%.*f") % (decimals, x)     # f"{x:+.{decimals}f}" / f"{x:.{decimals}f}"
 
 
 def _int(x: int | None) -> str:
@@ -70,8 +70,9 @@ def _time(t: float | None, decimals: int) -> str:
     sec_i, frac = divmod(total, scale)
     h, rem = divmod(sec_i, 3600)
     m, s = divmod(rem, 60)
-    out = f"{h:02d}{m:02d}{s:02d}"
-    return out + (f".{frac:0{decimals}d}" if decimals > 0 else "")
+    if decimals > 0:
+        return "%02d%02d%02d.%0*d" % (h, m, s, decimals, frac)   # hhmmss.ss
+    return "%02d%02d%02d" % (h, m, s)
 
 
 def _angle(x: float | None, decimals: int, width: int, hemis: str) -> tuple[str, str]:
@@ -85,7 +86,7 @@ def _angle(x: float | None, decimals: int, width: int, hemis: str) -> tuple[str,
     total = round(abs(deg) * 60.0 * scale)
     d, mins = divmod(total, 60 * scale)
     mi, frac = divmod(mins, scale)
-    text = f"{d:0{width}d}{mi:02d}" + (f".{frac:0{decimals}d}" if decimals > 0 else "")
+    text = "%0*d%02d.%0*d" % (width, d, mi, decimals, frac) if decimals > 0 else "%0*d%02d" % (width, d, mi)
     return text, hemis[0] if deg >= 0.0 else hemis[1]
 
 
@@ -93,8 +94,8 @@ def _heading(x: float | None, decimals: int) -> str:
     if x is None:
         return ""
     deg = math.degrees(x) % 360.0
-    text = f"{deg:.{decimals}f}"
-    return f"{0.0:.{decimals}f}" if float(text) >= 360.0 else text
+    text = "%.*f" % (decimals, deg)
+    return "%.*f" % (decimals, 0.0) if float(text) >= 360.0 else text
 
 
 def encode_gga(m: Gga, *, time_decimals: int = 2, latlon_decimals: int = 8, alt_decimals: int = 3) -> bytes:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Literal, Protocol
 
 from .errors import ConfigError, ParseError
+from .fastinit import positional_maker
 from .messages import Message, message_key
 from .nmea import NMEA_MAX_LENGTH, parse_nmea
 from .rtcm import parse_rtcm
@@ -87,6 +88,9 @@ class ReaderStats:
     def n_errors(self) -> int:
         """Total refused frames."""
         return sum(self.errors.values())
+
+
+_make_received = positional_maker(Received)
 
 
 class StreamDecoder:
@@ -193,7 +197,7 @@ class StreamDecoder:
                     self._pending = out
                     raise
                 continue
-            out.append(Received(msg, t, frame))
+            out.append(_make_received(msg, t, frame))   # Received(msg, t, frame)
             stats.messages[message_key(msg)] += 1
             i = j + size
         del buf[:i]

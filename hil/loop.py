@@ -24,11 +24,13 @@ import math
 import time
 from collections import deque
 from dataclasses import asdict, dataclass
+from itertools import islice
 from typing import Callable
 
 import numpy as np
 
 from design.controller import Controller, Measurement
+from gnss.fastinit import positional_maker
 from gnss.frontend import GnssFrontEnd
 from gnss.guidance import ABLine, TrackErrors
 from gnss.integrity import IntegrityState
@@ -40,7 +42,9 @@ from .links.clock import Clock
 from .steering import WheelAngleCalibration
 
 INTEGRITY_CODES = {"RTK_FIXED": 0, "RTK_FLOAT": 1, "DEGRADED": 2, "STALE": 3, "LOST": 4}
-_INTEGRITY_BY_STATE = {s: float(INTEGRITY_CODES.get(s.name, 9)) for s in IntegrityState}
+# by id(): hashing an Enum member runs Python code (Enum.__hash__), id() does not
+_INTEGRITY_BY_ID = {id(s): float(INTEGRITY_CODES.get(s.name, 9)) for s in IntegrityState}
+_make_measurement = positional_maker(Measurement)   # Measurement(t, cross_track, heading_error, wheel_angle, speed)
 
 
 @dataclass(frozen=True)
@@ -140,6 +144,7 @@ class VehicleLoop:
         self._last = {"cross_track": 0.0, "heading_error": 0.0, "wheel_angle": 0.0, "speed": 0.0}
         self._response: deque[tuple[float, float]] = deque(maxlen=max(2, round(self.config.response_window
                                                                             * self.config.rate) + 1))
+        self._response_u: deque[float] = deque(maxlen=self._response.maxlen)   # the u of each _response entry
 
     # -- one cycle ------------------------------------------------------------------
     def cycle(self, t_due: float) -> None:
@@ -203,7 +208,7 @@ class VehicleLoop:
                 if near and now - self._healthy_since >= cfg.engage_after - 1e-9:
                     self._engage(now, link_ok)
         if self.engaged:
-            m = Measurement(t=now, cross_track=xte, heading_error=he, wheel_angle=delta, speed=speed)
+            m = _make_measurement(now, xte, he, delta, speed)
             try:
                 raw = float(self.controller.step(m))
             except Exception as exc:  # noqa: BLE001 - a failing control law must disengage, not crash the loop
@@ -216,6 +221,7 @@ class VehicleLoop:
             else:
                 u = min(max(raw, -cfg.max_rate), cfg.max_rate)
                 self._response.append((u, delta))
+                self._response_u.append(u)
                 try:
                     self.driver.send_rate(u)
                 except BridgeLinkError as exc:
@@ -226,7 +232,7 @@ class VehicleLoop:
         late = now - t_due
         done = self.clock.now()
         self._rows.append((now, xte, he, delta, speed, u, float(self.engaged), float(healthy), float(gps_valid),
-                           float(bridge_valid), _INTEGRITY_BY_STATE.get(nav.integrity.state, 9.0),
+                           float(bridge_valid), _INTEGRITY_BY_ID.get(id(nav.integrity.state), 9.0),
                            float(int(nav.fix)), compute, late, float(done - t_due > 1.0 / cfg.rate),
                            float(rep.adc_counts) if rep else -1.0))   # _COLUMNS order
         self._estimates.append(tuple(self.controller.estimate()))
@@ -238,7 +244,7 @@ class VehicleLoop:
         cfg = self.config
         if len(self._response) < self._response.maxlen:
             return None
-        commanded = sum([u for u, _ in self._response][:-1]) / cfg.rate
+        commanded = sum(islice(self._response_u, len(self._response_u) - 1)) / cfg.rate   # all but the newest
         moved = delta - self._response[0][1]
         if abs(commanded) >= cfg.response_min_command and moved / commanded < cfg.response_min_ratio:
             return (f"steering not responding: commanded {math.degrees(commanded):.1f} deg in "
@@ -256,11 +262,13 @@ class VehicleLoop:
             return
         self.engaged, self._engaged_at, self._confirmed = True, now, False
         self._response.clear()
+        self._response_u.clear()
         self.events.append({"t": now, "event": "engage", "reason": "healthy"})
 
     def _disengage(self, now: float, reason: str, link_ok: bool) -> None:
         self.engaged = False
         self._response.clear()
+        self._response_u.clear()
         self._healthy_since = math.inf
         if link_ok:
             try:

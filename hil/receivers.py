@@ -25,6 +25,7 @@ import numpy as np
 from gnss.geodesy import LocalFrame
 from gnss.geodesy_scalar import ScalarFrame
 from gnss.guidance import ABLine
+from gnss.fastinit import positional_maker
 from gnss.messages import Avr, Gga, Vtg
 from gnss.nmea_encode import encode_avr, encode_gga, encode_vtg
 
@@ -35,6 +36,7 @@ from .links.uart import LineConfig, UartTx
 from .plant import SimulatedTractor
 
 _EPS = 1e-9
+_make_gga, _make_vtg, _make_avr = (positional_maker(c) for c in (Gga, Vtg, Avr))
 
 
 @dataclass(frozen=True)
@@ -167,9 +169,11 @@ class PositionReceiver(_Receiver):
         tod = (geo.utc_start + t_valid) % 86400.0
         ia = min(int(round(t_valid * sim.params.gps.attitude_rate)), sim.n_att - 1)
         course = geo.yaw(float(sim.att["yaw"][0, ia]))
-        gga = Gga(talker="GP", time=tod, lat=float(lat), lon=float(lon), quality=quality, num_sv=14, hdop=0.8,
-                  alt=float(h), geoid_sep=0.0, diff_age=1.0 if quality in (4, 5) else None, station_id=1)
-        vtg = Vtg(talker="GP", course=course, course_mag=None, speed=float(pos["speed"][0, k]), mode="D")
+        # Gga(talker, time, lat, lon, quality, num_sv, hdop, alt, geoid_sep, diff_age, station_id)
+        gga = _make_gga("GP", tod, float(lat), float(lon), quality, 14, 0.8, float(h), 0.0,
+                        1.0 if quality in (4, 5) else None, 1)
+        # Vtg(talker, course, course_mag, speed, mode)
+        vtg = _make_vtg("GP", course, None, float(pos["speed"][0, k]), "D")
         return encode_gga(gga) + encode_vtg(vtg)
 
 
@@ -188,6 +192,7 @@ class AttitudeReceiver(_Receiver):
     def _encode(self, k: int, t_valid: float) -> bytes:
         att, geo = self.tractor.sim.att, self.geometry
         tod = (geo.utc_start + t_valid) % 86400.0
-        avr = Avr(time=tod, yaw=geo.yaw(float(att["yaw"][0, k])), tilt=float(att["pitch"][0, k]),
-                  roll=float(att["roll"][0, k]), range=1.5, quality=3, pdop=1.6, num_sv=12)
+        # Avr(time, yaw, tilt, roll, range, quality, pdop, num_sv)
+        avr = _make_avr(tod, geo.yaw(float(att["yaw"][0, k])), float(att["pitch"][0, k]), float(att["roll"][0, k]),
+                        1.5, 3, 1.6, 12)
         return encode_avr(avr)

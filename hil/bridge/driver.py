@@ -57,6 +57,9 @@ class BridgeReport:
     seq: int
     report: WheelAngleReport
 
+    # The flag properties test the bits with int arithmetic (StatusFlags.ENGAGED == 1,
+    # WATCHDOG == 2, OVERRIDE == 4): IntFlag's own operators run as Python code.
+
     @property
     def adc_counts(self) -> int:
         """Wheel-angle potentiometer reading, counts 0..255."""
@@ -65,17 +68,17 @@ class BridgeReport:
     @property
     def engaged(self) -> bool:
         """The bridge drives the valve."""
-        return bool(self.report.flags & StatusFlags.ENGAGED)
+        return self.report.flags % 2 == 1            # bool(flags & StatusFlags.ENGAGED)
 
     @property
     def watchdog_tripped(self) -> bool:
         """The bridge's watchdog tripped since the last engage."""
-        return bool(self.report.flags & StatusFlags.WATCHDOG)
+        return (self.report.flags >> 1) % 2 == 1     # bool(flags & StatusFlags.WATCHDOG)
 
     @property
     def manual_override(self) -> bool:
         """The driver is turning the steering wheel."""
-        return bool(self.report.flags & StatusFlags.OVERRIDE)
+        return (self.report.flags >> 2) % 2 == 1     # bool(flags & StatusFlags.OVERRIDE)
 
 
 @dataclass(frozen=True)
@@ -229,23 +232,26 @@ class BridgeDriver:
         if not data:
             return
         now = self._clock.now()
+        counts = self._n
         for event in self._decoder.feed(data):
             frame = event.frame
             if frame is None:
                 continue  # counted by the decoder
-            self._n["frames_received"] += 1
+            counts["frames_received"] += 1
+            seq = frame.seq
             if self._last_bridge_seq is not None:
-                self._n["report_gaps"] += (frame.seq - self._last_bridge_seq - 1) % 256
-            self._last_bridge_seq = frame.seq
+                counts["report_gaps"] += (seq - self._last_bridge_seq - 1) % 256
+            self._last_bridge_seq = seq
             msg = frame.message
-            if isinstance(msg, WheelAngleReport):
-                self._n["reports_received"] += 1
-                report = BridgeReport(received_at=now, seq=frame.seq, report=msg)
+            if type(msg) is WheelAngleReport:
+                counts["reports_received"] += 1
+                report = _new(BridgeReport)   # BridgeReport(received_at=now, seq=seq, report=msg)
+                report.__dict__.update(received_at=now, seq=seq, report=msg)
                 self._latest = report
                 self._reports.append(report)
                 if len(self._reports) > self.config.max_pending_reports:
                     self._reports.popleft()
-                    self._n["reports_overflowed"] += 1
+                    counts["reports_overflowed"] += 1
             elif isinstance(msg, Pong) and msg.token in self._ping_sent:
                 self._n["pongs_received"] += 1
                 rtt = now - self._ping_sent.pop(msg.token)
@@ -340,6 +346,7 @@ class BridgeDriver:
 
 
 _MAX_OUTSTANDING_PINGS = 64
+_new = object.__new__
 
 
 def _check_timeout(timeout: float) -> float:

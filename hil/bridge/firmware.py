@@ -57,6 +57,7 @@ from hil.bridge.protocol import (
     SteerRateCommand,
     WheelAngleReport,
     encode_frame,
+    frame_packer,
 )
 from hil.links.link import ByteLink
 from hil.links.uart import UartRx, UartTx
@@ -177,13 +178,19 @@ class BridgeFirmware:
         self._refused = 0
         self._link_errors = 0
         self._steady_until = getattr(plant, "override_steady_until", None)
+        self._watchdog_timeout = self.config.watchdog_timeout
 
     # -- device interface ------------------------------------------------------------------
     def next_wakeup(self) -> float:
         """Earliest time the firmware must run, s (``-inf`` before boot)."""
         if self._boot is None:
             return -math.inf
-        if self._link_in_waiting() > 0:
+        try:
+            waiting = self._link.in_waiting
+        except OSError:  # cable gone: the bridge hears nothing
+            self._link_errors += 1
+            waiting = 0
+        if waiting > 0:
             return self._last_step
         t = self._next_report
         if self._next_poll < t:
@@ -191,10 +198,11 @@ class BridgeFirmware:
         held = self._tx.next_due()
         if held < t:
             t = held
-        if self._inbox and self._inbox[0][0] < t:
-            t = self._inbox[0][0]
+        inbox = self._inbox
+        if inbox and inbox[0][0] < t:
+            t = inbox[0][0]
         if self._engaged:
-            w = self._last_cmd_time + self.config.watchdog_timeout
+            w = self._last_cmd_time + self._watchdog_timeout
             if w < t:
                 t = w
         return t
@@ -211,13 +219,19 @@ class BridgeFirmware:
         self._ingest(now)
         self._sample_override()
         # Bounded: the inbox only holds events already decoded.
-        for _ in range(len(self._inbox)):
-            if self._inbox[0][0] > now:
+        inbox = self._inbox
+        timeout = self._watchdog_timeout
+        for _ in range(len(inbox)):
+            if inbox[0][0] > now:
                 break
-            t, event = self._inbox.popleft()
-            self._check_watchdog(t)
+            t, event = inbox.popleft()
+            if self._engaged and t >= self._last_cmd_time + timeout:   # _check_watchdog(t)
+                self._tripped = True
+                self._cut()
             self._apply(t, event, now)
-        self._check_watchdog(now)
+        if self._engaged and now >= self._last_cmd_time + timeout:     # _check_watchdog(now)
+            self._tripped = True
+            self._cut()
         if now >= self._next_report - _TIME_EPS:
             self._report(now)
             period = self.config.report_period
@@ -270,12 +284,14 @@ class BridgeFirmware:
             return
         if not data:
             return
-        start = self._decoder.counters.bytes_fed
+        decoder = self._decoder
+        start = decoder.bytes_fed
         first, spacing = self._rx.arrive(len(data), now)
         # A decode event is produced by the byte that completes (or dooms) a frame, so every
         # event from this chunk ends inside it: its time is that byte's arrival time.
-        for event in self._decoder.feed(data):
-            self._inbox.append((first + (event.end - start) * spacing, event))
+        inbox = self._inbox
+        for event in decoder.feed(data):
+            inbox.append((first + (event.end - start) * spacing, event))
 
     def _set_duty(self, duty: float, force: bool = False) -> None:
         if force or duty != self._duty:
@@ -303,53 +319,57 @@ class BridgeFirmware:
             self._bad += 1
             return
         message = frame.message
-        if MESSAGE_TABLE[_ID_OF[type(message)]].direction != "host->bridge":
+        kind = type(message)
+        if kind not in _FROM_HOST:
             self._bad += 1
             return
+        seq = frame.seq
         if self._host_seq is not None:
-            self._dropped += (frame.seq - self._host_seq - 1) % 256 if frame.seq != self._host_seq else 0
-        self._host_seq = frame.seq
-        if isinstance(message, SteerRateCommand):
-            self._cmd_seq = frame.seq
+            self._dropped += (seq - self._host_seq - 1) % 256 if seq != self._host_seq else 0
+        self._host_seq = seq
+        if kind is SteerRateCommand:
+            self._cmd_seq = seq
             if self._engaged:
                 self._commands += 1
                 self._last_cmd_time = t
                 self._set_duty(min(1.0, max(-1.0, message.rate / self.config.max_rate)))
-        elif isinstance(message, Engage):
+        elif kind is Engage:
             if self._override:
                 self._refused += 1
             elif not self._engaged:  # while engaged: no-op, must not feed the watchdog
                 self._engaged = True
                 self._tripped = False
                 self._last_cmd_time = t
-        elif isinstance(message, Disengage):
+        elif kind is Disengage:
             self._cut()
-        elif isinstance(message, Ping):
+        elif kind is Ping:
             self._send(Pong(token=message.token), now)
 
     def _send(self, message: Pong | WheelAngleReport, now: float) -> None:
+        self._transmit(encode_frame(message, self._seq), now)
+
+    def _transmit(self, frame: bytes, now: float) -> None:
         try:
-            self._tx.send(encode_frame(message, self._seq), now)
+            self._tx.send(frame, now)
         except OSError:  # nobody listening: the UART sends into the void, the bridge carries on
             self._link_errors += 1
         self._seq = (self._seq + 1) & 0xFF
 
     def _report(self, now: float) -> None:
         counts = self._plant.wheel_angle_counts()
-        if isinstance(counts, bool) or not isinstance(counts, int) or not 0 <= counts <= 255:
-            raise PlantInterfaceError(f"wheel_angle_counts() must return an int in 0..255 (8-bit ADC), "
-                                      f"got {counts!r}")
+        if counts.__class__ is not int or not 0 <= counts <= 255:
+            if isinstance(counts, bool) or not isinstance(counts, int) or not 0 <= counts <= 255:
+                raise PlantInterfaceError(f"wheel_angle_counts() must return an int in 0..255 (8-bit ADC), "
+                                          f"got {counts!r}")
         self._reports += 1
-        self._send(WheelAngleReport(
-            adc_counts=counts,
-            flags=_FLAG_VALUES[self._engaged | self._tripped << 1 | self._override << 2],   # = self.state.flags
-            command_seq=max(self._cmd_seq, 0),
-            duty=self._duty,
-            bad_frames=self._bad & 0xFFFF,
-            dropped_frames=self._dropped & 0xFFFF,
-            bridge_time_ms=round((now - (self._boot or 0.0)) * 1000.0) & 0xFFFF,
-        ), now)
+        # encode_frame(WheelAngleReport(...), seq) from the field values, in the layout's order
+        self._transmit(_PACK_REPORT(
+            self._seq, counts,
+            _FLAG_VALUES[self._engaged | self._tripped << 1 | self._override << 2],   # = self.state.flags
+            max(self._cmd_seq, 0), self._duty, self._bad & 0xFFFF, self._dropped & 0xFFFF,
+            round((now - (self._boot or 0.0)) * 1000.0) & 0xFFFF), now)
 
 
-_ID_OF = {layout.cls: msg_id for msg_id, layout in MESSAGE_TABLE.items()}
+_FROM_HOST = frozenset(layout.cls for layout in MESSAGE_TABLE.values() if layout.direction == "host->bridge")
+_PACK_REPORT = frame_packer(WheelAngleReport)
 _FLAG_VALUES = tuple(StatusFlags(i) for i in range(8))   # ENGAGED | WATCHDOG << 1 | OVERRIDE << 2

@@ -15,25 +15,21 @@ CRC; a frame whose CRC fails is refused and counted as a CRC error.
 
 from __future__ import annotations
 
-import struct
+from binascii import crc_hqx
 from dataclasses import dataclass
 
 from hil.bridge.errors import ConfigError, CrcError, FieldError, FrameError, LengthError, UnknownMessageError
 from hil.bridge.protocol import (
+    _FRAME_DECODERS,
+    CRC_INIT,
     CRC_LEN,
     HEADER_LEN,
     MAX_PAYLOAD,
-    MESSAGE_TABLE,
     SYNC,
     Frame,
-    crc16,
-    decode_payload,
 )
 
 __all__ = ["DecodeEvent", "DecoderCounters", "StreamDecoder"]
-
-_CRC = struct.Struct(">H")
-
 
 @dataclass(frozen=True)
 class DecodeEvent:
@@ -140,6 +136,11 @@ class StreamDecoder:
         err.offset = end
         events.append(DecodeEvent(end=end, error=err))
 
+    @property
+    def bytes_fed(self) -> int:
+        """Bytes fed so far (``counters.bytes_fed`` without the snapshot)."""
+        return self._base + len(self._buf)
+
     def feed(self, data: bytes) -> list[DecodeEvent]:
         """Add bytes; return the frames and refused frames they complete, in stream order.
 
@@ -155,6 +156,7 @@ class StreamDecoder:
         buf = self._buf
         buf += data
         events: list[DecodeEvent] = []
+        decoders = _FRAME_DECODERS
         # Every pass either consumes >= 1 byte or returns: bounded by len(buf).
         for _ in range(len(buf) + 1):
             i = buf.find(SYNC)
@@ -164,45 +166,51 @@ class StreamDecoder:
                 return events
             if i:
                 self._discard(i)
-            if len(buf) < HEADER_LEN:
+            size = len(buf)
+            if size < HEADER_LEN:
                 return events
             msg_id, length = buf[2], buf[4]
-            layout = MESSAGE_TABLE.get(msg_id)
-            header_error: FrameError | None = None
-            if layout is None:
-                header_error = UnknownMessageError(f"unknown message id 0x{msg_id:02x}")
-                key = "unknown_ids"
-            elif length != layout.size or length > self._max_payload:
-                header_error = LengthError(f"message 0x{msg_id:02x} ({layout.cls.__name__}) has a "
-                                           f"{layout.size}-byte payload, length byte says {length}")
-                key = "length_errors"
-            if header_error is not None:
+            entry = decoders.get(msg_id)
+            if entry is None or length != entry[1] or length > self._max_payload:
                 # Refused on the header alone: never wait for bytes that cannot form a frame.
-                self._refuse(header_error, key, events, self._base + HEADER_LEN - 1)
+                if entry is None:
+                    self._refuse(UnknownMessageError(f"unknown message id 0x{msg_id:02x}"), "unknown_ids", events,
+                                 self._base + HEADER_LEN - 1)
+                else:
+                    layout = entry[0]
+                    self._refuse(LengthError(f"message 0x{msg_id:02x} ({layout.cls.__name__}) has a "
+                                             f"{layout.size}-byte payload, length byte says {length}"),
+                                 "length_errors", events, self._base + HEADER_LEN - 1)
                 self._discard(1)
                 continue
             total = HEADER_LEN + length + CRC_LEN
-            if len(buf) < total:
+            if size < total:
                 return events
             end = self._base + total - 1
-            body = bytes(buf[2:HEADER_LEN + length])
-            got = _CRC.unpack_from(buf, HEADER_LEN + length)[0]
-            want = crc16(body)
+            got = buf[HEADER_LEN + length] << 8 | buf[HEADER_LEN + length + 1]
+            want = crc_hqx(buf[2:HEADER_LEN + length], CRC_INIT)
             if got != want:
                 self._refuse(CrcError(f"invalid CRC 0x{got:04x} - should be 0x{want:04x}"),
                              "crc_errors", events, end)
                 self._discard(1)
                 continue
             try:
-                message = decode_payload(msg_id, body[3:])
+                message = entry[2](buf, HEADER_LEN)
             except FieldError as err:
                 self._refuse(err, "field_errors", events, end)
+                # A CRC-valid frame that is refused for its content is consumed whole.
+                self._n["bytes_discarded"] += total
             else:
                 self._n["frames"] += 1
-                events.append(DecodeEvent(end=end, frame=Frame(seq=body[1], message=message)))
-                self._consume(total)
-                continue
-            # A CRC-valid frame that is refused for its content is consumed whole.
-            self._n["bytes_discarded"] += total
-            self._consume(total)
+                frame = _new(Frame)
+                frame.__dict__.update(seq=buf[3], message=message)       # Frame(seq, message)
+                event = _new(DecodeEvent)
+                event.__dict__.update(end=end, frame=frame, error=None)  # DecodeEvent(end, frame)
+                events.append(event)
+            del buf[:total]
+            self._base += total
+            self._hunting = False
         return events  # pragma: no cover - the loop always returns earlier
+
+
+_new = object.__new__

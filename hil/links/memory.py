@@ -19,6 +19,7 @@ from hil.links.errors import LinkClosedError, LinkConfigError
 __all__ = ["MemoryEndpoint", "memory_link_pair"]
 
 _EPS = 1e-12  # s; float slack when comparing a byte's release time with now
+_isfinite = math.isfinite
 
 
 class _Pipe:
@@ -50,31 +51,42 @@ class _Pipe:
         return min(len(data), int((now + _EPS - first) / spacing) + 1)
 
     def available(self, now: float) -> int:
-        if not self.chunks:
-            return 0
+        # _ready of each chunk, written out (this is asked very often)
         total = 0
-        for chunk in self.chunks:
-            n = self._ready(chunk, now)
+        t = now + _EPS
+        for first, spacing, data in self.chunks:
+            if first > t:
+                break
+            size = len(data)
+            n = size if spacing <= 0.0 else min(size, int((t - first) / spacing) + 1)
             total += n
-            if n < len(chunk[2]):
+            if n < size:
                 break
         return total
 
     def take(self, size: int, now: float) -> bytes:
+        chunks = self.chunks
+        first, spacing, data = chunks[0]
+        n = self._ready(chunks[0], now)
+        if n == len(data) and n <= size and len(chunks) == 1:
+            # the common case: one chunk, all of it released, all of it wanted
+            chunks.popleft()
+            self.size -= n
+            return data
         out = bytearray()
         # Bounded by the number of chunks: each pass consumes one or stops.
-        for _ in range(len(self.chunks)):
+        for _ in range(len(chunks)):
             if len(out) >= size:
                 break
-            first, spacing, data = self.chunks[0]
-            n = min(self._ready(self.chunks[0], now), size - len(out))
+            first, spacing, data = chunks[0]
+            n = min(self._ready(chunks[0], now), size - len(out))
             if n == 0:
                 break
             out += data[:n]
             if n == len(data):
-                self.chunks.popleft()
+                chunks.popleft()
             else:
-                self.chunks[0] = (first + n * spacing, spacing, data[n:])
+                chunks[0] = (first + n * spacing, spacing, data[n:])
                 break
         self.size -= len(out)
         return bytes(out)
@@ -128,14 +140,15 @@ class MemoryEndpoint:
             This end is closed, or nothing is left to read and the other end is closed.
         """
         self._check_open()
-        if isinstance(size, bool) or not isinstance(size, int) or size < 0:
-            raise LinkConfigError(f"read size must be a non-negative int, got {size!r}")
+        if size.__class__ is not int or size < 0:
+            if isinstance(size, bool) or not isinstance(size, int) or size < 0:
+                raise LinkConfigError(f"read size must be a non-negative int, got {size!r}")
         rx = self._rx
         if not rx.chunks:
             if rx.closed:
                 raise LinkClosedError(f"{self.name}: the other end of the in-memory link is closed")
             return b""
-        data = rx.take(size, self._clock.now())
+        data = rx.take(size, self._clock.now()) if size else b""
         if not data and rx.closed and not rx.chunks:
             raise LinkClosedError(f"{self.name}: the other end of the in-memory link is closed")
         self.bytes_read += len(data)
@@ -155,14 +168,18 @@ class MemoryEndpoint:
         LinkConfigError
             Bad times, or the other end's buffer is full.
         """
-        self._check_open()
+        if self._closed:
+            self._check_open()
         if self._tx.closed:
             raise LinkClosedError(f"{self.name}: the other end of the in-memory link is closed")
-        if not (math.isfinite(first) and math.isfinite(spacing) and spacing >= 0):
+        if not (_isfinite(first) and _isfinite(spacing) and spacing >= 0):
             raise LinkConfigError(f"paced write needs finite first time and spacing >= 0, got {first!r}, {spacing!r}")
-        data = bytes(data)
+        if data.__class__ is not bytes:
+            data = bytes(data)
         if data:
-            self._tx.push(max(first, self._clock.now()), float(spacing), data)
+            now = self._clock.now()
+            self._tx.push(first if first >= now else now, spacing if spacing.__class__ is float else float(spacing),
+                          data)
         self.bytes_written += len(data)
         return len(data)
 

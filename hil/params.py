@@ -141,8 +141,9 @@ class RipperParams(_Group):
                           "knob 'ripper_soil')", "calibrated")
     soil_correlation_length: float = P(2.0, "m", "distance over which the soil forces decorrelate",
                                        lo_open=True)
-    front_load_factor: float = P(0.75, "1", "front-axle load relative to no implement (draft "
-                                 "transfers weight to the rear; the value is assumed)", lo_open=True, hi=1.5)
+    front_load_factor: float = P(0.8999785367799116, "1", "front-axle load relative to no implement (draft "
+                                 "transfers weight to the rear) (calibrated, knob 'ripper_front_load', "
+                                 "bounded to 0.6-0.9)", "calibrated", lo_open=True, hi=1.5)
 
 
 @dataclass(frozen=True)
@@ -167,12 +168,13 @@ class FieldParams(_Group):
     roll_mean: float = P(0.0, "rad", "mean side slope along the pass, + = left side up", lo=None)
     roll_correlation_length: float = P(25.0, "m", "distance over which the slope changes",
                                        lo_open=True)
-    lateral_force: float = P(4800.0, "N", "soil lateral force on the tractor itself, 1-sigma at "
-                             "force_reference_speed (calibrated, knob 'soil')", "calibrated")
+    lateral_force: float = P(4036.3027932178297, "N", "soil lateral force on the tractor itself, 1-sigma "
+                             "at force_reference_speed (calibrated, knob 'soil')", "calibrated")
     force_correlation_length: float = P(3.0, "m", "correlation length of that force", lo_open=True)
-    force_speed_exponent: float = P(0.0, "1", "growth of that force with speed: its 1-sigma is lateral_force "
+    force_speed_exponent: float = P(0.35, "1", "growth of that force with speed: its 1-sigma is lateral_force "
                                     "x (V / force_reference_speed)^exponent at nominal speed V (ruts and clods "
-                                    "kick the tyres sideways harder the faster the tractor goes)", hi=2.0)
+                                    "kick the tyres sideways harder the faster the tractor goes) (calibrated, "
+                                    "knob 'soil_speed')", "calibrated", hi=2.0)
     force_reference_speed: float = P(1.79, "m/s", "speed at which that force's 1-sigma is lateral_force "
                                      "(9th gear, the middle of the paper's range)", lo_open=True)
     speed_variation: float = P(0.02, "1", "relative 1-sigma of speed about the gear's nominal value")

@@ -151,10 +151,11 @@ class CalibrationOptions:
         leaves the tractor to drift undriven and then measures the re-engage, which Table 2 does
         not; the passes left out are counted in the record (``passes_excluded``).
     band
-        Score the 1-sigma by its distance outside the issue's +-30 % band (squared, in ln),
-        plus :data:`BAND_INSIDE_WEIGHT` times the plain ``ln(ratio)^2``: the target is the
-        number of cells within the band, which the plain term trades for a closer fit of the
-        cells already inside it.
+        Score the 1-sigma by the issue's target first: the fraction of cells outside the
+        +-30 % band, plus their squared distance outside it (in ln), plus
+        :data:`BAND_INSIDE_WEIGHT` times the plain ``ln(ratio)^2``. The plain term alone trades
+        cells in the band for a closer fit of the others (on the paper's non-monotonic ripper
+        column it preferred 11 cells in the band to 13, to bring ripper 7th from 0.58 to 0.64).
     """
 
     seeds: tuple[int, ...] = (0, 1)
@@ -263,9 +264,9 @@ def objective(rows: Sequence[dict], bias_weight: float = 0.25, bias_scale: float
     ls = np.array([math.log(r["measured_sigma_m"] / r["paper_sigma_m"]) for r in rows])
     eb = np.array([(r["measured_bias_m"] - r["paper_bias_m"]) / bias_scale for r in rows])
     s_term, b_term = float(np.mean(ls ** 2)), float(np.mean(eb ** 2))
-    if band:     # distance outside the +-30 % band, plus a tenth of the plain term to break ties inside it
+    if band:     # cells outside the +-30 % band first, then how far outside, then a tenth of the plain term
         out = np.maximum(0.0, np.maximum(ls - math.log(1.3), math.log(0.7) - ls))
-        s_term = float(np.mean(out ** 2)) + BAND_INSIDE_WEIGHT * s_term
+        s_term = float(np.mean(out > 0) + np.mean(out ** 2)) + BAND_INSIDE_WEIGHT * s_term
     within = int(sum(abs(r["measured_sigma_m"] / r["paper_sigma_m"] - 1) <= 0.3 for r in rows))
     return {"value": s_term + bias_weight * b_term, "sigma_term": s_term, "bias_term": b_term,
             "within_30pct": within, "cells": len(rows)}

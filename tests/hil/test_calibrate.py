@@ -87,15 +87,15 @@ def test_parameter_values_scale_the_reference_and_cap_at_the_bound():
     assert v["gps.dropout_rate"] == FIXED["gps.dropout_rate"][0]
 
 
-def test_band_objective_counts_only_the_distance_outside_the_band_plus_a_tenth_inside():
+def test_band_objective_counts_cells_out_of_the_band_then_their_distance_then_a_tenth_of_the_fit():
     inside = [_cell("none", 5, 0.0, 0.032 * 1.25, 0.0, 0.032)]          # 25 % high: inside the band
     outside = [_cell("none", 5, 0.0, 0.032 * 2.0, 0.0, 0.032)]          # twice the paper's
     assert objective(inside, band=True)["sigma_term"] == pytest.approx(0.1 * math.log(1.25) ** 2)
     assert objective(outside, band=True)["sigma_term"] == pytest.approx(
-        (math.log(2.0) - math.log(1.3)) ** 2 + 0.1 * math.log(2.0) ** 2)
+        1.0 + (math.log(2.0) - math.log(1.3)) ** 2 + 0.1 * math.log(2.0) ** 2)     # 1 = the cell is out
     low = [_cell("none", 5, 0.0, 0.032 * 0.5, 0.0, 0.032)]              # the band is +-30 %: 0.7 below
-    assert objective(low, band=True)["sigma_term"] == pytest.approx(
-        (math.log(0.7) - math.log(0.5)) ** 2 + 0.1 * math.log(0.5) ** 2)
+    assert objective(low + inside, band=True)["sigma_term"] == pytest.approx(
+        0.5 + ((math.log(0.7) - math.log(0.5)) ** 2 + 0.1 * math.log(0.5) ** 2 + 0.1 * math.log(1.25) ** 2) / 2)
 
 
 def test_clean_results_drop_disengaged_passes_unless_a_cell_has_no_other():

@@ -141,7 +141,7 @@ class VehicleLoop:
         self._engaged_at = math.nan
         self._confirmed = False
         self.latched: str | None = None   # a controller failure: no re-engage until a new loop
-        self._last = {"cross_track": 0.0, "heading_error": 0.0, "wheel_angle": 0.0, "speed": 0.0}
+        self._last = (0.0, 0.0, 0.0, 0.0)   # cross_track, heading_error, wheel_angle, speed of the last cycle
         self._response: deque[tuple[float, float]] = deque(maxlen=max(2, round(self.config.response_window
                                                                             * self.config.rate) + 1))
         self._response_u: deque[float] = deque(maxlen=self._response.maxlen)   # the u of each _response entry
@@ -162,20 +162,23 @@ class VehicleLoop:
             reasons.append(f"bridge link error: {exc}")
         rep = self.driver.latest
         bridge_valid = rep is not None and self.driver.is_alive()
+        last_xte, last_he, last_delta, last_speed = self._last
         if bridge_valid:
             delta = (float(rep.adc_counts) - self._center) * self._rad_per_count   # calibration.to_angle
         else:
-            delta = self._last["wheel_angle"]
+            delta = last_delta
             reasons.append("bridge silent")
         nav = self.frontend.step(now)
-        gps_valid = math.isfinite(nav.east) and math.isfinite(nav.north) and math.isfinite(nav.yaw)
+        east, north, yaw = nav.east, nav.north, nav.yaw
+        gps_valid = math.isfinite(east) and math.isfinite(north) and math.isfinite(yaw)
         if gps_valid:
-            xte, he = self._line_errors(nav.east, nav.north, nav.yaw)
+            xte, he = self._line_errors(east, north, yaw)
         else:
-            xte, he = self._last["cross_track"], self._last["heading_error"]
-        speed = nav.speed if math.isfinite(nav.speed) else self._last["speed"]
-        if not nav.integrity.healthy:
-            reasons.append(f"gps {nav.integrity.state.name.lower()}: {nav.integrity.reason}")
+            xte, he = last_xte, last_he
+        speed = nav.speed if math.isfinite(nav.speed) else last_speed
+        integrity = nav.integrity
+        if not integrity.healthy:
+            reasons.append(f"gps {integrity.state.name.lower()}: {integrity.reason}")
         if not cfg.speed_min <= speed <= cfg.speed_max:
             reasons.append(f"speed {speed:.2f} m/s outside {cfg.speed_min}-{cfg.speed_max} m/s")
         if rep is not None and rep.manual_override:
@@ -227,12 +230,12 @@ class VehicleLoop:
                 except BridgeLinkError as exc:
                     self._disengage(now, f"bridge link error: {exc}", False)
                     u = 0.0
-        self._last = {"cross_track": xte, "heading_error": he, "wheel_angle": delta, "speed": speed}
+        self._last = (xte, he, delta, speed)
         compute = time.perf_counter() - wall0
         late = now - t_due
         done = self.clock.now()
         self._rows.append((now, xte, he, delta, speed, u, float(self.engaged), float(healthy), float(gps_valid),
-                           float(bridge_valid), _INTEGRITY_BY_ID.get(id(nav.integrity.state), 9.0),
+                           float(bridge_valid), _INTEGRITY_BY_ID.get(id(integrity.state), 9.0),
                            float(int(nav.fix)), compute, late, float(done - t_due > 1.0 / cfg.rate),
                            float(rep.adc_counts) if rep else -1.0))   # _COLUMNS order
         self._estimates.append(tuple(self.controller.estimate()))

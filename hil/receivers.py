@@ -100,11 +100,15 @@ class _Receiver:
 
     def next_wakeup(self) -> float:
         due = self._due if self._due > self._retry else self._retry
+        if not self.uart.holds:
+            return due
         held = self.uart.next_due()
         return due if due < held else held
 
     def step(self, now: float) -> None:
-        self.uart.flush(now)
+        uart = self.uart
+        if uart.holds:
+            uart.flush(now)
         while self._due <= now + _EPS:
             if self._recorded() <= self.k:        # the plant has not reached the epoch yet
                 self._retry = now + self.tractor.params.dt
@@ -113,16 +117,17 @@ class _Receiver:
             self.k += 1
             self._due = self._arrival(self.k) if self.k < self._n else math.inf
             t_valid = k / self.rate
-            if self._lost[k] or any(a <= t_valid < b for a, b in self.suppressed):
+            if self._lost[k] or (self.suppressed and any(a <= t_valid < b for a, b in self.suppressed)):
                 continue
             data = self._encode(k, t_valid)
             if self._corruption[k] >= 0:
                 data = corrupt(data, self._corruption[k])
                 self.corrupted += 1
-            self.uart.send(data, now)
+            uart.send(data, now)
             self.sent += 1
         self._retry = -math.inf
-        self.uart.flush(now)
+        if uart.holds:
+            uart.flush(now)
 
     def _recorded(self) -> int:
         raise NotImplementedError
@@ -153,6 +158,7 @@ class PositionReceiver(_Receiver):
                          g.position_latency, err.pos_jitter[0], err.pos_lost[0], err.pos_corrupt[0])
         self.downgraded: list[tuple[float, float]] = []     # fault injection: report RTK float instead
         self._frame = ScalarFrame(geometry.origin)
+        self._line_sin_cos = (math.sin(geometry.line_yaw), math.cos(geometry.line_yaw))
 
     def _recorded(self) -> int:
         return self.tractor.sim.n_pos
@@ -160,11 +166,13 @@ class PositionReceiver(_Receiver):
     def _encode(self, k: int, t_valid: float) -> bytes:
         sim, geo = self.tractor.sim, self.geometry
         pos = sim.pos
-        east, north = geo.line_to_enu(float(pos["x"][0, k]), float(pos["y"][0, k]))
+        x, y = float(pos["x"][0, k]), float(pos["y"][0, k])
+        s, c = self._line_sin_cos                  # geo.line_to_enu(x, y), with sin and cos taken once
+        east, north = x * s - y * c, x * c + y * s
         up = self.tractor.params.vehicle.antenna_height
         lat, lon, h = self._frame.to_geodetic(east, north, up)
         quality = int(pos["fix"][0, k])
-        if any(a <= t_valid < b for a, b in self.downgraded):
+        if self.downgraded and any(a <= t_valid < b for a, b in self.downgraded):
             quality = 5
         tod = (geo.utc_start + t_valid) % 86400.0
         ia = min(int(round(t_valid * sim.params.gps.attitude_rate)), sim.n_att - 1)

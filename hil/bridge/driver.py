@@ -32,6 +32,7 @@ from hil.bridge.protocol import (
     SteerRateCommand,
     WheelAngleReport,
     encode_frame,
+    frame_packer,
 )
 from hil.links.clock import Clock, RealClock
 from hil.links.link import ByteLink
@@ -170,12 +171,15 @@ class BridgeDriver:
 
     # -- sending ---------------------------------------------------------------------------
     def _send(self, message: Message) -> int:
+        return self._write(encode_frame(message, self._seq), type(message).__name__)
+
+    def _write(self, frame: bytes, what: str) -> int:
+        """Write ``frame`` (encoded with the current sequence number) and count it; returns that number."""
         seq = self._seq
-        frame = encode_frame(message, seq)
         try:
             self._link.write(frame)
         except OSError as err:
-            raise BridgeLinkError(f"writing {type(message).__name__} to the bridge failed: {err}") from err
+            raise BridgeLinkError(f"writing {what} to the bridge failed: {err}") from err
         self._seq = (seq + 1) & 0xFF
         self._n["frames_sent"] += 1
         self._n["bytes_sent"] += len(frame)
@@ -202,7 +206,7 @@ class BridgeDriver:
         BridgeLinkError
             The link failed.
         """
-        return self._send(SteerRateCommand(rate=rate))
+        return self._write(_PACK_RATE(self._seq, rate), "SteerRateCommand")   # SteerRateCommand(rate=rate)
 
     def engage(self) -> int:
         """Ask the bridge to engage; returns the frame's sequence number (see reports for the outcome)."""
@@ -346,6 +350,7 @@ class BridgeDriver:
 
 
 _MAX_OUTSTANDING_PINGS = 64
+_PACK_RATE = frame_packer(SteerRateCommand)
 _new = object.__new__
 
 

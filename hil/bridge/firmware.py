@@ -23,7 +23,8 @@ Behaviour (the contract the host and the tests rely on)
   disengaged and the OVERRIDE flag is set; re-engaging needs an ``Engage``
   after the driver lets go. A plant that has ``override_steady_until()`` (the
   simulated tractor) says when the switch can next change; the firmware then
-  skips the polls before that time, which could only read an unchanged switch.
+  skips the polls before that time, which could only read an unchanged switch
+  (and, once it says ``inf``, the samples at every step as well).
 * ``Ping``: answered with a ``Pong`` carrying the same token (does not feed
   the watchdog).
 * Bad frames (CRC, length, unknown id, reserved bits, or a bridge-to-host
@@ -179,6 +180,7 @@ class BridgeFirmware:
         self._link_errors = 0
         self._steady_until = getattr(plant, "override_steady_until", None)
         self._watchdog_timeout = self.config.watchdog_timeout
+        self._override_fixed = False   # the plant said its override switch never changes again
 
     # -- device interface ------------------------------------------------------------------
     def next_wakeup(self) -> float:
@@ -195,9 +197,10 @@ class BridgeFirmware:
         t = self._next_report
         if self._next_poll < t:
             t = self._next_poll
-        held = self._tx.next_due()
-        if held < t:
-            t = held
+        if self._tx.holds:
+            held = self._tx.next_due()
+            if held < t:
+                t = held
         inbox = self._inbox
         if inbox and inbox[0][0] < t:
             t = inbox[0][0]
@@ -215,9 +218,13 @@ class BridgeFirmware:
             self._plant.set_valve_duty(0.0)
             self._duty = 0.0
         self._last_step = now
-        self._next_poll = self._poll_after(now)
-        self._ingest(now)
-        self._sample_override()
+        if self._override_fixed:       # the switch can no longer change: polls and samples would read the same
+            self._next_poll = math.inf
+            self._ingest(now)
+        else:
+            self._next_poll = self._poll_after(now)
+            self._ingest(now)
+            self._sample_override()
         # Bounded: the inbox only holds events already decoded.
         inbox = self._inbox
         timeout = self._watchdog_timeout
@@ -237,10 +244,11 @@ class BridgeFirmware:
             period = self.config.report_period
             missed = math.floor((now - self._next_report) / period + _TIME_EPS) + 1
             self._next_report += max(1, missed) * period
-        try:
-            self._tx.flush(now)
-        except OSError:
-            self._link_errors += 1
+        if self._tx.holds:
+            try:
+                self._tx.flush(now)
+            except OSError:
+                self._link_errors += 1
 
     def _poll_after(self, now: float) -> float:
         """When to poll the inputs next: ``input_poll_period`` after ``now``; on a plant that
@@ -252,6 +260,8 @@ class BridgeFirmware:
             until = self._steady_until()
             if until > t:
                 t = now + math.ceil((until - now) / period) * period if math.isfinite(until) else math.inf
+            if until == math.inf:
+                self._override_fixed = True   # never changes again: this step's sample is the last one needed
         return t
 
     # -- state -----------------------------------------------------------------------------

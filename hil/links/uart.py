@@ -127,6 +127,9 @@ class UartTx:
         self.busy_until = -math.inf
         self._paced = getattr(link, "write_paced", None)
         self._pending: deque[tuple[float, float, bytes]] = deque()
+        #: True when this UART keeps bytes until :meth:`flush` (a link without ``write_paced``); on a
+        #: timed link it never does: :meth:`next_due` is always ``inf`` and :meth:`flush` writes nothing.
+        self.holds = self._paced is None
 
     def send(self, data: bytes, now: float) -> float:
         """Start sending ``data`` at ``now`` (or when the line frees up); return the last byte's arrival, s."""

@@ -254,6 +254,14 @@ class GnssFrontEnd:
     def ingest(self, rec: Received) -> None:
         """Update the state with one received message (others are ignored)."""
         m, ta = rec.message, rec.t_arrival
+        kind = type(m)
+        if kind is Avr:            # the most frequent messages first (10 Hz attitude, then 5 Hz GGA/VTG)
+            if m.quality != 0:
+                self._set_attitude(m.yaw, m.tilt, m.roll, self._valid_time(m.time, self._tod, ta), ta)
+            return
+        if kind is Vtg:
+            self._set_velocity(m.speed, m.course, self._valid_time(None, self._tod, ta))
+            return
         if isinstance(m, Gga):
             tv = self._valid_time(m.time, self._tod, ta)
             self._fix = fix_from_gga(m.quality) if m.lat is not None and m.lon is not None else FixQuality.NONE

@@ -448,6 +448,9 @@ def message_key(msg: Message) -> str:
     kind = _NMEA_KEY.get(type(msg))
     if kind is not None:
         return msg.talker + kind  # type: ignore[union-attr]
+    key = _FIXED_KEY.get(type(msg))
+    if key is not None:
+        return key
     if isinstance(msg, NmeaSentence):
         return msg.talker + msg.sentence_type
     if isinstance(msg, Avr):
@@ -463,3 +466,6 @@ def message_key(msg: Message) -> str:
     if isinstance(msg, RtcmFrame):
         return f"RTCM{msg.msg_type}"
     raise TypeError(f"message_key expected a gnss message, got {type(msg).__name__}")
+
+
+_FIXED_KEY = {Avr: "PTNL,AVR", Hpr: "PSAT,HPR", NavPvt: "NAV-PVT", NavRelPosNed: "NAV-RELPOSNED"}

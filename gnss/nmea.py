@@ -356,14 +356,28 @@ def _library_values(kind: str, fields: list[str]) -> dict:
     the attributes (pynmeagps skips the missing ones).
     """
     out = {}
-    for (name, typ), text in zip(_LIBRARY_LAYOUTS[kind], fields):
-        if typ == "DE" or typ == "IN":
-            if text != "":
-                try:
-                    text = float(text) if typ == "DE" else int(text)
-                except ValueError:
-                    raise _LibraryTypeError(f"Incorrect type for attribute {name} in msgID {kind}.") from None
-        elif typ not in _NEVER_FAILS:  # pragma: no cover - a layout change in pynmeagps
-            raise NMEAParseError(f"pynmeagps type {typ!r} of {kind}.{name} has no fast decoding")
+    for (name, convert), text in zip(_CONVERSIONS[kind], fields):
+        if convert is not None and text != "":
+            try:
+                text = convert(text)
+            except ValueError:
+                raise _LibraryTypeError(f"Incorrect type for attribute {name} in msgID {kind}.") from None
         out[name] = text
     return out
+
+
+def _conversions(kind: str) -> tuple[tuple[str, type | None], ...]:
+    """Per field of pynmeagps's ``kind`` layout: its name and conversion (``float`` for DE, ``int``
+    for IN, ``None`` for the types kept as text)."""
+    out = []
+    for name, typ in _LIBRARY_LAYOUTS[kind]:
+        if typ not in ("DE", "IN") and typ not in _NEVER_FAILS:  # pragma: no cover - a layout change in pynmeagps
+            def unsupported(text: str, typ: str = typ, name: str = name) -> None:
+                raise NMEAParseError(f"pynmeagps type {typ!r} of {kind}.{name} has no fast decoding")
+            out.append((name, unsupported))
+        else:
+            out.append((name, float if typ == "DE" else int if typ == "IN" else None))
+    return tuple(out)
+
+
+_CONVERSIONS = {kind: _conversions(kind) for kind in _LIBRARY_LAYOUTS}

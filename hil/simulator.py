@@ -108,7 +108,9 @@ class TractorSimulator:
             # the one-tractor path: state, inputs and GPS errors as Python floats (see vehicle.scalar_stepper)
             e = self._scalar_exo
             self._stepper = vehicle.scalar_stepper(p)
-            self._step_inputs = list(zip(*(e[f] for f in disturbances.Exogenous.__dataclass_fields__)))
+            self._multistepper = vehicle.scalar_multistepper(p)
+            self._valve_rates: dict[float, float] = {}   # valve_rate_scalar by duty (a pure function of it)
+            self._step_inputs = list(zip(*(e[f] for f in vehicle.STEP_INPUTS)))
             self._x = self._state[0].tolist()
             self._disker0 = float(self._disker[0])
             self._rate0 = float(self._rate_cmd[0])
@@ -163,8 +165,13 @@ class TractorSimulator:
             raise SimulatorConfigError("valve duty must be finite")
         d = min(max(float(duty), -1.0), 1.0)
         self.duty[0] = d
-        self._rate0 = valve_rate_scalar(d, self.params.steering)
-        self._rate_cmd[0] = self._rate0
+        rate = self._valve_rates.get(d) if d != 0.0 else None   # (0.0 and -0.0 are one key: not kept)
+        if rate is None:
+            rate = valve_rate_scalar(d, self.params.steering)
+            if d != 0.0 and len(self._valve_rates) < 1 << 16:
+                self._valve_rates[d] = rate
+        self._rate0 = rate
+        self._rate_cmd[0] = rate
 
     def step(self) -> None:
         """Advance every tractor by one integration step ``dt``."""
@@ -192,13 +199,17 @@ class TractorSimulator:
             for _ in range(n):
                 self.step()
             return
-        stepper, inputs, rate, disker = self._stepper, self._step_inputs, self._rate0, self._disker0
+        steps, inputs, rate, disker = self._multistepper, self._step_inputs, self._rate0, self._disker0
         pos_every, att_every = self._pos_every, self._att_every
         x, k = self._x, self.k
-        for _ in range(n):
-            x = stepper(x, rate, *inputs[k], disker)
-            k += 1
-            if k % pos_every == 0 or k % att_every == 0:
+        end = k + n
+        while k < end:
+            # up to the next step that records an epoch (k % pos_every == 0 or k % att_every == 0)
+            k_rec = min((k // pos_every + 1) * pos_every, (k // att_every + 1) * att_every)
+            k1 = k_rec if k_rec < end else end
+            x = steps(x, rate, inputs, k, k1, disker)
+            k = k1
+            if k == k_rec:
                 self._x, self.k = x, k
                 self._record_epochs_scalar()
         self._x, self.k = x, k

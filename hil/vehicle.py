@@ -35,6 +35,9 @@ from .disturbances import Exogenous
 from .params import SimParams
 
 X, Y, PSI, V, R, DEL, OM, PHI = range(8)
+#: The exogenous channels (fields of :class:`hil.disturbances.Exogenous`) the one-tractor steppers take
+#: per step, in their argument order.
+STEP_INPUTS = ("speed", "roll", "force_y", "ripper_force", "ripper_moment", "draft", "gang_pull", "front_load")
 N_STATE = 8
 STATE_NAMES = ("X", "Y", "PSI", "V", "R", "DEL", "OM", "PHI")
 G = 9.80665  # m/s^2
@@ -232,6 +235,25 @@ def _stepper_source() -> str:
     return "".join(parts)
 
 
+def _multistepper_source() -> str:
+    """Source of :func:`scalar_multistepper`: the body of :func:`_stepper_source`'s step in a loop over
+    the steps' inputs, the state kept in locals from one step to the next."""
+    head, body = _stepper_source().split("    x0, y0, psi0, v0, r0, d0, om0, phi0 = x\n", 1)
+    per_step = head.strip("\n").split("\n")[1:]             # the input-only terms
+    stages, tail = body.split("    dl = d0 + h6 *", 1)
+    result = tail.split("return [", 1)[1].rsplit("]", 1)[0]
+    lines = ["def steps(x, rate_cmd, inputs, k0, k1, disker):",
+             "    x0, y0, psi0, v0, r0, d0, om0, phi0 = x",
+             "    for spd, roll, force_y, ripper_force, ripper_moment, draft, gang_pull, front_load in inputs[k0:k1]:"]
+    lines += ["    " + line for line in per_step]
+    lines += ["    " + line if line.strip() else "" for line in stages.split("\n")]
+    lines += ["        dl = d0 + h6 *" + tail.split("\n", 1)[0],
+              "        if neg_dmax > dl:", "            dl = neg_dmax", "        if dmax < dl:", "            dl = dmax",
+              "        x0, y0, psi0, v0, r0, d0, om0, phi0 = " + " ".join(result.split()),
+              "    return [x0, y0, psi0, v0, r0, d0, om0, phi0]"]
+    return "\n".join(lines) + "\n"
+
+
 def scalar_stepper(p: SimParams):
     """A fast :func:`rk4_step_scalar` for one tractor, with the parameters bound once.
 
@@ -249,6 +271,13 @@ def scalar_stepper(p: SimParams):
         ``step(x, rate_cmd, speed, roll, force_y, ripper_force, ripper_moment, draft,
         gang_pull, front_load, disker) -> list`` of the 8 state floats after ``p.dt``.
     """
+    env = _stepper_env(p)
+    exec(compile(_stepper_source(), "<hil.vehicle.scalar_stepper>", "exec"), env)
+    return env["step"]
+
+
+def _stepper_env(p: SimParams) -> dict:
+    """The parameters (and math functions) the generated steppers read, by their names in :data:`_STAGE`."""
     vp, st = p.vehicle, p.steering
     a = vp.cg_to_front_axle
     b = vp.wheelbase - a
@@ -268,5 +297,19 @@ def scalar_stepper(p: SimParams):
         "h": h, "hh": 0.5 * h, "h6": h / 6.0,
         "cos": math.cos, "sin": math.sin, "tanh": math.tanh, "abs": abs, "float": float,
     }
-    exec(compile(_stepper_source(), "<hil.vehicle.scalar_stepper>", "exec"), env)
-    return env["step"]
+    return env
+
+
+def scalar_multistepper(p: SimParams):
+    """:func:`scalar_stepper` for several steps in one call, with the valve's rate held.
+
+    Returns
+    -------
+    callable
+        ``steps(x, rate_cmd, inputs, k0, k1, disker) -> list``: the state after the steps
+        ``k0 .. k1 - 1``, step ``k`` taking ``inputs[k]`` = ``(speed, roll, force_y, ripper_force,
+        ripper_moment, draft, gang_pull, front_load)``; bit-for-bit ``k1 - k0`` calls of the step.
+    """
+    env = _stepper_env(p)
+    exec(compile(_multistepper_source(), "<hil.vehicle.scalar_multistepper>", "exec"), env)
+    return env["steps"]

@@ -116,3 +116,22 @@ def test_kinematic_lqr_scalar_gain_is_bit_identical_to_np_interp(speed, x):
     assert list(c._gain_scalar(speed)) == k.tolist()
     want = -float(k[0] * x[0] + k[1] * x[1] + k[2] * x[2])
     assert c.step(Measurement(t=0.0, cross_track=x[0], heading_error=x[1], wheel_angle=x[2], speed=speed)) == want
+
+
+def test_multistepper_is_bit_identical_to_repeated_single_steps():
+    """``vehicle.scalar_multistepper`` (the plant's steps between epochs) is the single step in a loop."""
+    from hil.vehicle import STEP_INPUTS, scalar_multistepper
+    many = scalar_multistepper(P)
+    rng = np.random.default_rng(7)
+    for disker, speed in ((1.0, 1.79), (0.0, 2.91), (1.0, 0.02)):
+        inputs = [(speed + 0.05 * rng.standard_normal(),) + tuple(rng.normal(0, s, 7).tolist())
+                  for s in [0.05] * 30]
+        inputs = [(i[0], i[1], 300 * i[2], 500 * i[3], 300 * i[4], abs(2e4 * i[5]), 1e4 * i[6], 1 + i[7])
+                  for i in inputs]
+        assert len(inputs[0]) == len(STEP_INPUTS)
+        x0 = [0.0, 0.3, 0.02, 0.0, 0.0, DMAX * 0.999, 0.4, 0.01]
+        for rate in (0.3, -0.5):
+            x = x0
+            for k in range(3, 27):
+                x = STEP(x, rate, *inputs[k], disker)
+            assert many(x0, rate, inputs, 3, 27, disker) == x

@@ -31,8 +31,6 @@ final calibration (side slope 0.0175 rad):
   oscillate at the fast speeds).
 
 The integral gains were not searched (0.02 rad/(m s), limited to 0.05 rad of wheel angle).
-As in every integral controller of the toolkit, the integral starts after an engage only once
-the line is captured (:mod:`design.capture`).
 """
 
 from __future__ import annotations
@@ -40,7 +38,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-from .capture import INTEGRAL_CAPTURE_M, LineCapture
 from .controller import Measurement
 from .errors import DesignInputError
 
@@ -122,20 +119,18 @@ class _Servoed:
 
     dt: float = 0.05
 
-    def __init__(self, gains, integral_capture: float = INTEGRAL_CAPTURE_M) -> None:
+    def __init__(self, gains) -> None:
         self.gains = gains
         self._i = 0.0
         self._want = 0.0
-        self._capture = LineCapture(integral_capture)
 
     def reset(self) -> None:
         self._i = 0.0
         self._want = 0.0
-        self._capture.reset()
 
     def _integral(self, e: float) -> float:
         g = self.gains
-        if g.integral > 0 and self._capture.update(e):
+        if g.integral > 0:
             self._i += e * self.dt
             lim = g.integral_limit / g.integral
             self._i = min(max(self._i, -lim), lim)

@@ -30,7 +30,6 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .capture import INTEGRAL_CAPTURE_M, LineCapture
 from .compensator import Compensator
 from .controller import Measurement
 from .errors import ControllerFileError, DesignInputError
@@ -263,34 +262,21 @@ class LinearController:
     Each cycle the measured outputs are normalised as the file says, the compensator
     steps, the command is clipped to the file's rate limit and the compensator's
     memory follows the clipped command (anti-windup). The first step after
-    :meth:`reset` starts from ``xc = X0 y`` (bumpless engage). Integrator states (rows
-    of the compensator that only add ``dt`` times an output to themselves, the robust
-    design's ``--integral``) stay at zero after an engage until the line is captured
-    (:mod:`design.capture`).
-
-    Parameters
-    ----------
-    spec
-        The checked controller file.
-    integral_capture
-        Capture distance of the integral, m (``math.inf``: integrate from the engage on).
+    :meth:`reset` starts from ``xc = X0 y`` (bumpless engage).
     """
 
-    def __init__(self, spec: ControllerFile, integral_capture: float = INTEGRAL_CAPTURE_M) -> None:
+    def __init__(self, spec: ControllerFile) -> None:
         self.spec = spec
         self.name = f"linear:{spec.name}"
         self.dt = spec.compensator.dt
         c = spec.compensator
         self._ac, self._bc, self._cc, self._dc, self._ec = c.Ac, c.Bc, c.Cc[0], c.Dc[0], c.Ec[:, 0]
-        self.integral_rows = integrator_rows(c)
-        self._capture = LineCapture(integral_capture)
         self._xc = np.zeros(c.order)
         self._fresh = True
 
     def reset(self) -> None:
         self._xc = np.zeros(self.spec.compensator.order)
         self._fresh = True
-        self._capture.reset()
 
     def outputs(self, m: Measurement) -> np.ndarray:
         """Normalised output vector of one measurement."""
@@ -314,32 +300,10 @@ class LinearController:
         lim = self.spec.rate_limit
         ua = min(max(u, -lim), lim)
         self._xc = self._ac @ self._xc + self._bc @ y + self._ec * (ua - u)
-        if self.integral_rows.size and not self._capture.update(m.cross_track):
-            self._xc[self.integral_rows] = 0.0
         return ua
 
     def estimate(self) -> tuple[float, ...]:
         return tuple(float(v) for v in self._xc)
-
-
-def integrator_rows(c: Compensator) -> np.ndarray:
-    """Indices of the compensator's pure integrator states: ``xc_r[k+1] = xc_r[k] + dt * y_j[k]``.
-
-    A row qualifies when its ``Ac`` row is the unit row, its ``Bc`` row has exactly one
-    non-zero entry equal to ``dt`` and its ``Ec`` entry is zero (it does not follow the
-    applied command): the integral of one output, as :func:`design.iostate.feedback_compensator`
-    and :func:`design.anchored.observer_compensator` build it.
-    """
-    rows = []
-    for r in range(c.order):
-        unit = np.zeros(c.order)
-        unit[r] = 1.0
-        b = c.Bc[r]
-        nz = np.flatnonzero(b)
-        if np.array_equal(c.Ac[r], unit) and nz.size == 1 and math.isclose(b[nz[0]], c.dt) \
-                and not np.any(c.Ec[r]):
-            rows.append(r)
-    return np.array(rows, dtype=int)
 
 
 def load_controller(path: str | Path, dt: float | None = 0.05):

@@ -33,7 +33,6 @@ import numpy as np
 
 from identification.model import Model
 
-from ..capture import INTEGRAL_CAPTURE_M
 from ..weights import OutputWeights
 from .backends import BACKENDS, CASADI_SOLVERS, SolverSettings
 from .controller import FallbackEvent, MPCController, SolveInfo
@@ -47,8 +46,7 @@ def build_mpc(model: Model, horizon: int = 50, weights: MPCWeights | None = None
               backend: str = "casadi", solver: str = "daqp", max_iter: int | None = None, time_budget: float = 0.025,
               fallback_gain: np.ndarray | None = None, fallback_name: str | None = None, past: int = 1,
               output_clip: Sequence[float | None] | None = (0.1, 0.05, None), speed_min: float = 0.3,
-              solver_options: dict | None = None, name: str = "mpc",
-              integral_capture: float = INTEGRAL_CAPTURE_M) -> MPCController:
+              solver_options: dict | None = None, name: str = "mpc") -> MPCController:
     """Build the MPC on ``model`` (normally the central model), ready to step.
 
     Parameters
@@ -75,10 +73,8 @@ def build_mpc(model: Model, horizon: int = 50, weights: MPCWeights | None = None
         Normalisation of the measurements (as in the linear controller files).
     name
         Controller name.
-    integral_capture
-        Capture distance of the integral after an engage, m (:mod:`design.capture`).
     """
     problem = mpc_problem(model, horizon, weights, limits, past)
     settings = SolverSettings(backend, solver, max_iter, time_budget, solver_options or {})
     label = fallback_name or ("robust-lmi" if fallback_gain is not None else "lqr")
-    return MPCController(problem, settings, fallback_gain, label, output_clip, speed_min, name, integral_capture)
+    return MPCController(problem, settings, fallback_gain, label, output_clip, speed_min, name)

@@ -22,7 +22,6 @@ from typing import Sequence
 
 import numpy as np
 
-from ..capture import INTEGRAL_CAPTURE_M, LineCapture
 from ..controller import Measurement
 from ..errors import DesignInputError
 from .backends import SolverSettings, make_backend
@@ -94,9 +93,6 @@ class MPCController:
         Floor of the speed used for normalisation, m/s.
     name
         Controller name (``name`` attribute is ``"mpc:<name>"``).
-    integral_capture
-        The integral stays at zero after an engage until the measured cross-track first comes
-        within this distance of the line, m (:mod:`design.capture`; ``math.inf``: from the engage on).
 
     Attributes
     ----------
@@ -113,7 +109,7 @@ class MPCController:
     def __init__(self, problem: MPCProblem, settings: SolverSettings | None = None,
                  fallback_gain: np.ndarray | None = None, fallback_name: str = "lqr",
                  output_clip: Sequence[float | None] | None = (0.1, 0.05, None), speed_min: float = 0.3,
-                 name: str = "mpc", integral_capture: float = INTEGRAL_CAPTURE_M) -> None:
+                 name: str = "mpc") -> None:
         self.problem = problem
         self.settings = settings or SolverSettings()
         self.backend = make_backend(problem, self.settings)
@@ -134,9 +130,6 @@ class MPCController:
         if not (math.isfinite(speed_min) and speed_min > 0):
             raise DesignInputError(f"speed_min must be a finite speed > 0 m/s, got {speed_min!r}")
         self.speed_min = float(speed_min)
-        lay = problem.layout
-        self.integral_slots = np.arange(lay.n_window, lay.n_window + len(lay.integral), dtype=int)
-        self._capture = LineCapture(integral_capture)
         self._hi = np.array([np.inf if c is None else c for c in clip])
         self.last: SolveInfo | None = None
         self.ticks = 0
@@ -210,7 +203,6 @@ class MPCController:
     def reset(self) -> None:
         self._z = np.zeros(self.problem.nz)
         self._fresh = True
-        self._capture.reset()
         self.backend.reset()
 
     def step(self, m: Measurement) -> float:
@@ -224,8 +216,6 @@ class MPCController:
             return u
         self._fresh = False
         self._z = self.problem.A @ z + self.problem.B[:, 0] * u      # shifts the window, integrates y/V
-        if self.integral_slots.size and not self._capture.update(m.cross_track):
-            self._z[self.integral_slots] = 0.0                          # no integral before the line is captured
         return u
 
     def estimate(self) -> tuple[float, ...]:

@@ -45,9 +45,8 @@ def test_loaded_controller_implements_the_protocol_and_normalises(saved):
     ctrl = load_controller(saved)
     assert isinstance(ctrl, Controller) and ctrl.dt == 0.05
     c = ctrl.spec.compensator
-    # within the integral's capture distance (design.capture), so the step is the plain linear one
-    m = Measurement(t=0.0, cross_track=0.04, heading_error=0.01, wheel_angle=0.005, speed=2.0)
-    y = np.array([0.02, 0.005, 0.005])
+    m = Measurement(t=0.0, cross_track=0.2, heading_error=0.01, wheel_angle=0.005, speed=2.0)
+    y = np.array([0.1, 0.005, 0.005])
     u = ctrl.step(m)                          # first step after construction: xc = X0 y (bumpless engage)
     x0 = c.X0 @ y
     raw = float((c.Cc @ x0 + c.Dc @ y)[0])

@@ -93,10 +93,8 @@ def test_limits_hold_in_closed_loop(backend, solver):
     assert abs(ys[-1]) < 0.1                                                 # from 0.6 m, on its way in
     # on another model (faster, less steering authority) with noisy cross-track and heading: the wheel angle
     # is predicted from a window that model does not quite fit, so allow 1 mrad (1.7 % of the limit)
-    # (integral from the first tick, as the design's certificate assumes; with the line capture of
-    # design.capture OSQP ran into its iteration cap once on this start, and the fallback took that tick)
     plant = tractor_model(2.91, authority=0.6)
-    ctrl = mpc(40, limits=lim, backend=backend, solver=solver, output_clip=None, integral_capture=math.inf)
+    ctrl = mpc(40, limits=lim, backend=backend, solver=solver, output_clip=None)
     us, ds, ys = closed_loop(ctrl, plant, 400, y0=0.6, noise=1.0, seed=3, wheel_noise=False)
     assert ctrl.fallbacks == 0 and not ctrl.events
     assert np.max(np.abs(us)) <= lim.rate + 1e-9
@@ -188,11 +186,9 @@ def test_protocol_and_bumpless_state():
     u = ctrl.step(m)
     est = ctrl.estimate()
     assert est[3:6] == pytest.approx((0.05, 0.005, 0.02)) and est[6] == pytest.approx(u)
-    assert est[7] == 0.0                    # 0.1 m off: the line is not captured yet (design.capture)
-    ctrl.step(Measurement(0.05, 0.04, 0.01, 0.02, 2.0))
-    assert ctrl.estimate()[7] == pytest.approx(0.05 * 0.02)                     # captured: i += dt * y/V
+    assert est[7] == pytest.approx(0.05 * 0.05)                                 # i += dt * y/V
     d = ctrl.diagnostics()
-    assert d["ticks"] == 2 and d["fallbacks"] == 0 and d["backend"] == "casadi:daqp" and d["max_ms"] > 0
+    assert d["ticks"] == 1 and d["fallbacks"] == 0 and d["backend"] == "casadi:daqp" and d["max_ms"] > 0
 
 
 @pytest.mark.parametrize("kwargs,match", [

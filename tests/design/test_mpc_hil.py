@@ -40,8 +40,6 @@ def test_mpc_in_lockstep_hil_keeps_its_limits_and_is_repeatable():
     assert np.array_equal(again["truth_cross_track"], ch["truth_cross_track"])
     other = _run(lim, seed=6)[1].channels
     assert not np.array_equal(other["steer_rate_cmd"], ch["steer_rate_cmd"])
-    # without the wheel-angle limit the same pass turns the wheels further (0.099 rad against 0.087;
-    # the approach from 1.5 m integrates nothing until the line is captured, design.capture)
+    # without the wheel-angle limit the same pass turns the wheels much further
     _, free, on_free = _run(MPCLimits(rate=0.2, wheel_angle=10.0))
-    limited = np.max(np.abs(ch["truth_wheel_angle"][on]))
-    assert np.max(np.abs(free.channels["truth_wheel_angle"][on_free])) > limited + 0.008
+    assert np.max(np.abs(free.channels["truth_wheel_angle"][on_free])) > lim.wheel_angle + 0.04

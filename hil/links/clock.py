@@ -18,6 +18,8 @@ from hil.links.errors import ClockError
 
 __all__ = ["Clock", "RealClock", "VirtualClock", "World"]
 
+_INF = math.inf
+
 
 @runtime_checkable
 class Clock(Protocol):
@@ -113,9 +115,11 @@ class VirtualClock:
         ClockError
             ``t`` is earlier than ``now()`` or not finite.
         """
-        if not math.isfinite(t) or t < self._now:
-            raise ClockError(f"virtual time cannot move from {self._now!r} s to {t!r} s")
-        self._now = float(t)
+        if not (self._now <= t < _INF) or t.__class__ is not float:   # also refuses nan
+            if not math.isfinite(t) or t < self._now:
+                raise ClockError(f"virtual time cannot move from {self._now!r} s to {t!r} s")
+            t = float(t)
+        self._now = t
 
     def sleep_until(self, t: float) -> None:
         """Run the bound world until ``t`` (or just advance); no-op for a past ``t``."""

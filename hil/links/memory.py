@@ -139,7 +139,8 @@ class MemoryEndpoint:
         LinkClosedError
             This end is closed, or nothing is left to read and the other end is closed.
         """
-        self._check_open()
+        if self._closed:
+            self._check_open()
         if size.__class__ is not int or size < 0:
             if isinstance(size, bool) or not isinstance(size, int) or size < 0:
                 raise LinkConfigError(f"read size must be a non-negative int, got {size!r}")

@@ -138,7 +138,7 @@ class LockstepScheduler:
                         t_next = now + self.max_step
                     plant.advance(t_next - now)
                     self.plant_steps += 1
-                clock.advance_to(t_next)
+                clock.advance_to(t_next)   # t_next > now and finite here: the clock only records it
                 now = t_next
         finally:
             self._running = False

@@ -320,12 +320,19 @@ class VehicleLoop:
         for i in range(est.shape[1] if est.ndim == 2 else 0):
             chans[f"estimate_{i}"] = est[:, i]
             extra[f"estimate_{i}"] = {"time": "t", "unit": "controller state"}
-        truth_rows: dict[str, list[float]] = {}
-        for d in self._truths:
-            for k, v in d.items():
-                truth_rows.setdefault(k, []).append(v)
-        for k, v in truth_rows.items():
-            chans[f"truth_{k}"] = np.asarray(v, dtype=float)
+        truths = self._truths
+        keys = list(truths[0]) if truths else []
+        if truths and all(list(d) == keys for d in truths):   # the usual case: the same keys every cycle
+            values = np.array([list(d.values()) for d in truths], dtype=float).reshape(len(truths), len(keys))
+            truth_columns = {k: values[:, i].copy() for i, k in enumerate(keys)}
+        else:
+            truth_rows: dict[str, list[float]] = {}
+            for d in truths:
+                for k, v in d.items():
+                    truth_rows.setdefault(k, []).append(v)
+            truth_columns = {k: np.asarray(v, dtype=float) for k, v in truth_rows.items()}
+        for k, v in truth_columns.items():
+            chans[f"truth_{k}"] = v
             extra[f"truth_{k}"] = {"time": "t", "unit": "SI"}
         full_meta = {**meta, "extra_channels": extra, "events": self.events,
                      "integrity_codes": INTEGRITY_CODES, "loop": asdict(self.config),

@@ -272,8 +272,20 @@ def scalar_stepper(p: SimParams):
         gang_pull, front_load, disker) -> list`` of the 8 state floats after ``p.dt``.
     """
     env = _stepper_env(p)
-    exec(compile(_stepper_source(), "<hil.vehicle.scalar_stepper>", "exec"), env)
+    exec(_compiled("step"), env)
     return env["step"]
+
+
+_CODE: dict[str, object] = {}
+
+
+def _compiled(which: str):
+    """The generated steppers' module code, compiled once (the parameters come with each call's globals)."""
+    code = _CODE.get(which)
+    if code is None:
+        source = _stepper_source() if which == "step" else _multistepper_source()
+        code = _CODE[which] = compile(source, f"<hil.vehicle.scalar_{which}per>", "exec")
+    return code
 
 
 def _stepper_env(p: SimParams) -> dict:
@@ -311,5 +323,5 @@ def scalar_multistepper(p: SimParams):
         ripper_moment, draft, gang_pull, front_load)``; bit-for-bit ``k1 - k0`` calls of the step.
     """
     env = _stepper_env(p)
-    exec(compile(_multistepper_source(), "<hil.vehicle.scalar_multistepper>", "exec"), env)
+    exec(_compiled("multistep"), env)
     return env["steps"]

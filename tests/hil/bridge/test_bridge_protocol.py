@@ -161,3 +161,26 @@ def test_strict_decoder_errors_are_typed_and_say_what_is_wrong():
         decode_frame(b"\x00" + good[1:])
     with pytest.raises(LengthError):
         decode_frame(good + b"\x00")
+
+
+@given(message=messages, seq=u8)
+def test_frame_packer_gives_encode_frame_from_field_values(message, seq):
+    """The emulated bridge packs its reports from the values; same bytes as encoding the message."""
+    from dataclasses import astuple
+
+    from hil.bridge.protocol import frame_packer
+    values = tuple(getattr(message, f) for f in type(message).__dataclass_fields__)
+    assert values == astuple(message)
+    assert frame_packer(type(message))(seq, *values) == encode_frame(message, seq)
+
+
+def test_frame_packer_refuses_what_encode_frame_refuses():
+    from hil.bridge.protocol import frame_packer
+    with pytest.raises(EncodeError, match="not a bridge message"):
+        frame_packer(int)
+    with pytest.raises(EncodeError, match="finite"):
+        frame_packer(SteerRateCommand)(0, math.nan)
+    with pytest.raises(EncodeError, match="sequence number"):
+        frame_packer(SteerRateCommand)(256, 0.1)
+    with pytest.raises(EncodeError, match="reserved bits"):
+        frame_packer(WheelAngleReport)(0, 1, StatusFlags(8), 0, 0.0, 0, 0, 0)

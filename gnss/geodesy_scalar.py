@@ -67,10 +67,10 @@ class ScalarFrame:
         x = self._x0 + (co * t - so * east)
         y = self._y0 + (so * t + co * east)
         z = self._z0 + w
-        # pymap3d squares its arrays (x**2 of an array is x * x); a float's x**2 is libm's pow(x, 2),
-        # which can differ from x * x in the last place, so the squares of the point are written x * x
+        # pymap3d squares the point's coordinates as arrays (x**2 of an array is x * x) but r as a numpy
+        # scalar (r**2 is pow(r, 2), which can differ from r * r in the last place): the same here
         r = _sqrt(x * x + y * y + z * z)
-        r2 = r * r
+        r2 = r**2
         u = _sqrt(0.5 * (r2 - _E2) + 0.5 * float(_np_hypot(r2 - _E2, 2 * _E * z)))
         hxy = float(_np_hypot(x, y))
         hue = float(_np_hypot(u, _E))

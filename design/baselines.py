@@ -22,13 +22,22 @@ docs/tuning. On the first calibration stage (side slope 0.035 rad): pure pursuit
 ``lookahead_time=1.2,1.6,2.0 x servo=3,5,8``, widened to ``2,2.5,3.2 x 8,12`` and refined with
 ``1.8,2.2``: best 2.0 s, 12 /s (9.13 cm; 1.2 s falls into a rate-saturated oscillation, 41-66
 cm); Stanley ``k=0.7,1,1.4 x servo=3,5,8``, widened and refined: best k = 0.85. Re-checked on the
-final calibration (side slope 0.0175 rad):
+second calibration (side slope 0.0175 rad):
 
 * pure pursuit ``hil tune pure-pursuit --param lookahead_time=1.6,2,2.5 --param servo=8,12
   --seeds 2 --duration 60``: **2.0 s, 12 /s** (7.60 cm; 8 /s 7.64; 1.6 s and 2.5 s 9.9-10.1 cm);
 * Stanley ``--param k=0.6,0.85,1 --param servo=8,12`` then ``k=0.4,0.5,0.7 --param servo=12``:
   **k = 0.7, 12 /s** (8.66 cm; 0.6 8.84; 0.5 9.90; 0.85 12.1; 1 14.7: past 0.7 it starts to
   oscillate at the fast speeds).
+
+Re-tuned on the third calibration (soil force growing with speed, docs/calibration; `hil tune`
+with seeds 100, 101 as before, files `pp5/pp6/st6/st7.json` in docs/tuning):
+
+* pure pursuit ``--param lookahead_time=1.6,2,2.5 --param servo=8,12``: **1.6 s, 8 /s** (5.91 cm;
+  12 /s 5.92; 2 s 6.56-6.63; 2.5 s 8.8-8.9), widened with ``lookahead_time=1.2,1.4``: both
+  oscillate at the fast speeds (24-53 cm);
+* Stanley ``--param k=0.5,0.7,0.85,1 --param servo=12`` then ``k=0.8,0.9``: **k = 0.85, 12 /s**
+  (6.31 cm; 0.8 6.44; 0.7 7.02; 0.9 9.90; 1 12.7).
 
 The integral gains were not searched (0.02 rad/(m s), limited to 0.05 rad of wheel angle).
 """
@@ -72,10 +81,10 @@ class PurePursuitGains:
     """
 
     lookahead_min: float = 3.0
-    lookahead_time: float = 2.0
+    lookahead_time: float = 1.6
     integral: float = 0.02
     integral_limit: float = 0.05
-    servo: float = 12.0
+    servo: float = 8.0
     max_angle: float = 0.5
     wheelbase: float = 2.85
 
@@ -101,7 +110,7 @@ class StanleyGains:
         Control point to front axle, m (the law uses the front axle's cross-track).
     """
 
-    k: float = 0.7
+    k: float = 0.85
     v_soft: float = 0.5
     heading: float = 1.0
     integral: float = 0.02

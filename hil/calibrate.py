@@ -199,9 +199,11 @@ class CalibrationOptions:
         if isinstance(self.budget, bool) or not isinstance(self.budget, int) or self.budget < 1:
             raise SimulatorConfigError(f"budget must be an integer number of evaluations >= 1, got {self.budget!r}")
         for k, v in self.start.items():
-            if not (isinstance(v, (int, float)) and abs(v) <= LOG2_BOUND):
-                raise SimulatorConfigError(f"start[{k!r}] must be a log2 scale factor in "
-                                           f"[-{LOG2_BOUND}, {LOG2_BOUND}], got {v!r}")
+            lo, hi = LOG2_LOWER.get(k, -LOG2_BOUND), LOG2_UPPER.get(k, LOG2_BOUND)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo <= v <= hi:
+                what = f"value in units of {LINEAR[k]}" if k in LINEAR else "log2 scale factor"
+                raise SimulatorConfigError(f"start[{k!r}] must be a {what} in [{lo:.3g}, {hi:.3g}] "
+                                           f"(the knob's bounds), got {v!r}")
 
 
 def parameter_values(log2_scales: Mapping[str, float]) -> dict[str, float]:

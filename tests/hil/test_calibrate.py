@@ -130,6 +130,8 @@ def test_linear_knob_adds_its_unit_and_bounded_knobs_stay_physical():
     ({"duration": 5.0}, "duration must be >= 10 s"),
     ({"step": 0.0}, "step must be a finite number > 0"),
     ({"start": {"soil": 9.0}}, r"start\['soil'\] must be a log2 scale factor"),
+    ({"start": {"soil_speed": -1.0}}, r"start\['soil_speed'\] must be a value in units of 0.5 in \[0, 4\]"),
+    ({"start": {"ripper_front_load": 0.5}}, r"start\['ripper_front_load'\] must be a log2 scale factor in"),
     ({"conditions": (("none", 6),)}, "conditions must be .implement, gear. cells of Table 2"),
     ({"knobs": ("soil",), "start": {"hop": 1.0}}, "start may only name searched knobs"),
     ({"min_improvement": -0.1}, "min_improvement must be a finite number"),

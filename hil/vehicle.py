@@ -192,7 +192,7 @@ _STAGE = """
 
 _STEP_HEAD = """
 def step(x, rate_cmd, spd, roll, force_y, ripper_force, ripper_moment, draft, gang_pull, front_load, disker):
-    moving = float(spd >= standstill)
+    moving = 1.0 if spd >= standstill else 0.0
     nf = nf0 * front_load
     fmax_f = mu * nf
     neg_fmax_f = -fmax_f
@@ -283,9 +283,22 @@ def _compiled(which: str):
     """The generated steppers' module code, compiled once (the parameters come with each call's globals)."""
     code = _CODE.get(which)
     if code is None:
-        source = _stepper_source() if which == "step" else _multistepper_source()
+        source = _bind_locals(_stepper_source() if which == "step" else _multistepper_source())
         code = _CODE[which] = compile(source, f"<hil.vehicle.scalar_{which}per>", "exec")
     return code
+
+
+#: The names :func:`_stepper_env` binds, in a fixed order (the generated steppers copy them into locals).
+_ENV_NAMES = ("a", "b", "floor", "nf0", "mu", "cf", "fmax_r", "neg_fmax_r", "cr", "standstill", "x_shank",
+              "x_hitch", "neg_mg", "offset", "gang_cs", "tongue", "mass", "inertia", "dmax", "neg_dmax", "lag",
+              "h", "hh", "h6", "cos", "sin", "tanh", "abs", "float")
+
+
+def _bind_locals(source: str) -> str:
+    """``source`` with the parameters copied from the module globals into locals on entry: one tuple
+    unpack per call, and each of the step's ~200 reads of a parameter is then a local read."""
+    head, body = source.lstrip("\n").split("\n", 1)
+    return f"{head}\n    {', '.join(_ENV_NAMES)} = _PARAMS\n{body}"
 
 
 def _stepper_env(p: SimParams) -> dict:
@@ -309,6 +322,7 @@ def _stepper_env(p: SimParams) -> dict:
         "h": h, "hh": 0.5 * h, "h6": h / 6.0,
         "cos": math.cos, "sin": math.sin, "tanh": math.tanh, "abs": abs, "float": float,
     }
+    env["_PARAMS"] = tuple(env[name] for name in _ENV_NAMES)
     return env
 
 

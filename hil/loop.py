@@ -212,13 +212,13 @@ class VehicleLoop:
                     self._engage(now, link_ok)
         if self.engaged:
             m = _make_measurement(now, xte, he, delta, speed)
+            why = None
             try:
                 raw = float(self.controller.step(m))
             except Exception as exc:  # noqa: BLE001 - a failing control law must disengage, not crash the loop
                 raw, why = math.nan, f"controller failed: {type(exc).__name__}: {exc}"
-            else:
-                why = f"controller returned a non-finite command ({raw!r})"
             if not math.isfinite(raw):
+                why = why or f"controller returned a non-finite command ({raw!r})"
                 self.latched = why
                 self._disengage(now, why, link_ok)
             else:

@@ -111,6 +111,7 @@ class TractorSimulator:
             self._multistepper = vehicle.scalar_multistepper(p)
             self._valve_rates: dict[float, float] = {}   # valve_rate_scalar by duty (a pure function of it)
             self._step_inputs = list(zip(*(e[f] for f in vehicle.STEP_INPUTS)))
+            self._multistep_inputs = vehicle.multistep_inputs(p, *(getattr(self.exo, f)[0] for f in vehicle.STEP_INPUTS))
             self._x = self._state[0].tolist()
             self._disker0 = float(self._disker[0])
             self._rate0 = float(self._rate_cmd[0])
@@ -199,7 +200,7 @@ class TractorSimulator:
             for _ in range(n):
                 self.step()
             return
-        steps, inputs, rate, disker = self._multistepper, self._step_inputs, self._rate0, self._disker0
+        steps, inputs, rate, disker = self._multistepper, self._multistep_inputs, self._rate0, self._disker0
         pos_every, att_every = self._pos_every, self._att_every
         x, k = self._x, self.k
         end = k + n

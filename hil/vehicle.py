@@ -172,7 +172,7 @@ _STAGE = """
     vfa = v + a * r
     uf = spd * cd + vfa * sd
     vf = neg_spd * sd + vfa * cd
-    auf = abs(uf)
+    auf = uf if uf >= 0.0 else -uf
     ff = neg_fmax_f * tanh(cf_load * (vf / (floor if floor > auf else auf)) / fmax_f_div)
     fr = neg_fmax_r * tanh(cr * ((v - b * r) / spd_floor) / fmax_r)
     cp, sp = cos(phi), sin(phi)
@@ -235,23 +235,63 @@ def _stepper_source() -> str:
     return "".join(parts)
 
 
+#: The per-step terms :func:`scalar_multistepper` takes for each step, in order: the input-only terms of
+#: :data:`_STEP_HEAD`, computed once for a whole run by :func:`multistep_inputs`.
+MULTISTEP_TERMS = ("spd", "neg_spd", "moving", "neg_fmax_f", "cf_load", "fmax_f_div", "spd_floor", "neg_draft",
+                   "fy_in", "mz_in", "alpha_t")
+
+
 def _multistepper_source() -> str:
-    """Source of :func:`scalar_multistepper`: the body of :func:`_stepper_source`'s step in a loop over
-    the steps' inputs, the state kept in locals from one step to the next."""
-    head, body = _stepper_source().split("    x0, y0, psi0, v0, r0, d0, om0, phi0 = x\n", 1)
-    per_step = head.strip("\n").split("\n")[1:]             # the input-only terms
+    """Source of :func:`scalar_multistepper`: the four stages of :func:`_stepper_source`'s step in a loop
+    over the steps' precomputed terms (:data:`MULTISTEP_TERMS`), the state kept in locals between steps."""
+    body = _stepper_source().split("    x0, y0, psi0, v0, r0, d0, om0, phi0 = x\n", 1)[1]
     stages, tail = body.split("    dl = d0 + h6 *", 1)
     result = tail.split("return [", 1)[1].rsplit("]", 1)[0]
     lines = ["def steps(x, rate_cmd, inputs, k0, k1, disker):",
              "    x0, y0, psi0, v0, r0, d0, om0, phi0 = x",
-             "    for spd, roll, force_y, ripper_force, ripper_moment, draft, gang_pull, front_load in inputs[k0:k1]:"]
-    lines += ["    " + line for line in per_step]
+             f"    for {', '.join(MULTISTEP_TERMS)} in inputs[k0:k1]:"]
     lines += ["    " + line if line.strip() else "" for line in stages.split("\n")]
     lines += ["        dl = d0 + h6 *" + tail.split("\n", 1)[0],
               "        if neg_dmax > dl:", "            dl = neg_dmax", "        if dmax < dl:", "            dl = dmax",
               "        x0, y0, psi0, v0, r0, d0, om0, phi0 = " + " ".join(result.split()),
               "    return [x0, y0, psi0, v0, r0, d0, om0, phi0]"]
     return "\n".join(lines) + "\n"
+
+
+def multistep_inputs(p: SimParams, speed: np.ndarray, roll: np.ndarray, force_y: np.ndarray,
+                     ripper_force: np.ndarray, ripper_moment: np.ndarray, draft: np.ndarray,
+                     gang_pull: np.ndarray, front_load: np.ndarray) -> list[tuple[float, ...]]:
+    """The per-step terms of :func:`scalar_multistepper` (:data:`MULTISTEP_TERMS`) for a run's inputs.
+
+    The same operations in the same order as :data:`_STEP_HEAD` does them per step, on whole arrays
+    (numpy's element-wise ``+ - * /`` and comparisons round exactly as Python's float operations do;
+    ``sin(roll)`` is taken with :func:`math.sin`, as the step takes it), so the terms are bit-for-bit
+    those the single step computes.
+
+    Parameters
+    ----------
+    p
+        Simulator parameters.
+    speed, roll, force_y, ripper_force, ripper_moment, draft, gang_pull, front_load
+        The exogenous inputs per step (fields of :class:`hil.disturbances.Exogenous`; m/s, rad, N,
+        N, N m, N, N, 1), each of shape ``(n,)``.
+
+    Returns
+    -------
+    list of tuple
+        One tuple of floats per step.
+    """
+    env = _stepper_env(p)
+    spd, roll, front_load = (np.asarray(a, dtype=float) for a in (speed, roll, front_load))
+    moving = np.where(spd >= env["standstill"], 1.0, 0.0)
+    fmax_f = env["mu"] * (env["nf0"] * front_load)
+    floor = env["floor"]
+    sin_roll = np.array([math.sin(r) for r in roll.tolist()], dtype=float)
+    terms = (spd, -spd, moving, -fmax_f, env["cf"] * front_load, np.where(1e-9 > fmax_f, 1e-9, fmax_f),
+             np.where(floor > spd, floor, spd), -np.asarray(draft, dtype=float),
+             env["neg_mg"] * sin_roll + force_y + ripper_force, env["x_shank"] * np.asarray(ripper_force) + ripper_moment,
+             np.asarray(gang_pull, dtype=float) / env["gang_cs"])
+    return list(zip(*(np.broadcast_to(t, spd.shape).tolist() for t in terms)))
 
 
 def scalar_stepper(p: SimParams):
@@ -333,8 +373,8 @@ def scalar_multistepper(p: SimParams):
     -------
     callable
         ``steps(x, rate_cmd, inputs, k0, k1, disker) -> list``: the state after the steps
-        ``k0 .. k1 - 1``, step ``k`` taking ``inputs[k]`` = ``(speed, roll, force_y, ripper_force,
-        ripper_moment, draft, gang_pull, front_load)``; bit-for-bit ``k1 - k0`` calls of the step.
+        ``k0 .. k1 - 1``, step ``k`` taking ``inputs[k]``, its terms from :func:`multistep_inputs`;
+        bit-for-bit ``k1 - k0`` calls of the step.
     """
     env = _stepper_env(p)
     exec(_compiled("multistep"), env)

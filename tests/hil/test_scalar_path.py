@@ -120,7 +120,7 @@ def test_kinematic_lqr_scalar_gain_is_bit_identical_to_np_interp(speed, x):
 
 def test_multistepper_is_bit_identical_to_repeated_single_steps():
     """``vehicle.scalar_multistepper`` (the plant's steps between epochs) is the single step in a loop."""
-    from hil.vehicle import STEP_INPUTS, scalar_multistepper
+    from hil.vehicle import STEP_INPUTS, multistep_inputs, scalar_multistepper
     many = scalar_multistepper(P)
     rng = np.random.default_rng(7)
     for disker, speed in ((1.0, 1.79), (0.0, 2.91), (1.0, 0.02)):
@@ -134,4 +134,22 @@ def test_multistepper_is_bit_identical_to_repeated_single_steps():
             x = x0
             for k in range(3, 27):
                 x = STEP(x, rate, *inputs[k], disker)
-            assert many(x0, rate, inputs, 3, 27, disker) == x
+            assert many(x0, rate, multistep_inputs(P, *np.array(inputs).T), 3, 27, disker) == x
+
+
+@settings(max_examples=300, deadline=None)
+@given(state=st.tuples(_f(-50, 50), _f(-5, 5), _f(-1, 1), _f(-3, 3), _f(-2, 2), _f(-DMAX, DMAX), _f(-2, 2),
+                       _f(-1.5, 1.5)),
+       rate=_f(-0.6, 0.6), speeds=st.lists(st.one_of(st.just(0.0), _f(0.0, 4.0)), min_size=1, max_size=4),
+       roll=_f(-0.2, 0.2), forces=st.tuples(_f(-3e3, 3e3), _f(-3e3, 3e3), _f(-5e3, 5e3), _f(0, 2e4), _f(-4e3, 4e3)),
+       front_load=st.one_of(st.just(0.0), _f(0.0, 1.3)), disker=st.sampled_from([0.0, 1.0]))
+def test_multistep_inputs_give_the_single_steps_terms(state, rate, speeds, roll, forces, front_load, disker):
+    """The per-step terms computed on arrays (``multistep_inputs``) are bit-for-bit those the single step
+    computes from the raw inputs, including standstill, a speed below the slip floor and no front load."""
+    from hil.vehicle import multistep_inputs, scalar_multistepper
+    raw = [(s, roll, *forces, front_load) for s in speeds]
+    x = list(state)
+    for u in raw:
+        x = STEP(x, rate, *u, disker)
+    got = scalar_multistepper(P)(list(state), rate, multistep_inputs(P, *np.array(raw).T), 0, len(raw), disker)
+    assert got == x

@@ -65,6 +65,7 @@ class SimulatedTractor:
         self.override_intervals = _intervals(override, "override")
         self.stuck_intervals = _intervals(stuck_valve, "stuck_valve")
         self._pending = 0.0
+        self._full_step = self.sim.params.dt - 1e-9   # pending time, s, from which a grid step is taken
         self._duty = 0.0
         self.time = 0.0
 
@@ -107,13 +108,15 @@ class SimulatedTractor:
         if not (dt >= 0 and math.isfinite(dt)):
             raise SimulatorConfigError(f"advance needs a finite dt >= 0, got {dt!r}")
         self.time += dt
-        self._pending += dt
+        pending = self._pending = self._pending + dt
+        if pending < self._full_step and not self.stuck_intervals:
+            return   # no grid step complete yet (the loops below would take none)
         sim = self.sim
         h = sim.params.dt
         stuck = self.stuck_intervals
         if not stuck:
             # the same loop as below without the valve checks; the simulator then takes the steps at once
-            pending, n, room = self._pending, 0, sim.n_steps - sim.k
+            n, room = 0, sim.n_steps - sim.k
             while pending >= h - 1e-9 and n < room:
                 pending -= h
                 n += 1

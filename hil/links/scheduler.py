@@ -100,6 +100,7 @@ class LockstepScheduler:
         if not math.isfinite(t_end):
             raise ClockError(f"cannot run until a non-finite time ({t_end!r} s)")
         self._running = True
+        device_steps = plant_steps = 0
         try:
             clock = self.clock
             now = clock.now()
@@ -107,6 +108,7 @@ class LockstepScheduler:
             # Each pass either advances time by > 0 or counts towards the stall limit.
             devices = self.devices
             plant = self.plant
+            max_step = self.max_step
             inf = math.inf
             while True:
                 # One pass over the devices in order: each is asked when it wants to run and, if
@@ -117,7 +119,7 @@ class LockstepScheduler:
                     wake = device.next_wakeup()
                     if wake <= now:
                         device.step(now)
-                        self.device_steps += 1
+                        device_steps += 1
                         stepped = True
                     elif wake < t_next:
                         t_next = wake
@@ -134,11 +136,15 @@ class LockstepScheduler:
                 if t_end < t_next:
                     t_next = t_end
                 if plant is not None:
-                    if now + self.max_step < t_next:
-                        t_next = now + self.max_step
+                    if now + max_step < t_next:
+                        t_next = now + max_step
                     plant.advance(t_next - now)
-                    self.plant_steps += 1
-                clock.advance_to(t_next)   # t_next > now and finite here: the clock only records it
+                    plant_steps += 1
+                # t_next > now and finite here: what VirtualClock.advance_to would check holds, so the
+                # time is only recorded (the clock's own attribute; this scheduler is bound to it)
+                clock._now = t_next if t_next.__class__ is float else float(t_next)
                 now = t_next
         finally:
             self._running = False
+            self.device_steps += device_steps
+            self.plant_steps += plant_steps

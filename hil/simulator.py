@@ -102,15 +102,15 @@ class TractorSimulator:
         self._rate_cmd = valve_rate(self.duty, p.steering)
         if scalar and B != 1:
             raise SimulatorConfigError(f"the scalar path integrates one tractor, this batch has {B}")
-        self._scalar_exo = ({f: getattr(self.exo, f)[0].tolist() for f in disturbances.Exogenous.__dataclass_fields__}
-                            if scalar else None)
+        # the one-tractor path reads speed and roll per step as floats (truth, GPS epochs)
+        self._scalar_exo = {f: getattr(self.exo, f)[0].tolist() for f in ("speed", "roll")} if scalar else None
         if scalar:
             # the one-tractor path: state, inputs and GPS errors as Python floats (see vehicle.scalar_stepper)
             e = self._scalar_exo
             self._stepper = vehicle.scalar_stepper(p)
             self._multistepper = vehicle.scalar_multistepper(p)
             self._valve_rates: dict[float, float] = {}   # valve_rate_scalar by duty (a pure function of it)
-            self._step_inputs = list(zip(*(e[f] for f in vehicle.STEP_INPUTS)))
+            self._step_inputs: list[tuple[float, ...]] | None = None   # the single step's inputs, made when first needed
             self._multistep_inputs = vehicle.multistep_inputs(p, *(getattr(self.exo, f)[0] for f in vehicle.STEP_INPUTS))
             self._x = self._state[0].tolist()
             self._disker0 = float(self._disker[0])
@@ -180,6 +180,8 @@ class TractorSimulator:
             raise SimulatorConfigError(f"the simulator was built for {self.duration:.2f} s and has reached it")
         k, e = self.k, self.exo
         if self._scalar_exo is not None:
+            if self._step_inputs is None:
+                self._step_inputs = list(zip(*(getattr(e, f)[0].tolist() for f in vehicle.STEP_INPUTS)))
             self._x = self._stepper(self._x, self._rate0, *self._step_inputs[k], self._disker0)
             self.k = k + 1
             self._record_epochs_scalar()

@@ -260,7 +260,7 @@ def _multistepper_source() -> str:
 
 def multistep_inputs(p: SimParams, speed: np.ndarray, roll: np.ndarray, force_y: np.ndarray,
                      ripper_force: np.ndarray, ripper_moment: np.ndarray, draft: np.ndarray,
-                     gang_pull: np.ndarray, front_load: np.ndarray) -> list[tuple[float, ...]]:
+                     gang_pull: np.ndarray, front_load: np.ndarray) -> list[list[float]]:
     """The per-step terms of :func:`scalar_multistepper` (:data:`MULTISTEP_TERMS`) for a run's inputs.
 
     The same operations in the same order as :data:`_STEP_HEAD` does them per step, on whole arrays
@@ -278,8 +278,8 @@ def multistep_inputs(p: SimParams, speed: np.ndarray, roll: np.ndarray, force_y:
 
     Returns
     -------
-    list of tuple
-        One tuple of floats per step.
+    list of list
+        The terms of each step, floats in :data:`MULTISTEP_TERMS` order.
     """
     env = _stepper_env(p)
     spd, roll, front_load = (np.asarray(a, dtype=float) for a in (speed, roll, front_load))
@@ -291,7 +291,7 @@ def multistep_inputs(p: SimParams, speed: np.ndarray, roll: np.ndarray, force_y:
              np.where(floor > spd, floor, spd), -np.asarray(draft, dtype=float),
              env["neg_mg"] * sin_roll + force_y + ripper_force, env["x_shank"] * np.asarray(ripper_force) + ripper_moment,
              np.asarray(gang_pull, dtype=float) / env["gang_cs"])
-    return list(zip(*(np.broadcast_to(t, spd.shape).tolist() for t in terms)))
+    return np.column_stack(np.broadcast_arrays(*terms)).tolist()
 
 
 def scalar_stepper(p: SimParams):

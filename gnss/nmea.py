@@ -49,15 +49,22 @@ def nmea_checksum(body: bytes) -> int:
     int
         Checksum, 0-255.
     """
-    # The XOR of all bytes, ``reduce(xor, body, 0)``, computed on the body as one integer: fold
-    # the high half onto the low half until 8 bytes remain, then fold those 8 bytes into one.
+    # The XOR of all bytes, ``reduce(xor, body, 0)``, computed on the body as one integer: fold the upper
+    # half onto the lower half, halving down to one byte. Bits above the folded width are never shifted
+    # back down, so they need no masking; only the last byte is kept.
     x = int.from_bytes(body, "little")
     n = len(body)
-    while n > 8:
-        half = (n + 1) >> 1
-        bits = half << 3
-        x = (x ^ (x >> bits)) & ((1 << bits) - 1)
-        n = half
+    if n > 32:
+        if n > 64:
+            bits = 512
+            while bits < n << 2:    # the first fold moves at least the upper half of the bytes
+                bits <<= 1
+            while bits > 256:
+                x ^= x >> bits
+                bits >>= 1
+        x ^= x >> 256
+    x ^= x >> 128
+    x ^= x >> 64
     x ^= x >> 32
     x ^= x >> 16
     x ^= x >> 8
@@ -300,6 +307,15 @@ def parse_nmea(sentence: bytes, *, check: bool = True) -> NmeaMessage:
     NMEAParseError
         Malformed framing or a field that is not what the sentence type requires.
     """
+    if check:
+        fast = _parse_fast(sentence)
+        if fast is not None:
+            return fast
+    return _parse_full(sentence, check)
+
+
+def _parse_full(sentence: bytes, check: bool) -> NmeaMessage:
+    """:func:`parse_nmea` without its fast path (every sentence type, every error)."""
     address, fields = split_sentence(sentence, check=check)
     if address.startswith("P"):
         sub = fields[0] if fields else ""
@@ -381,3 +397,79 @@ def _conversions(kind: str) -> tuple[tuple[str, type | None], ...]:
 
 
 _CONVERSIONS = {kind: _conversions(kind) for kind in _LIBRARY_LAYOUTS}
+
+
+# The sentences of the HIL bench's receivers (GGA, VTG, Trimble AVR: ~1200 a simulated minute) are
+# framed, checked and decoded in one function, with no per-field helper calls. It is the same framing
+# checks, the same checksum and the same conversions (int, float, _time_field, _latlon) of the same
+# text in the same places, so whatever it returns is what the path above returns; a sentence it does
+# not take, or one that fails any check, is handed to that path, which gives its message or raises its
+# error (tests/gnss/test_nmea_fast.py compares both on hypothesis-generated and corrupted sentences).
+_radians = math.radians
+
+
+def _parse_fast(sentence: bytes) -> NmeaMessage | None:
+    """:func:`parse_nmea` (with ``check``) of a GGA, VTG or ``$PTNL,AVR`` sentence; ``None``: use the full path."""
+    s = sentence.rstrip(b"\r\n")
+    if len(s) < 6 or s[0] != 0x24 or s[-3] != 0x2A:
+        return None
+    body = s[1:-3]
+    try:
+        given = int(s[-2:], 16)
+        text = body.decode("ascii")
+    except (ValueError, UnicodeDecodeError):
+        return None
+    if not text.isprintable() or "$" in text or "*" in text or nmea_checksum(body) != given:
+        return None
+    p = text.split(",")
+    address = p[0]
+    try:
+        if address == "PTNL":
+            # PTNL,AVR,time,yaw,Yaw,tilt,Tilt,roll,Roll,range,quality,pdop,numSV (as _avr)
+            if len(p) < 13 or p[1] != "AVR" or p[4] != "Yaw" or p[6] != "Tilt" or p[8] not in ("Roll", ""):
+                return None
+            v = p[3]
+            yaw = None if v == "" else _radians(float(v)) % _TWO_PI
+            v = p[5]
+            tilt = None if v == "" else _radians(float(v))
+            v = p[7]
+            roll = None if v == "" else _radians(float(v))
+            v = p[9]
+            rng = None if v == "" else float(v)
+            quality = int(p[10]) if p[10] else 0
+            v = p[11]
+            pdop = None if v == "" else float(v)
+            v = p[12]
+            return _make_avr(_time_field(p[2]), yaw, tilt, roll, rng, quality, pdop, None if v == "" else int(v))
+        if len(address) != 5 or address[0] == "P" or not address.isalnum():
+            return None
+        kind = address[2:]
+        if kind == "GGA":
+            # GGA,time,lat,N|S,lon,E|W,quality,numSV,HDOP,alt,M,sep,M,diffAge,diffStation: pynmeagps's
+            # conversions (int for IN fields, float for DE fields, "" kept), then _from_pynmeagps's
+            if len(p) < 15:
+                return None
+            q, n, hdop, alt, sep, age, stn = p[6], p[7], p[8], p[9], p[11], p[13], p[14]
+            return _make_gga(
+                address[:2], _time_field(p[1]), _latlon(p[2], p[3], 2), _latlon(p[4], p[5], 3),
+                int(q) if q else 0, int(n) if n else None, float(hdop) if hdop else None,
+                float(alt) if alt else None, float(sep) if sep else None, float(age) if age else None,
+                int(stn) if stn else None,
+            )
+        if kind == "VTG":
+            # VTG,cogt,T,cogm,M,sogn,N,sogk,K[,posMode]
+            if len(p) < 9:
+                return None
+            cogt, cogm, sogn, sogk = p[1], p[3], p[5], p[7]
+            if sogk:
+                float(sogk)    # decoded (and so checked) by pynmeagps, not kept
+            return _make_vtg(
+                address[:2],
+                _radians(float(cogt)) % _TWO_PI if cogt else None,
+                _radians(float(cogm)) % _TWO_PI if cogm else None,
+                float(sogn) * KNOT if sogn else None,
+                (p[9] or None) if len(p) > 9 else None,
+            )
+    except Exception:  # noqa: BLE001 - NMEAParseError of _time_field and _latlon, ValueError of int and float:
+        return None    # the full path decides (and raises its own error)
+    return None

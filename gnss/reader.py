@@ -20,7 +20,7 @@ from typing import Literal, Protocol
 from .errors import ConfigError, ParseError
 from .fastinit import positional_maker
 from .messages import Message, message_key
-from .nmea import NMEA_MAX_LENGTH, parse_nmea
+from .nmea import NMEA_MAX_LENGTH, _parse_fast, _parse_full, parse_nmea
 from .rtcm import parse_rtcm
 from .ubx import UBX_MAX_PAYLOAD, parse_ubx
 
@@ -28,6 +28,7 @@ __all__ = ["Received", "ReaderStats", "StreamDecoder", "GnssReader", "ByteSource
 
 _SYNC = re.compile(rb"\$|\xb5\x62|\xd3")
 _PRINTABLE = re.compile(rb"[\x20-\x7e]*")
+_NMEA_LINE = re.compile(rb"\$[\x20-\x7e]*\r?\n")   # a whole sentence: printable run, then [CR] LF
 
 
 class ByteSource(Protocol):
@@ -133,9 +134,9 @@ class StreamDecoder:
 
     def _drain(self, t: float, final: bool) -> list[Received]:  # noqa: C901 - one framing loop
         out, self._pending = self._pending, []
-        buf, stats = self._buf, self.stats
+        buf, stats, check = self._buf, self.stats, self.check
         n, i = len(buf), 0
-        while True:
+        while i < n:    # (at i == n the search below finds nothing and keeps nothing)
             m = _SYNC.search(buf, i)
             if m is None:
                 keep = 1 if (not final and n > i and buf[-1] == 0xB5) else 0
@@ -147,6 +148,27 @@ class StreamDecoder:
             i = j
             lead = buf[j]
             if lead == 0x24:  # '$' NMEA
+                line = _NMEA_LINE.match(buf, j)
+                if line is not None and line.end() - j <= NMEA_MAX_LENGTH:
+                    # the common case, a complete sentence (what the branches below find for it, in one match)
+                    frame = line.group()
+                    try:
+                        msg = _parse_fast(frame) if check else None     # parse_nmea(frame, check=check)
+                        if msg is None:
+                            msg = _parse_full(frame, check)
+                    except ParseError as exc:
+                        stats.errors[type(exc).__name__] += 1
+                        stats.last_error = str(exc)
+                        i = j + 1
+                        if self.on_error == "raise":
+                            del buf[:i]
+                            self._pending = out
+                            raise
+                        continue
+                    out.append(_make_received(msg, t, frame))   # Received(msg, t, frame)
+                    stats.messages[message_key(msg)] += 1
+                    i = line.end()
+                    continue
                 end = _PRINTABLE.match(buf, j + 1).end()
                 if end < n and buf[end] == 0x0D:
                     end += 1

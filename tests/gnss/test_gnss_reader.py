@@ -127,3 +127,57 @@ def test_corrupted_stream_yields_only_intact_frames(frames, data):
             assert f in msgs_raw
         start += len(f)
     assert len(msgs_raw) >= intact
+
+
+# ---------------------------------------------------------------- the reader's NMEA fast path
+_AVR = (b"$PTNL,AVR,123456.10,+20.5000,Yaw,+0.0573,Tilt,-0.7047,Roll,1.500,3,1.6,12*0E\r\n")
+_VTG = b"$GPVTG,20.300,T,,M,3.479,N,6.444,K,D*32\r\n"
+_PIECES = [GGA, HDT, PVT, RTCM, _AVR, _VTG, b"$GPGGA,1*", b"\r", b"\n", b"$", b"\xb5", b"\xd3", b"garbage",
+           b"$PTNL,AVR," + b"9" * 300 + b"*00\r\n"]
+
+
+def _decode_all(stream: bytes, cuts: list[int], on_error: str, fast: bool) -> tuple:
+    """Messages (repr, time, raw), errors raised and the stats of one decoder fed ``stream`` in pieces."""
+    from unittest import mock
+    import re as _re
+    from gnss import nmea, reader
+
+    def run() -> tuple:
+        dec = StreamDecoder(on_error=on_error)
+        got, raised = [], []
+        bounds = sorted({0, len(stream), *(c % (len(stream) + 1) for c in cuts)})
+        for k, (a, b) in enumerate(zip(bounds, bounds[1:])):
+            try:
+                got += dec.feed(stream[a:b], float(k))
+            except ParseError as exc:
+                raised.append((type(exc).__name__, str(exc)))
+        while True:
+            try:
+                got += dec.flush(99.0)
+                break
+            except ParseError as exc:
+                raised.append((type(exc).__name__, str(exc)))
+        st_ = dec.stats
+        return ([(repr(r.message), r.t_arrival, r.raw) for r in got], raised, dict(st_.messages), dict(st_.errors),
+                st_.garbage_bytes, st_.bytes_in, st_.last_error)
+
+    if fast:
+        return run()
+    never = _re.compile(rb"(?!)")
+    with mock.patch.object(reader, "_NMEA_LINE", never), mock.patch.object(reader, "_parse_fast", lambda s: None), \
+            mock.patch.object(nmea, "_parse_fast", lambda s: None), mock.patch.dict(nmea._LIBRARY_LAYOUTS, {}, clear=True):
+        return run()
+
+
+@settings(max_examples=300, deadline=None)
+@given(pieces=st.lists(st.sampled_from(_PIECES), min_size=1, max_size=12), cuts=st.lists(st.integers(0, 2000), max_size=6),
+       flips=st.lists(st.tuples(st.integers(0, 4000), st.integers(1, 255)), max_size=3),
+       on_error=st.sampled_from(["skip", "raise"]))
+def test_fast_framing_and_parsing_decode_streams_as_the_full_path(pieces, cuts, flips, on_error):
+    """Whole sentences are framed by one regular expression and parsed by ``nmea._parse_fast``; with both
+    switched off the decoder yields the same messages, raises the same errors and counts the same."""
+    stream = bytearray(b"".join(pieces))
+    for pos, mask in flips:
+        stream[pos % len(stream)] ^= mask
+    stream = bytes(stream)
+    assert _decode_all(stream, cuts, on_error, fast=True) == _decode_all(stream, cuts, on_error, fast=False)

@@ -25,9 +25,7 @@ import numpy as np
 from gnss.geodesy import LocalFrame
 from gnss.geodesy_scalar import ScalarFrame
 from gnss.guidance import ABLine
-from gnss.fastinit import positional_maker
-from gnss.messages import Avr, Gga, Vtg
-from gnss.nmea_encode import encode_avr, encode_gga, encode_vtg
+from gnss.nmea_epoch import AttitudeEpochEncoder, PositionEpochEncoder
 
 from .errors import SimulatorConfigError
 from .gps import corrupt
@@ -36,7 +34,6 @@ from .links.uart import LineConfig, UartTx
 from .plant import SimulatedTractor
 
 _EPS = 1e-9
-_make_gga, _make_vtg, _make_avr = (positional_maker(c) for c in (Gga, Vtg, Avr))
 
 
 @dataclass(frozen=True)
@@ -92,6 +89,7 @@ class _Receiver:
         self.corrupted = 0
         self.k = 0
         self._retry = -math.inf
+        self._wake = self._due      # the later of _due and _retry, kept with them (next_wakeup is asked often)
         self.sent = 0
         self.suppressed: list[tuple[float, float]] = []   # fault injection: (start, end) with no output
 
@@ -99,10 +97,10 @@ class _Receiver:
         return k / self.rate + self.latency + self._jitter[k]
 
     def next_wakeup(self) -> float:
-        due = self._due if self._due > self._retry else self._retry
-        if not self.uart.holds:
-            return due
-        held = self.uart.next_due()
+        uart = self.uart
+        if not uart.holds:
+            return self._wake
+        due, held = self._wake, uart.next_due()
         return due if due < held else held
 
     def step(self, now: float) -> None:
@@ -111,7 +109,8 @@ class _Receiver:
             uart.flush(now)
         while self._due <= now + _EPS:
             if self._recorded() <= self.k:        # the plant has not reached the epoch yet
-                self._retry = now + self.tractor.params.dt
+                self._retry = retry = now + self.tractor.params.dt
+                self._wake = self._due if self._due > retry else retry
                 return
             k = self.k
             self.k += 1
@@ -126,6 +125,7 @@ class _Receiver:
             uart.send(data, now)
             self.sent += 1
         self._retry = -math.inf
+        self._wake = self._due
         if uart.holds:
             uart.flush(now)
 
@@ -159,6 +159,7 @@ class PositionReceiver(_Receiver):
         self.downgraded: list[tuple[float, float]] = []     # fault injection: report RTK float instead
         self._frame = ScalarFrame(geometry.origin)
         self._line_sin_cos = (math.sin(geometry.line_yaw), math.cos(geometry.line_yaw))
+        self._encoder = PositionEpochEncoder("GP", num_sv=14, hdop=0.8, geoid_sep=0.0, station_id=1, mode="D")
 
     def _recorded(self) -> int:
         return self.tractor.sim.n_pos
@@ -177,12 +178,10 @@ class PositionReceiver(_Receiver):
         tod = (geo.utc_start + t_valid) % 86400.0
         ia = min(int(round(t_valid * sim.params.gps.attitude_rate)), sim.n_att - 1)
         course = geo.yaw(float(sim.att["yaw"][0, ia]))
-        # Gga(talker, time, lat, lon, quality, num_sv, hdop, alt, geoid_sep, diff_age, station_id)
-        gga = _make_gga("GP", tod, float(lat), float(lon), quality, 14, 0.8, float(h), 0.0,
-                        1.0 if quality in (4, 5) else None, 1)
-        # Vtg(talker, course, course_mag, speed, mode)
-        vtg = _make_vtg("GP", course, None, float(pos["speed"][0, k]), "D")
-        return encode_gga(gga) + encode_vtg(vtg)
+        # encode_gga(Gga("GP", tod, lat, lon, quality, 14, 0.8, h, 0.0, diff_age, 1))
+        # + encode_vtg(Vtg("GP", course, None, speed, "D"))
+        return self._encoder.encode(tod, float(lat), float(lon), quality, float(h),
+                                    1.0 if quality in (4, 5) else None, course, float(pos["speed"][0, k]))
 
 
 class AttitudeReceiver(_Receiver):
@@ -193,6 +192,7 @@ class AttitudeReceiver(_Receiver):
         g, err = tractor.params.gps, tractor.sim.gps_errors
         super().__init__(tractor, link, geometry, line or LineConfig(baud=38400), g.attitude_rate,
                          g.attitude_latency, err.att_jitter[0], err.att_lost[0], err.att_corrupt[0])
+        self._encoder = AttitudeEpochEncoder(range=1.5, quality=3, pdop=1.6, num_sv=12)
 
     def _recorded(self) -> int:
         return self.tractor.sim.n_att
@@ -200,7 +200,6 @@ class AttitudeReceiver(_Receiver):
     def _encode(self, k: int, t_valid: float) -> bytes:
         att, geo = self.tractor.sim.att, self.geometry
         tod = (geo.utc_start + t_valid) % 86400.0
-        # Avr(time, yaw, tilt, roll, range, quality, pdop, num_sv)
-        avr = _make_avr(tod, geo.yaw(float(att["yaw"][0, k])), float(att["pitch"][0, k]), float(att["roll"][0, k]),
-                        1.5, 3, 1.6, 12)
-        return encode_avr(avr)
+        # encode_avr(Avr(tod, yaw, pitch, roll, 1.5, 3, 1.6, 12))
+        return self._encoder.encode(tod, geo.yaw(float(att["yaw"][0, k])), float(att["pitch"][0, k]),
+                                    float(att["roll"][0, k]))

@@ -29,7 +29,7 @@ from .errors import ConfigError
 from .fastinit import positional_maker
 from .geodesy import LocalFrame
 from .geodesy_scalar import ScalarFrame
-from .integrity import FixQuality, Integrity, IntegrityConfig, assess_integrity, fix_from_gga, fix_from_nav_pvt
+from .integrity import FixQuality, Integrity, IntegrityConfig, assess, fix_from_gga, fix_from_nav_pvt
 from .messages import Avr, Gga, Gst, Hdt, Hpr, NavPvt, NavRelPosNed, Rmc, Ths, Vtg
 from .reader import ByteSource, GnssReader, Received
 
@@ -202,6 +202,9 @@ class GnssFrontEnd:
         rotation = np.empty((3, 3))
         self._rotation = (rotation, rotation.reshape(9))   # scratch for _rotate_arm
         self._frame = ScalarFrame(config.origin)
+        # the configuration read every tick (it is frozen)
+        self._tick_config = (config.integrity, config.integrity.lost_after, config.max_extrapolation,
+                             config.require_attitude)
         self._pos: tuple[float, float, float] | None = None
         self._pos_tv = self._pos_ta = -math.inf
         self._fix = FixQuality.NONE
@@ -313,45 +316,44 @@ class GnssFrontEnd:
     # --------------------------------------------------------------- publish
     def solution(self, t: float) -> NavSolution:
         """The navigation solution at host time ``t`` (s) from what has been ingested."""
-        cfg = self.config
-        nan = math.nan
-        pos_age = t - self._pos_ta if self._pos_ta > -math.inf else math.inf
-        att_age = t - self._att_ta if self._att_ta > -math.inf else math.inf
-        vel = self._vel if t - self._vel_tv <= cfg.integrity.lost_after else (0.0, 0.0, 0.0)
+        integrity_config, lost_after, max_extrapolation, require_attitude = self._tick_config
+        isfinite = math.isfinite
+        pos_ta, att_ta, att_tv = self._pos_ta, self._att_ta, self._att_tv
+        pos_age = t - pos_ta if pos_ta > -math.inf else math.inf
+        att_age = t - att_ta if att_ta > -math.inf else math.inf
+        vel = self._vel if t - self._vel_tv <= lost_after else (0.0, 0.0, 0.0)
+        ve, vn = vel[0], vel[1]
         yaw, pitch, roll, rate = self._yaw, self._pitch, self._roll, self._yaw_rate
-        if not cfg.require_attitude:
+        if not require_attitude:
             att_age = 0.0
-            if not math.isfinite(yaw) and float(np.hypot(vel[0], vel[1])) > 0.3:
-                yaw = math.atan2(vel[0], vel[1]) % (2 * math.pi)
-        integrity = assess_integrity(
-            cfg.integrity, position_age=pos_age, fix=self._fix, attitude_age=att_age,
-            correction_age=self._corr_age, hdop=self._hdop, h_acc=self._h_acc,
-        )
-        if math.isfinite(yaw) and self._att_tv > -math.inf:
-            dt_att = min(max(t - self._att_tv, 0.0), cfg.max_extrapolation)
+            if not isfinite(yaw) and float(np.hypot(ve, vn)) > 0.3:
+                yaw = math.atan2(ve, vn) % (2 * math.pi)
+        integrity = assess(integrity_config, pos_age, self._fix, att_age, self._corr_age, self._hdop, self._h_acc)
+        if att_tv > -math.inf and isfinite(yaw):
+            dt_att = min(max(t - att_tv, 0.0), max_extrapolation)
             yaw = (yaw + rate * dt_att) % (2 * math.pi)
-        if self._pos is None:
-            east = north = up = nan
+        att_known = isfinite(yaw)
+        if not isfinite(pitch):
+            pitch = 0.0
+        if not isfinite(roll):
+            roll = 0.0
+        p = self._pos
+        if p is None:
+            east = north = up = t_validity = math.nan
         else:
-            dt = min(max(t - self._pos_tv, 0.0), cfg.max_extrapolation)
-            att_known = math.isfinite(yaw)
-            arm = _rotate_arm(yaw if att_known else 0.0, pitch if math.isfinite(pitch) else 0.0,
-                              roll if math.isfinite(roll) else 0.0, self._arm if att_known else self._zero_arm,
+            t_validity = self._pos_tv
+            dt = min(max(t - t_validity, 0.0), max_extrapolation)
+            arm = _rotate_arm(yaw if att_known else 0.0, pitch, roll, self._arm if att_known else self._zero_arm,
                               self._rotation)
-            p = self._pos
-            east, north, up = (p[0] + vel[0] * dt - arm[0], p[1] + vel[1] * dt - arm[1], p[2] + vel[2] * dt - arm[2])
-        if math.isfinite(yaw):
-            speed = float(vel[0] * math.sin(yaw) + vel[1] * math.cos(yaw))
+            east, north, up = (p[0] + ve * dt - arm[0], p[1] + vn * dt - arm[1], p[2] + vel[2] * dt - arm[2])
+        if att_known:
+            speed = float(ve * math.sin(yaw) + vn * math.cos(yaw))
         else:
-            speed = float(np.hypot(vel[0], vel[1]))
+            speed = float(np.hypot(ve, vn))
         return _make_solution(   # NavSolution(t, t_validity, t_arrival, east, north, up, yaw, pitch, roll,
             t,                   #             yaw_rate, speed, velocity_east, velocity_north, fix, integrity)
-            self._pos_tv if self._pos is not None else nan,
-            self._pos_ta if self._pos_ta > -math.inf else nan,
-            east, north, up, yaw,
-            pitch if math.isfinite(pitch) else 0.0, roll if math.isfinite(roll) else 0.0,
-            rate, speed, float(vel[0]), float(vel[1]),
-            self._fix, integrity,
+            t_validity, pos_ta if pos_ta > -math.inf else math.nan,
+            east, north, up, yaw, pitch, roll, rate, speed, float(ve), float(vn), self._fix, integrity,
         )
 
     def step(self, t: float | None = None) -> NavSolution:
@@ -380,7 +382,7 @@ def _rotate_arm(yaw: float, pitch: float, roll: float, arm: np.ndarray,
     flat[:] = (c * m0[0] - s * m1[0], c * m0[1] - s * m1[1], c * m0[2] - s * m1[2],
                s * m0[0] + c * m1[0], s * m0[1] + c * m1[1], s * m0[2] + c * m1[2],
                st, ct * sp, ct * cp)
-    return (r @ arm).tolist()
+    return r.dot(arm).tolist()   # r @ arm: the same BLAS product (gemv), with less call overhead
 
 
 _make_solution = positional_maker(NavSolution)

@@ -143,6 +143,12 @@ def assess_integrity(
         The first failing check, in order: lost, stale position, stale attitude, no fix,
         correction age, HDOP, accuracy, fix kind.
     """
+    return assess(config, position_age, fix, attitude_age, correction_age, hdop, h_acc)
+
+
+def assess(config: IntegrityConfig, position_age: float, fix: FixQuality, attitude_age: float,
+           correction_age: float | None, hdop: float | None, h_acc: float | None) -> Integrity:
+    """:func:`assess_integrity` with every argument positional (the front-end's once-a-tick call)."""
     S = IntegrityState
     if not math.isfinite(position_age):
         return Integrity(S.LOST, "no position received yet")

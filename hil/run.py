@@ -110,6 +110,8 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             # The simulator integrates on its own dt grid whatever the advance; the scheduler need not
             # stop between device wake-ups for it (at most every loop period).
             bench = stack.enter_context(LockstepBridge(plant, max_step=0.05))
+            # the firmware and the receivers share only the plant; each has its own link to the host
+            bench.scheduler.independent = True
             receivers, sources = [], []
             for cls, name in ((PositionReceiver, "position"), (AttitudeReceiver, "attitude")):
                 host, dev = memory_link_pair(bench.clock, names=("host", name))

@@ -249,7 +249,8 @@ def _multistepper_source() -> str:
     result = tail.split("return [", 1)[1].rsplit("]", 1)[0]
     lines = ["def steps(x, rate_cmd, inputs, k0, k1, disker):",
              "    x0, y0, psi0, v0, r0, d0, om0, phi0 = x",
-             f"    for {', '.join(MULTISTEP_TERMS)} in inputs[k0:k1]:"]
+             f"    for i in range(k0 * {len(MULTISTEP_TERMS)}, k1 * {len(MULTISTEP_TERMS)}, {len(MULTISTEP_TERMS)}):",
+             f"        {', '.join(MULTISTEP_TERMS)} = inputs[i:i + {len(MULTISTEP_TERMS)}]"]
     lines += ["    " + line if line.strip() else "" for line in stages.split("\n")]
     lines += ["        dl = d0 + h6 *" + tail.split("\n", 1)[0],
               "        if neg_dmax > dl:", "            dl = neg_dmax", "        if dmax < dl:", "            dl = dmax",
@@ -260,7 +261,7 @@ def _multistepper_source() -> str:
 
 def multistep_inputs(p: SimParams, speed: np.ndarray, roll: np.ndarray, force_y: np.ndarray,
                      ripper_force: np.ndarray, ripper_moment: np.ndarray, draft: np.ndarray,
-                     gang_pull: np.ndarray, front_load: np.ndarray) -> list[list[float]]:
+                     gang_pull: np.ndarray, front_load: np.ndarray) -> list[float]:
     """The per-step terms of :func:`scalar_multistepper` (:data:`MULTISTEP_TERMS`) for a run's inputs.
 
     The same operations in the same order as :data:`_STEP_HEAD` does them per step, on whole arrays
@@ -278,8 +279,9 @@ def multistep_inputs(p: SimParams, speed: np.ndarray, roll: np.ndarray, force_y:
 
     Returns
     -------
-    list of list
-        The terms of each step, floats in :data:`MULTISTEP_TERMS` order.
+    list of float
+        The terms of each step in :data:`MULTISTEP_TERMS` order, step after step in one flat list
+        (one container: a list per step would be one more object for the garbage collector to scan).
     """
     env = _stepper_env(p)
     spd, roll, front_load = (np.asarray(a, dtype=float) for a in (speed, roll, front_load))
@@ -291,7 +293,7 @@ def multistep_inputs(p: SimParams, speed: np.ndarray, roll: np.ndarray, force_y:
              np.where(floor > spd, floor, spd), -np.asarray(draft, dtype=float),
              env["neg_mg"] * sin_roll + force_y + ripper_force, env["x_shank"] * np.asarray(ripper_force) + ripper_moment,
              np.asarray(gang_pull, dtype=float) / env["gang_cs"])
-    return np.column_stack(np.broadcast_arrays(*terms)).tolist()
+    return np.column_stack(np.broadcast_arrays(*terms)).ravel().tolist()
 
 
 def scalar_stepper(p: SimParams):
@@ -373,7 +375,7 @@ def scalar_multistepper(p: SimParams):
     -------
     callable
         ``steps(x, rate_cmd, inputs, k0, k1, disker) -> list``: the state after the steps
-        ``k0 .. k1 - 1``, step ``k`` taking ``inputs[k]``, its terms from :func:`multistep_inputs`;
+        ``k0 .. k1 - 1``, step ``k`` taking its terms from ``inputs`` (:func:`multistep_inputs`);
         bit-for-bit ``k1 - k0`` calls of the step.
     """
     env = _stepper_env(p)

@@ -60,10 +60,18 @@ class LockstepScheduler:
         Longest plant integration step, s (default 0.01).
     max_same_instant : int, optional
         Rounds allowed at one instant before a stall is declared (default 1000).
+    independent : bool, optional
+        Declare that the devices never give each other work: each talks only to the host over
+        its own links and to the plant, which only the scheduler advances (the HIL bench: the
+        bridge firmware and the receivers). A device's wake-up then changes only when it is
+        stepped or time moves, so at each instant the scheduler steps one device until it is
+        no longer due before asking the next: the same steps as the general order (every
+        device asked again after any step), with fewer questions. Default False. Settable
+        between runs (attribute ``independent``).
     """
 
     def __init__(self, clock: VirtualClock, devices: Iterable[Device] = (), plant: Advanceable | None = None,
-                 max_step: float = 0.01, max_same_instant: int = 1000) -> None:
+                 max_step: float = 0.01, max_same_instant: int = 1000, independent: bool = False) -> None:
         if not isinstance(clock, VirtualClock):
             raise LinkConfigError(f"LockstepScheduler needs a VirtualClock, got {type(clock).__name__}; "
                                   "use RealTimeRunner for real time")
@@ -76,6 +84,9 @@ class LockstepScheduler:
         self.plant = plant
         self.max_step = float(max_step)
         self.max_same_instant = max_same_instant
+        if not isinstance(independent, bool):
+            raise LinkConfigError(f"independent must be True or False, got {independent!r}")
+        self.independent = independent
         self.device_steps = 0
         self.plant_steps = 0
         self._running = False
@@ -110,6 +121,8 @@ class LockstepScheduler:
             plant = self.plant
             max_step = self.max_step
             inf = math.inf
+            independent = self.independent
+            limit = self.max_same_instant
             while True:
                 # One pass over the devices in order: each is asked when it wants to run and, if
                 # due, stepped at once (so it sees what the devices before it did at this instant).
@@ -120,12 +133,26 @@ class LockstepScheduler:
                     if wake <= now:
                         device.step(now)
                         device_steps += 1
-                        stepped = True
+                        if independent:   # only this device's wake-up can have changed: ask it again
+                            for _ in range(limit):
+                                wake = device.next_wakeup()
+                                if wake > now:
+                                    break
+                                device.step(now)
+                                device_steps += 1
+                            else:
+                                raise SchedulerStallError(
+                                    f"a device was stepped {limit + 1} times at t={now!r} s without time "
+                                    "advancing; its next_wakeup() keeps returning a time <= now")
+                            if wake < t_next:
+                                t_next = wake
+                        else:
+                            stepped = True
                     elif wake < t_next:
                         t_next = wake
                 if stepped:
                     same += 1
-                    if same > self.max_same_instant:
+                    if same > limit:
                         raise SchedulerStallError(
                             f"devices were stepped {same} times at t={now!r} s without time advancing; "
                             "a device's next_wakeup() keeps returning a time <= now")

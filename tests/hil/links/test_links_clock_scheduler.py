@@ -112,3 +112,57 @@ def test_scheduler_options_are_validated_and_one_clock_drives_one_world():
     LockstepScheduler(clock)
     with pytest.raises(ClockError, match="already drives another scheduler"):
         LockstepScheduler(clock)
+
+
+class Burst(Ticker):
+    """Due again at the same instant ``repeat`` times after each scheduled wake-up (a device with more
+    input than one step handles), and counting how often it is asked."""
+
+    def __init__(self, period: float, repeat: int) -> None:
+        super().__init__(period)
+        self.repeat, self.left, self.asked = repeat, repeat, 0
+
+    def next_wakeup(self) -> float:
+        self.asked += 1
+        return self.next
+
+    def step(self, now: float) -> None:
+        self.times.append(now)
+        if self.left:
+            self.left -= 1
+        else:
+            self.left = self.repeat
+            self.next += self.period
+
+
+def _bench(independent: bool) -> tuple[list[Burst], Integrator, LockstepScheduler]:
+    clock = VirtualClock()
+    devices = [Burst(0.0625, 2), Burst(0.25, 0), Burst(0.125, 1)]
+    plant = Integrator()
+    scheduler = LockstepScheduler(clock, devices, plant, max_step=0.05, independent=independent)
+    clock.sleep_until(1.0)
+    return devices, plant, scheduler
+
+
+def test_independent_devices_get_the_same_steps_and_plant_advances_with_fewer_questions():
+    general, plant_g, sched_g = _bench(False)
+    fast, plant_f, sched_f = _bench(True)
+    for g, f in zip(general, fast):
+        assert f.times == g.times and len(f.times) > 4
+    assert plant_f.dts == plant_g.dts
+    assert (sched_f.device_steps, sched_f.plant_steps) == (sched_g.device_steps, sched_g.plant_steps)
+    assert sum(d.asked for d in fast) < sum(d.asked for d in general)
+
+
+def test_an_independent_device_that_never_lets_time_advance_is_a_stall():
+    class Stuck(Ticker):
+        def next_wakeup(self) -> float:
+            return 0.0
+
+    clock = VirtualClock()
+    scheduler = LockstepScheduler(clock, [Ticker(0.1), Stuck(0.1)], max_same_instant=20, independent=True)
+    with pytest.raises(SchedulerStallError, match="without time advancing"):
+        clock.sleep_until(1.0)
+    with pytest.raises(LinkConfigError, match="independent"):
+        LockstepScheduler(VirtualClock(), independent=1)  # type: ignore[arg-type]
+    assert scheduler.device_steps == 21 + 1   # the stuck device's 21 steps and the ticker's first

@@ -60,27 +60,35 @@ class SimulatedTractor:
                  initial: dict[str, float] | None = None, override: Sequence[Interval] = (),
                  stuck_valve: Sequence[Interval] = ()) -> None:
         init = {k: np.array([v], dtype=float) for k, v in (initial or {}).items()}
-        self.sim = TractorSimulator([condition], duration, [seed], params, init, scalar=True)
+        self._sim = TractorSimulator([condition], duration, [seed], params, init, scalar=True)
         self.condition = condition
         self.override_intervals = _intervals(override, "override")
         self.stuck_intervals = _intervals(stuck_valve, "stuck_valve")
         self._pending = 0.0
-        self._full_step = self.sim.params.dt - 1e-9   # pending time, s, from which a grid step is taken
+        self._full_step = self._sim.params.dt - 1e-9   # pending time, s, from which a grid step is taken
         self._duty = 0.0
         self.time = 0.0
 
     @property
+    def sim(self) -> TractorSimulator:
+        """The simulator, integrated over every grid step complete by :attr:`time` (see :meth:`advance`)."""
+        if self._pending >= self._full_step:
+            self._integrate()
+        return self._sim
+
+    @property
     def params(self) -> SimParams:
-        return self.sim.params
+        return self._sim.params
 
     # -- SteeringPlant ------------------------------------------------------------
     def set_valve_duty(self, duty: float) -> None:
         """Apply a PWM duty in [-1, 1], + = left (ignored while the valve is stuck)."""
         if not math.isfinite(duty):
             raise SimulatorConfigError(f"valve duty must be finite, got {duty!r}")
+        sim = self.sim   # the steps complete before now, with the duty they had
         self._duty = float(duty)
-        if not self._in(self.stuck_intervals):
-            self.sim.set_duty_scalar(self._duty)
+        if not self._in(self.stuck_intervals, sim.time):
+            sim.set_duty_scalar(self._duty)
 
     def wheel_angle_counts(self) -> int:
         """8-bit ADC reading of the potentiometer now, 0..255."""
@@ -88,7 +96,7 @@ class SimulatedTractor:
 
     def manual_override(self) -> bool:
         """True while the (simulated) driver turns the steering wheel."""
-        return self._in(self.override_intervals)
+        return self._in(self.override_intervals, self.sim.time) if self.override_intervals else False
 
     def override_steady_until(self) -> float:
         """Earliest time, s, at which :meth:`manual_override` may change (``inf``: never).
@@ -104,16 +112,23 @@ class SimulatedTractor:
         return nxt - 1e-6
 
     def advance(self, dt: float) -> None:
-        """Let ``dt`` seconds pass (steps the simulator on its own grid)."""
+        """Let ``dt`` seconds pass.
+
+        The simulator steps on its own grid; the steps this completes are taken when something
+        next reads the plant (:attr:`sim`, the ADC, the duty, the override switch, the truth), all
+        at once: the same steps with the same inputs as stepping at every advance, in fewer calls.
+        """
         if not (dt >= 0 and math.isfinite(dt)):
             raise SimulatorConfigError(f"advance needs a finite dt >= 0, got {dt!r}")
         self.time += dt
-        pending = self._pending = self._pending + dt
-        if pending < self._full_step and not self.stuck_intervals:
-            return   # no grid step complete yet (the loops below would take none)
-        sim = self.sim
+        self._pending += dt
+
+    def _integrate(self) -> None:
+        """Take the grid steps complete in the pending time."""
+        sim = self._sim
         h = sim.params.dt
         stuck = self.stuck_intervals
+        pending = self._pending
         if not stuck:
             # the same loop as below without the valve checks; the simulator then takes the steps at once
             n, room = 0, sim.n_steps - sim.k
@@ -125,16 +140,14 @@ class SimulatedTractor:
                 sim.step_scalar(n)
             return
         while self._pending >= h - 1e-9 and sim.k < sim.n_steps:
-            was_stuck = stuck and self._in(stuck)
+            was_stuck = self._in(stuck, sim.time)
             sim.step()
             self._pending -= h
-            if was_stuck and not self._in(stuck):
+            if was_stuck and not self._in(stuck, sim.time):
                 sim.set_duty_scalar(self._duty)   # the spool frees: latest duty applies
 
-    def _in(self, intervals: tuple[Interval, ...]) -> bool:
-        if not intervals:
-            return False
-        t = self.sim.time
+    @staticmethod
+    def _in(intervals: tuple[Interval, ...], t: float) -> bool:
         return any(a <= t < b for a, b in intervals)
 
     # -- truth for logs -----------------------------------------------------------

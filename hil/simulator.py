@@ -202,20 +202,20 @@ class TractorSimulator:
             for _ in range(n):
                 self.step()
             return
-        steps, inputs, rate, disker = self._multistepper, self._multistep_inputs, self._rate0, self._disker0
         pos_every, att_every = self._pos_every, self._att_every
-        x, k = self._x, self.k
+        k0 = k = self.k
         end = k + n
+        bounds = []   # the steps that record an epoch (k % pos_every == 0 or k % att_every == 0), then the end
         while k < end:
-            # up to the next step that records an epoch (k % pos_every == 0 or k % att_every == 0)
             k_rec = min((k // pos_every + 1) * pos_every, (k // att_every + 1) * att_every)
-            k1 = k_rec if k_rec < end else end
-            x = steps(x, rate, inputs, k, k1, disker)
-            k = k1
-            if k == k_rec:
+            k = k_rec if k_rec < end else end
+            bounds.append(k)
+        states = self._multistepper(self._x, self._rate0, self._multistep_inputs, k0, bounds, self._disker0)
+        if len(bounds) > 1 or end % pos_every == 0 or end % att_every == 0:
+            for k, x in zip(bounds, states):   # the epochs, in step order, from the states at their steps
                 self._x, self.k = x, k
                 self._record_epochs_scalar()
-        self._x, self.k = x, k
+        self._x, self.k = states[-1], end
 
     # -- sensors ------------------------------------------------------------------
     def wheel_angle_counts(self) -> np.ndarray:

@@ -243,19 +243,27 @@ MULTISTEP_TERMS = ("spd", "neg_spd", "moving", "neg_fmax_f", "cf_load", "fmax_f_
 
 def _multistepper_source() -> str:
     """Source of :func:`scalar_multistepper`: the four stages of :func:`_stepper_source`'s step in a loop
-    over the steps' precomputed terms (:data:`MULTISTEP_TERMS`), the state kept in locals between steps."""
+    over the steps' precomputed terms (:data:`MULTISTEP_TERMS`), the state kept in locals between steps
+    and copied out at each of the given step indices."""
     body = _stepper_source().split("    x0, y0, psi0, v0, r0, d0, om0, phi0 = x\n", 1)[1]
     stages, tail = body.split("    dl = d0 + h6 *", 1)
     result = tail.split("return [", 1)[1].rsplit("]", 1)[0]
-    lines = ["def steps(x, rate_cmd, inputs, k0, k1, disker):",
+    n = len(MULTISTEP_TERMS)
+    pad = "        "
+    lines = ["def steps(x, rate_cmd, inputs, k0, bounds, disker):",
              "    x0, y0, psi0, v0, r0, d0, om0, phi0 = x",
-             f"    for i in range(k0 * {len(MULTISTEP_TERMS)}, k1 * {len(MULTISTEP_TERMS)}, {len(MULTISTEP_TERMS)}):",
-             f"        {', '.join(MULTISTEP_TERMS)} = inputs[i:i + {len(MULTISTEP_TERMS)}]"]
-    lines += ["    " + line if line.strip() else "" for line in stages.split("\n")]
-    lines += ["        dl = d0 + h6 *" + tail.split("\n", 1)[0],
-              "        if neg_dmax > dl:", "            dl = neg_dmax", "        if dmax < dl:", "            dl = dmax",
-              "        x0, y0, psi0, v0, r0, d0, om0, phi0 = " + " ".join(result.split()),
-              "    return [x0, y0, psi0, v0, r0, d0, om0, phi0]"]
+             "    out = []",
+             "    for k1 in bounds:",
+             f"        for i in range(k0 * {n}, k1 * {n}, {n}):",
+             f"            {', '.join(MULTISTEP_TERMS)} = inputs[i:i + {n}]"]
+    lines += [pad + line if line.strip() else "" for line in stages.split("\n")]
+    lines += ["            dl = d0 + h6 *" + tail.split("\n", 1)[0],
+              "            if neg_dmax > dl:", "                dl = neg_dmax", "            if dmax < dl:",
+              "                dl = dmax",
+              "            x0, y0, psi0, v0, r0, d0, om0, phi0 = " + " ".join(result.split()),
+              "        out.append([x0, y0, psi0, v0, r0, d0, om0, phi0])",
+              "        k0 = k1",
+              "    return out"]
     return "\n".join(lines) + "\n"
 
 
@@ -374,9 +382,10 @@ def scalar_multistepper(p: SimParams):
     Returns
     -------
     callable
-        ``steps(x, rate_cmd, inputs, k0, k1, disker) -> list``: the state after the steps
-        ``k0 .. k1 - 1``, step ``k`` taking its terms from ``inputs`` (:func:`multistep_inputs`);
-        bit-for-bit ``k1 - k0`` calls of the step.
+        ``steps(x, rate_cmd, inputs, k0, bounds, disker) -> list``: from the state ``x`` at step
+        ``k0``, the steps up to the last of ``bounds`` (increasing step indices > ``k0``), step ``k``
+        taking its terms from ``inputs`` (:func:`multistep_inputs`); returns the state (a list of
+        8 floats) at each of ``bounds``, bit-for-bit what the calls of the single step give.
     """
     env = _stepper_env(p)
     exec(_compiled("multistep"), env)

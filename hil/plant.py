@@ -77,6 +77,13 @@ class SimulatedTractor:
         return self._sim
 
     @property
+    def sim_so_far(self) -> TractorSimulator:
+        """The simulator as integrated so far, without catching up with the clock: what it has
+        recorded (the GPS epochs) is final, its state may lag :attr:`sim` by the pending steps.
+        For readers of recorded epochs, so that reading one does not split the integration."""
+        return self._sim
+
+    @property
     def params(self) -> SimParams:
         return self._sim.params
 

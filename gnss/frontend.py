@@ -260,10 +260,12 @@ class GnssFrontEnd:
         kind = type(m)
         if kind is Avr:            # the most frequent messages first (10 Hz attitude, then 5 Hz GGA/VTG)
             if m.quality != 0:
-                self._set_attitude(m.yaw, m.tilt, m.roll, self._valid_time(m.time, self._tod, ta), ta)
+                tag, latency = m.time, self.config.receiver_latency     # self._valid_time(m.time, self._tod, ta)
+                tv = ta - latency if tag is None or not math.isfinite(ta) else self._tod.host_time(tag, ta, latency)
+                self._set_attitude(m.yaw, m.tilt, m.roll, tv, ta)
             return
-        if kind is Vtg:
-            self._set_velocity(m.speed, m.course, self._valid_time(None, self._tod, ta))
+        if kind is Vtg:            # self._valid_time(None, self._tod, ta)
+            self._set_velocity(m.speed, m.course, ta - self.config.receiver_latency)
             return
         if isinstance(m, Gga):
             tv = self._valid_time(m.time, self._tod, ta)
@@ -307,10 +309,13 @@ class GnssFrontEnd:
     def poll(self) -> int:
         """Read every source once and ingest what arrived; returns the number of messages."""
         count = 0
+        ingest = self.ingest
         for reader in self.readers:
-            for rec in reader.poll():
-                self.ingest(rec)
-                count += 1
+            got = reader.poll()
+            if got:
+                for rec in got:
+                    ingest(rec)
+                count += len(got)
         return count
 
     # --------------------------------------------------------------- publish

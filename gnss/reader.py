@@ -137,16 +137,19 @@ class StreamDecoder:
         buf, stats, check = self._buf, self.stats, self.check
         n, i = len(buf), 0
         while i < n:    # (at i == n the search below finds nothing and keeps nothing)
-            m = _SYNC.search(buf, i)
-            if m is None:
-                keep = 1 if (not final and n > i and buf[-1] == 0xB5) else 0
-                stats.garbage_bytes += n - i - keep
-                i = n - keep
-                break
-            j = m.start()
-            stats.garbage_bytes += j - i
-            i = j
-            lead = buf[j]
+            if buf[i] == 0x24:      # a frame starts right here (the search would find it at i)
+                j, lead = i, 0x24
+            else:
+                m = _SYNC.search(buf, i)
+                if m is None:
+                    keep = 1 if (not final and n > i and buf[-1] == 0xB5) else 0
+                    stats.garbage_bytes += n - i - keep
+                    i = n - keep
+                    break
+                j = m.start()
+                stats.garbage_bytes += j - i
+                i = j
+                lead = buf[j]
             if lead == 0x24:  # '$' NMEA
                 line = _NMEA_LINE.match(buf, j)
                 if line is not None and line.end() - j <= NMEA_MAX_LENGTH:
@@ -275,7 +278,7 @@ class GnssReader:
         data = self.stream.read(self.chunk_size)
         if not data:
             return []
-        return self.decoder.feed(bytes(data), self.clock())
+        return self.decoder.feed(data if data.__class__ is bytes else bytes(data), self.clock())
 
     def __iter__(self) -> Iterator[Received]:
         while True:

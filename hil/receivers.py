@@ -167,21 +167,21 @@ class PositionReceiver(_Receiver):
     def _encode(self, k: int, t_valid: float) -> bytes:
         sim, geo = self.tractor.sim, self.geometry
         pos = sim.pos
-        x, y = float(pos["x"][0, k]), float(pos["y"][0, k])
+        x, y = pos["x"].item(0, k), pos["y"].item(0, k)     # float(a[0, k]) without the numpy scalar
         s, c = self._line_sin_cos                  # geo.line_to_enu(x, y), with sin and cos taken once
         east, north = x * s - y * c, x * c + y * s
         up = self.tractor.params.vehicle.antenna_height
         lat, lon, h = self._frame.to_geodetic(east, north, up)
-        quality = int(pos["fix"][0, k])
+        quality = int(pos["fix"].item(0, k))
         if self.downgraded and any(a <= t_valid < b for a, b in self.downgraded):
             quality = 5
         tod = (geo.utc_start + t_valid) % 86400.0
         ia = min(int(round(t_valid * sim.params.gps.attitude_rate)), sim.n_att - 1)
-        course = geo.yaw(float(sim.att["yaw"][0, ia]))
+        course = geo.yaw(sim.att["yaw"].item(0, ia))
         # encode_gga(Gga("GP", tod, lat, lon, quality, 14, 0.8, h, 0.0, diff_age, 1))
-        # + encode_vtg(Vtg("GP", course, None, speed, "D"))
-        return self._encoder.encode(tod, float(lat), float(lon), quality, float(h),
-                                    1.0 if quality in (4, 5) else None, course, float(pos["speed"][0, k]))
+        # + encode_vtg(Vtg("GP", course, None, speed, "D")); ScalarFrame gives Python floats
+        return self._encoder.encode(tod, lat, lon, quality, h, 1.0 if quality in (4, 5) else None, course,
+                                    pos["speed"].item(0, k))
 
 
 class AttitudeReceiver(_Receiver):
@@ -201,5 +201,5 @@ class AttitudeReceiver(_Receiver):
         att, geo = self.tractor.sim.att, self.geometry
         tod = (geo.utc_start + t_valid) % 86400.0
         # encode_avr(Avr(tod, yaw, pitch, roll, 1.5, 3, 1.6, 12))
-        return self._encoder.encode(tod, geo.yaw(float(att["yaw"][0, k])), float(att["pitch"][0, k]),
-                                    float(att["roll"][0, k]))
+        return self._encoder.encode(tod, geo.yaw(att["yaw"].item(0, k)), att["pitch"].item(0, k),
+                                    att["roll"].item(0, k))

@@ -237,33 +237,34 @@ class BridgeDriver:
             return
         now = self._clock.now()
         counts = self._n
-        for event in self._decoder.feed(data):
-            frame = event.frame
-            if frame is None:
-                continue  # counted by the decoder
+        for _end, seq, msg in self._decoder.feed_tuples(data):
+            if seq is None:
+                continue  # a refused frame: counted by the decoder
             counts["frames_received"] += 1
-            seq = frame.seq
             if self._last_bridge_seq is not None:
                 counts["report_gaps"] += (seq - self._last_bridge_seq - 1) % 256
             self._last_bridge_seq = seq
-            msg = frame.message
-            if type(msg) is WheelAngleReport:
+            if msg.__class__ is WheelAngleReport:
                 counts["reports_received"] += 1
                 report = _new(BridgeReport)   # BridgeReport(received_at=now, seq=seq, report=msg)
-                report.__dict__.update(received_at=now, seq=seq, report=msg)
+                d = report.__dict__
+                d["received_at"] = now
+                d["seq"] = seq
+                d["report"] = msg
                 self._latest = report
-                self._reports.append(report)
-                if len(self._reports) > self.config.max_pending_reports:
-                    self._reports.popleft()
+                reports = self._reports
+                reports.append(report)
+                if len(reports) > self.config.max_pending_reports:
+                    reports.popleft()
                     counts["reports_overflowed"] += 1
             elif isinstance(msg, Pong) and msg.token in self._ping_sent:
-                self._n["pongs_received"] += 1
+                counts["pongs_received"] += 1
                 rtt = now - self._ping_sent.pop(msg.token)
                 self._rtts.append(rtt)
                 if msg.token == self._awaited:
                     self._awaited_rtt = rtt
             else:
-                self._n["unexpected_frames"] += 1
+                counts["unexpected_frames"] += 1
 
     def poll(self) -> list[BridgeReport]:
         """Read what is waiting (never blocks); return the reports not yet returned, oldest first."""

@@ -46,12 +46,13 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 from hil.bridge.config import FirmwareConfig
-from hil.bridge.errors import PlantInterfaceError
-from hil.bridge.framing import DecodeEvent, StreamDecoder
+from hil.bridge.errors import FrameError, PlantInterfaceError
+from hil.bridge.framing import StreamDecoder
 from hil.bridge.protocol import (
     MESSAGE_TABLE,
     Disengage,
     Engage,
+    Message,
     Ping,
     Pong,
     StatusFlags,
@@ -159,7 +160,9 @@ class BridgeFirmware:
         self._rx = UartRx(self.config.line)
         self._tx = UartTx(self.config.line, link)
         self._decoder = StreamDecoder(self.config.max_payload)
-        self._inbox: deque[tuple[float, DecodeEvent]] = deque()
+        # decoded frames waiting for the arrival of their last byte: (time, seq, message), or
+        # (time, None, error) for a refused frame (StreamDecoder.feed_tuples's events, timed)
+        self._inbox: deque[tuple[float, int | None, Message | FrameError]] = deque()
         self._boot: float | None = None
         self._last_step = -math.inf
         self._next_report = math.inf
@@ -181,6 +184,7 @@ class BridgeFirmware:
         self._steady_until = getattr(plant, "override_steady_until", None)
         self._watchdog_timeout = self.config.watchdog_timeout
         self._override_fixed = False   # the plant said its override switch never changes again
+        self._due = math.inf           # _deadline() as of the last step
 
     # -- device interface ------------------------------------------------------------------
     def next_wakeup(self) -> float:
@@ -194,6 +198,12 @@ class BridgeFirmware:
             waiting = 0
         if waiting > 0:
             return self._last_step
+        return self._due
+
+    def _deadline(self) -> float:
+        """Earliest time a timer of the firmware expires, s: the next report or input poll, a held
+        byte due, a received frame's last byte, the watchdog. Depends only on state that a step
+        changes; kept by each step for :meth:`next_wakeup` (asked several times between steps)."""
         t = self._next_report
         if self._next_poll < t:
             t = self._next_poll
@@ -218,24 +228,30 @@ class BridgeFirmware:
             self._plant.set_valve_duty(0.0)
             self._duty = 0.0
         self._last_step = now
-        if self._override_fixed:       # the switch can no longer change: polls and samples would read the same
-            self._next_poll = math.inf
-            self._ingest(now)
-        else:
-            self._next_poll = self._poll_after(now)
-            self._ingest(now)
+        fixed = self._override_fixed   # the switch can no longer change: polls and samples would read the same
+        self._next_poll = math.inf if fixed else self._poll_after(now)
+        # receive: the link is asked here, _ingest runs only when bytes wait (most steps are timer steps)
+        inbox = self._inbox
+        try:
+            n = self._link.in_waiting
+        except OSError:  # cable gone: the bridge hears nothing
+            self._link_errors += 1
+            n = 0
+        if n > 0:
+            self._ingest(now, n)
+        if not fixed:
             self._sample_override()
         # Bounded: the inbox only holds events already decoded.
-        inbox = self._inbox
         timeout = self._watchdog_timeout
-        for _ in range(len(inbox)):
-            if inbox[0][0] > now:
-                break
-            t, event = inbox.popleft()
-            if self._engaged and t >= self._last_cmd_time + timeout:   # _check_watchdog(t)
-                self._tripped = True
-                self._cut()
-            self._apply(t, event, now)
+        if inbox:
+            for _ in range(len(inbox)):
+                if inbox[0][0] > now:
+                    break
+                t, seq, item = inbox.popleft()
+                if self._engaged and t >= self._last_cmd_time + timeout:   # _check_watchdog(t)
+                    self._tripped = True
+                    self._cut()
+                self._apply(t, seq, item, now)
         if self._engaged and now >= self._last_cmd_time + timeout:     # _check_watchdog(now)
             self._tripped = True
             self._cut()
@@ -249,6 +265,7 @@ class BridgeFirmware:
                 self._tx.flush(now)
             except OSError:
                 self._link_errors += 1
+        self._due = self._deadline()
 
     def _poll_after(self, now: float) -> float:
         """When to poll the inputs next: ``input_poll_period`` after ``now``; on a plant that
@@ -276,17 +293,8 @@ class BridgeFirmware:
         )
 
     # -- internals -------------------------------------------------------------------------
-    def _link_in_waiting(self) -> int:
-        try:
-            return self._link.in_waiting
-        except OSError:  # cable gone: the bridge hears nothing
-            self._link_errors += 1
-            return 0
-
-    def _ingest(self, now: float) -> None:
-        n = self._link_in_waiting()
-        if n <= 0:
-            return
+    def _ingest(self, now: float, n: int) -> None:
+        """Read the ``n`` bytes waiting, decode them and queue what they complete, timed."""
         try:
             data = self._link.read(min(n, _READ_MAX))
         except OSError:
@@ -300,8 +308,8 @@ class BridgeFirmware:
         # A decode event is produced by the byte that completes (or dooms) a frame, so every
         # event from this chunk ends inside it: its time is that byte's arrival time.
         inbox = self._inbox
-        for event in decoder.feed(data):
-            inbox.append((first + (event.end - start) * spacing, event))
+        for end, seq, item in decoder.feed_tuples(data):
+            inbox.append((first + (end - start) * spacing, seq, item))
 
     def _set_duty(self, duty: float, force: bool = False) -> None:
         if force or duty != self._duty:
@@ -323,17 +331,15 @@ class BridgeFirmware:
             self._tripped = True
             self._cut()
 
-    def _apply(self, t: float, event: DecodeEvent, now: float) -> None:
-        frame = event.frame
-        if frame is None:
+    def _apply(self, t: float, seq: int | None, message: Message | FrameError, now: float) -> None:
+        """Act on one inbox entry (``seq`` None: a refused frame, ``message`` its error)."""
+        if seq is None:
             self._bad += 1
             return
-        message = frame.message
-        kind = type(message)
+        kind = message.__class__
         if kind not in _FROM_HOST:
             self._bad += 1
             return
-        seq = frame.seq
         if self._host_seq is not None:
             self._dropped += (seq - self._host_seq - 1) % 256 if seq != self._host_seq else 0
         self._host_seq = seq

@@ -27,6 +27,7 @@ from hil.bridge.protocol import (
     MAX_PAYLOAD,
     SYNC,
     Frame,
+    Message,
 )
 
 __all__ = ["DecodeEvent", "DecoderCounters", "StreamDecoder"]
@@ -131,10 +132,10 @@ class StreamDecoder:
         self._base += n
         self._hunting = False
 
-    def _refuse(self, err: FrameError, key: str, events: list[DecodeEvent], end: int) -> None:
+    def _refuse(self, err: FrameError, key: str, events: list, end: int) -> None:
         self._n[key] += 1
         err.offset = end
-        events.append(DecodeEvent(end=end, error=err))
+        events.append((end, None, err))
 
     @property
     def bytes_fed(self) -> int:
@@ -153,9 +154,58 @@ class StreamDecoder:
         -------
         list of DecodeEvent
         """
+        events = []
+        for end, seq, item in self.feed_tuples(data):
+            event = _new(DecodeEvent)
+            if seq is None:   # DecodeEvent(end, error=item)
+                event.__dict__.update(end=end, frame=None, error=item)
+            else:             # DecodeEvent(end, Frame(seq, item))
+                frame = _new(Frame)
+                frame.__dict__.update(seq=seq, message=item)
+                event.__dict__.update(end=end, frame=frame, error=None)
+            events.append(event)
+        return events
+
+    def feed_tuples(self, data: bytes) -> list[tuple[int, int | None, Message | FrameError]]:
+        """:meth:`feed` with plain tuples for events: what the firmware and the driver read frames with.
+
+        Every check and counter is that of :meth:`feed`; only the events are not wrapped
+        in :class:`DecodeEvent` and :class:`~hil.bridge.protocol.Frame` objects.
+
+        Parameters
+        ----------
+        data : bytes
+            Any bytes, possibly empty, possibly garbage.
+
+        Returns
+        -------
+        list of tuple
+            In stream order, ``(end, seq, message)`` for an accepted frame (``seq`` 0..255)
+            and ``(end, None, error)`` for a refused one (``error`` a :class:`FrameError`);
+            ``end`` as in :class:`DecodeEvent`.
+        """
         buf = self._buf
+        if not buf and data.__class__ is bytes and data[:2] == SYNC:
+            # The usual read on a paced link: one whole frame and nothing else, nothing pending.
+            # Checked as the loop below checks it (header, length, CRC, fields); anything else,
+            # including a frame refused for its content, takes the loop.
+            size = len(data)
+            entry = _FRAME_DECODERS.get(data[2]) if size > HEADER_LEN else None
+            if entry is not None and size == entry[1] + _OVERHEAD and data[4] == entry[1] \
+                    and entry[1] <= self._max_payload \
+                    and data[-2] << 8 | data[-1] == crc_hqx(data[2:-2], CRC_INIT):
+                try:
+                    message = entry[2](data, HEADER_LEN)
+                except FieldError:
+                    pass
+                else:
+                    self._n["frames"] += 1
+                    end = self._base + size - 1
+                    self._base = end + 1
+                    self._hunting = False
+                    return [(end, data[3], message)]
         buf += data
-        events: list[DecodeEvent] = []
+        events: list[tuple[int, int | None, Message | FrameError]] = []
         decoders = _FRAME_DECODERS
         # Every pass either consumes >= 1 byte or returns: bounded by len(buf).
         for _ in range(len(buf) + 1):
@@ -202,11 +252,7 @@ class StreamDecoder:
                 self._n["bytes_discarded"] += total
             else:
                 self._n["frames"] += 1
-                frame = _new(Frame)
-                frame.__dict__.update(seq=buf[3], message=message)       # Frame(seq, message)
-                event = _new(DecodeEvent)
-                event.__dict__.update(end=end, frame=frame, error=None)  # DecodeEvent(end, frame)
-                events.append(event)
+                events.append((end, buf[3], message))
             del buf[:total]
             self._base += total
             self._hunting = False
@@ -214,3 +260,4 @@ class StreamDecoder:
 
 
 _new = object.__new__
+_OVERHEAD = HEADER_LEN + CRC_LEN   # bytes of a frame besides its payload

@@ -495,10 +495,12 @@ def _compile(layout: Layout) -> _Codec:
             values.append(f"r{i}")
     if hasattr(layout.cls, "__post_init__"):
         out.append(f"    return _cls({', '.join(values)})")
-    else:   # the dataclass's __init__ would only store the fields: store them directly
-        out += ["    m = _new(_cls)",
-                "    m.__dict__.update(" + ", ".join(f"{f.name}={val}" for f, val in zip(layout.fields, values)) + ")",
-                "    return m"]
+    else:   # the dataclass's __init__ would only store the fields: store them directly, in field order
+        out.append("    m = _new(_cls)")
+        if layout.fields:
+            out.append("    d = m.__dict__")
+            out += [f"    d[{f.name!r}] = {val}" for f, val in zip(layout.fields, values)]
+        out.append("    return m")
     exec(compile("\n".join(out) + "\n", f"<bridge codec 0x{layout.msg_id:02x}>", "exec"), env)
     return _Codec(env["pack"], env["encode"], env["decode"], env["decode_from"])
 

@@ -92,6 +92,18 @@ class UartRx:
         self.line = line
         self.busy_until = -math.inf
 
+    @property
+    def line(self) -> LineConfig:
+        """Line format."""
+        return self._line
+
+    @line.setter
+    def line(self, line: LineConfig) -> None:
+        # The byte time is kept with the (frozen) line: a burst needs it, and bits_per_byte / baud
+        # need not be worked out again for every one.
+        self._line = line
+        self._byte_time = line.byte_time
+
     def arrive(self, n_bytes: int, stamp: float) -> tuple[float, float]:
         """Account for ``n_bytes`` that entered the line at ``stamp``, s.
 
@@ -102,8 +114,9 @@ class UartRx:
         spacing : float
             Seconds between consecutive arrivals (the byte time).
         """
-        bt = self.line.byte_time
-        first = max(stamp, self.busy_until) + bt
+        bt = self._byte_time
+        busy = self.busy_until
+        first = (busy if busy > stamp else stamp) + bt   # max(stamp, busy) + bt
         self.busy_until = first + (n_bytes - 1) * bt
         return first, bt
 
@@ -131,16 +144,29 @@ class UartTx:
         #: timed link it never does: :meth:`next_due` is always ``inf`` and :meth:`flush` writes nothing.
         self.holds = self._paced is None
 
+    @property
+    def line(self) -> LineConfig:
+        """Line format."""
+        return self._line
+
+    @line.setter
+    def line(self, line: LineConfig) -> None:
+        # The byte time is kept with the (frozen) line: a burst needs it, and bits_per_byte / baud
+        # need not be worked out again for every one.
+        self._line = line
+        self._byte_time = line.byte_time
+
     def send(self, data: bytes, now: float) -> float:
         """Start sending ``data`` at ``now`` (or when the line frees up); return the last byte's arrival, s."""
-        bt = self.line.byte_time
-        first = max(now, self.busy_until) + bt
-        self.busy_until = first + (len(data) - 1) * bt
+        bt = self._byte_time
+        busy = self.busy_until
+        first = (busy if busy > now else now) + bt   # max(now, busy) + bt
+        self.busy_until = busy = first + (len(data) - 1) * bt
         if self._paced is not None:
             self._paced(data, first, bt)
         else:
             self._pending.append((first, bt, bytes(data)))
-        return self.busy_until
+        return busy
 
     def next_due(self) -> float:
         """Time the next held byte is due, s (inf when nothing is held)."""

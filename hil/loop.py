@@ -234,10 +234,10 @@ class VehicleLoop:
         compute = time.perf_counter() - wall0
         late = now - t_due
         done = self.clock.now()
-        self._rows.append((now, xte, he, delta, speed, u, float(self.engaged), float(healthy), float(gps_valid),
-                           float(bridge_valid), _INTEGRITY_BY_ID.get(id(integrity.state), 9.0),
-                           float(int(nav.fix)), compute, late, float(done - t_due > 1.0 / cfg.rate),
-                           float(rep.adc_counts) if rep else -1.0))   # _COLUMNS order
+        # _COLUMNS order; bools and ints become floats in run_log's one array conversion
+        self._rows.append((now, xte, he, delta, speed, u, self.engaged, healthy, gps_valid, bridge_valid,
+                           _INTEGRITY_BY_ID.get(id(integrity.state), 9.0), int(nav.fix), compute, late,
+                           done - t_due > 1.0 / cfg.rate, rep.adc_counts if rep else -1.0))
         self._estimates.append(tuple(self.controller.estimate()))
         if self.truth is not None:
             self._truths.append(self.truth())

@@ -162,10 +162,12 @@ class PositionReceiver(_Receiver):
         self._encoder = PositionEpochEncoder("GP", num_sv=14, hdop=0.8, geoid_sep=0.0, station_id=1, mode="D")
 
     def _recorded(self) -> int:
-        return self.tractor.sim.n_pos
+        # an epoch the simulator has recorded is final: catch the integration up only to look for a newer one
+        n = self.tractor.sim_so_far.n_pos
+        return n if n > self.k else self.tractor.sim.n_pos
 
     def _encode(self, k: int, t_valid: float) -> bytes:
-        sim, geo = self.tractor.sim, self.geometry
+        sim, geo = self.tractor.sim_so_far, self.geometry     # epoch k is recorded (step checked it)
         pos = sim.pos
         x, y = pos["x"].item(0, k), pos["y"].item(0, k)     # float(a[0, k]) without the numpy scalar
         s, c = self._line_sin_cos                  # geo.line_to_enu(x, y), with sin and cos taken once
@@ -176,7 +178,9 @@ class PositionReceiver(_Receiver):
         if self.downgraded and any(a <= t_valid < b for a, b in self.downgraded):
             quality = 5
         tod = (geo.utc_start + t_valid) % 86400.0
-        ia = min(int(round(t_valid * sim.params.gps.attitude_rate)), sim.n_att - 1)
+        ia = int(round(t_valid * sim.params.gps.attitude_rate))
+        n_att = sim.n_att if ia < sim.n_att else self.tractor.sim.n_att   # catch up only if it is not recorded
+        ia = min(ia, n_att - 1)
         course = geo.yaw(sim.att["yaw"].item(0, ia))
         # encode_gga(Gga("GP", tod, lat, lon, quality, 14, 0.8, h, 0.0, diff_age, 1))
         # + encode_vtg(Vtg("GP", course, None, speed, "D")); ScalarFrame gives Python floats
@@ -195,10 +199,11 @@ class AttitudeReceiver(_Receiver):
         self._encoder = AttitudeEpochEncoder(range=1.5, quality=3, pdop=1.6, num_sv=12)
 
     def _recorded(self) -> int:
-        return self.tractor.sim.n_att
+        n = self.tractor.sim_so_far.n_att     # as PositionReceiver._recorded
+        return n if n > self.k else self.tractor.sim.n_att
 
     def _encode(self, k: int, t_valid: float) -> bytes:
-        att, geo = self.tractor.sim.att, self.geometry
+        att, geo = self.tractor.sim_so_far.att, self.geometry   # epoch k is recorded (step checked it)
         tod = (geo.utc_start + t_valid) % 86400.0
         # encode_avr(Avr(tod, yaw, pitch, roll, 1.5, 3, 1.6, 12))
         return self._encoder.encode(tod, geo.yaw(att["yaw"].item(0, k)), att["pitch"].item(0, k),

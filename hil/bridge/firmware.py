@@ -183,6 +183,7 @@ class BridgeFirmware:
         self._link_errors = 0
         self._steady_until = getattr(plant, "override_steady_until", None)
         self._watchdog_timeout = self.config.watchdog_timeout
+        self._max_rate = self.config.max_rate
         self._override_fixed = False   # the plant said its override switch never changes again
         self._due = math.inf           # _deadline() as of the last step
 
@@ -348,7 +349,12 @@ class BridgeFirmware:
             if self._engaged:
                 self._commands += 1
                 self._last_cmd_time = t
-                self._set_duty(min(1.0, max(-1.0, message.rate / self.config.max_rate)))
+                duty = message.rate / self._max_rate
+                duty = duty if duty > -1.0 else -1.0   # max(-1.0, duty)
+                duty = duty if duty < 1.0 else 1.0     # min(1.0, duty)
+                if duty != self._duty:                 # _set_duty(duty)
+                    self._plant.set_valve_duty(duty)
+                    self._duty = duty
         elif kind is Engage:
             if self._override:
                 self._refused += 1
@@ -379,11 +385,18 @@ class BridgeFirmware:
                                           f"got {counts!r}")
         self._reports += 1
         # encode_frame(WheelAngleReport(...), seq) from the field values, in the layout's order
-        self._transmit(_PACK_REPORT(
-            self._seq, counts,
+        cmd_seq = self._cmd_seq
+        seq = self._seq
+        frame = _PACK_REPORT(
+            seq, counts,
             _FLAG_VALUES[self._engaged | self._tripped << 1 | self._override << 2],   # = self.state.flags
-            max(self._cmd_seq, 0), self._duty, self._bad & 0xFFFF, self._dropped & 0xFFFF,
-            round((now - (self._boot or 0.0)) * 1000.0) & 0xFFFF), now)
+            cmd_seq if cmd_seq > 0 else 0, self._duty, self._bad & 0xFFFF, self._dropped & 0xFFFF,
+            round((now - (self._boot or 0.0)) * 1000.0) & 0xFFFF)
+        try:                                          # _transmit(frame, now)
+            self._tx.send(frame, now)
+        except OSError:  # nobody listening: the UART sends into the void, the bridge carries on
+            self._link_errors += 1
+        self._seq = (seq + 1) & 0xFF
 
 
 _FROM_HOST = frozenset(layout.cls for layout in MESSAGE_TABLE.values() if layout.direction == "host->bridge")

@@ -101,6 +101,10 @@ class StreamDecoder:
         if isinstance(max_payload, bool) or not isinstance(max_payload, int) or not 0 <= max_payload <= 255:
             raise ConfigError(f"max_payload must be an int in 0..255 bytes, got {max_payload!r}")
         self._max_payload = max_payload
+        # message id -> (frame length, payload length, decode_from) of the ids whose payload this
+        # decoder accepts: what the whole-frame path of feed_tuples checks a frame against
+        self._whole = {i: (size + _OVERHEAD, size, decode_from)
+                       for i, (_layout, size, decode_from) in _FRAME_DECODERS.items() if size <= max_payload}
         self._buf = bytearray()
         self._base = 0  # stream index of _buf[0]
         self._hunting = False  # inside a run of skipped bytes
@@ -190,9 +194,8 @@ class StreamDecoder:
             # Checked as the loop below checks it (header, length, CRC, fields); anything else,
             # including a frame refused for its content, takes the loop.
             size = len(data)
-            entry = _FRAME_DECODERS.get(data[2]) if size > HEADER_LEN else None
-            if entry is not None and size == entry[1] + _OVERHEAD and data[4] == entry[1] \
-                    and entry[1] <= self._max_payload \
+            entry = self._whole.get(data[2]) if size > HEADER_LEN else None
+            if entry is not None and size == entry[0] and data[4] == entry[1] \
                     and data[-2] << 8 | data[-1] == crc_hqx(data[2:-2], CRC_INIT):
                 try:
                     message = entry[2](data, HEADER_LEN)

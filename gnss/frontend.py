@@ -38,6 +38,7 @@ __all__ = ["FrontEndConfig", "NavSolution", "TagClock", "GnssFrontEnd", "replay_
 _DAY = 86400.0
 _WEEK = 604800.0
 _HALF_PI = np.pi / 2
+_TWO_PI = 2 * math.pi
 _MIN_RATE_DT = 0.05  # s, shortest interval over which the yaw rate is differentiated
 # u-blox lastCorrectionAge buckets -> upper bound, s (0 = not available)
 _UBX_CORR_AGE = {1: 1.0, 2: 2.0, 3: 5.0, 4: 10.0, 5: 15.0, 6: 20.0, 7: 30.0, 8: 45.0, 9: 60.0, 10: 90.0, 11: 120.0, 12: math.inf}
@@ -170,8 +171,9 @@ class TagClock:
             self.offset = d
         else:
             d -= round((d - self.offset) / self.period) * self.period  # unwrap midnight / week
-            crept = self.offset + self.drift * max(arrival - self._last_arrival, 0.0)
-            self.offset = min(d, crept)
+            gap = arrival - self._last_arrival
+            crept = self.offset + self.drift * (0.0 if 0.0 > gap else gap)    # max(gap, 0.0)
+            self.offset = crept if crept < d else d                             # min(d, crept)
         self._last_arrival = arrival
         # arrival minus this message's delay beyond the least-delayed one, minus the known latency
         return arrival - (d - self.offset) - latency
@@ -205,6 +207,7 @@ class GnssFrontEnd:
         # the configuration read every tick (it is frozen)
         self._tick_config = (config.integrity, config.integrity.lost_after, config.max_extrapolation,
                              config.require_attitude)
+        self._heading_offset = config.heading_offset
         self._pos: tuple[float, float, float] | None = None
         self._pos_tv = self._pos_ta = -math.inf
         self._fix = FixQuality.NONE
@@ -239,13 +242,13 @@ class GnssFrontEnd:
     def _set_attitude(self, yaw: float | None, pitch: float | None, roll: float | None, tv: float, ta: float) -> None:
         if yaw is None:
             return
-        yaw = (yaw + self.config.heading_offset) % (2 * math.pi)
+        yaw = (yaw + self._heading_offset) % _TWO_PI
         dt = tv - self._rate_tv
         if not math.isfinite(self._rate_yaw) or dt >= 1.0:
             self._yaw_rate, self._rate_yaw, self._rate_tv = 0.0, yaw, tv
         elif dt >= _MIN_RATE_DT:
             # differentiate over >= 50 ms only: HDT and THS of one epoch arrive ~1 ms apart
-            self._yaw_rate = ((yaw - self._rate_yaw + math.pi) % (2 * math.pi) - math.pi) / dt
+            self._yaw_rate = ((yaw - self._rate_yaw + math.pi) % _TWO_PI - math.pi) / dt
             self._rate_yaw, self._rate_tv = yaw, tv
         self._yaw = yaw
         if pitch is not None:
@@ -332,11 +335,13 @@ class GnssFrontEnd:
         if not require_attitude:
             att_age = 0.0
             if not isfinite(yaw) and float(np.hypot(ve, vn)) > 0.3:
-                yaw = math.atan2(ve, vn) % (2 * math.pi)
+                yaw = math.atan2(ve, vn) % _TWO_PI
         integrity = assess(integrity_config, pos_age, self._fix, att_age, self._corr_age, self._hdop, self._h_acc)
         if att_tv > -math.inf and isfinite(yaw):
-            dt_att = min(max(t - att_tv, 0.0), max_extrapolation)
-            yaw = (yaw + rate * dt_att) % (2 * math.pi)
+            dt_att = t - att_tv                   # min(max(t - att_tv, 0.0), max_extrapolation), written out
+            dt_att = 0.0 if 0.0 > dt_att else dt_att
+            dt_att = max_extrapolation if max_extrapolation < dt_att else dt_att
+            yaw = (yaw + rate * dt_att) % _TWO_PI
         att_known = isfinite(yaw)
         if not isfinite(pitch):
             pitch = 0.0
@@ -347,7 +352,9 @@ class GnssFrontEnd:
             east = north = up = t_validity = math.nan
         else:
             t_validity = self._pos_tv
-            dt = min(max(t - t_validity, 0.0), max_extrapolation)
+            dt = t - t_validity                   # min(max(t - t_validity, 0.0), max_extrapolation)
+            dt = 0.0 if 0.0 > dt else dt
+            dt = max_extrapolation if max_extrapolation < dt else dt
             arm = _rotate_arm(yaw if att_known else 0.0, pitch, roll, self._arm if att_known else self._zero_arm,
                               self._rotation)
             east, north, up = (p[0] + ve * dt - arm[0], p[1] + vn * dt - arm[1], p[2] + vel[2] * dt - arm[2])

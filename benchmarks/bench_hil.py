@@ -14,16 +14,22 @@
 
 from __future__ import annotations
 
-import argparse
-import math
 import os
-import time
 
-from design.controller import KinematicLQRController
-from hil.bridge.measure import measure_lockstep_speed, measure_pty_latency
-from hil.conditions import condition_for
-from hil.plant import SimulatedTractor
-from hil.run import RunSpec, simulated_run, summarize
+# "On one core": BLAS worker threads would otherwise spin on the second core after the set-up's
+# linear algebra, and their CPU time would count in this process's. Set before numpy is imported.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402 - after the thread settings
+import math  # noqa: E402
+import time  # noqa: E402
+
+from design.controller import KinematicLQRController  # noqa: E402
+from hil.bridge.measure import measure_lockstep_speed, measure_pty_latency  # noqa: E402
+from hil.conditions import condition_for  # noqa: E402
+from hil.plant import SimulatedTractor  # noqa: E402
+from hil.run import RunSpec, simulated_run, summarize  # noqa: E402
 
 
 def _best(fn, reps: int) -> tuple[float, float]:
@@ -52,6 +58,7 @@ def main() -> None:
         plant = SimulatedTractor(cond, dur + 1, 1)
         for _ in range(int(round(dur / plant.params.dt))):
             plant.advance(plant.params.dt)
+            plant.sim   # noqa: B018 - reading the plant integrates the step (it integrates when read)
 
     ctrl = KinematicLQRController()
     logs = []

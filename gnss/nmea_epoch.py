@@ -76,8 +76,8 @@ class PositionEpochEncoder:
                         speed_decimals=speed_decimals)
         if time_decimals < 1 or latlon_decimals < 1:
             raise ConfigError(f"time_decimals and latlon_decimals: expected >= 1, got {time_decimals}, {latlon_decimals}")
-        self.talker, self.num_sv, self.hdop, self.geoid_sep = talker, num_sv, hdop, geoid_sep
-        self.station_id, self.mode = station_id, mode
+        self._talker, self._num_sv, self._hdop, self._geoid_sep = talker, num_sv, hdop, geoid_sep
+        self._station_id, self._mode = station_id, mode
         self._decimals = (time_decimals, latlon_decimals, alt_decimals, speed_decimals)
         # The reference encoders of one epoch's constant fields: their output is cut into the fixed text.
         # Encoding a probe epoch checks the constants (types, finiteness, printable) as the encoders would.
@@ -102,6 +102,14 @@ class PositionEpochEncoder:
         self._vtg_head = f"{talker}VTG,".encode("ascii")
         self._speed_fmt = b",T,,M,%%.%df,N,%%.%df,K" % (speed_decimals, speed_decimals)
         self._vtg_tail = f",{mode}".encode("ascii") if mode else b""
+
+    # the constant fields, read-only (their text is formatted once)
+    talker = property(lambda self: self._talker, doc="Talker id, e.g. ``GP``.")
+    num_sv = property(lambda self: self._num_sv, doc="Satellites used (GGA).")
+    hdop = property(lambda self: self._hdop, doc="Horizontal dilution of precision (GGA).")
+    geoid_sep = property(lambda self: self._geoid_sep, doc="Geoid separation, m (GGA).")
+    station_id = property(lambda self: self._station_id, doc="Differential reference station (GGA).")
+    mode = property(lambda self: self._mode, doc="FAA mode indicator (VTG).")
 
     def _reference(self, time: object, lat: object, lon: object, quality: object, alt: object, diff_age: object,
                    course: object, speed: object) -> bytes:
@@ -206,7 +214,7 @@ class AttitudeEpochEncoder:
         _check_decimals(time_decimals=time_decimals, decimals=decimals)
         if time_decimals < 1:
             raise ConfigError(f"time_decimals: expected >= 1, got {time_decimals}")
-        self.range, self.quality, self.pdop, self.num_sv = range, quality, pdop, num_sv
+        self._range, self._quality, self._pdop, self._num_sv = range, quality, pdop, num_sv
         self._decimals = (time_decimals, decimals)
         probe = self._reference(0.0, 0.0, 0.0, 0.0)
         if not probe:   # pragma: no cover - the reference raises instead
@@ -217,6 +225,12 @@ class AttitudeEpochEncoder:
         # PTNL,AVR,<time>,<+yaw>,Yaw,<+tilt>,Tilt,<+roll>,Roll,<range>,<quality>,<pdop>,<nsv>
         self._angles_fmt = b"%%+.%df,Yaw,%%+.%df,Tilt,%%+.%df,Roll," % (decimals, decimals, decimals)
         self._tail = f"{_num(range, 3)},{int(quality)},{_num(pdop, 1)},{_int(num_sv)}".encode("ascii")
+
+    # the constant fields, read-only (their text is formatted once)
+    range = property(lambda self: self._range, doc="Antenna baseline length, m.")   # noqa: A003
+    quality = property(lambda self: self._quality, doc="Trimble quality indicator.")
+    pdop = property(lambda self: self._pdop, doc="Position dilution of precision.")
+    num_sv = property(lambda self: self._num_sv, doc="Satellites used.")
 
     def _reference(self, time: object, yaw: object, tilt: object, roll: object) -> bytes:
         td, d = self._decimals

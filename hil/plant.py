@@ -94,7 +94,7 @@ class SimulatedTractor:
             raise SimulatorConfigError(f"valve duty must be finite, got {duty!r}")
         sim = self.sim   # the steps complete before now, with the duty they had
         self._duty = float(duty)
-        if not self._in(self.stuck_intervals, sim.time):
+        if not (self.stuck_intervals and self._in(self.stuck_intervals, sim.time)):
             sim.set_duty_scalar(self._duty)
 
     def wheel_angle_counts(self) -> int:

@@ -69,12 +69,17 @@ class _Pipe:
         chunks = self.chunks
         first, spacing, data = chunks[0]
         n = len(data)
-        if len(chunks) == 1 and n <= size and first <= now + _EPS and (
-                spacing <= 0.0 or int((now + _EPS - first) / spacing) + 1 >= n):
-            # the common case: one chunk, all of it released (_ready gives its length), all of it wanted
-            chunks.popleft()
-            self.size -= n
-            return data
+        if len(chunks) == 1 and n <= size and first <= now + _EPS:
+            ready = n if spacing <= 0.0 else int((now + _EPS - first) / spacing) + 1   # _ready, unclipped
+            if ready >= n:
+                # the common case: one chunk, all of it released, all of it wanted
+                chunks.popleft()
+                self.size -= n
+                return data
+            # one chunk, part of it released (a paced burst still on the line): the loop below, written out
+            chunks[0] = (first + ready * spacing, spacing, data[ready:])
+            self.size -= ready
+            return data[:ready]
         out = bytearray()
         # Bounded by the number of chunks: each pass consumes one or stops.
         for _ in range(len(chunks)):

@@ -118,3 +118,45 @@ def test_uart_tx_holds_bytes_until_their_time_on_a_link_without_pacing():
     assert tx.flush(0.0205) == 2 and sink.writes == [b"ab"]
     assert tx.flush(1.0) == 1 and sink.writes[-1] == b"c"
     assert tx.next_due() == float("inf")
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=200, deadline=None)
+@given(ops=st.lists(st.one_of(
+    st.tuples(st.just("paced"), st.binary(min_size=1, max_size=12), st.floats(0, 0.02), st.sampled_from([0.0, 0.001, 0.0026])),
+    st.tuples(st.just("write"), st.binary(min_size=1, max_size=6)),
+    st.tuples(st.just("read"), st.integers(0, 20), st.floats(0, 0.01))), min_size=1, max_size=25))
+def test_reads_return_exactly_the_bytes_released_by_then_in_order(ops):
+    """Every read gives the oldest unread bytes whose release time has come (byte ``k`` of a paced
+    write at ``first + k * spacing``, never before the bytes written ahead of it), up to the size asked."""
+    clock = VirtualClock()
+    a, b = memory_link_pair(clock)
+    queue: list[tuple[float, int]] = []   # (release time, byte), the reference
+    last = -float("inf")
+    for op in ops:
+        now = clock.now()
+        if op[0] == "read":
+            _, size, wait = op
+            clock.advance_to(now + wait)
+            t = clock.now() + 1e-12
+            ready = 0
+            while ready < len(queue) and queue[ready][0] <= t:
+                ready += 1
+            want = bytes(v for _, v in queue[:min(size, ready)])
+            del queue[:len(want)]
+            assert b.in_waiting == ready
+            assert b.read(size) == want
+            continue
+        if op[0] == "write":
+            data, first, spacing = op[1], now, 0.0
+            a.write(data)
+        else:
+            data, delay, spacing = op[1], op[2], op[3]
+            first = now + delay
+            a.write_paced(data, first, spacing)
+        first = max(first, last)
+        queue += [(first + k * spacing, v) for k, v in enumerate(data)]
+        last = first + spacing * (len(data) - 1)

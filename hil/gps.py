@@ -175,9 +175,15 @@ class ScalarErrors:
         return cls(*(rows(getattr(err, k)) for k in GpsErrors.__dataclass_fields__))
 
 
+#: The fields :func:`position_epoch_scalar` and :func:`attitude_epoch_scalar` return, in order.
+POSITION_EPOCH_FIELDS = ("x", "y", "fix", "lost", "t_arrival")
+ATTITUDE_EPOCH_FIELDS = ("yaw", "roll", "pitch", "lost", "t_arrival")
+
+
 def position_epoch_scalar(x: float, y: float, psi: float, roll: float, k: int, err: ScalarErrors,
-                          g: GpsParams, vp: VehicleParams) -> dict[str, float]:
-    """:func:`position_epoch` for one tractor on floats (the same operations, so the same values)."""
+                          g: GpsParams, vp: VehicleParams) -> tuple:
+    """:func:`position_epoch` for one tractor on floats (the same operations, so the same values),
+    as a tuple in :data:`POSITION_EPOCH_FIELDS` order."""
     xr = vp.antenna_ahead_of_cg
     yr = vp.antenna_left_of_cg * math.cos(roll) - vp.antenna_height * math.sin(roll)
     c, s = math.cos(psi), math.sin(psi)
@@ -187,14 +193,12 @@ def position_epoch_scalar(x: float, y: float, psi: float, roll: float, k: int, e
     nx, ny = err.pos_noise[k]
     mx, my = err.multipath[k]
     t_valid = k / g.position_rate
-    return {"x": x + dx + (nx * sigma + mx), "y": y + dy + (ny * sigma + my),
-            "fix": FIX_RTK_FLOAT if flt else FIX_RTK_FIXED, "lost": err.pos_lost[k],
-            "t_arrival": t_valid + g.position_latency + err.pos_jitter[k]}
+    return (x + dx + (nx * sigma + mx), y + dy + (ny * sigma + my), FIX_RTK_FLOAT if flt else FIX_RTK_FIXED,
+            err.pos_lost[k], t_valid + g.position_latency + err.pos_jitter[k])
 
 
-def attitude_epoch_scalar(psi: float, roll: float, k: int, err: ScalarErrors, g: GpsParams) -> dict[str, float]:
-    """:func:`attitude_epoch` for one tractor on floats."""
+def attitude_epoch_scalar(psi: float, roll: float, k: int, err: ScalarErrors, g: GpsParams) -> tuple:
+    """:func:`attitude_epoch` for one tractor on floats, as a tuple in :data:`ATTITUDE_EPOCH_FIELDS` order."""
     n0, n1, n2 = err.att_noise[k]
     t_valid = k / g.attitude_rate
-    return {"yaw": psi + n0, "roll": roll + n1, "pitch": n2,
-            "lost": err.att_lost[k], "t_arrival": t_valid + g.attitude_latency + err.att_jitter[k]}
+    return psi + n0, roll + n1, n2, err.att_lost[k], t_valid + g.attitude_latency + err.att_jitter[k]

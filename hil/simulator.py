@@ -128,6 +128,9 @@ class TractorSimulator:
         self.att = {k: np.zeros((B, n_att)) for k in ("yaw", "roll", "pitch", "t_arrival")}
         self.att["lost"] = np.zeros((B, n_att), dtype=bool)
         self.n_pos = self.n_att = 0
+        # the one-tractor path writes an epoch's values into these row views, in the scalar functions' order
+        self._pos_rows = tuple(self.pos[f][0] for f in (*gps.POSITION_EPOCH_FIELDS, "speed"))
+        self._att_rows = tuple(self.att[f][0] for f in gps.ATTITUDE_EPOCH_FIELDS)
         self._record_epochs()
 
     @property
@@ -273,25 +276,26 @@ class TractorSimulator:
     def _record_epochs_scalar(self) -> None:
         """:meth:`_record_epochs` for the one-tractor path (the same values, on floats)."""
         k = self.k
-        pos_due = k % self._pos_every == 0 and self.n_pos < self.pos["lost"].shape[1]
-        att_due = k % self._att_every == 0 and self.n_att < self.att["lost"].shape[1]
+        pos_due = k % self._pos_every == 0 and self.n_pos < len(self._pos_rows[0])
+        att_due = k % self._att_every == 0 and self.n_att < len(self._att_rows[0])
         if not (pos_due or att_due):
             return
         p, x, g0 = self.params, self._x, self._gps0
         roll = self._scalar_exo["roll"][k]
         if pos_due:
             i = self.n_pos
-            m = gps.position_epoch_scalar(x[X], x[Y], x[PSI], roll, i, g0, p.gps, p.vehicle)
+            px, py, fix, lost, t_arrival = gps.position_epoch_scalar(x[X], x[Y], x[PSI], roll, i, g0, p.gps,
+                                                                     p.vehicle)
             ground = float(np.hypot(self._scalar_exo["speed"][k], x[vehicle.V]))
-            m["speed"] = max(ground + g0.speed_noise[i], 0.0)
-            for key, arr in self.pos.items():
-                arr[0, i] = m[key]
+            rx, ry, rf, rl, rt, rs = self._pos_rows
+            rx[i], ry[i], rf[i], rl[i], rt[i] = px, py, fix, lost, t_arrival
+            rs[i] = max(ground + g0.speed_noise[i], 0.0)
             self.n_pos += 1
         if att_due:
             i = self.n_att
-            m = gps.attitude_epoch_scalar(x[PSI], roll, i, g0, p.gps)
-            for key, arr in self.att.items():
-                arr[0, i] = m[key]
+            yaw, att_roll, pitch, lost, t_arrival = gps.attitude_epoch_scalar(x[PSI], roll, i, g0, p.gps)
+            ry, rr, rp, rl, rt = self._att_rows
+            ry[i], rr[i], rp[i], rl[i], rt[i] = yaw, att_roll, pitch, lost, t_arrival
             self.n_att += 1
 
     #: How many of the newest epochs :meth:`latest_position` / :meth:`latest_attitude` look at.

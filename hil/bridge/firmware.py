@@ -205,7 +205,11 @@ class BridgeFirmware:
         """Earliest time a timer of the firmware expires, s: the next report or input poll, a held
         byte due, a received frame's last byte, the watchdog. Depends only on state that a step
         changes; kept by each step for :meth:`next_wakeup` (asked several times between steps)."""
-        t = self._next_report
+        # The report grid drifts from the host's cycle grid by float rounding (1e-14 s either way);
+        # a step within _TIME_EPS of the grid point sends the report, so the firmware asks for the
+        # latest such instant: a host that writes on the same grid gets one step (its command read and
+        # the report sent) instead of two steps 1e-14 s apart.
+        t = self._next_report + _TIME_EPS
         if self._next_poll < t:
             t = self._next_poll
         if self._tx.holds:

@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 
 from hil.bridge.bench import LockstepBridge
 from hil.bridge.errors import CrcError, FieldError, LengthError, UnknownMessageError
+from hil.bridge.firmware import _TIME_EPS
 from hil.bridge.framing import DecodeEvent, StreamDecoder
 from hil.bridge.protocol import (
     CRC_INIT,
@@ -236,7 +237,7 @@ def _reference_next_wakeup(fw) -> float:
         return -math.inf
     if fw._link.in_waiting > 0:
         return fw._last_step
-    t = min(fw._next_report, fw._next_poll)
+    t = min(fw._next_report + _TIME_EPS, fw._next_poll)   # a report may go up to _TIME_EPS late
     if fw._tx.holds:
         t = min(t, fw._tx.next_due())
     if fw._inbox:
@@ -314,3 +315,33 @@ def test_uart_timing_is_the_max_formula_to_the_bit(busy, now, n):
     held.busy_until = busy
     assert repr(held.send(b"x" * n, now)) == repr(want_busy)
     assert held._pending[0][:2] == (want_first, bt)
+
+
+def test_a_host_on_the_report_grid_costs_one_firmware_step_per_command_plus_its_arrival():
+    """The report grid drifts from the host's cycle grid by float rounding; the firmware sends a report
+    in any step within _TIME_EPS of its grid point, so a host writing a command every report period
+    wakes it twice per cycle (command read with the report, command applied when its last byte is in),
+    never a third time for a report 1e-14 s before the cycle, and every report is still sent."""
+    plant = FirstOrderPlantDouble()
+    with LockstepBridge(plant) as bench:
+        steps: list[float] = []
+        fw = bench.firmware
+        step = fw.step
+
+        def counted(now: float) -> None:
+            steps.append(now)
+            step(now)
+
+        fw.step = counted   # type: ignore[method-assign]
+        bench.driver.engage()
+        period = fw.config.report_period
+        n = 400
+        for k in range(1, n + 1):
+            bench.clock.sleep_until(k * period)   # the host's grid: k * period, the firmware's: a running sum
+            bench.driver.poll()
+            bench.driver.send_rate(0.01 * (k % 7))
+        just_before = [t for t in steps if 0.0 < round(t / period) * period - t < 1e-9]
+        at_cycles = [t for t in steps if round(t / period) * period == t]
+        assert just_before == []               # no step for a report 1e-14 s ahead of the host's cycle
+        assert len(at_cycles) >= n - 1         # the report goes with the command read at the cycle
+        assert fw.state.reports_sent >= n - 1

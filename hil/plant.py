@@ -4,8 +4,9 @@
 the bridge firmware sets the valve's PWM duty and reads the potentiometer's ADC;
 the emulated receivers read the simulator's GPS epochs; whoever owns the clock
 calls :meth:`advance`. The simulator integrates on a fixed grid (``params.dt``);
-``advance`` accumulates arbitrary intervals and steps whenever a grid step is
-complete, so what devices see lags the clock by less than one step (10 ms).
+``advance`` accumulates arbitrary intervals, and the grid steps they complete are
+taken when the plant is next read, so what devices see lags the clock by less
+than one step (10 ms) and a run's steps are integrated in few calls.
 
 Plant-level faults: manual-override intervals (the driver grabs the wheel) and
 stuck-valve intervals (the spool sticks at its last opening whatever the duty).

@@ -27,6 +27,7 @@ Longitudinal speed is imposed (engine and gearbox hold the gear's speed).
 from __future__ import annotations
 
 import math
+import struct
 from array import array
 from dataclasses import dataclass
 
@@ -242,6 +243,9 @@ MULTISTEP_TERMS = ("spd", "neg_spd", "moving", "neg_fmax_f", "cf_load", "fmax_f_
                    "fy_in", "mz_in", "alpha_t")
 
 
+_TERMS = struct.Struct(f"{len(MULTISTEP_TERMS)}d")   # one step's terms as native doubles
+
+
 def _multistepper_source() -> str:
     """Source of :func:`scalar_multistepper`: the four stages of :func:`_stepper_source`'s step in a loop
     over the steps' precomputed terms (:data:`MULTISTEP_TERMS`), the state kept in locals between steps
@@ -255,8 +259,8 @@ def _multistepper_source() -> str:
              "    x0, y0, psi0, v0, r0, d0, om0, phi0 = x",
              "    out = []",
              "    for k1 in bounds:",
-             f"        for i in range(k0 * {n}, k1 * {n}, {n}):",
-             f"            {', '.join(MULTISTEP_TERMS)} = inputs[i:i + {n}]"]
+             f"        for i in range(k0 * {8 * n}, k1 * {8 * n}, {8 * n}):",
+             f"            {', '.join(MULTISTEP_TERMS)} = unpack_terms(inputs, i)"]
     lines += [pad + line if line.strip() else "" for line in stages.split("\n")]
     lines += ["            dl = d0 + h6 *" + tail.split("\n", 1)[0],
               "            if neg_dmax > dl:", "                dl = neg_dmax", "            if dmax < dl:",
@@ -343,7 +347,7 @@ def _compiled(which: str):
 #: The names :func:`_stepper_env` binds, in a fixed order (the generated steppers copy them into locals).
 _ENV_NAMES = ("a", "b", "floor", "nf0", "mu", "cf", "fmax_r", "neg_fmax_r", "cr", "standstill", "x_shank",
               "x_hitch", "neg_mg", "offset", "gang_cs", "tongue", "mass", "inertia", "dmax", "neg_dmax", "lag",
-              "h", "hh", "h6", "cos", "sin", "tanh", "abs", "float")
+              "h", "hh", "h6", "cos", "sin", "tanh", "unpack_terms")
 
 
 def _bind_locals(source: str) -> str:
@@ -372,7 +376,8 @@ def _stepper_env(p: SimParams) -> dict:
         "mass": vp.mass, "inertia": vp.yaw_inertia,
         "dmax": st.max_wheel_angle, "neg_dmax": -st.max_wheel_angle, "lag": st.lag,
         "h": h, "hh": 0.5 * h, "h6": h / 6.0,
-        "cos": math.cos, "sin": math.sin, "tanh": math.tanh, "abs": abs, "float": float,
+        "cos": math.cos, "sin": math.sin, "tanh": math.tanh,
+        "unpack_terms": _TERMS.unpack_from,   # one step's terms from the doubles at a byte offset
     }
     env["_PARAMS"] = tuple(env[name] for name in _ENV_NAMES)
     return env

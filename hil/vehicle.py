@@ -243,6 +243,12 @@ MULTISTEP_TERMS = ("spd", "neg_spd", "moving", "neg_fmax_f", "cf_load", "fmax_f_
                    "fy_in", "mz_in", "alpha_t")
 
 
+#: Products by ``moving`` or ``disker`` in :data:`_STAGE`, and the same without the factors (exact when
+#: both are 1.0: ``x * 1.0`` is ``x`` for every float, signed zeros, infinities and NaN included).
+_UNIT_FACTORS = (("moving * (fy_in + f_hitch_y)", "(fy_in + f_hitch_y)"),
+                 ("moving * (mz_in + (x_hitch * f_hitch_y - offset * f_hitch_x))",
+                  "(mz_in + (x_hitch * f_hitch_y - offset * f_hitch_x))"),
+                 (" / tongue - r) * disker * moving", " / tongue - r)"))
 _TERMS = struct.Struct(f"{len(MULTISTEP_TERMS)}d")   # one step's terms as native doubles
 
 
@@ -261,7 +267,17 @@ def _multistepper_source() -> str:
              "    for k1 in bounds:",
              f"        for i in range(k0 * {8 * n}, k1 * {8 * n}, {8 * n}):",
              f"            {', '.join(MULTISTEP_TERMS)} = unpack_terms(inputs, i)"]
-    lines += [pad + line if line.strip() else "" for line in stages.split("\n")]
+    # Moving (the common case) with the disker: ``moving`` and ``disker`` are 1.0 and multiplying by 1.0
+    # gives the same float, so these stages leave the factors out; anything else takes the stages as written.
+    fast = stages
+    for factored, plain in _UNIT_FACTORS:
+        if factored not in fast:
+            raise RuntimeError(f"hil.vehicle: the stage no longer contains {factored!r}; update _UNIT_FACTORS")
+        fast = fast.replace(factored, plain)
+    lines.append("            if moving == 1.0 and disker == 1.0:")
+    lines += [pad + "    " + line if line.strip() else "" for line in fast.split("\n")]
+    lines.append("            else:")
+    lines += [pad + "    " + line if line.strip() else "" for line in stages.split("\n")]
     lines += ["            dl = d0 + h6 *" + tail.split("\n", 1)[0],
               "            if neg_dmax > dl:", "                dl = neg_dmax", "            if dmax < dl:",
               "                dl = dmax",

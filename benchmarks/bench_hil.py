@@ -47,7 +47,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--duration", type=float, default=60.0, help="virtual seconds per lockstep case")
     ap.add_argument("--realtime", type=float, default=20.0, help="seconds of the real-time pty run")
-    ap.add_argument("--reps", type=int, default=3, help="repetitions of each lockstep case (best is kept)")
+    ap.add_argument("--reps", type=int, default=5, help="repetitions of each lockstep case (best is kept)")
     ap.add_argument("--quick", action="store_true")
     a = ap.parse_args()
     dur, rt = (15.0, 5.0) if a.quick else (a.duration, a.realtime)

@@ -32,6 +32,7 @@ NMEA_MAX_LENGTH = 255
 """Longest accepted sentence in bytes, ``$`` to ``\\n`` (the standard says 82; proprietary ones are longer)."""
 
 _TWO_PI = 2.0 * math.pi
+_HEX_DIGITS = frozenset(b"0123456789ABCDEFabcdef")   # the checksum's two characters (as byte values)
 _make_gga, _make_vtg, _make_avr = (positional_maker(c) for c in (Gga, Vtg, Avr))
 _MIN_FIELDS = {"GGA": 14, "VTG": 8, "RMC": 11, "GST": 8, "HDT": 2, "THS": 2}
 
@@ -103,6 +104,8 @@ def split_sentence(sentence: bytes, *, check: bool = True) -> tuple[str, list[st
         )
     body = s[1:-3]
     try:
+        if s[-2] not in _HEX_DIGITS or s[-1] not in _HEX_DIGITS:   # int(..., 16) would take ' E' or '+E'
+            raise ValueError("checksum is not two hex digits")
         given = int(s[-2:], 16)
         text = body.decode("ascii")
     except (ValueError, UnicodeDecodeError) as exc:
@@ -414,6 +417,8 @@ def _parse_fast(sentence: bytes) -> NmeaMessage | None:
     if len(s) < 6 or s[0] != 0x24 or s[-3] != 0x2A:
         return None
     body = s[1:-3]
+    if s[-2] not in _HEX_DIGITS or s[-1] not in _HEX_DIGITS:
+        return None
     try:
         given = int(s[-2:], 16)
         text = body.decode("ascii")

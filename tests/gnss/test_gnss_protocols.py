@@ -277,3 +277,16 @@ def test_rtcm_bad_crc_refused():
     raw[-1] ^= 0xFF
     with pytest.raises(RTCMParseError, match="invalid RTCM CRC-24Q"):
         parse_rtcm(bytes(raw))
+
+
+@pytest.mark.parametrize("lead", [b" ", b"+"])
+def test_a_checksum_that_is_not_two_hex_digits_is_refused_as_malformed(lead):
+    """``int(x, 16)`` reads ' E' and '+E' as 0x0E, so such a field could pass for a checksum below 0x10:
+    the field must be two hex digits, and anything else is refused as malformed (not as a mismatch)."""
+    good = encode_gga(Gga("GP", 43200.0, math.radians(52.1), math.radians(5.2), 4, 14, 0.8, 12.0, 0.0, 1.0, 1))
+    parse_nmea(good)                                   # the genuine sentence is taken
+    star = good.index(b"*")
+    forged = good[:star + 1] + lead + good[star + 2:]
+    with pytest.raises(NMEAParseError, match="hex checksum") as err:
+        parse_nmea(forged)
+    assert not isinstance(err.value, ChecksumError)

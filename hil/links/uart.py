@@ -80,7 +80,25 @@ class LineConfig:
         return n_bytes * self.byte_time
 
 
-class UartRx:
+class _LineTimed:
+    """A UART's line format, with its byte time kept (a burst needs it; bits_per_byte / baud need not
+    be worked out again for every one)."""
+
+    _line: LineConfig
+    _byte_time: float
+
+    @property
+    def line(self) -> LineConfig:
+        """Line format."""
+        return self._line
+
+    @line.setter
+    def line(self, line: LineConfig) -> None:
+        self._line = line
+        self._byte_time = line.byte_time
+
+
+class UartRx(_LineTimed):
     """Arrival times of bytes received by a device.
 
     The far end's bytes are stamped with the time the device saw them on its
@@ -91,18 +109,6 @@ class UartRx:
     def __init__(self, line: LineConfig) -> None:
         self.line = line
         self.busy_until = -math.inf
-
-    @property
-    def line(self) -> LineConfig:
-        """Line format."""
-        return self._line
-
-    @line.setter
-    def line(self, line: LineConfig) -> None:
-        # The byte time is kept with the (frozen) line: a burst needs it, and bits_per_byte / baud
-        # need not be worked out again for every one.
-        self._line = line
-        self._byte_time = line.byte_time
 
     def arrive(self, n_bytes: int, stamp: float) -> tuple[float, float]:
         """Account for ``n_bytes`` that entered the line at ``stamp``, s.
@@ -121,7 +127,7 @@ class UartRx:
         return first, bt
 
 
-class UartTx:
+class UartTx(_LineTimed):
     """Paced transmission of a device's bytes onto a link.
 
     Parameters
@@ -143,18 +149,6 @@ class UartTx:
         #: True when this UART keeps bytes until :meth:`flush` (a link without ``write_paced``); on a
         #: timed link it never does: :meth:`next_due` is always ``inf`` and :meth:`flush` writes nothing.
         self.holds = self._paced is None
-
-    @property
-    def line(self) -> LineConfig:
-        """Line format."""
-        return self._line
-
-    @line.setter
-    def line(self, line: LineConfig) -> None:
-        # The byte time is kept with the (frozen) line: a burst needs it, and bits_per_byte / baud
-        # need not be worked out again for every one.
-        self._line = line
-        self._byte_time = line.byte_time
 
     def send(self, data: bytes, now: float) -> float:
         """Start sending ``data`` at ``now`` (or when the line frees up); return the last byte's arrival, s."""

@@ -1,0 +1,1 @@
+"""hil.devices package."""

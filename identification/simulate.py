@@ -111,12 +111,14 @@ def estimate_x0(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray,
 
 
 def predict_one_step(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, k: np.ndarray,
-                     u: np.ndarray, y: np.ndarray, x0: np.ndarray | str | None = None) -> np.ndarray:
+                     u: np.ndarray, y: np.ndarray, x0: np.ndarray | str | None = None,
+                     return_states: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """One-step-ahead prediction ``ŷ_k = C x̂_k + D u_k`` with the predictor gain ``K``.
 
     ``x̂_{k+1} = A x̂_k + B u_k + K (y_k - C x̂_k - D u_k)``. Starts from ``x0``;
     with ``x0="fit"`` the initial predictor state is the least-squares one
-    (no start-up transient), with None from zeros.
+    (no start-up transient), with None from zeros. With ``return_states`` the
+    (N, n) predicted states ``x̂_k`` (from outputs up to k - 1) are returned too.
     """
     ak = a - k @ c
     bk = np.hstack([b - k @ d, k])
@@ -125,4 +127,5 @@ def predict_one_step(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray,
     if isinstance(x0, str):
         x0 = estimate_x0(ak, bk, c, dk, uv, y, horizon=max(50 * a.shape[0], 200))
     _, x = simulate(ak, bk, c, np.zeros((c.shape[0], bk.shape[1])), uv, x0, return_states=True)
-    return x @ c.T + u @ d.T
+    yhat = x @ c.T + u @ d.T
+    return (yhat, x) if return_states else yhat

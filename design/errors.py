@@ -21,3 +21,7 @@ class VerificationError(DesignError):
 
 class ControllerFileError(DesignError, ValueError):
     """A controller file is malformed, tampered with, non-finite, of another schema or sample time."""
+
+
+class SpecificationError(SynthesisError):
+    """No weights of the automatic search meet a stated specification (the message names it and what was achieved)."""

@@ -26,10 +26,11 @@ import math  # noqa: E402
 import time  # noqa: E402
 
 from design.controller import KinematicLQRController  # noqa: E402
-from hil.bridge.measure import measure_lockstep_speed, measure_pty_latency  # noqa: E402
-from hil.conditions import condition_for  # noqa: E402
-from hil.plant import SimulatedTractor  # noqa: E402
-from hil.run import RunSpec, simulated_run, summarize  # noqa: E402
+from hil.bench.bridge_measure import measure_lockstep_speed, measure_pty_latency  # noqa: E402
+from hil.truth.conditions import condition_for  # noqa: E402
+from hil.devices.plant import SimulatedTractor  # noqa: E402
+from hil.bench.run import RunSpec, simulated_run  # noqa: E402
+from hil.vehicle.summary import summarize  # noqa: E402
 
 
 def _best(fn, reps: int) -> tuple[float, float]:

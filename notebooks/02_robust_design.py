@@ -46,7 +46,8 @@ from design.controller_file import load_controller
 from design.export import export_controller
 from design.plausibility import implausible
 from design.robust import RobustSpec, design_lqr, design_robust
-from hil.run import RunSpec, simulated_run, summarize
+from hil.bench.run import RunSpec, simulated_run
+from hil.vehicle.summary import summarize
 from identification.model import Model
 
 OUT = Path("nb_out")

@@ -27,7 +27,7 @@
 #    straight-line laws fed the errors to the curve against the nonlinear MPC with the curvature
 #    preview of the path.
 #
-# The closed loops step the simulated tractor directly (`hil.plant.SimulatedTractor`, its truth
+# The closed loops step the simulated tractor directly (`hil.devices.plant.SimulatedTractor`, its truth
 # as the measurement, 20 Hz): no GPS or sensor noise, so what differs is the control law alone.
 # Everything is written under `nb_out/`.
 
@@ -48,10 +48,10 @@ from design.kinematic import KinematicWeights
 from design.mpc import MPCLimits, build_mpc
 from design.nmpc import NMPCSettings, NonlinearMPC
 from gnss.curve import ArcPath
-from hil.conditions import condition_for
-from hil.params import SimParams
-from hil.plant import SimulatedTractor
-from hil.steering import nominal_duty
+from hil.truth.conditions import condition_for
+from hil.truth.params import SimParams
+from hil.devices.plant import SimulatedTractor
+from hil.truth.steering import nominal_duty
 from identification.model import Model
 
 OUT = Path("nb_out")

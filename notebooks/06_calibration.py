@@ -45,9 +45,9 @@ matplotlib.use("Agg")
 from IPython.display import Image, display
 
 import hil
-from hil.calibrate import REFERENCE, CalibrationOptions, Evaluator, objective
-from hil.calibrate_report import figure, mismatches, table
-from hil.params import SimParams
+from hil.calibration.calibrate import REFERENCE, CalibrationOptions, Evaluator, objective
+from hil.calibration.report import figure, mismatches, table
+from hil.truth.params import SimParams
 
 t0 = time.perf_counter()
 DOCS = Path(hil.__file__).resolve().parents[1] / "docs" / "calibration"

@@ -1,7 +1,7 @@
 """Ready-made bridge benches: firmware + plant + driver on an in-memory link (lockstep) or a pty (real time).
 
 Both give the host side the same two objects, a :class:`~hil.links.clock.Clock`
-and a :class:`~hil.bridge.driver.BridgeDriver`, so host code written as::
+and a :class:`~hil.vehicle.bridge.driver.BridgeDriver`, so host code written as::
 
     bench.driver.engage()
     t = bench.clock.now()
@@ -22,9 +22,9 @@ from types import TracebackType
 
 import serial
 
-from hil.bridge.config import DriverConfig, FirmwareConfig
-from hil.bridge.driver import BridgeDriver
-from hil.bridge.firmware import BridgeFirmware, SteeringPlant
+from hil.vehicle.bridge.config import DriverConfig, FirmwareConfig
+from hil.vehicle.bridge.driver import BridgeDriver
+from hil.devices.firmware import BridgeFirmware, SteeringPlant
 from hil.links.clock import RealClock, VirtualClock
 from hil.links.memory import MemoryEndpoint, memory_link_pair
 from hil.links.pty import PtyPair

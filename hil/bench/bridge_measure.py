@@ -12,10 +12,10 @@ import statistics
 import time
 from dataclasses import asdict, dataclass
 
-from hil.bridge.bench import LockstepBridge, PtyBridge
-from hil.bridge.config import DriverConfig, FirmwareConfig
-from hil.bridge.errors import ConfigError
-from hil.bridge.firmware import SteeringPlant
+from hil.bench.bridge_bench import LockstepBridge, PtyBridge
+from hil.vehicle.bridge.config import DriverConfig, FirmwareConfig
+from hil.vehicle.bridge.errors import ConfigError
+from hil.devices.firmware import SteeringPlant
 from hil.links.clock import Clock
 
 __all__ = ["LockstepSpeed", "PtyLatency", "measure_lockstep_speed", "measure_pty_latency"]

@@ -20,76 +20,39 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from .conditions import Condition, all_conditions
-from .errors import SimulatorConfigError
-from .params import SimParams
-from .run import RunSpec, simulated_run, summarize
+from hil.truth.conditions import Condition, all_conditions
+from hil.errors import SimulatorConfigError
+from hil.truth.params import SimParams
+from hil.bench.run import RunSpec, simulated_run
+from hil.vehicle.summary import summarize
+from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, split_spec, vehicle_controller
+from hil.bench.oracle import OracleOptions, oracle_for
 
 EXECUTORS = ("local", "dask")
 
 
-BUILTIN_CONTROLLERS = ("kinematic", "pure-pursuit", "stanley", "oracle")
-
-
-def _split(spec: str) -> tuple[str, dict[str, float]]:
-    """``name?key=value&key=value`` -> (name, {key: value})."""
-    name, _, query = spec.partition("?")
-    opts: dict[str, float] = {}
-    for part in filter(None, query.split("&")):
-        key, eq, value = part.partition("=")
-        try:
-            opts[key] = float(value)
-        except ValueError:
-            raise SimulatorConfigError(f"controller option {part!r} in {spec!r}: expected key=number") from None
-        if not eq:
-            raise SimulatorConfigError(f"controller option {part!r} in {spec!r}: expected key=number")
-    return name, opts
+BUILTIN_CONTROLLERS = VEHICLE_CONTROLLERS + ("oracle",)
 
 
 def make_controller(spec: str, implement: str | None = None, speed: float | None = None,
                     params: SimParams | None = None):
     """Build a controller from its spec; done inside each worker.
 
-    ``oracle`` is the LQG designed on the condition's truth linearisation
-    (:mod:`hil.oracle`, valve by its secant gain): it needs ``implement`` and ``speed``
-    [m/s] (and the simulator ``params`` it is the oracle of).
-
-    A spec is a name, ``kinematic``, ``pure-pursuit`` or ``stanley``, optionally with gains
-    (``pure-pursuit?lookahead_time=1.2&servo=4``, names of
-    :class:`~design.baselines.PurePursuitGains` / :class:`~design.baselines.StanleyGains`), or a
-    controller file (``*.json``, see :mod:`design.controller_file`).
+    Every vehicle controller (:func:`hil.vehicle.controllers.vehicle_controller`: ``kinematic``,
+    ``pure-pursuit``, ``stanley`` with optional gains, or a controller file), and ``oracle``: the LQG
+    designed on the condition's truth linearisation (:mod:`hil.bench.oracle`, valve by its secant
+    gain), which needs ``implement`` and ``speed`` [m/s] (and the simulator ``params`` it is the
+    oracle of). ``oracle`` without a condition returns ``None``: a valid spec, built per condition.
     """
-    from design.baselines import PurePursuitController, PurePursuitGains, StanleyController, StanleyGains
-    from design.controller import KinematicLQRController
-    if spec.endswith(".json"):
-        from design.controller_file import load_controller
-        if not Path(spec).is_file():
-            raise SimulatorConfigError(f"controller file {spec!r} does not exist")
-        return load_controller(spec)
-    name, opts = _split(spec)
+    name, opts = split_spec(spec) if not spec.endswith(".json") else (spec, {})
     if name == "oracle" and not opts:
         if implement is None or speed is None:
             return None         # a valid spec; the controller is built per condition (run_one)
-        from .oracle import OracleOptions, oracle_for
         return oracle_for(implement, speed, params, OracleOptions(invert_valve=False))
-    gains = {"pure-pursuit": (PurePursuitController, PurePursuitGains), "stanley": (StanleyController, StanleyGains)}
-    if name in gains:
-        cls, gcls = gains[name]
-        known = set(gcls.__dataclass_fields__)
-        if set(opts) - known:
-            raise SimulatorConfigError(f"unknown {name} gain(s) {sorted(set(opts) - known)}; known: {sorted(known)}")
-        return cls(gcls(**opts))
-    if name == "kinematic" and not opts:
-        return KinematicLQRController()
-    raise SimulatorConfigError(f"unknown controller {spec!r}; give one of {list(BUILTIN_CONTROLLERS)} "
-                               "(pure-pursuit and stanley take ?gain=value&...) or a controller file (.json)")
-
-
-def controller_label(spec: str) -> str:
-    """Short name of a controller spec for tables and file names (a file's stem; gains kept)."""
-    if spec.endswith(".json"):
-        return Path(spec).stem
-    return spec.replace("?", "[").replace("&", ",") + ("]" if "?" in spec else "")
+    if name not in BUILTIN_CONTROLLERS and not spec.endswith(".json"):
+        raise SimulatorConfigError(f"unknown controller {spec!r}; give one of {list(BUILTIN_CONTROLLERS)} "
+                                   "(pure-pursuit and stanley take ?gain=value&...) or a controller file (.json)")
+    return vehicle_controller(spec)
 
 
 @dataclass(frozen=True)

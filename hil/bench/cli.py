@@ -1,4 +1,4 @@
-"""``hil`` command: the truth simulator and the bench, as a thin layer over :mod:`hil`.
+"""``hil`` bench sub-commands: the truth simulator and the bench, as a thin layer over :mod:`hil`.
 
     hil sysid --out logs/ [--speeds ...] [--implements ...] [--passes N] [--duration S] [--seed S]
     hil plot LOG.npz --out figure.png
@@ -6,8 +6,7 @@
     hil calibrate --out out/calibration [--controller central-lqr.json] [--budget 30] [--seeds 2]
     hil run --controller kinematic --implement none --speed 1.79 --duration 60 --out runs/NAME
         [--realtime] [--seed N] [--fault KIND:START-END ...]
-    hil drive --bridge PORT --position PORT [--attitude PORT] --controller kinematic \
-        --line LAT,LON,LAT,LON --duration S --out runs/NAME
+    hil drive ...      (the vehicle's own CLI, :mod:`hil.vehicle.cli`; listed here for --help)
 
 Unknown options and bad values exit with status 2 (usage) or 1 (a value the
 library refused), with a message saying what was expected.
@@ -26,16 +25,18 @@ from tqdm import tqdm
 from identification.errors import PassLogError
 from identification.passlog import PassLog
 
-from .conditions import GEAR_SPEEDS, IMPLEMENTS
-from .errors import HilError, SimulatorConfigError
-from .faults import LinkFault
-from .params import SimParams, parameter_markdown, parameter_table
-from .plots import plot_pass, plot_run
-from .run import RunSpec, simulated_run, summarize
-from .campaign import BUILTIN_CONTROLLERS, EXECUTORS, Campaign, controller_label, make_controller
-from .conditions import condition_for
-from .report import write_report
-from .sysid import SysidPlan, make_passes
+from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS
+from hil.errors import HilError, SimulatorConfigError
+from hil.devices.faults import LinkFault
+from hil.truth.params import SimParams, parameter_markdown, parameter_table
+from hil.bench.plots import plot_pass, plot_run
+from hil.bench.run import RunSpec, simulated_run
+from hil.vehicle.summary import summarize
+from hil.bench.campaign import BUILTIN_CONTROLLERS, EXECUTORS, Campaign, controller_label, make_controller
+from hil.truth.conditions import condition_for
+from hil.bench.report import write_report
+from hil.bench.sysid import SysidPlan, make_passes
+from hil.vehicle.cli import add_drive_parser, print_run_result
 
 
 def _float(text: str) -> float:
@@ -79,7 +80,10 @@ def _cmd_sysid(args: argparse.Namespace) -> dict:
 
 def _cmd_plot(args: argparse.Namespace) -> dict:
     log = PassLog.load(args.log)
-    path = plot_pass(log, args.out)
+    if "engaged" in log.channels:        # a closed-loop run log (hil run / hil drive): the track figure
+        path = plot_run(log, args.out, summarize(log))
+    else:
+        path = plot_pass(log, args.out)
     return {"log": str(args.log), "figure": str(path)}
 
 
@@ -133,13 +137,6 @@ def _fault(text: str) -> tuple[str, object]:
     return FAULT_KINDS[kind], (a, b)
 
 
-def _controller(name: str):
-    controller = make_controller(name)
-    if controller is None:
-        raise SimulatorConfigError("the oracle is designed on the simulator's truth; it cannot steer a real vehicle")
-    return controller
-
-
 def _conditions(text: str):
     if text == "all":
         return None
@@ -185,7 +182,7 @@ def _grid(text: str) -> tuple[str, list[float]]:
 
 
 def _cmd_tune(args: argparse.Namespace) -> dict:
-    from .tune import tune
+    from hil.bench.tune import tune
     bar = tqdm(total=1, unit="pass", desc="tuning", disable=args.quiet, file=sys.stderr)
 
     def progress(done: int, total: int) -> None:
@@ -202,8 +199,8 @@ def _cmd_tune(args: argparse.Namespace) -> dict:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> dict:
-    from .calibrate import CalibrationOptions, knob_text
-    from .calibrate_pipeline import run_calibration
+    from hil.calibration.calibrate import CalibrationOptions, knob_text
+    from hil.calibration.pipeline import run_calibration
     knobs = {"knobs": tuple(args.knobs)} if args.knobs else {}
     opts = CalibrationOptions(seeds=tuple(range(args.seed, args.seed + args.seeds)), duration=args.duration,
                               budget=args.budget, step=args.step, min_improvement=args.min_improvement,
@@ -250,39 +247,10 @@ def _cmd_run(args: argparse.Namespace) -> dict:
     return result
 
 
-def _floats(n: int):
-    def parse(text: str) -> tuple[float, ...]:
-        parts = text.split(",")
-        if len(parts) != n:
-            raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {text!r}")
-        return tuple(_float(p) for p in parts)
-    return parse
-
-
-def _cmd_drive(args: argparse.Namespace) -> dict:
-    from .drive import DriveConfig, drive
-    a, b = args.line[:2], args.line[2:]
-    cfg = DriveConfig(bridge_port=args.bridge, position_port=args.position, attitude_port=args.attitude,
-                      line_a=a, line_b=b, height=args.height, lever_arm=args.lever_arm,
-                      wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
-                      gnss_baud=args.gnss_baud)
-    log = drive(cfg, _controller(args.controller), args.duration, implement=args.implement,
-                nominal_speed=args.speed)
-    out = Path(args.out)
-    summary = summarize(log)
-    log.save(out / "run_log.npz")
-    plot_run(log, out / "track.png", summary)
-    result = {"out": str(out), "controller": controller_label(args.controller), "implement": args.implement, "speed": args.speed,
-              "mode": "vehicle", "summary": summary, "events": list(log.meta["events"]),
-              "files": [str(out / "run_log.npz"), str(out / "track.png"), str(out / "summary.json")]}
-    (out / "summary.json").write_text(json.dumps(result, indent=2) + "\n")
-    return result
-
-
 def _cmd_emulate(args: argparse.Namespace) -> dict:
     import time
 
-    from .emulate import EmulatedTractor
+    from hil.devices.emulate import EmulatedTractor
     with EmulatedTractor(implement=args.implement, speed=args.speed, duration=args.duration, seed=args.seed,
                          params=_params(args)) as tractor:
         drive = "hil drive " + " ".join(tractor.setup.drive_args()) + " --controller kinematic --duration 60 --out runs/x"
@@ -321,7 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=_cmd_sysid)
 
-    pl = sub.add_parser("plot", help="plot one pass log like the paper's Figure 5")
+    pl = sub.add_parser("plot", help="plot one pass log like the paper's Figure 5, or a run log's track")
     pl.add_argument("log", help="pass log (.npz)")
     pl.add_argument("--out", required=True, help="figure file (.png, .pdf or .svg)")
     pl.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
@@ -385,7 +353,7 @@ def build_parser() -> argparse.ArgumentParser:
     tu.set_defaults(func=_cmd_tune)
 
     ca = sub.add_parser("calibrate", help="tune the disturbance parameters so the paper's method lands on "
-                        "Table 2 (see hil.calibrate)")
+                        "Table 2 (see hil.calibration.calibrate)")
     ca.add_argument("--out", required=True, help="directory of the search; an interrupted search resumes there")
     ca.add_argument("--controller", type=_controller_spec, default=None,
                     help="the paper's central LQR (.json); default: identified at the reference parameters")
@@ -418,27 +386,7 @@ def build_parser() -> argparse.ArgumentParser:
     em.add_argument("--seed", type=int, default=0)
     em.set_defaults(func=_cmd_emulate)
 
-    d = sub.add_parser("drive", help="run the vehicle loop on real serial ports (on a tractor)")
-    d.add_argument("--bridge", required=True, help="steering bridge serial device")
-    d.add_argument("--position", required=True, help="position receiver serial device")
-    d.add_argument("--attitude", help="attitude receiver serial device (default: same as --position)")
-    d.add_argument("--controller", required=True, type=_controller_spec,
-                   help=f"one of {list(BUILTIN_CONTROLLERS)} or a controller file (.json)")
-    d.add_argument("--line", required=True, type=_floats(4), metavar="LAT_A,LON_A,LAT_B,LON_B",
-                   help="guidance line ends in degrees; A is the local origin (write --line=... when a "
-                        "value is negative)")
-    d.add_argument("--height", type=_float, default=0.0, help="field ellipsoidal height, m")
-    d.add_argument("--lever-arm", type=_floats(3), default=(0.0, 0.0, 3.0), metavar="X,Y,Z",
-                   help="antenna from the control point, body frame (fwd, left, up), m")
-    d.add_argument("--wheel-calibration", type=_floats(2), default=(128.0, 0.0061), metavar="CENTER,RAD_PER_COUNT")
-    d.add_argument("--bridge-baud", type=int, default=9600)
-    d.add_argument("--gnss-baud", type=int, default=38400)
-    d.add_argument("--duration", type=_float, required=True, help="seconds (Ctrl-C stops earlier)")
-    d.add_argument("--implement", default="unknown", help="label for the run log")
-    d.add_argument("--speed", type=_float, default=0.0, help="nominal speed for the run log, m/s")
-    d.add_argument("--out", required=True, help="directory for run_log.npz, track.png, summary.json")
-    d.add_argument("--json", action="store_true", help="print the result as JSON")
-    d.set_defaults(func=_cmd_drive)
+    add_drive_parser(sub)
 
     pa = sub.add_parser("params", parents=[common], help="list the simulator's parameters")
     pa.add_argument("--markdown", action="store_true", help="print the table as Markdown")
@@ -469,20 +417,7 @@ def _print_human(command: str, result: dict) -> None:
             print(text + "\n")
         print(f"report: {result['files'][0]}")
     elif command in ("run", "drive"):
-        s = result["summary"]
-        if "measured_sigma_m" in s:
-            print(f"{result['controller']} on {result['implement']} at {result['speed']} m/s ({result['mode']}): "
-                  f"bias {s['measured_bias_m'] * 100:.1f} cm, 1-sigma {s['measured_sigma_m'] * 100:.1f} cm "
-                  f"(true {s['true_bias_m'] * 100:.1f} / {s['true_sigma_m'] * 100:.1f} cm), "
-                  f"max {s['measured_max_abs_m'] * 100:.1f} cm")
-        else:
-            print(f"{result['controller']} never engaged long enough for statistics")
-        print(f"engaged {s['engaged_fraction'] * 100:.0f} % of cycles, {s['disengagements']} disengagement(s), "
-              f"{s['deadline_misses']} deadline miss(es), loop time p50 {s['loop_time_ms_p50']:.2f} ms, "
-              f"p99 {s['loop_time_ms_p99']:.2f} ms")
-        for e in result["events"]:
-            print(f"  t={e['t']:7.2f} s  {e['event']}: {e['reason']}")
-        print(f"files in {result['out']}")
+        print_run_result(result)
     elif command == "sysid":
         print(f"wrote {result['passes']} pass logs of {result['duration_s']:.0f} s to {result['out']}")
     else:

@@ -27,9 +27,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for  # noqa: E402
-from .paper import TABLE2  # noqa: E402
-from .targets import Roles, check_targets, targets_markdown  # noqa: E402
+from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for  # noqa: E402
+from hil.bench.paper import TABLE2  # noqa: E402
+from hil.bench.targets import Roles, check_targets, targets_markdown  # noqa: E402
 
 ORACLE = "oracle"
 
@@ -206,7 +206,7 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
                  extra: dict | None = None, realtime: Sequence[dict] = (), roles: Roles | None = None) -> dict:
     """Write every report file for ``results`` (lockstep passes) and ``realtime`` (passes in real
     time over pseudo-terminals, reported apart) into ``out``; return the cells, the target
-    checks (see :mod:`hil.targets`; ``roles`` default: detected from the labels) and file names."""
+    checks (see :mod:`hil.bench.targets`; ``roles`` default: detected from the labels) and file names."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     rows = cells(results)

@@ -19,18 +19,18 @@ from design.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
 from identification.passlog import PassLog
 
-from .bridge.bench import LockstepBridge, PtyBridge
-from .conditions import condition_for
-from .bridge.driver import BridgeDriver
-from .errors import SimulatorConfigError
-from .faults import FaultyLink, LinkFault
-from .links.memory import memory_link_pair
-from .links.pty import PtyPair
-from .loop import LoopConfig, VehicleLoop
-from .params import SimParams
-from .plant import SimulatedTractor
-from .receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
-from .steering import WheelAngleCalibration
+from hil.bench.bridge_bench import LockstepBridge, PtyBridge
+from hil.truth.conditions import condition_for
+from hil.vehicle.bridge.driver import BridgeDriver
+from hil.errors import SimulatorConfigError
+from hil.devices.faults import FaultyLink, LinkFault
+from hil.links.memory import memory_link_pair
+from hil.links.pty import PtyPair
+from hil.vehicle.loop import LoopConfig, VehicleLoop
+from hil.truth.params import SimParams
+from hil.devices.plant import SimulatedTractor
+from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from hil.devices.technician import two_point_calibration
 
 
 @dataclass(frozen=True)
@@ -54,7 +54,7 @@ class RunSpec:
     gps_outage, rtk_float
         Receiver fault intervals: no GPS output at all; position reported as RTK float.
     link_faults
-        Faults on the bridge link, host side (see :mod:`hil.faults`).
+        Faults on the bridge link, host side (see :mod:`hil.devices.faults`).
     """
 
     implement: str = "none"
@@ -91,7 +91,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
                              initial={"Y": spec.initial_cross_track, "PSI": spec.initial_heading},
                              override=spec.override, stuck_valve=spec.stuck_valve)
     p = plant.params
-    cal = WheelAngleCalibration.two_point(p.sensor, p.steering)
+    cal = two_point_calibration(p.sensor, p.steering)
     geo = spec.geometry
     vp = p.vehicle
     fe_config = FrontEndConfig(origin=geo.origin, lever_arm=(vp.antenna_ahead_of_cg, vp.antenna_left_of_cg,
@@ -138,7 +138,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
         frontend_stats = _refused(frontend)
         firmware = bench.firmware.state
     meta = {"implement": cond.implement, "nominal_speed": cond.speed, "gear": cond.gear, "seed": spec.seed,
-            "source": "hil.run (closed loop on the simulated tractor)",
+            "source": "hil.bench.run (closed loop on the simulated tractor)",
             "mode": "realtime-pty" if spec.realtime else "lockstep",
             "initial": {"cross_track": spec.initial_cross_track, "heading": spec.initial_heading},
             "faults": {"override": list(spec.override), "stuck_valve": list(spec.stuck_valve),
@@ -166,39 +166,3 @@ def _refused(frontend: GnssFrontEnd) -> dict:
             refused[k] = refused.get(k, 0) + v
     return {"decoded": decoded, "refused": refused, "garbage_bytes": garbage}
 
-
-def summarize(log: PassLog, settle: float = 5.0) -> dict:
-    """Tracking and timing figures of a run log.
-
-    Cross-track statistics (bias = mean, 1-sigma = standard deviation, max |.|, m) are
-    taken over the engaged cycles at least ``settle`` seconds after the latest engage (so
-    the approach to the line after each engage is left out); both the
-    measured (GPS) value, as in the paper, and the truth when the log has it.
-    """
-    t = log.times["t"]
-    ch = log.channels
-    engaged = ch["engaged"] > 0.5
-    events = list(log.meta.get("events", []))
-    first = next((e["t"] for e in events if e["event"] == "engage"), math.inf)
-    starts = np.array([e["t"] for e in events if e["event"] == "engage"])
-    last_engage = np.full(t.shape, -math.inf)
-    if starts.size:
-        i = np.searchsorted(starts, t + 1e-9, side="right") - 1
-        last_engage = np.where(i >= 0, starts[np.maximum(i, 0)], -math.inf)
-    window = engaged & (t >= last_engage + settle)
-    out: dict = {"cycles": int(t.size), "engaged_fraction": float(engaged.mean()),
-                 "first_engage_s": None if math.isinf(first) else float(first),
-                 "disengagements": sum(1 for e in events if e["event"] == "disengage" and e["reason"] != "end of run"),
-                 "samples_in_statistics": int(window.sum())}
-    for key, name in (("cross_track", "measured"), ("truth_cross_track", "true")):
-        if key in ch and window.any():
-            x = ch[key][window]
-            out[f"{name}_bias_m"] = float(x.mean())
-            out[f"{name}_sigma_m"] = float(x.std())
-            out[f"{name}_max_abs_m"] = float(np.abs(x).max())
-    ct = ch["compute_time"] * 1e3
-    out.update({"deadline_misses": int(ch["deadline_miss"].sum()),
-                "loop_time_ms_p50": float(np.percentile(ct, 50)), "loop_time_ms_p99": float(np.percentile(ct, 99)),
-                "loop_time_ms_max": float(ct.max()),
-                "lateness_ms_p99": float(np.percentile(ch["lateness"] * 1e3, 99))})
-    return out

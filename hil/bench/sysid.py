@@ -26,12 +26,13 @@ import numpy as np
 
 from identification.passlog import PassLog
 
-from .conditions import GEAR_SPEEDS, IMPLEMENTS, Condition, condition_for
-from .errors import SimulatorConfigError
-from .gps import control_point_from_antenna
-from .params import SimParams
-from .simulator import TractorSimulator
-from .steering import WheelAngleCalibration, nominal_duty
+from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, Condition, condition_for
+from hil.errors import SimulatorConfigError
+from hil.truth.gps_errors import control_point_from_antenna
+from hil.truth.params import SimParams
+from hil.truth.simulator import TractorSimulator
+from hil.truth.steering import nominal_duty
+from hil.devices.technician import two_point_calibration
 
 
 @dataclass(frozen=True)
@@ -163,7 +164,7 @@ def _run_driver(sim: TractorSimulator, drv: DriverExcitation, rngs: Sequence[np.
     sub = int(round(1.0 / (p.sensor.rate * p.dt)))           # integration steps per report
     lag = int(round(p.sensor.latency / p.dt))                 # report latency in steps
     n_ticks = (sim.n_steps - lag) // sub
-    cal = WheelAngleCalibration.two_point(p.sensor, p.steering)
+    cal = two_point_calibration(p.sensor, p.steering)
     max_rate = p.steering.max_rate
     wheelbase = p.vehicle.wheelbase
     n_dec = int(sim.duration / min(drv.slew_min, drv.hold_min, 0.05) + 16)
@@ -260,7 +261,7 @@ def _meta(cond: Condition, index: int, plan: SysidPlan, params: SimParams, drv: 
     return {
         "implement": cond.implement, "nominal_speed": cond.speed, "gear": cond.gear,
         "condition": cond.name, "pass_index": index, "seed": plan.seed,
-        "source": "hil.sysid (simulated open-loop identification pass)",
+        "source": "hil.bench.sysid (simulated open-loop identification pass)",
         "sample_rates_hz": {"wheel_angle": params.sensor.rate, "steer_rate_cmd": params.sensor.rate,
                             "cross_track": g.position_rate, "speed": g.position_rate,
                             "heading_error": g.attitude_rate},

@@ -71,7 +71,7 @@ def check_targets(rows: Sequence[dict], roles: Roles) -> list[dict]:
     Parameters
     ----------
     rows
-        Cells from :func:`hil.report.cells` (measured bias and 1-sigma in m).
+        Cells from :func:`hil.bench.report.cells` (measured bias and 1-sigma in m).
     roles
         Which labels are the paper's method, the oracle and the baselines.
 

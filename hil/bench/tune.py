@@ -19,11 +19,11 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from .campaign import Campaign, controller_label, make_controller
-from .conditions import Condition
-from .errors import SimulatorConfigError
-from .params import SimParams
-from .report import cells
+from hil.bench.campaign import Campaign, controller_label, make_controller
+from hil.truth.conditions import Condition
+from hil.errors import SimulatorConfigError
+from hil.truth.params import SimParams
+from hil.bench.report import cells
 
 
 def candidates(base: str, grid: Mapping[str, Sequence[float]]) -> list[str]:

@@ -4,7 +4,7 @@ The procedure (``hil calibrate``, notebook ``06_calibration``):
 
 1. **The paper's controller.** One LQR with the OKID estimator on the central model,
    made by the paper's method (``hil sysid`` -> ``identification okid`` -> ``design lqr
-   --model central.npz``, see :mod:`hil.calibrate_pipeline`), at the *reference*
+   --model central.npz``, see :mod:`hil.calibration.pipeline`), at the *reference*
    (uncalibrated) parameters, or given as a controller file.
 2. **Knobs.** A few physically meaningful scale factors, each multiplying one group of
    disturbance parameters' reference values (:data:`KNOBS`): soil force on the tractor,
@@ -21,7 +21,7 @@ The procedure (``hil calibrate``, notebook ``06_calibration``):
    1 (the reference), fixed seeds, a fixed evaluation budget. Each knob in turn is moved
    up (and on up while that pays), else down likewise, by the step; a move is kept when it
    lowers the objective; after a sweep without improvement the step is halved. Deterministic: the same options give the
-   same path. Every evaluation is a :class:`~hil.campaign.Campaign` in its own directory
+   same path. Every evaluation is a :class:`~hil.bench.campaign.Campaign` in its own directory
    (``OUT/evaluations/<key>/``, the key a hash of the parameters, controller, seeds and
    duration), so an interrupted search resumes: finished evaluations and passes are
    read back, never run again.
@@ -32,7 +32,7 @@ The procedure (``hil calibrate``, notebook ``06_calibration``):
    with; the knobs are disturbances, which change the identification data's noise far
    more than the dynamics it identifies. The confirmation re-runs the whole paper's method
    at the calibrated parameters and evaluates the new controller with other seeds
-   (:func:`hil.calibrate_pipeline.confirm`); the report gives both.
+   (:func:`hil.calibration.pipeline.confirm`); the report gives both.
 """
 
 from __future__ import annotations
@@ -46,16 +46,16 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from .campaign import Campaign, make_controller
-from .conditions import GEAR_SPEEDS, condition_for
-from .errors import SimulatorConfigError
-from .paper import TABLE2
-from .params import _GROUPS, SimParams
-from .report import cells
+from hil.bench.campaign import Campaign, make_controller
+from hil.truth.conditions import GEAR_SPEEDS, condition_for
+from hil.errors import SimulatorConfigError
+from hil.bench.paper import TABLE2
+from hil.truth.params import _GROUPS, SimParams
+from hil.bench.report import cells
 
 #: Reference (uncalibrated, pre-issue-8) values of every parameter a knob scales.
 #: Scale factors are relative to these, so the calibration result does not move when
-#: the defaults in :mod:`hil.params` become the calibrated values.
+#: the defaults in :mod:`hil.truth.params` become the calibrated values.
 REFERENCE: Mapping[str, float] = {
     "field.lateral_force": 300.0, "disker.gang_pull": 3000.0, "disker.pull_variation": 0.25,
     "disker.draft_variation": 0.15, "ripper.lateral_force": 1500.0, "ripper.yaw_moment": 1500.0,
@@ -247,7 +247,7 @@ def objective(rows: Sequence[dict], bias_weight: float = 0.25, bias_scale: float
     Parameters
     ----------
     rows
-        Cells of one controller (:func:`hil.report.cells`), each with the paper's numbers.
+        Cells of one controller (:func:`hil.bench.report.cells`), each with the paper's numbers.
     bias_weight, bias_scale, band
         See :class:`CalibrationOptions`.
 
@@ -419,7 +419,7 @@ def search(evaluate: Callable[[Mapping[str, float]], dict], options: Calibration
 def result_document(found: dict, controller: str, confirmation: dict | None = None) -> dict:
     """The calibration result as written to ``result.json`` (the defaults are tested against it)."""
     best = found["best"]
-    return {"procedure": "hil.calibrate: coordinate search on log2 scale factors of disturbance parameters, "
+    return {"procedure": "hil.calibration.calibrate: coordinate search on log2 scale factors of disturbance parameters, "
                          "objective mean ln(sigma/sigma_paper)^2 + w mean ((bias - bias_paper)/scale)^2",
             "controller": Path(controller).name, "controller_sha256_16": _file_digest(controller),
             "reference": dict(REFERENCE),

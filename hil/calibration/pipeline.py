@@ -19,9 +19,9 @@ from design.robust import design_lqr
 from identification.model import Model
 from identification.workflow import identify_logs
 
-from .calibrate import CalibrationOptions, Evaluator, calibrated_params
-from .params import SimParams
-from .sysid import SysidPlan, make_passes
+from hil.calibration.calibrate import CalibrationOptions, Evaluator, calibrated_params
+from hil.truth.params import SimParams
+from hil.bench.sysid import SysidPlan, make_passes
 
 
 def papers_controller(params: SimParams, out: str | Path, seed: int = 1997, passes: int = 3,
@@ -53,7 +53,7 @@ def confirm(log2_scales: Mapping[str, float], out: str | Path, options: Calibrat
             workers: int | None = None, progress: Callable[[int, int], None] | None = None) -> dict:
     """Re-identify at the calibrated parameters and evaluate that controller with ``options``' seeds.
 
-    Returns the evaluation record (as :class:`~hil.calibrate.Evaluator` gives it) with the
+    Returns the evaluation record (as :class:`~hil.calibration.calibrate.Evaluator` gives it) with the
     controller file's path.
     """
     out = Path(out)
@@ -80,7 +80,7 @@ def run_calibration(out: str | Path, options: CalibrationOptions, controller: st
     confirm_seeds
         Seeds of the confirmation (re-identified controller); ``None`` skips it.
     report, progress
-        Callbacks of :func:`hil.calibrate.search` and of each evaluation's campaign.
+        Callbacks of :func:`hil.calibration.calibrate.search` and of each evaluation's campaign.
 
     Returns
     -------
@@ -89,8 +89,8 @@ def run_calibration(out: str | Path, options: CalibrationOptions, controller: st
     """
     from dataclasses import replace
 
-    from .calibrate import reference_params, result_document, search
-    from .calibrate_report import write
+    from hil.calibration.calibrate import reference_params, result_document, search
+    from hil.calibration.report import write
     out = Path(out)
     if controller is None:
         ref = out / "reference" / "central-lqr.json"

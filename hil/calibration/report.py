@@ -16,8 +16,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from .conditions import GEAR_SPEEDS, IMPLEMENTS  # noqa: E402
-from .paper import TABLE2  # noqa: E402
+from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS  # noqa: E402
+from hil.bench.paper import TABLE2  # noqa: E402
 
 FIGURE = "sigma_vs_paper.png"
 

@@ -16,15 +16,15 @@ from types import TracebackType
 
 import numpy as np
 
-from .bridge.firmware import BridgeFirmware
-from .conditions import condition_for
-from .links.clock import RealClock
-from .links.pty import PtyPair
-from .links.realtime import RealTimeRunner
-from .params import SimParams
-from .plant import SimulatedTractor
-from .receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
-from .steering import WheelAngleCalibration
+from hil.devices.firmware import BridgeFirmware
+from hil.truth.conditions import condition_for
+from hil.links.clock import RealClock
+from hil.links.pty import PtyPair
+from hil.links.realtime import RealTimeRunner
+from hil.truth.params import SimParams
+from hil.devices.plant import SimulatedTractor
+from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from hil.devices.technician import two_point_calibration
 
 
 @dataclass(frozen=True)
@@ -103,7 +103,7 @@ class EmulatedTractor:
         p = self.plant.params
         geo = self.geometry
         lat_b, lon_b, _ = geo.origin.to_geodetic(np.array([*geo.line_to_enu(1000.0, 0.0), 0.0]))
-        cal = WheelAngleCalibration.two_point(p.sensor, p.steering)
+        cal = two_point_calibration(p.sensor, p.steering)
         vp = p.vehicle
         self.setup = VehicleSetup(
             bridge=bridge.slave_name, position=pos.slave_name, attitude=att.slave_name,

@@ -29,9 +29,9 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import SimulatorConfigError
-from .links.clock import Clock
-from .links.errors import LinkClosedError
+from hil.errors import SimulatorConfigError
+from hil.links.clock import Clock
+from hil.links.errors import LinkClosedError
 
 KINDS = ("garbage", "drop", "corrupt", "delay", "cut")
 DIRECTIONS = ("both", "to_device", "to_host")

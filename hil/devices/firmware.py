@@ -45,10 +45,10 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
-from hil.bridge.config import FirmwareConfig
-from hil.bridge.errors import FrameError, PlantInterfaceError
-from hil.bridge.framing import StreamDecoder
-from hil.bridge.protocol import (
+from hil.vehicle.bridge.config import FirmwareConfig
+from hil.vehicle.bridge.errors import FrameError, PlantInterfaceError
+from hil.vehicle.bridge.framing import StreamDecoder
+from hil.vehicle.bridge.protocol import (
     MESSAGE_TABLE,
     Disengage,
     Engage,

@@ -1,6 +1,6 @@
 """One simulated tractor as the emulated devices see it (the bridge's ``SteeringPlant``).
 
-:class:`SimulatedTractor` wraps a one-tractor :class:`~hil.simulator.TractorSimulator`:
+:class:`SimulatedTractor` wraps a one-tractor :class:`~hil.truth.simulator.TractorSimulator`:
 the bridge firmware sets the valve's PWM duty and reads the potentiometer's ADC;
 the emulated receivers read the simulator's GPS epochs; whoever owns the clock
 calls :meth:`advance`. The simulator integrates on a fixed grid (``params.dt``);
@@ -19,10 +19,10 @@ from typing import Sequence
 
 import numpy as np
 
-from .conditions import Condition
-from .errors import SimulatorConfigError
-from .params import SimParams
-from .simulator import SeedLike, TractorSimulator
+from hil.truth.conditions import Condition
+from hil.errors import SimulatorConfigError
+from hil.truth.params import SimParams
+from hil.truth.simulator import SeedLike, TractorSimulator
 
 Interval = tuple[float, float]
 
@@ -50,7 +50,7 @@ class SimulatedTractor:
     params
         Simulator parameters.
     initial
-        Initial state values (see :class:`~hil.simulator.TractorSimulator`).
+        Initial state values (see :class:`~hil.truth.simulator.TractorSimulator`).
     override
         Intervals ``(start, end)`` [s] during which the driver turns the wheel (manual override).
     stuck_valve

@@ -1,7 +1,7 @@
 """Emulated GPS receivers: the simulator's GPS epochs encoded as NMEA byte streams.
 
 Three layers, as in ArduPilot's simulated GPS: the truth and its errors come from
-the simulator (:mod:`hil.gps`, drawn per pass: white noise, multipath, latency,
+the simulator (:mod:`hil.truth.gps_errors`, drawn per pass: white noise, multipath, latency,
 outages, RTK float episodes, and messages with a flipped bit), the encoding from :mod:`gnss`
 (the same encoders the front-end's tests round-trip), and line timing from a
 UART at the receiver's baud rate. Each receiver is a device on the bench clock
@@ -27,11 +27,11 @@ from gnss.geodesy_scalar import ScalarFrame
 from gnss.guidance import ABLine
 from gnss.nmea_epoch import AttitudeEpochEncoder, PositionEpochEncoder
 
-from .errors import SimulatorConfigError
-from .gps import corrupt
-from .links.link import ByteLink
-from .links.uart import LineConfig, UartTx
-from .plant import SimulatedTractor
+from hil.errors import SimulatorConfigError
+from hil.truth.gps_errors import corrupt
+from hil.links.link import ByteLink
+from hil.links.uart import LineConfig, UartTx
+from hil.devices.plant import SimulatedTractor
 
 _EPS = 1e-9
 

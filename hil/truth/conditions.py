@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .errors import SimulatorConfigError
+from hil.errors import SimulatorConfigError
 
 #: Gear -> nominal speed, m/s (DESIGN section 2: 2.25, 3.0, 4.0, 5.0, 6.5 mph).
 GEAR_SPEEDS: dict[int, float] = {5: 1.00, 7: 1.34, 9: 1.79, 11: 2.24, 13: 2.91}

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .conditions import Condition
-from .noise import ou_noise
-from .params import SimParams
+from hil.truth.conditions import Condition
+from hil.truth.noise import ou_noise
+from hil.truth.params import SimParams
 
 
 @dataclass(frozen=True)

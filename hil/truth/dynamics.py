@@ -33,11 +33,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .disturbances import Exogenous
-from .params import SimParams
+from hil.truth.disturbances import Exogenous
+from hil.truth.params import SimParams
 
 X, Y, PSI, V, R, DEL, OM, PHI = range(8)
-#: The exogenous channels (fields of :class:`hil.disturbances.Exogenous`) the one-tractor steppers take
+#: The exogenous channels (fields of :class:`hil.truth.disturbances.Exogenous`) the one-tractor steppers take
 #: per step, in their argument order.
 STEP_INPUTS = ("speed", "roll", "force_y", "ripper_force", "ripper_moment", "draft", "gang_pull", "front_load")
 N_STATE = 8
@@ -48,7 +48,7 @@ G = 9.80665  # m/s^2
 @dataclass(frozen=True)
 class Inputs(Exogenous):
     """Inputs held over one integration step: the exogenous values at this step
-    (:class:`hil.disturbances.Exogenous`, each ``(B,)`` or a float for one tractor), plus
+    (:class:`hil.truth.disturbances.Exogenous`, each ``(B,)`` or a float for one tractor), plus
     ``rate_cmd``, the valve's steady-state rate for the current duty [rad/s], and ``disker``,
     1.0 for tractors towing the disker, else 0.0.
     """
@@ -272,7 +272,7 @@ def _multistepper_source() -> str:
     fast = stages
     for factored, plain in _UNIT_FACTORS:
         if factored not in fast:
-            raise RuntimeError(f"hil.vehicle: the stage no longer contains {factored!r}; update _UNIT_FACTORS")
+            raise RuntimeError(f"hil.truth.dynamics: the stage no longer contains {factored!r}; update _UNIT_FACTORS")
         fast = fast.replace(factored, plain)
     lines.append("            if moving == 1.0 and disker == 1.0:")
     lines += [pad + "    " + line if line.strip() else "" for line in fast.split("\n")]
@@ -303,7 +303,7 @@ def multistep_inputs(p: SimParams, speed: np.ndarray, roll: np.ndarray, force_y:
     p
         Simulator parameters.
     speed, roll, force_y, ripper_force, ripper_moment, draft, gang_pull, front_load
-        The exogenous inputs per step (fields of :class:`hil.disturbances.Exogenous`; m/s, rad, N,
+        The exogenous inputs per step (fields of :class:`hil.truth.disturbances.Exogenous`; m/s, rad, N,
         N, N m, N, N, 1), each of shape ``(n,)``.
 
     Returns
@@ -356,7 +356,7 @@ def _compiled(which: str):
     code = _CODE.get(which)
     if code is None:
         source = _bind_locals(_stepper_source() if which == "step" else _multistepper_source())
-        code = _CODE[which] = compile(source, f"<hil.vehicle.scalar_{which}per>", "exec")
+        code = _CODE[which] = compile(source, f"<hil.truth.dynamics.scalar_{which}per>", "exec")
     return code
 
 

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .noise import episodes, ou_noise
-from .params import GpsParams, VehicleParams
+from hil.truth.noise import episodes, ou_noise
+from hil.truth.params import GpsParams, VehicleParams
 
 FIX_RTK_FIXED = 4
 FIX_RTK_FLOAT = 5

@@ -23,12 +23,12 @@ from typing import Sequence
 
 import numpy as np
 
-from . import disturbances, gps, vehicle
-from .conditions import Condition
-from .errors import SimulatorConfigError
-from .params import SimParams
-from .steering import sensor_counts, valve_rate, valve_rate_scalar
-from .vehicle import DEL, N_STATE, PSI, X, Y
+from hil.truth import disturbances, dynamics as vehicle, gps_errors as gps
+from hil.truth.conditions import Condition
+from hil.errors import SimulatorConfigError
+from hil.truth.params import SimParams
+from hil.truth.steering import sensor_counts, valve_rate, valve_rate_scalar
+from hil.truth.dynamics import DEL, N_STATE, PSI, X, Y
 
 SeedLike = int | np.random.SeedSequence
 
@@ -47,14 +47,14 @@ class TractorSimulator:
     Parameters
     ----------
     conditions
-        One :class:`~hil.conditions.Condition` per tractor.
+        One :class:`~hil.truth.conditions.Condition` per tractor.
     duration
         Longest time the batch will be run, s (> 0); exogenous inputs and GPS
         errors are drawn for it up front.
     seeds
         One seed (int or ``SeedSequence``) per tractor.
     params
-        Simulator parameters (defaults: :class:`~hil.params.SimParams`).
+        Simulator parameters (defaults: :class:`~hil.truth.params.SimParams`).
     initial
         Optional initial values ``{"Y": m, "PSI": rad, "DEL": rad}`` per tractor, shape ``(B,)``.
     scalar
@@ -135,7 +135,7 @@ class TractorSimulator:
 
     @property
     def state(self) -> np.ndarray:
-        """State of every tractor, shape ``(B, 8)`` (columns :data:`hil.vehicle.STATE_NAMES`); a copy
+        """State of every tractor, shape ``(B, 8)`` (columns :data:`hil.truth.dynamics.STATE_NAMES`); a copy
         on the one-tractor path, which keeps the state as floats."""
         return self._state if self._x is None else np.array([self._x])
 

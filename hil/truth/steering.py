@@ -4,19 +4,17 @@ The valve turns a PWM duty into a wheel-angle rate (deadband, non-linear flow,
 left/right asymmetry, saturation at full duty, first-order lag, mechanical stops);
 the potentiometer turns the wheel angle into 8-bit ADC counts (cubic
 non-linearity, noise, quantisation). The host knows neither exactly: it converts
-counts with a two-point linear calibration and rates with the nominal scale.
+counts with a two-point linear calibration (:mod:`hil.vehicle.calibration`) and rates with the
+nominal scale.
 
 Sign convention: + = steer left (wheel angle, rate and duty alike).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from .errors import SimulatorConfigError
-from .params import SteeringParams, WheelSensorParams
+from hil.truth.params import SteeringParams, WheelSensorParams
 
 
 def valve_rate(duty: np.ndarray, p: SteeringParams) -> np.ndarray:
@@ -73,41 +71,3 @@ def sensor_counts(delta: np.ndarray, noise: np.ndarray, s: WheelSensorParams,
                   st: SteeringParams) -> np.ndarray:
     """8-bit ADC reading (int 0..255) of the wheel angle ``delta`` [rad] with ``noise`` [counts]."""
     return np.clip(np.rint(sensor_counts_float(delta, s, st) + noise), 0, 255).astype(np.int64)
-
-
-@dataclass(frozen=True)
-class WheelAngleCalibration:
-    """Linear counts-to-angle conversion the host uses (it does not know the sensor's curve).
-
-    Parameters
-    ----------
-    center_counts
-        Counts at zero wheel angle.
-    rad_per_count
-        Slope, rad per count (> 0), + counts = left.
-    """
-
-    center_counts: float
-    rad_per_count: float
-
-    def __post_init__(self) -> None:
-        if not (np.isfinite(self.center_counts) and np.isfinite(self.rad_per_count)
-                and self.rad_per_count > 0):
-            raise SimulatorConfigError(f"invalid wheel-angle calibration {self}")
-
-    def to_angle(self, counts: np.ndarray) -> np.ndarray:
-        """Wheel angle, rad, from ADC counts."""
-        return (np.asarray(counts, dtype=float) - self.center_counts) * self.rad_per_count
-
-    @classmethod
-    def two_point(cls, s: WheelSensorParams, st: SteeringParams,
-                  angle: float = 0.35) -> "WheelAngleCalibration":
-        """Calibration a technician makes with a protractor at straight ahead and +-``angle`` rad.
-
-        The noise-free readings at -angle, 0 and +angle are fitted by a straight line;
-        the cubic non-linearity is what remains as calibration error.
-        """
-        a = np.array([-angle, 0.0, angle])
-        c = sensor_counts_float(a, s, st)
-        slope, icpt = np.polyfit(a, c, 1)
-        return cls(center_counts=float(icpt), rad_per_count=float(1.0 / slope))

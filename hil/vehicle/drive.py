@@ -1,6 +1,6 @@
 """The vehicle loop on real serial ports: the steering bridge and the GPS receivers of a tractor.
 
-Exactly the loop that runs on the bench (:class:`hil.loop.VehicleLoop`), on a
+Exactly the loop that runs on the bench (:class:`hil.vehicle.loop.VehicleLoop`), on a
 real clock, with pyserial ports. The guidance line is given by two WGS-84
 points A and B (A is also the origin of the local ENU frame); the antenna's
 lever arm and the wheel-angle calibration are the vehicle's own.
@@ -24,16 +24,17 @@ from gnss.geodesy import LocalFrame
 from gnss.guidance import ABLine
 from identification.passlog import PassLog
 
-from .bridge.driver import BridgeDriver
-from .errors import HilError, SimulatorConfigError
-from .links.clock import RealClock
-from .loop import LoopConfig, VehicleLoop
-from .steering import WheelAngleCalibration
+from hil.vehicle.bridge.driver import BridgeDriver
+from hil.errors import HilError
+from hil.vehicle.errors import VehicleConfigError
+from hil.links.clock import RealClock
+from hil.vehicle.loop import LoopConfig, VehicleLoop
+from hil.vehicle.calibration import WheelAngleCalibration
 
 
 def _finite(name: str, values: tuple[float, ...], n: int) -> tuple[float, ...]:
     if len(values) != n or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
-        raise SimulatorConfigError(f"{name} must be {n} finite numbers, got {values!r}")
+        raise VehicleConfigError(f"{name} must be {n} finite numbers, got {values!r}")
     return tuple(float(v) for v in values)
 
 
@@ -77,17 +78,17 @@ class DriveConfig:
     def __post_init__(self) -> None:
         for name in ("bridge_port", "position_port"):
             if not isinstance(getattr(self, name), str) or not getattr(self, name):
-                raise SimulatorConfigError(f"{name} must name a serial device")
+                raise VehicleConfigError(f"{name} must name a serial device")
         a = _finite("line_a", self.line_a, 2)
         b = _finite("line_b", self.line_b, 2)
         if abs(a[0]) > 90 or abs(b[0]) > 90 or abs(a[1]) > 180 or abs(b[1]) > 180:
-            raise SimulatorConfigError(f"line ends must be (lat, lon) in degrees, got {a}, {b}")
+            raise VehicleConfigError(f"line ends must be (lat, lon) in degrees, got {a}, {b}")
         _finite("lever_arm", self.lever_arm, 3)
         WheelAngleCalibration(*_finite("wheel_calibration", self.wheel_calibration, 2))
         for name in ("bridge_baud", "gnss_baud"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not 300 <= v <= 4_000_000:
-                raise SimulatorConfigError(f"{name} must be an integer bit rate, got {v!r}")
+                raise VehicleConfigError(f"{name} must be an integer bit rate, got {v!r}")
 
     def geometry(self) -> tuple[LocalFrame, ABLine]:
         """The ENU frame about A and the guidance line A -> B in it."""
@@ -137,7 +138,7 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
     finally:
         for p in ports:
             p.close()
-    meta = {"implement": implement, "nominal_speed": nominal_speed, "source": "hil.drive (real serial ports)",
+    meta = {"implement": implement, "nominal_speed": nominal_speed, "source": "hil.vehicle.drive (real serial ports)",
             "mode": "vehicle", "interrupted": interrupted,
             "ports": {"bridge": cfg.bridge_port, "position": cfg.position_port, "attitude": cfg.attitude_port},
             "line": {"a": list(cfg.line_a), "b": list(cfg.line_b)}, "lever_arm": list(cfg.lever_arm),

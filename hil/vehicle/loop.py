@@ -36,10 +36,10 @@ from gnss.guidance import ABLine, TrackErrors
 from gnss.integrity import IntegrityState
 from identification.passlog import PassLog
 
-from .bridge.driver import BridgeDriver, BridgeLinkError
-from .errors import SimulatorConfigError
-from .links.clock import Clock
-from .steering import WheelAngleCalibration
+from hil.vehicle.bridge.driver import BridgeDriver, BridgeLinkError
+from hil.vehicle.errors import VehicleConfigError
+from hil.links.clock import Clock
+from hil.vehicle.calibration import WheelAngleCalibration
 
 INTEGRITY_CODES = {"RTK_FIXED": 0, "RTK_FLOAT": 1, "DEGRADED": 2, "STALE": 3, "LOST": 4}
 # by id(): hashing an Enum member runs Python code (Enum.__hash__), id() does not
@@ -87,9 +87,9 @@ class LoopConfig:
     def __post_init__(self) -> None:
         for k, v in asdict(self).items():
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise SimulatorConfigError(f"LoopConfig.{k} must be a finite number >= 0, got {v!r}")
+                raise VehicleConfigError(f"LoopConfig.{k} must be a finite number >= 0, got {v!r}")
         if self.rate <= 0 or self.max_rate <= 0 or self.speed_max <= self.speed_min:
-            raise SimulatorConfigError("LoopConfig: need rate > 0, max_rate > 0 and speed_max > speed_min")
+            raise VehicleConfigError("LoopConfig: need rate > 0, max_rate > 0 and speed_max > speed_min")
 
 
 _COLUMNS = ("t", "cross_track", "heading_error", "wheel_angle", "speed", "steer_rate_cmd", "engaged",
@@ -124,7 +124,7 @@ class VehicleLoop:
                  controller: Controller, calibration: WheelAngleCalibration, config: LoopConfig | None = None,
                  truth: Callable[[], dict[str, float]] | None = None) -> None:
         if not isinstance(controller, Controller):
-            raise SimulatorConfigError(f"{type(controller).__name__} does not implement the Controller interface")
+            raise VehicleConfigError(f"{type(controller).__name__} does not implement the Controller interface")
         self.clock, self.driver, self.frontend, self.line = clock, driver, frontend, line
         self.controller, self.calibration = controller, calibration
         self.config = config or LoopConfig()
@@ -285,7 +285,7 @@ class VehicleLoop:
             progress: Callable[[float, float], None] | None = None) -> None:
         """Run cycles for ``duration`` seconds from ``start`` (default: the clock now), then disengage."""
         if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
-            raise SimulatorConfigError(f"duration must be a finite number of seconds > 0, got {duration!r}")
+            raise VehicleConfigError(f"duration must be a finite number of seconds > 0, got {duration!r}")
         t0 = self.clock.now() if start is None else start
         period = 1.0 / self.config.rate
         n = int(math.floor(duration * self.config.rate + 1e-9))
@@ -306,7 +306,7 @@ class VehicleLoop:
         r = {k: table[:, i].copy() for i, k in enumerate(_COLUMNS)}
         t = r.pop("t")
         if t.size < 2:
-            raise SimulatorConfigError("a run log needs at least two cycles")
+            raise VehicleConfigError("a run log needs at least two cycles")
         std = ("cross_track", "heading_error", "wheel_angle", "speed", "steer_rate_cmd")
         extra_units = {"engaged": "1", "healthy": "1", "gps_valid": "1", "bridge_valid": "1",
                        "integrity": "code", "fix_quality": "1", "compute_time": "s", "lateness": "s",

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from design.mpc import MPCLimits, build_mpc
-from hil.run import RunSpec, simulated_run
+from hil.bench.run import RunSpec, simulated_run
 
 from design_family import tractor_model
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from hil.calibrate import FIXED, KNOBS, parameter_values
-from hil.params import _GROUPS, SimParams
+from hil.calibration.calibrate import FIXED, KNOBS, parameter_values
+from hil.truth.params import _GROUPS, SimParams
 
 RESULT = Path(__file__).resolve().parents[2] / "docs" / "calibration" / "result.json"
 

@@ -6,8 +6,8 @@ import json
 import pytest
 
 from hil.cli import main as hil_main
-from hil.drive import DriveConfig
-from hil.emulate import EmulatedTractor
+from hil.vehicle.drive import DriveConfig
+from hil.devices.emulate import EmulatedTractor
 from identification.passlog import PassLog
 
 

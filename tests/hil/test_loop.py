@@ -9,9 +9,10 @@ import pytest
 
 from design.controller import KinematicLQRController
 from hil.cli import main as hil_main
-from hil.loop import LoopConfig
-from hil.params import SimParams
-from hil.run import RunSpec, simulated_run, summarize
+from hil.vehicle.loop import LoopConfig
+from hil.truth.params import SimParams
+from hil.bench.run import RunSpec, simulated_run
+from hil.vehicle.summary import summarize
 from identification.passlog import PassLog
 
 WALL_CLOCK = ("compute_time", "lateness", "deadline_miss")

@@ -9,13 +9,13 @@ import pytest
 from scipy.linalg import expm
 
 from design.controller import Controller, Measurement
-from hil.conditions import all_conditions, condition_for
+from hil.truth.conditions import all_conditions, condition_for
 from hil.errors import SimulatorConfigError
-from hil.oracle import (EXOGENOUS, OracleLQG, OracleOptions, OracleWeights, design_oracle, find_trim,
-                        linearize, mean_inputs, oracle_for, valve_command, valve_secant_gain)
-from hil.params import SimParams
-from hil.steering import nominal_duty, valve_rate
-from hil.vehicle import Inputs, _rates, _ScalarOps, rk4_step_scalar
+from hil.bench.oracle import OracleLQG, OracleOptions, OracleWeights, design_oracle, oracle_for
+from hil.truth.linearize import EXOGENOUS, find_trim, linearize, mean_inputs, valve_command, valve_secant_gain
+from hil.truth.params import SimParams
+from hil.truth.steering import nominal_duty, valve_rate
+from hil.truth.dynamics import Inputs, _rates, _ScalarOps, rk4_step_scalar
 
 P = SimParams()
 
@@ -114,7 +114,8 @@ def test_the_oracle_is_a_controller_and_regulates_its_own_model():
 
 
 def test_a_short_pass_on_the_bench_holds_the_disker_line():
-    from hil.run import RunSpec, simulated_run, summarize
+    from hil.bench.run import RunSpec, simulated_run
+    from hil.vehicle.summary import summarize
     s = summarize(simulated_run(RunSpec(implement="disker", speed=1.79, duration=20, seed=2), oracle_for("disker", 1.79)))
     assert abs(s["true_bias_m"]) < 0.02 and s["true_sigma_m"] < 0.05
 
@@ -122,8 +123,9 @@ def test_a_short_pass_on_the_bench_holds_the_disker_line():
 @pytest.mark.slow
 def test_on_the_bench_the_oracle_beats_the_kinematic_lqr_and_has_no_disker_bias():
     """Same seeds (same soil, slope and GPS errors) for both controllers, 60 s passes."""
-    from hil.campaign import make_controller
-    from hil.run import RunSpec, simulated_run, summarize
+    from hil.bench.campaign import make_controller
+    from hil.bench.run import RunSpec, simulated_run
+    from hil.vehicle.summary import summarize
     for implement, speed in (("none", 1.0), ("disker", 2.24), ("ripper", 1.79)):
         spec = RunSpec(implement=implement, speed=speed, duration=60, seed=1)
         oracle = summarize(simulated_run(spec, oracle_for(implement, speed)))
@@ -140,7 +142,7 @@ def test_on_the_bench_the_oracle_beats_the_kinematic_lqr_and_has_no_disker_bias(
     (lambda: oracle_for("plough", 1.79), "unknown implement"),
     (lambda: oracle_for("none", 0.3), ">= 1 m/s"),
     (lambda: oracle_for("none", float("nan")), "speed must be"),
-    (lambda: OracleLQG("none", P), "expected a hil.conditions.Condition"),
+    (lambda: OracleLQG("none", P), "expected a hil.truth.conditions.Condition"),
     (lambda: oracle_for("none", 1.0, params={"vehicle": {}}), "params must be SimParams"),
     (lambda: oracle_for("none", 1.0, options={"dt": 0.05}), "options must be OracleOptions"),
     (lambda: OracleWeights(cross_track=-0.1), "cross_track must be a finite number > 0"),

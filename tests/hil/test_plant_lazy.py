@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.conditions import condition_for
+from hil.truth.conditions import condition_for
 from hil.errors import SimulatorConfigError
-from hil.plant import SimulatedTractor
+from hil.devices.plant import SimulatedTractor
 
 
 def _drive(read_every_advance: bool, stuck=()) -> tuple[list, list, list]:

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from gnss.reader import read_messages
-from hil.conditions import condition_for
+from hil.truth.conditions import condition_for
 from hil.links.clock import VirtualClock
 from hil.links.memory import memory_link_pair
-from hil.plant import SimulatedTractor
-from hil.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from hil.devices.plant import SimulatedTractor
+from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
 
 
 def _drive(catch_up_always: bool, step: float, firmware: bool, which: tuple[int, ...] = (0, 1),

@@ -1,7 +1,7 @@
 """The one-tractor fast path (HIL lockstep) computes exactly what the reference code computes.
 
 ``vehicle.scalar_stepper`` and the simulator's float bookkeeping exist only for speed: every
-value must be bit-for-bit that of :func:`hil.vehicle.rk4_step_scalar` (the equations as written
+value must be bit-for-bit that of :func:`hil.truth.dynamics.rk4_step_scalar` (the equations as written
 once in ``_rates``) and of the batch path's GPS epochs.
 """
 
@@ -12,10 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from design.controller import KinematicLQRController, Measurement
-from hil.conditions import condition_for
-from hil.params import SimParams
-from hil.simulator import TractorSimulator
-from hil.vehicle import DEL, Inputs, rk4_step_scalar, scalar_stepper
+from hil.truth.conditions import condition_for
+from hil.truth.params import SimParams
+from hil.truth.simulator import TractorSimulator
+from hil.truth.dynamics import DEL, Inputs, rk4_step_scalar, scalar_stepper
 
 P = SimParams()
 STEP = scalar_stepper(P)
@@ -72,7 +72,7 @@ def test_one_tractor_path_records_the_batch_codes_epochs_counts_and_truth():
        a=st.tuples(_f(-50, 50), _f(-50, 50)), east=_f(-2000, 2000), north=_f(-2000, 2000), yaw=_f(-7, 7))
 def test_loop_line_errors_are_bit_identical_to_ab_line_errors(b, a, east, north, yaw):
     from gnss.guidance import ABLine
-    from hil.loop import _scalar_line_errors
+    from hil.vehicle.loop import _scalar_line_errors
     line = ABLine(np.array(a), np.array(a) + np.array(b))
     err = line.errors(east, north, yaw)
     assert _scalar_line_errors(line)(east, north, yaw) == (float(err.cross_track), float(err.heading_error))
@@ -81,7 +81,7 @@ def test_loop_line_errors_are_bit_identical_to_ab_line_errors(b, a, east, north,
 @settings(max_examples=300, deadline=None)
 @given(duty=st.one_of(_f(-1.5, 1.5), st.sampled_from([0.0, -0.0, 1.0, -1.0, 0.05, -0.05])))
 def test_valve_rate_scalar_is_bit_identical_to_valve_rate(duty):
-    from hil.steering import valve_rate, valve_rate_scalar
+    from hil.truth.steering import valve_rate, valve_rate_scalar
     assert valve_rate_scalar(duty, P.steering) == float(valve_rate(np.array([duty]), P.steering)[0])
 
 
@@ -120,7 +120,7 @@ def test_kinematic_lqr_scalar_gain_is_bit_identical_to_np_interp(speed, x):
 
 def test_multistepper_is_bit_identical_to_repeated_single_steps():
     """``vehicle.scalar_multistepper`` (the plant's steps between epochs) is the single step in a loop."""
-    from hil.vehicle import STEP_INPUTS, multistep_inputs, scalar_multistepper
+    from hil.truth.dynamics import STEP_INPUTS, multistep_inputs, scalar_multistepper
     many = scalar_multistepper(P)
     rng = np.random.default_rng(7)
     for disker, speed in ((1.0, 1.79), (0.0, 2.91), (1.0, 0.02)):
@@ -154,7 +154,7 @@ def test_multistepper_is_bit_identical_to_repeated_single_steps():
 def test_multistep_inputs_give_the_single_steps_terms(state, rate, speeds, roll, forces, front_load, disker):
     """The per-step terms computed on arrays (``multistep_inputs``) are bit-for-bit those the single step
     computes from the raw inputs, including standstill, a speed below the slip floor and no front load."""
-    from hil.vehicle import multistep_inputs, scalar_multistepper
+    from hil.truth.dynamics import multistep_inputs, scalar_multistepper
     raw = [(s, roll, *forces, front_load) for s in speeds]
     x = list(state)
     for u in raw:

@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.conditions import Condition, condition_for
-from hil.disturbances import generate, hop_depth, soil_force_sigma
-from hil.params import SimParams
-from hil.simulator import TractorSimulator
-from hil.steering import WheelAngleCalibration, sensor_counts_float, valve_rate
-from hil.vehicle import DEL, PSI, X, Y
+from hil.truth.conditions import Condition, condition_for
+from hil.truth.disturbances import generate, hop_depth, soil_force_sigma
+from hil.truth.params import SimParams
+from hil.truth.simulator import TractorSimulator
+from hil.truth.steering import sensor_counts_float, valve_rate
+from hil.devices.technician import two_point_calibration
+from hil.truth.dynamics import DEL, PSI, X, Y
 
 CALM = SimParams().with_overrides({"field.roll": 0.0, "field.lateral_force": 0.0,
                                    "field.speed_variation": 0.0})
@@ -101,7 +102,7 @@ def test_valve_has_deadband_asymmetry_and_saturation():
 
 def test_wheel_sensor_is_nonlinear_and_the_linear_calibration_errs_by_a_few_counts():
     p = SimParams()
-    cal = WheelAngleCalibration.two_point(p.sensor, p.steering)
+    cal = two_point_calibration(p.sensor, p.steering)
     a = np.linspace(-0.6, 0.6, 241)
     err = cal.to_angle(sensor_counts_float(a, p.sensor, p.steering)) - a
     assert 0.3 < np.degrees(np.max(np.abs(err))) < 6.0

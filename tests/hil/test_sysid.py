@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from hil.cli import main as hil_main
-from hil.conditions import condition_for
-from hil.params import SimParams
-from hil.sysid import SysidPlan, make_passes, pass_name
+from hil.truth.conditions import condition_for
+from hil.truth.params import SimParams
+from hil.bench.sysid import SysidPlan, make_passes, pass_name
 from identification.passlog import PassLog
 
 
@@ -151,6 +151,6 @@ def test_pass_name():
 def test_parameter_document_is_up_to_date():
     from pathlib import Path
 
-    from hil.params import parameter_markdown
+    from hil.truth.params import parameter_markdown
     doc = Path(__file__).resolve().parents[2] / "docs" / "simulator_parameters.md"
     assert doc.read_text() == parameter_markdown(), "regenerate: hil params --markdown > docs/simulator_parameters.md"

@@ -7,8 +7,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from hil.bridge.errors import ConfigError
-from hil.bridge.protocol import MAX_PAYLOAD, RATE_SCALE
+from hil.vehicle.bridge.errors import ConfigError
+from hil.vehicle.bridge.protocol import MAX_PAYLOAD, RATE_SCALE
 from hil.links.errors import LinkConfigError
 from hil.links.uart import LineConfig
 
@@ -101,7 +101,7 @@ class DriverConfig:
         The bridge counts as silent when no report arrived for this long, s
         (default 0.15: three report periods).
     max_pending_reports : int
-        Reports kept for :meth:`~hil.bridge.driver.BridgeDriver.poll`; older ones
+        Reports kept for :meth:`~hil.vehicle.bridge.driver.BridgeDriver.poll`; older ones
         are dropped and counted (default 64).
     read_chunk : int
         Most bytes read from the link in one go (default 4096).

@@ -8,7 +8,7 @@ tractor, over pseudo-terminals in real time, and in lockstep on a virtual clock.
 Sending never blocks on the bridge. :meth:`BridgeDriver.poll` reads whatever
 bytes are waiting and returns the reports they complete; the blocking calls
 (:meth:`BridgeDriver.read_report`, :meth:`BridgeDriver.ping`) wait on the clock
-with a timeout and raise :class:`~hil.bridge.errors.BridgeTimeout`.
+with a timeout and raise :class:`~hil.vehicle.bridge.errors.BridgeTimeout`.
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ import statistics
 from collections import deque
 from dataclasses import dataclass
 
-from hil.bridge.config import DriverConfig
-from hil.bridge.errors import BridgeLinkError, BridgeTimeout, ConfigError
-from hil.bridge.framing import StreamDecoder
-from hil.bridge.protocol import (
+from hil.vehicle.bridge.config import DriverConfig
+from hil.vehicle.bridge.errors import BridgeLinkError, BridgeTimeout, ConfigError
+from hil.vehicle.bridge.framing import StreamDecoder
+from hil.vehicle.bridge.protocol import (
     Disengage,
     Engage,
     Message,
@@ -148,7 +148,7 @@ class BridgeDriver:
     clock : Clock
         Time source for time stamps, timeouts and waiting.
     config : DriverConfig, optional
-        Defaults in :class:`~hil.bridge.config.DriverConfig`.
+        Defaults in :class:`~hil.vehicle.bridge.config.DriverConfig`.
     """
 
     def __init__(self, link: ByteLink, clock: Clock, config: DriverConfig | None = None) -> None:

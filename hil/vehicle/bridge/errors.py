@@ -24,7 +24,7 @@ __all__ = [
 
 
 class BridgeError(Exception):
-    """Base of every error raised or reported by :mod:`hil.bridge`."""
+    """Base of every error raised or reported by :mod:`hil.vehicle.bridge`."""
 
 
 class FrameError(BridgeError, ValueError):

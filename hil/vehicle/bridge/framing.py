@@ -1,7 +1,7 @@
 """Stream decoder for bridge frames: finds frames in a byte stream, resynchronises after garbage.
 
 The decoder never raises on bad bytes. Each refused frame becomes an *error
-value* (an instance of a :class:`~hil.bridge.errors.FrameError` subclass) in the
+value* (an instance of a :class:`~hil.vehicle.bridge.errors.FrameError` subclass) in the
 returned events and is counted; the decoder then drops the first sync byte of
 the refused frame and searches for the next sync pattern, so a frame that begins
 inside the garbage or inside a corrupted frame is still found.
@@ -18,8 +18,8 @@ from __future__ import annotations
 from binascii import crc_hqx
 from dataclasses import dataclass
 
-from hil.bridge.errors import ConfigError, CrcError, FieldError, FrameError, LengthError, UnknownMessageError
-from hil.bridge.protocol import (
+from hil.vehicle.bridge.errors import ConfigError, CrcError, FieldError, FrameError, LengthError, UnknownMessageError
+from hil.vehicle.bridge.protocol import (
     _FRAME_DECODERS,
     CRC_INIT,
     CRC_LEN,
@@ -174,7 +174,7 @@ class StreamDecoder:
         """:meth:`feed` with plain tuples for events: what the firmware and the driver read frames with.
 
         Every check and counter is that of :meth:`feed`; only the events are not wrapped
-        in :class:`DecodeEvent` and :class:`~hil.bridge.protocol.Frame` objects.
+        in :class:`DecodeEvent` and :class:`~hil.vehicle.bridge.protocol.Frame` objects.
 
         Parameters
         ----------

@@ -26,7 +26,7 @@ import math
 import struct
 from dataclasses import dataclass
 
-from hil.bridge.errors import CrcError, EncodeError, FieldError, FrameError, LengthError, UnknownMessageError
+from hil.vehicle.bridge.errors import CrcError, EncodeError, FieldError, FrameError, LengthError, UnknownMessageError
 
 __all__ = [
     "frame_packer",

@@ -1,4 +1,4 @@
-"""TEST DOUBLE of the steering plant: NOT the truth simulator (that is hil/simulator.py).
+"""TEST DOUBLE of the steering plant: NOT the truth simulator (that is hil/truth/simulator.py).
 
 A first-order, honest-but-simple stand-in used to test the bridge before and
 beside the real simulator: the wheel angle integrates ``duty * max_rate`` (no
@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 
 class FirstOrderPlantDouble:
-    """Test double implementing ``hil.bridge.firmware.SteeringPlant``.
+    """Test double implementing ``hil.devices.firmware.SteeringPlant``.
 
     Parameters
     ----------

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from bridge_plant_double import FirstOrderPlantDouble
 
-from hil.bridge.bench import LockstepBridge
+from hil.bench.bridge_bench import LockstepBridge
 
 
 @pytest.fixture

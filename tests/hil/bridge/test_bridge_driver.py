@@ -7,10 +7,10 @@ import time
 
 import pytest
 
-from hil.bridge.config import DriverConfig
-from hil.bridge.driver import BridgeDriver
-from hil.bridge.errors import BridgeTimeout, ConfigError, EncodeError
-from hil.bridge.protocol import Pong, StatusFlags, WheelAngleReport, encode_frame
+from hil.vehicle.bridge.config import DriverConfig
+from hil.vehicle.bridge.driver import BridgeDriver
+from hil.vehicle.bridge.errors import BridgeTimeout, ConfigError, EncodeError
+from hil.vehicle.bridge.protocol import Pong, StatusFlags, WheelAngleReport, encode_frame
 from hil.links.clock import RealClock, VirtualClock
 from hil.links.memory import memory_link_pair
 from hil.links.pty import PtyPair
@@ -117,7 +117,7 @@ def test_non_blocking_pings_are_timed_by_poll_and_unanswered_ones_are_forgotten(
 
 @pytest.mark.timeout(20)
 def test_a_lost_link_raises_in_the_driver_while_the_bridge_carries_on_and_its_watchdog_cuts_the_valve(bench, plant):
-    from hil.bridge.driver import BridgeLinkError
+    from hil.vehicle.bridge.driver import BridgeLinkError
 
     drv, clock = bench.driver, bench.clock
     drv.engage()

@@ -20,11 +20,11 @@ from bridge_plant_double import FirstOrderPlantDouble
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hil.bridge.bench import LockstepBridge
-from hil.bridge.errors import CrcError, FieldError, LengthError, UnknownMessageError
-from hil.bridge.firmware import _TIME_EPS
-from hil.bridge.framing import DecodeEvent, StreamDecoder
-from hil.bridge.protocol import (
+from hil.bench.bridge_bench import LockstepBridge
+from hil.vehicle.bridge.errors import CrcError, FieldError, LengthError, UnknownMessageError
+from hil.devices.firmware import _TIME_EPS
+from hil.vehicle.bridge.framing import DecodeEvent, StreamDecoder
+from hil.vehicle.bridge.protocol import (
     CRC_INIT,
     CRC_LEN,
     DUTY_SCALE,

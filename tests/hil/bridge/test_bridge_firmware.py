@@ -9,10 +9,10 @@ from __future__ import annotations
 import pytest
 from bridge_plant_double import FirstOrderPlantDouble
 
-from hil.bridge.bench import LockstepBridge
-from hil.bridge.config import FirmwareConfig
-from hil.bridge.errors import ConfigError
-from hil.bridge.protocol import Engage, Ping, SteerRateCommand, encode_frame, frame_length
+from hil.bench.bridge_bench import LockstepBridge
+from hil.vehicle.bridge.config import FirmwareConfig
+from hil.vehicle.bridge.errors import ConfigError
+from hil.vehicle.bridge.protocol import Engage, Ping, SteerRateCommand, encode_frame, frame_length
 from hil.links.uart import LineConfig
 
 BT = 10 / 9600  # s per byte at 9600 8N1

@@ -6,9 +6,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hil.bridge.errors import BridgeError, CrcError, LengthError, UnknownMessageError
-from hil.bridge.framing import StreamDecoder
-from hil.bridge.protocol import SYNC, Engage, Ping, StatusFlags, SteerRateCommand, WheelAngleReport, crc16, encode_frame
+from hil.vehicle.bridge.errors import BridgeError, CrcError, LengthError, UnknownMessageError
+from hil.vehicle.bridge.framing import StreamDecoder
+from hil.vehicle.bridge.protocol import SYNC, Engage, Ping, StatusFlags, SteerRateCommand, WheelAngleReport, crc16, encode_frame
 
 pytestmark = pytest.mark.timeout(20)
 
@@ -131,7 +131,7 @@ def test_fuzz_random_bytes_never_raise_and_never_yield_a_frame_with_a_bad_crc(da
                       st.builds(lambda f, i, x: f[:i] + bytes([f[i] ^ x]) + f[i + 1:] if i < len(f) else f,
                                 st.sampled_from(FRAMES), st.integers(0, 17), st.integers(1, 255))))
 def test_fuzz_strict_decoder_raises_only_package_errors(data):
-    from hil.bridge.protocol import decode_frame
+    from hil.vehicle.bridge.protocol import decode_frame
 
     try:
         frame = decode_frame(data)

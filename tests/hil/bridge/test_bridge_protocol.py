@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from hil.bridge.errors import CrcError, EncodeError, FieldError, FrameError, LengthError, UnknownMessageError
-from hil.bridge.protocol import (
+from hil.vehicle.bridge.errors import CrcError, EncodeError, FieldError, FrameError, LengthError, UnknownMessageError
+from hil.vehicle.bridge.protocol import (
     CRC_INIT,
     DUTY_SCALE,
     MESSAGE_TABLE,
@@ -168,14 +168,14 @@ def test_frame_packer_gives_encode_frame_from_field_values(message, seq):
     """The emulated bridge packs its reports from the values; same bytes as encoding the message."""
     from dataclasses import astuple
 
-    from hil.bridge.protocol import frame_packer
+    from hil.vehicle.bridge.protocol import frame_packer
     values = tuple(getattr(message, f) for f in type(message).__dataclass_fields__)
     assert values == astuple(message)
     assert frame_packer(type(message))(seq, *values) == encode_frame(message, seq)
 
 
 def test_frame_packer_refuses_what_encode_frame_refuses():
-    from hil.bridge.protocol import frame_packer
+    from hil.vehicle.bridge.protocol import frame_packer
     with pytest.raises(EncodeError, match="not a bridge message"):
         frame_packer(int)
     with pytest.raises(EncodeError, match="finite"):

@@ -12,9 +12,9 @@ from itertools import groupby
 import pytest
 from bridge_plant_double import FirstOrderPlantDouble
 
-from hil.bridge.bench import LockstepBridge, PtyBridge
-from hil.bridge.driver import BridgeReport
-from hil.bridge.protocol import Ping, SteerRateCommand, frame_length
+from hil.bench.bridge_bench import LockstepBridge, PtyBridge
+from hil.vehicle.bridge.driver import BridgeReport
+from hil.vehicle.bridge.protocol import Ping, SteerRateCommand, frame_length
 
 BT = 10 / 9600
 State = tuple[bool, bool, bool]

@@ -12,8 +12,8 @@ from bridge_plant_double import FirstOrderPlantDouble
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hil.bridge.bench import LockstepBridge
-from hil.bridge.firmware import BridgeFirmware
+from hil.bench.bridge_bench import LockstepBridge
+from hil.devices.firmware import BridgeFirmware
 
 BT = 10 / 9600
 WATCHDOG = 0.25

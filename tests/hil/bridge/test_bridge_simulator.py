@@ -1,4 +1,4 @@
-"""The emulated bridge driving the real truth simulator (hil/simulator.py), in lockstep.
+"""The emulated bridge driving the real truth simulator (hil/truth/simulator.py), in lockstep.
 
 ``SimulatorPlant`` below is a thin test-side adapter from the batch
 ``TractorSimulator`` (one tractor) to the firmware's ``SteeringPlant`` protocol;
@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.bridge.bench import LockstepBridge
-from hil.bridge.firmware import SteeringPlant
-from hil.conditions import condition_for
-from hil.simulator import TractorSimulator
-from hil.steering import sensor_counts_float, valve_rate
+from hil.bench.bridge_bench import LockstepBridge
+from hil.devices.firmware import SteeringPlant
+from hil.truth.conditions import condition_for
+from hil.truth.simulator import TractorSimulator
+from hil.truth.steering import sensor_counts_float, valve_rate
 
 
 class SimulatorPlant:
@@ -75,7 +75,7 @@ def test_bridge_steers_the_truth_simulator_and_reports_its_potentiometer():
 
 @pytest.mark.timeout(30)
 def test_bridge_steers_the_truth_simulator_over_a_pty_in_real_time():
-    from hil.bridge.bench import PtyBridge
+    from hil.bench.bridge_bench import PtyBridge
 
     sim = TractorSimulator([condition_for("ripper", 1.0)], duration=5.0, seeds=[5])
     with PtyBridge(SimulatorPlant(sim)) as bench:
@@ -100,7 +100,7 @@ def test_bridge_steers_the_truth_simulator_over_a_pty_in_real_time():
 
 @pytest.mark.timeout(30)
 def test_the_simulated_tractor_of_hil_plant_is_a_steering_plant_and_its_override_cuts_the_valve():
-    from hil.plant import SimulatedTractor
+    from hil.devices.plant import SimulatedTractor
 
     tractor = SimulatedTractor(condition_for("disker", 1.34), 4.0, 3, override=((1.0, 1.5),))
     assert isinstance(tractor, SteeringPlant)

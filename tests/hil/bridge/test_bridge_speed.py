@@ -7,7 +7,7 @@ import time
 import pytest
 from bridge_plant_double import FirstOrderPlantDouble
 
-from hil.bridge.bench import LockstepBridge
+from hil.bench.bridge_bench import LockstepBridge
 
 
 @pytest.mark.timeout(30)
@@ -33,7 +33,7 @@ def test_lockstep_bridge_runs_at_least_100_times_faster_than_real_time():
 
 @pytest.mark.timeout(30)
 def test_measurement_functions_report_plausible_numbers():
-    from hil.bridge.measure import measure_lockstep_speed, measure_pty_latency
+    from hil.bench.bridge_measure import measure_lockstep_speed, measure_pty_latency
 
     speed = measure_lockstep_speed(FirstOrderPlantDouble(), duration=10.0)
     assert speed.cycles == 200 and speed.virtual_s == pytest.approx(10.0)

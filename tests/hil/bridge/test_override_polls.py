@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import pytest
 
-from hil.bridge.bench import LockstepBridge
-from hil.conditions import condition_for
-from hil.plant import SimulatedTractor
+from hil.bench.bridge_bench import LockstepBridge
+from hil.truth.conditions import condition_for
+from hil.devices.plant import SimulatedTractor
 
 
 class Polled:

@@ -1,0 +1,137 @@
+"""``hil drive``: the vehicle loop on real serial ports, as a thin layer over :func:`hil.vehicle.drive.drive`.
+
+    hil drive --bridge PORT --position PORT [--attitude PORT] --controller kinematic|FILE.json \
+        --line LAT,LON,LAT,LON --duration S --out runs/NAME
+
+This is what a tractor's computer runs: it imports nothing of the simulator, the emulated devices,
+the bench or a plotting library. The run log and its summary go to ``--out``; plot them on any
+machine with ``hil plot runs/NAME/run_log.npz --out track.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+from identification.errors import PassLogError
+
+from hil.errors import HilError
+from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, vehicle_controller
+from hil.vehicle.summary import summarize
+
+
+def parse_float(text: str) -> float:
+    """argparse type: one number."""
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def parse_floats(n: int):
+    """argparse type: ``n`` comma-separated numbers."""
+    def parse(text: str) -> tuple[float, ...]:
+        parts = text.split(",")
+        if len(parts) != n:
+            raise argparse.ArgumentTypeError(f"expected {n} comma-separated numbers, got {text!r}")
+        return tuple(parse_float(p) for p in parts)
+    return parse
+
+
+def _vehicle_spec(text: str) -> str:
+    if text.endswith(".json"):
+        if not Path(text).is_file():
+            raise argparse.ArgumentTypeError(f"controller file {text!r} does not exist")
+        return str(Path(text).resolve())
+    try:
+        vehicle_controller(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _cmd_drive(args: argparse.Namespace) -> dict:
+    from hil.vehicle.drive import DriveConfig, drive
+    a, b = args.line[:2], args.line[2:]
+    cfg = DriveConfig(bridge_port=args.bridge, position_port=args.position, attitude_port=args.attitude,
+                      line_a=a, line_b=b, height=args.height, lever_arm=args.lever_arm,
+                      wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
+                      gnss_baud=args.gnss_baud)
+    log = drive(cfg, vehicle_controller(args.controller), args.duration, implement=args.implement,
+                nominal_speed=args.speed)
+    out = Path(args.out)
+    summary = summarize(log)
+    log.save(out / "run_log.npz")
+    result = {"out": str(out), "controller": controller_label(args.controller), "implement": args.implement,
+              "speed": args.speed, "mode": "vehicle", "summary": summary, "events": list(log.meta["events"]),
+              "files": [str(out / "run_log.npz"), str(out / "summary.json")]}
+    (out / "summary.json").write_text(json.dumps(result, indent=2) + "\n")
+    return result
+
+
+def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add the ``drive`` sub-command to a ``hil`` parser."""
+    d = sub.add_parser("drive", help="run the vehicle loop on real serial ports (on a tractor)")
+    d.add_argument("--bridge", required=True, help="steering bridge serial device")
+    d.add_argument("--position", required=True, help="position receiver serial device")
+    d.add_argument("--attitude", help="attitude receiver serial device (default: same as --position)")
+    d.add_argument("--controller", required=True, type=_vehicle_spec,
+                   help=f"one of {list(VEHICLE_CONTROLLERS)} or a controller file (.json)")
+    d.add_argument("--line", required=True, type=parse_floats(4), metavar="LAT_A,LON_A,LAT_B,LON_B",
+                   help="guidance line ends in degrees; A is the local origin (write --line=... when a "
+                        "value is negative)")
+    d.add_argument("--height", type=parse_float, default=0.0, help="field ellipsoidal height, m")
+    d.add_argument("--lever-arm", type=parse_floats(3), default=(0.0, 0.0, 3.0), metavar="X,Y,Z",
+                   help="antenna from the control point, body frame (fwd, left, up), m")
+    d.add_argument("--wheel-calibration", type=parse_floats(2), default=(128.0, 0.0061),
+                   metavar="CENTER,RAD_PER_COUNT")
+    d.add_argument("--bridge-baud", type=int, default=9600)
+    d.add_argument("--gnss-baud", type=int, default=38400)
+    d.add_argument("--duration", type=parse_float, required=True, help="seconds (Ctrl-C stops earlier)")
+    d.add_argument("--implement", default="unknown", help="label for the run log")
+    d.add_argument("--speed", type=parse_float, default=0.0, help="nominal speed for the run log, m/s")
+    d.add_argument("--out", required=True, help="directory for run_log.npz and summary.json")
+    d.add_argument("--json", action="store_true", help="print the result as JSON")
+    d.set_defaults(func=_cmd_drive)
+    return d
+
+
+def print_run_result(result: dict) -> None:
+    """Human summary of a closed-loop pass (``hil drive`` or ``hil run``)."""
+    s = result["summary"]
+    if "measured_sigma_m" in s:
+        print(f"{result['controller']} on {result['implement']} at {result['speed']} m/s ({result['mode']}): "
+              f"bias {s['measured_bias_m'] * 100:.1f} cm, 1-sigma {s['measured_sigma_m'] * 100:.1f} cm "
+              + (f"(true {s['true_bias_m'] * 100:.1f} / {s['true_sigma_m'] * 100:.1f} cm), "
+                 if "true_sigma_m" in s else "")
+              + f"max {s['measured_max_abs_m'] * 100:.1f} cm")
+    else:
+        print(f"{result['controller']} never engaged long enough for statistics")
+    print(f"engaged {s['engaged_fraction'] * 100:.0f} % of cycles, {s['disengagements']} disengagement(s), "
+          f"{s['deadline_misses']} deadline miss(es), loop time p50 {s['loop_time_ms_p50']:.2f} ms, "
+          f"p99 {s['loop_time_ms_p99']:.2f} ms")
+    for e in result["events"]:
+        print(f"  t={e['t']:7.2f} s  {e['event']}: {e['reason']}")
+    print(f"files in {result['out']}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``hil drive ...`` (``argv`` without the leading ``drive``). Exit 0, 1 (refused value) or 2 (usage)."""
+    parser = argparse.ArgumentParser(prog="hil", description="The vehicle loop on a tractor.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_drive_parser(sub)
+    args = parser.parse_args(["drive", *(sys.argv[2:] if argv is None else argv)])
+    try:
+        result = args.func(args)
+    except (HilError, PassLogError, ValueError) as exc:
+        print(f"hil drive: error: {exc}", file=sys.stderr)
+        return 1
+    try:
+        print(json.dumps(result, indent=2)) if args.json else print_run_result(result)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 0

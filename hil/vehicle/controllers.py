@@ -1,0 +1,69 @@
+"""Controllers the vehicle can run, from a spec: a controller file or a named built-in law.
+
+A spec is ``kinematic``, ``pure-pursuit`` or ``stanley``, the latter two optionally with gains
+(``pure-pursuit?lookahead_time=1.2&servo=4``, names of :class:`~design.baselines.PurePursuitGains`
+/ :class:`~design.baselines.StanleyGains`), or a controller file (``*.json``, see
+:mod:`design.controller_file`). The bench adds the oracle (:mod:`hil.bench.campaign`), which is
+designed on the simulator's truth and cannot steer a real vehicle.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from design.baselines import PurePursuitController, PurePursuitGains, StanleyController, StanleyGains
+from design.controller import Controller, KinematicLQRController
+from design.controller_file import load_controller
+
+from hil.vehicle.errors import VehicleConfigError
+
+#: Named laws a vehicle can run without a file.
+VEHICLE_CONTROLLERS = ("kinematic", "pure-pursuit", "stanley")
+
+
+def split_spec(spec: str) -> tuple[str, dict[str, float]]:
+    """``name?key=value&key=value`` -> ``(name, {key: value})``."""
+    name, _, query = spec.partition("?")
+    opts: dict[str, float] = {}
+    for part in filter(None, query.split("&")):
+        key, eq, value = part.partition("=")
+        try:
+            opts[key] = float(value)
+        except ValueError:
+            raise VehicleConfigError(f"controller option {part!r} in {spec!r}: expected key=number") from None
+        if not eq:
+            raise VehicleConfigError(f"controller option {part!r} in {spec!r}: expected key=number")
+    return name, opts
+
+
+def vehicle_controller(spec: str) -> Controller:
+    """Build the controller a spec names (see the module docstring).
+
+    Raises
+    ------
+    VehicleConfigError
+        For an unknown name, an unknown gain or a missing file.
+    """
+    if spec.endswith(".json"):
+        if not Path(spec).is_file():
+            raise VehicleConfigError(f"controller file {spec!r} does not exist")
+        return load_controller(spec)
+    name, opts = split_spec(spec)
+    gains = {"pure-pursuit": (PurePursuitController, PurePursuitGains), "stanley": (StanleyController, StanleyGains)}
+    if name in gains:
+        cls, gcls = gains[name]
+        known = set(gcls.__dataclass_fields__)
+        if set(opts) - known:
+            raise VehicleConfigError(f"unknown {name} gain(s) {sorted(set(opts) - known)}; known: {sorted(known)}")
+        return cls(gcls(**opts))
+    if name == "kinematic" and not opts:
+        return KinematicLQRController()
+    raise VehicleConfigError(f"unknown controller {spec!r}; give one of {list(VEHICLE_CONTROLLERS)} "
+                             "(pure-pursuit and stanley take ?gain=value&...) or a controller file (.json)")
+
+
+def controller_label(spec: str) -> str:
+    """Short name of a controller spec for tables and file names (a file's stem; gains kept)."""
+    if spec.endswith(".json"):
+        return Path(spec).stem
+    return spec.replace("?", "[").replace("&", ",") + ("]" if "?" in spec else "")

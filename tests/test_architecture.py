@@ -1,0 +1,39 @@
+"""The architecture contracts (.importlinter) hold, and the README's map of the code names them.
+
+A wrong import (the tractor's loop reaching into the simulator, the truth importing a device, a
+cycle between design modules) fails here, so it fails CI.
+"""
+
+from __future__ import annotations
+
+import configparser
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIG = ROOT / ".importlinter"
+
+
+def test_import_contracts_are_kept():
+    lint = Path(sys.executable).with_name("lint-imports")
+    done = subprocess.run([str(lint), "--config", str(CONFIG), "--no-cache"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
+    assert "BROKEN" not in done.stdout and "KEPT" in done.stdout
+
+
+def test_every_hil_sub_package_has_a_contract_and_a_line_in_the_readme_map():
+    cfg = configparser.ConfigParser()
+    cfg.read(CONFIG)
+    sources = {m.strip() for sec in cfg.sections() if sec.startswith("importlinter:contract:")
+               for m in cfg[sec].get("source_modules", "").split()}
+    subs = sorted(p.parent.name for p in (ROOT / "hil").glob("*/__init__.py"))
+    assert subs == ["bench", "calibration", "devices", "links", "truth", "vehicle"]
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("## Map of the code", 1)[1].split("\n## ", 1)[0]
+    for sub in subs:
+        assert re.search(rf"^\| `hil/{sub}/` \|", section, re.M), f"README map has no line for hil/{sub}/"
+    for sub in ("truth", "links", "vehicle", "devices", "bench"):
+        assert f"hil.{sub}" in sources, f"no contract constrains hil.{sub}"

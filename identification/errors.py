@@ -33,3 +33,7 @@ class RealizationError(IdentificationError, ValueError):
 
 class ModelFileError(IdentificationError, ValueError):
     """A model file is malformed, pickled, non-finite or of an unsupported schema."""
+
+
+class ModelRefusedError(IdentificationError, ValueError):
+    """An identified model does not predict well enough on held-out data to design on."""

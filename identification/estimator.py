@@ -15,6 +15,13 @@ process noise, so the stabilising solution exists whenever ``(A, C)`` is
 detectable, and ``A - K C`` has spectral radius < 1; this is re-checked before
 the gain is returned. Where ``A - K₀ C`` is already stable the result is
 ``K₀`` up to the small regularisation ``ε``.
+
+Every symmetric matrix is made exactly symmetric (``(M + Mᵀ) / 2``) at the
+point where it is handed to scipy, which refuses ``Q`` or ``R`` whose
+asymmetry exceeds 100 ulp of their norm: products such as ``K₀ R K₀ᵀ`` and
+the eigen-reconstruction of ``R`` are symmetric only up to round-off, and with
+many outputs on nearly collinear channels (gains along the small directions
+of ``R``) that round-off exceeded scipy's tolerance (issue #19).
 """
 
 from __future__ import annotations
@@ -23,6 +30,11 @@ import numpy as np
 import scipy.linalg as sla
 
 from .errors import RealizationError
+
+
+def _sym(m: np.ndarray) -> np.ndarray:
+    """The exactly symmetric part of a square matrix (float addition commutes)."""
+    return 0.5 * (m + m.T)
 
 
 def observer_gain(a: np.ndarray, c: np.ndarray, gain_markov: np.ndarray) -> np.ndarray:
@@ -66,7 +78,7 @@ def kalman_gain(a: np.ndarray, c: np.ndarray, innovation_cov: np.ndarray,
         (n, n) stabilising Riccati solution (one-step prediction error covariance).
     """
     n, q = a.shape[0], c.shape[0]
-    r = 0.5 * (innovation_cov + innovation_cov.T)
+    r = _sym(np.asarray(innovation_cov, dtype=float))
     # K is invariant to a common scale of (Q, R, S): work with the largest eigenvalue of R = 1,
     # and clip R to positive definite (round-off makes noise-free residuals indefinite)
     w, v = np.linalg.eigh(r)
@@ -74,19 +86,19 @@ def kalman_gain(a: np.ndarray, c: np.ndarray, innovation_cov: np.ndarray,
         r = np.eye(q)
     else:
         w = np.clip(w / w.max(), 1e-6, None)
-        r = (v * w) @ v.T
+        r = _sym((v * w) @ v.T)
     k0 = np.zeros((n, q)) if initial_gain is None else np.asarray(initial_gain, dtype=float)
-    qk = k0 @ r @ k0.T
+    qk = _sym(k0 @ r @ k0.T)
     cp = np.linalg.pinv(c)
     scale = max(np.trace(qk) / n, np.trace(cp @ r @ cp.T) / n, np.finfo(float).tiny)
-    qq = qk + floor * scale * np.eye(n)
+    qq = _sym(qk + floor * scale * np.eye(n))
     s = k0 @ r
     try:
-        p = sla.solve_discrete_are(a.T, c.T, qq, r, s=s)
+        p = _sym(sla.solve_discrete_are(a.T, c.T, qq, r, s=s))
+        k = np.linalg.solve(_sym(c @ p @ c.T + r), (a @ p @ c.T + s).T).T
     except (np.linalg.LinAlgError, ValueError) as exc:
         raise RealizationError(f"no stabilising Kalman gain: the Riccati equation failed ({exc}); "
                                "the identified (A, C) may not be detectable, lower the order") from None
-    k = np.linalg.solve(c @ p @ c.T + r, (a @ p @ c.T + s).T).T
     rho = float(np.max(np.abs(np.linalg.eigvals(a - k @ c)))) if n else 0.0
     if not np.all(np.isfinite(k)) or rho >= 1.0:
         raise RealizationError(f"Kalman predictor is not stable (spectral radius of A - K C = {rho:.6f}, "

@@ -12,7 +12,9 @@ Choices (documented defaults, all overridable through :class:`Preprocessing`):
   drop of the Hankel singular values after the fourth.
 * **Latency**: every channel's arrival stamps are moved back by its
   ``meta["latency_s"][channel]`` (0 if absent) to the time the quantity was
-  measured, before resampling.
+  measured, before resampling; ``Preprocessing.latency_s`` overrides the
+  logs' declarations per channel (e.g. with the latencies measured by
+  :func:`identification.delay.measure_latency`).
 * **Outputs** are resampled by linear interpolation at the grid times
   (``outputs_mode="interp"``) or, as an online system would see them, by the
   latest sample measured at or before the grid time (``"zoh"``). The grid
@@ -34,7 +36,7 @@ Choices (documented defaults, all overridable through :class:`Preprocessing`):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -78,6 +80,9 @@ class Preprocessing:
         cut at longer gaps (dropouts).
     min_segment_s
         Shortest piece of a cut pass that is kept, s.
+    latency_s
+        Latency per channel, s, used instead of the logs' ``meta["latency_s"]`` for the
+        channels it names (a mapping or ``(channel, s)`` pairs; empty: the declarations).
     """
 
     dt: float = 0.05
@@ -89,8 +94,16 @@ class Preprocessing:
     min_speed: float = 0.2
     max_gap_s: float = 0.5
     min_segment_s: float = 5.0
+    latency_s: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
+        pairs = tuple(sorted((dict(self.latency_s) if isinstance(self.latency_s, Mapping)
+                              else dict(self.latency_s)).items()))
+        for name, lat in pairs:
+            if (not isinstance(name, str) or isinstance(lat, bool) or not isinstance(lat, (int, float))
+                    or not np.isfinite(lat) or not 0 <= lat < 2.0):
+                raise OptionError(f"latency_s[{name!r}] must be a delay of 0-2 s, got {lat!r}")
+        object.__setattr__(self, "latency_s", tuple((n, float(v)) for n, v in pairs))
         choices = {"normalize": ("velocity", "none"), "speed": ("mean", "measured", "nominal"),
                    "bias": ("mean", "none"), "outputs_mode": ("interp", "zoh")}
         for name, allowed in choices.items():
@@ -107,7 +120,7 @@ class Preprocessing:
         return {"dt": self.dt, "normalize": self.normalize, "speed": self.speed, "bias": self.bias,
                 "outputs_mode": self.outputs_mode, "outputs": list(self.outputs),
                 "min_speed": self.min_speed, "max_gap_s": self.max_gap_s,
-                "min_segment_s": self.min_segment_s}
+                "min_segment_s": self.min_segment_s, "latency_s": dict(self.latency_s)}
 
 
 def condition_of(log: PassLog) -> dict:
@@ -124,9 +137,9 @@ def _ordinal(n: int) -> str:
     return f"{n}{suffix}"
 
 
-def _measured_times(log: PassLog, name: str) -> tuple[np.ndarray, np.ndarray]:
+def _measured_times(log: PassLog, name: str, override: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
     t, v = log.channel(name)
-    lat = (log.meta.get("latency_s") or {}).get(name, 0.0)
+    lat = override[name] if name in override else (log.meta.get("latency_s") or {}).get(name, 0.0)
     if isinstance(lat, bool) or not isinstance(lat, (int, float)) or not np.isfinite(lat) or lat < 0:
         raise DataError(f"meta['latency_s'][{name!r}] must be a finite delay >= 0 s, got {lat!r}")
     return t - float(lat), v
@@ -162,7 +175,8 @@ def pass_to_experiments(log: PassLog, pre: Preprocessing = Preprocessing()
     ``info`` holds the condition, the segment's start time [s], the speed used
     [m/s], the removed means and the log's content hash.
     """
-    chans = {name: _measured_times(log, name) for name in (*pre.outputs, TRACTOR_INPUT, "speed")}
+    override = dict(pre.latency_s)
+    chans = {name: _measured_times(log, name, override) for name in (*pre.outputs, TRACTOR_INPUT, "speed")}
     t0 = max(t[0] for t, _ in chans.values())
     t1 = min(t[-1] for t, _ in chans.values()) - pre.dt
     if t1 - t0 < 4 * pre.dt:

@@ -18,10 +18,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
+from dataclasses import replace
+
+from .acceptance import assess
 from .data import IOData
-from .okid import OKID
+from .delay import delay_meta, measure_latency
 from .passlog import PassLog
 from .preprocess import Preprocessing, condition_of, passes_to_iodata
+from .selection import fit_select
 from .validation import ValidationResult, validate
 
 #: Time spanned by the block rows (and columns) of the Hankel matrix, s. The
@@ -41,6 +45,7 @@ class TractorResult:
     model: Any
     validation: ValidationResult
     validation_data: IOData
+    acceptance: Any = None
 
 
 def _key(log: PassLog) -> tuple[str, str]:
@@ -84,13 +89,16 @@ def identify_group(name: str, kind: str, logs: Sequence[PassLog], pre: Preproces
     opts.setdefault("max_markov", 30)     # Akaike often wants the longest observer here
     opts.setdefault("hankel_rows", horizon)
     opts.setdefault("hankel_cols", horizon)
-    est = OKID(feedthrough=False, **opts).fit(fit)
+    delay = opts.pop("delay", None)
+    est, val, selection = fit_select(fit, val, {"feedthrough": False, **opts})
     mdl = est.model_
     res = validate(mdl.A, mdl.B, mdl.C, mdl.D, mdl.K, val, warmup=est.n_lags_)
-    meta = {**fit.meta, "kind": kind, "name": name, "fit": {**res.as_dict(),
+    meta = {**fit.meta, "kind": kind, "name": name, "selection": selection, "fit": {**res.as_dict(),
             "validation": "held-out passes (last of each condition) or last third of single passes"}}
-    mdl = mdl.with_meta(**meta)
-    return TractorResult(name, kind, mdl, res, val)
+    mdl = mdl.with_meta(**meta, **({"delay": delay} if delay else {}))
+    acc = assess(name, mdl, val, warmup=est.n_lags_)
+    mdl = mdl.with_meta(prediction=acc.prediction.as_dict(), acceptance=acc.as_dict())
+    return TractorResult(name, kind, mdl, res, val, acc)
 
 
 def identify_tractor(logs: Sequence[PassLog], pre: Preprocessing = Preprocessing(),
@@ -113,6 +121,10 @@ def identify_tractor(logs: Sequence[PassLog], pre: Preprocessing = Preprocessing
         Called as ``progress(models_done, models_total)``.
     """
     opts = dict(okid_options or {})
+    latency = measure_latency(logs, opts.pop("latency", "auto"))
+    given = dict(pre.latency_s)
+    pre = replace(pre, latency_s={**latency.latency_s(), **given})
+    opts["delay"] = delay_meta(latency, logs, pre, given)
     jobs: list[tuple[str, str, list[PassLog]]] = []
     if "local" in kinds:
         groups: dict[tuple[str, str], list[PassLog]] = {}

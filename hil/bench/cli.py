@@ -2,7 +2,8 @@
 
     hil sysid --out logs/ [--speeds ...] [--implements ...] [--passes N] [--duration S] [--seed S]
     hil plot LOG.npz --out figure.png
-    hil params [--set group.name=value ...]
+    hil params [--tractor NAME|FILE] [--set group.name=value ...]
+    hil tractors [--markdown] [--random SEED ... --out DIR]
     hil calibrate --out out/calibration [--controller central-lqr.json] [--budget 30] [--seeds 2]
     hil run --controller kinematic --implement none --speed 1.79 --duration 60 --out runs/NAME
         [--realtime] [--seed N] [--fault KIND:START-END ...]
@@ -29,6 +30,7 @@ from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS
 from hil.errors import HilError, SimulatorConfigError
 from hil.devices.faults import LinkFault
 from hil.truth.params import SimParams, parameter_markdown, parameter_table
+from hil.truth.tractors import builtin_tractors, random_tractor, resolve_tractor, save_tractor, tractors_markdown
 from hil.bench.plots import plot_pass, plot_run
 from hil.bench.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
@@ -54,7 +56,18 @@ def _override(text: str) -> tuple[str, float]:
 
 
 def _params(args: argparse.Namespace) -> SimParams:
-    return SimParams().with_overrides(dict(args.set or []))
+    base = resolve_tractor(args.tractor).params() if getattr(args, "tractor", None) else SimParams()
+    return base.with_overrides(dict(args.set or []))
+
+
+def _cmd_tractors(args: argparse.Namespace) -> dict:
+    if args.random and not args.out:
+        raise SimulatorConfigError("--random needs --out DIR (the tractor files are written there)")
+    files = [str(save_tractor(random_tractor(s), Path(args.out) / f"random-{s}.json")) for s in args.random or []]
+    out: dict = {"family": {n: t.description for n, t in builtin_tractors().items()}, "files": files}
+    if args.markdown:
+        out["markdown"] = tractors_markdown()
+    return out
 
 
 def _cmd_sysid(args: argparse.Namespace) -> dict:
@@ -277,6 +290,9 @@ def build_parser() -> argparse.ArgumentParser:
     common.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     common.add_argument("--set", action="append", type=_override, metavar="GROUP.NAME=VALUE",
                         help="override a simulator parameter (see `hil params`); repeatable")
+    common.add_argument("--tractor", metavar="NAME|FILE.json",
+                        help="the tractor: a tractor file or a name of the family (see `hil tractors`, "
+                             "docs/tractors.md; random-SEED for a generated one); --set applies on top")
 
     s = sub.add_parser("sysid", parents=[common], help="make open-loop identification passes")
     s.add_argument("--out", required=True, help="directory for the pass logs (.npz)")
@@ -391,12 +407,24 @@ def build_parser() -> argparse.ArgumentParser:
     pa = sub.add_parser("params", parents=[common], help="list the simulator's parameters")
     pa.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     pa.set_defaults(func=_cmd_params)
+
+    tr = sub.add_parser("tractors", help="the named tractors of the bench; write generated ones")
+    tr.add_argument("--markdown", action="store_true", help="print docs/tractors.md")
+    tr.add_argument("--random", nargs="+", type=int, metavar="SEED", help="write random_tractor(SEED) files")
+    tr.add_argument("--out", help="directory for the --random tractor files")
+    tr.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+    tr.set_defaults(func=_cmd_tractors)
     return p
 
 
 def _print_human(command: str, result: dict) -> None:
-    if command == "params" and "markdown" in result:
+    if command in ("params", "tractors") and "markdown" in result:
         print(result["markdown"], end="")
+    elif command == "tractors":
+        for name, doc in result["family"].items():
+            print(f"{name:<12} {doc}")
+        for f in result["files"]:
+            print(f"wrote {f}")
     elif command == "params":
         for r in result["parameters"]:
             print(f"{r['name']:<38} {r['value']:>11.6g} {r['unit']:<8} {r['source']:<10} {r['doc']}")

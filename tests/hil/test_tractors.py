@@ -146,3 +146,18 @@ def test_tractor_is_frozen() -> None:
     t = resolve_tractor("worn-valve")
     with pytest.raises(dataclasses.FrozenInstanceError):
         t.name = "x"  # type: ignore[misc]
+
+
+def test_the_bench_commands_read_a_tractor_with_set_on_top(tmp_path: Path, capsys) -> None:
+    from hil.bench.cli import main
+    from identification.passlog import PassLog
+    assert main(["params", "--tractor", "heavy-11t", "--set", "steering.lag=0.2", "--json"]) == 0
+    rows = {r["name"]: r["value"] for r in json.loads(capsys.readouterr().out)["parameters"]}
+    assert rows["vehicle.mass"] == 11000 and rows["steering.lag"] == 0.2 and rows["steering.deadband"] == 0.12
+    f = save_tractor(random_tractor(5), tmp_path / "r5.json")
+    assert main(["sysid", "--tractor", str(f), "--out", str(tmp_path / "logs"), "--speeds", "1.0", "--implements",
+                 "none", "--passes", "1", "--duration", "5", "--quiet", "--json"]) == 0
+    log = PassLog.load(json.loads(capsys.readouterr().out)["files"][0])
+    assert log.meta["simulator"] == random_tractor(5).params().to_dict()
+    assert main(["run", "--tractor", "no-such", "--controller", "kinematic", "--out", str(tmp_path / "r")]) == 1
+    assert "unknown tractor 'no-such'" in capsys.readouterr().err

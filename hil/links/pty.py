@@ -148,6 +148,16 @@ class PtyPair:
         self._serials.append(port)
         return port
 
+    def hang_up_host_side(self) -> None:
+        """Close every holder of the host's end (this pair's pyserial ports and its kept slave fd),
+        as when a host program exits or a USB adapter is unplugged; the device side then reads EOF."""
+        for port in self._serials:
+            port.close()
+        self._serials.clear()
+        if self._slave >= 0:
+            os.close(self._slave)
+            self._slave = -1
+
     def close(self) -> None:
         """Close the pyserial ports, the slave and the master (idempotent)."""
         for port in self._serials:

@@ -128,6 +128,7 @@ def test_tuning_ranks_candidates_on_the_same_passes(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.realtime
 @pytest.mark.timeout(120)
 def test_a_subset_runs_in_real_time_and_is_reported_apart(tmp_path, capsys):
     rc = hil_main(["compare", "kinematic", "stanley", "--conditions", "none:1.34", "--realtime", "none:1.34",

@@ -12,6 +12,7 @@ from identification.passlog import PassLog
 
 
 @pytest.mark.slow
+@pytest.mark.realtime
 @pytest.mark.timeout(60)
 def test_drive_steers_the_emulated_tractor_over_serial_ports(tmp_path, capsys):
     with EmulatedTractor(implement="none", speed=1.34, duration=30.0, seed=11) as tractor:
@@ -24,7 +25,7 @@ def test_drive_steers_the_emulated_tractor_over_serial_ports(tmp_path, capsys):
     assert events[0]["event"] == "engage" and events[0]["t"] < 1.5
     assert events[-1]["reason"] == "end of run"
     s = result["summary"]
-    assert s["engaged_fraction"] > 0.7 and s["deadline_misses"] <= 3
+    assert s["engaged_fraction"] > 0.7 and s["deadline_misses"] <= 6   # a 150 ms host stall misses 3
     log = PassLog.load(tmp_path / "run_log.npz")
     assert log.meta["mode"] == "vehicle"
     # the loop pulled the tractor from 0.3 m towards the line (truth of the emulated tractor)

@@ -342,6 +342,11 @@ class BridgeDriver:
         """A report arrived within ``config.report_timeout``."""
         return self.report_age() <= self.config.report_timeout
 
+    @property
+    def pings_outstanding(self) -> int:
+        """Pings sent and not yet answered (bounded: the oldest are forgotten)."""
+        return len(self._ping_sent)
+
     def stats(self) -> DriverStats:
         """Statistics snapshot."""
         c = self._decoder.counters

@@ -33,6 +33,7 @@ def test_timeout_fires_on_a_silent_in_memory_link_after_exactly_its_virtual_time
     assert not drv.is_alive() and drv.report_age() == math.inf
 
 
+@pytest.mark.realtime
 @pytest.mark.timeout(20)
 def test_timeout_fires_on_a_silent_pty_in_real_time():
     with PtyPair() as pair:
@@ -42,7 +43,7 @@ def test_timeout_fires_on_a_silent_pty_in_real_time():
         with pytest.raises(BridgeTimeout):
             drv.read_report(timeout=0.2)
         elapsed = time.monotonic() - t0
-        assert 0.2 <= elapsed < 0.3
+        assert 0.2 <= elapsed < 0.2 + 0.15 + 0.1   # never early; late by at most a host stall
         assert drv.stats().timeouts == 1
 
 
@@ -112,7 +113,7 @@ def test_non_blocking_pings_are_timed_by_poll_and_unanswered_ones_are_forgotten(
     mute = BridgeDriver(host, silent_clock)
     for _ in range(1000):
         mute.send_ping()
-    assert len(mute._ping_sent) <= 64
+    assert mute.pings_outstanding <= 64
 
 
 @pytest.mark.timeout(20)

@@ -54,14 +54,15 @@ def test_virtual_clock_never_goes_back_and_refuses_non_finite_times():
     assert isinstance(c, Clock) and isinstance(RealClock(), Clock)
 
 
+@pytest.mark.realtime
 def test_real_clock_sleeps_until_the_requested_time():
     c = RealClock()
     t0 = c.now()
     c.sleep_until(t0 + 0.02)
-    assert 0.02 <= c.now() - t0 < 0.2
+    assert 0.02 <= c.now() - t0 < 0.02 + 0.15 + 0.1   # never early; late by at most a host stall
     t1 = time.monotonic()
     c.sleep_until(t0)  # in the past: returns at once
-    assert time.monotonic() - t1 < 0.01
+    assert time.monotonic() - t1 < 0.15 + 0.1
 
 
 def test_scheduler_steps_devices_exactly_at_their_wakeups_and_bounds_plant_steps():

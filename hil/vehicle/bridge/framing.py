@@ -15,19 +15,19 @@ CRC; a frame whose CRC fails is refused and counted as a CRC error.
 
 from __future__ import annotations
 
-from binascii import crc_hqx
 from dataclasses import dataclass
 
 from hil.vehicle.bridge.errors import ConfigError, CrcError, FieldError, FrameError, LengthError, UnknownMessageError
 from hil.vehicle.bridge.protocol import (
-    _FRAME_DECODERS,
-    CRC_INIT,
+    MESSAGE_TABLE,
     CRC_LEN,
     HEADER_LEN,
     MAX_PAYLOAD,
     SYNC,
     Frame,
     Message,
+    crc16,
+    decode_payload,
 )
 
 __all__ = ["DecodeEvent", "DecoderCounters", "StreamDecoder"]
@@ -101,10 +101,6 @@ class StreamDecoder:
         if isinstance(max_payload, bool) or not isinstance(max_payload, int) or not 0 <= max_payload <= 255:
             raise ConfigError(f"max_payload must be an int in 0..255 bytes, got {max_payload!r}")
         self._max_payload = max_payload
-        # message id -> (frame length, payload length, decode_from) of the ids whose payload this
-        # decoder accepts: what the whole-frame path of feed_tuples checks a frame against
-        self._whole = {i: (size + _OVERHEAD, size, decode_from)
-                       for i, (_layout, size, decode_from) in _FRAME_DECODERS.items() if size <= max_payload}
         self._buf = bytearray()
         self._base = 0  # stream index of _buf[0]
         self._hunting = False  # inside a run of skipped bytes
@@ -158,17 +154,8 @@ class StreamDecoder:
         -------
         list of DecodeEvent
         """
-        events = []
-        for end, seq, item in self.feed_tuples(data):
-            event = _new(DecodeEvent)
-            if seq is None:   # DecodeEvent(end, error=item)
-                event.__dict__.update(end=end, frame=None, error=item)
-            else:             # DecodeEvent(end, Frame(seq, item))
-                frame = _new(Frame)
-                frame.__dict__.update(seq=seq, message=item)
-                event.__dict__.update(end=end, frame=frame, error=None)
-            events.append(event)
-        return events
+        return [DecodeEvent(end, error=item) if seq is None else DecodeEvent(end, Frame(seq, item))
+                for end, seq, item in self.feed_tuples(data)]
 
     def feed_tuples(self, data: bytes) -> list[tuple[int, int | None, Message | FrameError]]:
         """:meth:`feed` with plain tuples for events: what the firmware and the driver read frames with.
@@ -189,27 +176,8 @@ class StreamDecoder:
             ``end`` as in :class:`DecodeEvent`.
         """
         buf = self._buf
-        if not buf and data.__class__ is bytes and data[:2] == SYNC:
-            # The usual read on a paced link: one whole frame and nothing else, nothing pending.
-            # Checked as the loop below checks it (header, length, CRC, fields); anything else,
-            # including a frame refused for its content, takes the loop.
-            size = len(data)
-            entry = self._whole.get(data[2]) if size > HEADER_LEN else None
-            if entry is not None and size == entry[0] and data[4] == entry[1] \
-                    and data[-2] << 8 | data[-1] == crc_hqx(data[2:-2], CRC_INIT):
-                try:
-                    message = entry[2](data, HEADER_LEN)
-                except FieldError:
-                    pass
-                else:
-                    self._n["frames"] += 1
-                    end = self._base + size - 1
-                    self._base = end + 1
-                    self._hunting = False
-                    return [(end, data[3], message)]
         buf += data
         events: list[tuple[int, int | None, Message | FrameError]] = []
-        decoders = _FRAME_DECODERS
         # Every pass either consumes >= 1 byte or returns: bounded by len(buf).
         for _ in range(len(buf) + 1):
             i = buf.find(SYNC)
@@ -223,14 +191,13 @@ class StreamDecoder:
             if size < HEADER_LEN:
                 return events
             msg_id, length = buf[2], buf[4]
-            entry = decoders.get(msg_id)
-            if entry is None or length != entry[1] or length > self._max_payload:
+            layout = MESSAGE_TABLE.get(msg_id)
+            if layout is None or length != layout.size or length > self._max_payload:
                 # Refused on the header alone: never wait for bytes that cannot form a frame.
-                if entry is None:
+                if layout is None:
                     self._refuse(UnknownMessageError(f"unknown message id 0x{msg_id:02x}"), "unknown_ids", events,
                                  self._base + HEADER_LEN - 1)
                 else:
-                    layout = entry[0]
                     self._refuse(LengthError(f"message 0x{msg_id:02x} ({layout.cls.__name__}) has a "
                                              f"{layout.size}-byte payload, length byte says {length}"),
                                  "length_errors", events, self._base + HEADER_LEN - 1)
@@ -241,14 +208,14 @@ class StreamDecoder:
                 return events
             end = self._base + total - 1
             got = buf[HEADER_LEN + length] << 8 | buf[HEADER_LEN + length + 1]
-            want = crc_hqx(buf[2:HEADER_LEN + length], CRC_INIT)
+            want = crc16(buf[2:HEADER_LEN + length])
             if got != want:
                 self._refuse(CrcError(f"invalid CRC 0x{got:04x} - should be 0x{want:04x}"),
                              "crc_errors", events, end)
                 self._discard(1)
                 continue
             try:
-                message = entry[2](buf, HEADER_LEN)
+                message = decode_payload(msg_id, bytes(buf[HEADER_LEN:HEADER_LEN + length]))
             except FieldError as err:
                 self._refuse(err, "field_errors", events, end)
                 # A CRC-valid frame that is refused for its content is consumed whole.
@@ -260,7 +227,3 @@ class StreamDecoder:
             self._base += total
             self._hunting = False
         return events  # pragma: no cover - the loop always returns earlier
-
-
-_new = object.__new__
-_OVERHEAD = HEADER_LEN + CRC_LEN   # bytes of a frame besides its payload

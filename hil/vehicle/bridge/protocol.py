@@ -25,6 +25,7 @@ import functools
 import math
 import struct
 from dataclasses import dataclass
+from typing import Callable
 
 from hil.vehicle.bridge.errors import CrcError, EncodeError, FieldError, FrameError, LengthError, UnknownMessageError
 
@@ -273,12 +274,7 @@ MESSAGE_TABLE: dict[int, Layout] = {
 """Message id -> layout. The one place where wire integers and SI values meet."""
 
 _BY_CLASS: dict[type, Layout] = {layout.cls: layout for layout in MESSAGE_TABLE.values()}
-_STRUCTS: dict[int, struct.Struct] = {i: layout.struct for i, layout in MESSAGE_TABLE.items()}
 _CRC = struct.Struct(">H")
-_BIG = 1e300   # finite floats in this range take the fast path of encode_frame
-_HEADERS: dict[int, tuple[bytes, ...]] = {   # id, sequence, length for every sequence number
-    i: tuple(bytes((i, seq, st.size)) for seq in range(256)) for i, st in _STRUCTS.items()}
-_FLAGS: tuple[StatusFlags, ...] = tuple(StatusFlags(i) for i in range(_FLAG_MASK + 1))
 
 
 def layout_of(message: Message) -> Layout:
@@ -345,27 +341,32 @@ def encode_frame(message: Message, seq: int) -> bytes:
     EncodeError
         Unknown message type, sequence out of range, or a field that cannot be encoded.
     """
-    codec = _CODECS.get(type(message))
-    if codec is None:
-        layout_of(message)   # raises EncodeError naming the known messages
-    return codec.encode(message, seq)
+    layout = layout_of(message)
+    if isinstance(seq, bool) or not isinstance(seq, int) or not 0 <= seq <= 0xFF:
+        raise EncodeError(f"sequence number must be an int in 0..255, got {seq!r}")
+    name = layout.cls.__name__
+    raws = [_to_wire(f, getattr(message, f.name), name) for f in layout.fields]
+    body = bytes((layout.msg_id, seq, layout.size)) + layout.struct.pack(*raws)
+    return SYNC + body + _CRC.pack(crc16(body))
 
 
-def frame_packer(message_class: type):
+def frame_packer(message_class: type) -> Callable[..., bytes]:
     """The encoder of one message type from its field values: ``pack(seq, *values) -> bytes`` gives
-    ``encode_frame(message_class(*values), seq)`` (values in wire order, SI) without building the
-    message object; what the emulated bridge sends its reports with.
+    ``encode_frame(message_class(*values), seq)`` (values in wire order, SI).
 
     Raises
     ------
     EncodeError
         ``message_class`` is not in the table (the packer raises as :func:`encode_frame` does).
     """
-    codec = _CODECS.get(message_class)
-    if codec is None:
+    if message_class not in _BY_CLASS:
         raise EncodeError(f"{getattr(message_class, '__name__', message_class)!s} is not a bridge message; expected "
                           f"one of {', '.join(c.__name__ for c in _BY_CLASS)}")
-    return codec.pack
+
+    def pack(seq: int, *values: object) -> bytes:
+        return encode_frame(message_class(*values), seq)
+
+    return pack
 
 
 def decode_payload(msg_id: int, payload: bytes) -> Message:
@@ -387,7 +388,18 @@ def decode_payload(msg_id: int, payload: bytes) -> Message:
     if len(payload) != layout.size:
         raise LengthError(f"message 0x{msg_id:02x} ({layout.cls.__name__}) has a {layout.size}-byte payload, "
                           f"got {len(payload)}")
-    return _CODECS[layout.cls].decode(payload)
+    values = {}
+    for f, raw in zip(layout.fields, layout.struct.unpack(payload)):
+        if f.kind == "scaled":
+            values[f.name] = raw * f.scale
+        elif f.kind == "flags":
+            if raw & ~_FLAG_MASK:
+                raise FieldError(f"{layout.cls.__name__}.{f.name}=0x{raw:02x} sets reserved bits "
+                                 f"(allowed mask 0x{_FLAG_MASK:02x})")
+            values[f.name] = StatusFlags(raw)
+        else:
+            values[f.name] = raw
+    return layout.cls(**values)
 
 
 def decode_frame(data: bytes) -> Frame:
@@ -413,98 +425,3 @@ def decode_frame(data: bytes) -> Frame:
     if got != want:
         raise CrcError(f"invalid CRC 0x{got:04x} - should be 0x{want:04x}")
     return Frame(seq=data[3], message=decode_payload(data[2], data[HEADER_LEN:HEADER_LEN + length]))
-
-
-# -- compiled codecs --------------------------------------------------------------------------
-# Every layout of MESSAGE_TABLE gets an encoder and a decoder written out for its fields (as
-# dataclasses write out __init__), so a frame costs one struct call and one CRC instead of a
-# loop over field descriptions. The checks and the arithmetic are those of the generic rules
-# (_to_wire on the way out, the field kinds on the way in); anything unusual goes through
-# _to_wire itself, which raises with its message. tests/hil/bridge/test_bridge_protocol.py
-# checks the compiled codecs against the generic rules.
-
-@dataclass(frozen=True)
-class _Codec:
-    pack: object     # pack(seq, *values) -> frame bytes
-    encode: object   # encode(message, seq) -> frame bytes
-    decode: object   # decode(payload) -> message (payload of the layout's size)
-    decode_from: object   # decode_from(buffer, offset) -> message (the payload at buffer[offset:])
-
-
-def _bad_seq(seq: object) -> None:
-    raise EncodeError(f"sequence number must be an int in 0..255, got {seq!r}")
-
-
-def _reserved_flags(layout: Layout, name: str, raw: int) -> None:
-    raise FieldError(f"{layout.cls.__name__}.{name}=0x{raw:02x} sets reserved bits "
-                     f"(allowed mask 0x{_FLAG_MASK:02x})")
-
-
-def _compile(layout: Layout) -> _Codec:
-    """Write out the encoder and decoder of one layout (see the comment above)."""
-    names = [f"v{i}" for i in range(len(layout.fields))]
-    env: dict = {"_to_wire": _to_wire, "_bad_seq": _bad_seq, "_reserved": _reserved_flags, "_layout": layout,
-                 "_body": struct.Struct(">BBB" + "".join(f.code for f in layout.fields)),
-                 "_payload": layout.struct, "_crc": binascii.crc_hqx, "_crc_pack": _CRC.pack, "_sync": SYNC,
-                 "_flags": _FLAGS, "_Flags": StatusFlags, "_cls": layout.cls, "_new": object.__new__,
-                 "_BIG": _BIG}
-    out = [f"def pack(seq{''.join(', ' + n for n in names)}):",
-           "    if seq.__class__ is not int or not 0 <= seq <= 0xFF:",
-           "        if isinstance(seq, bool) or not isinstance(seq, int) or not 0 <= seq <= 0xFF:",
-           "            _bad_seq(seq)"]
-    for i, f in enumerate(layout.fields):
-        lo, hi = _RANGES[f.code]
-        v, r, fd = names[i], f"r{i}", f"_layout.fields[{i}]"
-        if f.kind == "scaled":
-            out += [f"    if {v}.__class__ is float and -_BIG < {v} < _BIG:",
-                    f"        {r} = round({v} / {f.scale!r})",
-                    f"        if not {lo} <= {r} <= {hi}:",
-                    f"            {r} = _to_wire({fd}, {v}, _cls.__name__)",
-                    "    else:",
-                    f"        {r} = _to_wire({fd}, {v}, _cls.__name__)"]
-        elif f.kind == "flags":
-            out += [f"    {r} = {v}._value_ if {v}.__class__ is _Flags else -1",
-                    f"    if {r} < 0 or {r} & ~{_FLAG_MASK}:",
-                    f"        {r} = _to_wire({fd}, {v}, _cls.__name__)"]
-        else:
-            out += [f"    if {v}.__class__ is int and {lo} <= {v} <= {hi}:",
-                    f"        {r} = {v}",
-                    "    else:",
-                    f"        {r} = _to_wire({fd}, {v}, _cls.__name__)"]
-    raws = "".join(f", r{i}" for i in range(len(names)))
-    out += [f"    body = _body.pack({layout.msg_id}, seq, {layout.size}{raws})",
-            "    return _sync + body + _crc_pack(_crc(body, 0xFFFF))",
-            "",
-            "def encode(message, seq):",
-            f"    return pack(seq{''.join(f', message.{f.name}' for f in layout.fields)})",
-            "",
-            "def decode(payload):",
-            "    return decode_from(payload, 0)",
-            "",
-            "def decode_from(buf, offset):"]
-    if layout.fields:
-        out.append(f"    {', '.join(f'r{i}' for i in range(len(names)))}, = _payload.unpack_from(buf, offset)")
-    values = []
-    for i, f in enumerate(layout.fields):
-        if f.kind == "scaled":
-            values.append(f"r{i} * {f.scale!r}")
-        elif f.kind == "flags":
-            out += [f"    if r{i} & ~{_FLAG_MASK}:", f"        _reserved(_layout, {f.name!r}, r{i})"]
-            values.append(f"_flags[r{i}]")
-        else:
-            values.append(f"r{i}")
-    if hasattr(layout.cls, "__post_init__"):
-        out.append(f"    return _cls({', '.join(values)})")
-    else:   # the dataclass's __init__ would only store the fields: store them directly, in field order
-        out.append("    m = _new(_cls)")
-        if layout.fields:
-            out.append("    d = m.__dict__")
-            out += [f"    d[{f.name!r}] = {val}" for f, val in zip(layout.fields, values)]
-        out.append("    return m")
-    exec(compile("\n".join(out) + "\n", f"<bridge codec 0x{layout.msg_id:02x}>", "exec"), env)
-    return _Codec(env["pack"], env["encode"], env["decode"], env["decode_from"])
-
-
-_CODECS: dict[type, _Codec] = {layout.cls: _compile(layout) for layout in MESSAGE_TABLE.values()}
-_FRAME_DECODERS: dict[int, tuple[Layout, int, object]] = {   # id -> layout, payload size, decode_from
-    i: (layout, layout.size, _CODECS[layout.cls].decode_from) for i, layout in MESSAGE_TABLE.items()}

@@ -111,48 +111,15 @@ class LockstepScheduler:
         if not math.isfinite(t_end):
             raise ClockError(f"cannot run until a non-finite time ({t_end!r} s)")
         self._running = True
-        device_steps = plant_steps = 0
         try:
             clock = self.clock
             now = clock.now()
-            same = 0
-            # Each pass either advances time by > 0 or counts towards the stall limit.
-            devices = self.devices
-            plant = self.plant
-            max_step = self.max_step
-            inf = math.inf
-            independent = self.independent
-            limit = self.max_same_instant
+            same = 0   # passes at this instant that stepped a device (each pass either advances time or counts)
             while True:
-                # One pass over the devices in order: each is asked when it wants to run and, if
-                # due, stepped at once (so it sees what the devices before it did at this instant).
-                stepped = False
-                t_next = inf
-                for device in devices:
-                    wake = device.next_wakeup()
-                    if wake <= now:
-                        device.step(now)
-                        device_steps += 1
-                        if independent:   # only this device's wake-up can have changed: ask it again
-                            for _ in range(limit):
-                                wake = device.next_wakeup()
-                                if wake > now:
-                                    break
-                                device.step(now)
-                                device_steps += 1
-                            else:
-                                raise SchedulerStallError(
-                                    f"a device was stepped {limit + 1} times at t={now!r} s without time "
-                                    "advancing; its next_wakeup() keeps returning a time <= now")
-                            if wake < t_next:
-                                t_next = wake
-                        else:
-                            stepped = True
-                    elif wake < t_next:
-                        t_next = wake
-                if stepped:
+                again, t_next = self._pass(now)
+                if again:
                     same += 1
-                    if same > limit:
+                    if same > self.max_same_instant:
                         raise SchedulerStallError(
                             f"devices were stepped {same} times at t={now!r} s without time advancing; "
                             "a device's next_wakeup() keeps returning a time <= now")
@@ -160,18 +127,45 @@ class LockstepScheduler:
                 same = 0
                 if now >= t_end:
                     return
-                if t_end < t_next:
-                    t_next = t_end
-                if plant is not None:
-                    if now + max_step < t_next:
-                        t_next = now + max_step
-                    plant.advance(t_next - now)
-                    plant_steps += 1
-                # t_next > now and finite here: what VirtualClock.advance_to would check holds, so the
-                # time is only recorded (the clock's own attribute; this scheduler is bound to it)
-                clock._now = t_next if t_next.__class__ is float else float(t_next)
+                t_next = min(t_next, t_end)
+                if self.plant is not None:
+                    t_next = min(t_next, now + self.max_step)
+                    self.plant.advance(t_next - now)
+                    self.plant_steps += 1
+                clock.advance_to(t_next)
                 now = t_next
         finally:
             self._running = False
-            self.device_steps += device_steps
-            self.plant_steps += plant_steps
+
+    def _pass(self, now: float) -> tuple[bool, float]:
+        """One pass over the devices in order at ``now``: each is asked when it wants to run and, if
+        due, stepped at once (so it sees what the devices before it did at this instant).
+
+        Returns whether the other devices must be asked again at this instant (a device was stepped and
+        the devices are not :attr:`independent`) and the earliest wake-up seen, s.
+        """
+        again = False
+        t_next = math.inf
+        for device in self.devices:
+            wake = device.next_wakeup()
+            if wake <= now:
+                self._step(device, now)
+                if not self.independent:
+                    again = True
+                    continue
+                for _ in range(self.max_same_instant):   # only this device's wake-up can have changed
+                    wake = device.next_wakeup()
+                    if wake > now:
+                        break
+                    self._step(device, now)
+                else:
+                    raise SchedulerStallError(
+                        f"a device was stepped {self.max_same_instant + 1} times at t={now!r} s without time "
+                        "advancing; its next_wakeup() keeps returning a time <= now")
+            if wake < t_next:
+                t_next = wake
+        return again, t_next
+
+    def _step(self, device: Device, now: float) -> None:
+        device.step(now)
+        self.device_steps += 1

@@ -37,14 +37,14 @@ def _convert(args: argparse.Namespace) -> dict:
 
 
 def _order(text: str) -> int | str:
-    if text == "auto":
-        return "auto"
+    if text in ("auto", "validate"):
+        return text
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'auto' or a positive integer, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected 'auto', 'validate' or a positive integer, got {text!r}") from None
     if value < 1:
-        raise argparse.ArgumentTypeError(f"expected 'auto' or a positive integer, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected 'auto', 'validate' or a positive integer, got {text!r}")
     return value
 
 
@@ -68,7 +68,8 @@ def _okid(args: argparse.Namespace) -> dict:
 
         return identify_logs(args.logs, args.out, order=args.order, markov=args.markov,
                              normalize=args.normalize, dt=args.dt, method=args.method,
-                             kinds=args.kinds, progress=progress)
+                             kinds=args.kinds, progress=progress, latency=args.latency,
+                             acceptance=args.acceptance)
 
 
 def _fit(args: argparse.Namespace) -> dict:
@@ -106,9 +107,14 @@ def build_parser() -> argparse.ArgumentParser:
     o = sub.add_parser("okid", help="identify local, velocity-invariant and central models from pass logs")
     o.add_argument("logs", nargs="+", help="pass logs (.npz) or directories holding them")
     o.add_argument("--out", required=True, help="directory for models/<name>.npz")
-    o.add_argument("--order", type=_order, default="auto", help="model order or 'auto' (default)")
-    o.add_argument("--markov", type=_order, default="auto",
-                   help="observer Markov parameters p, or 'auto' (default, Akaike)")
+    o.add_argument("--order", type=_order, default="auto",
+                   help="model order, 'auto' (default, Hankel gap) or 'validate' (held-out 3 s prediction)")
+    o.add_argument("--markov", "--past", type=_order, default="auto", dest="markov",
+                   help="observer Markov parameters p (the past window), 'auto' (default, Akaike) or 'validate'")
+    o.add_argument("--latency", choices=("auto", "declared", "identified", "valid-time"), default="auto",
+                   help="GPS latency source (default auto: valid times, else declared, attitude checked)")
+    o.add_argument("--acceptance", choices=("refuse", "warn"), default="refuse",
+                   help="a model that does not predict: refuse (default, nothing written) or warn")
     o.add_argument("--normalize", choices=("velocity", "none"), default="velocity",
                    help="outputs y/V, psi/V, delta (default) or y, psi, delta")
     o.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")

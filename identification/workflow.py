@@ -12,6 +12,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from . import report as rp
+from .acceptance import enforce
 from .csvdata import read_csv
 from .errors import DataError
 from .model import Model
@@ -20,6 +21,7 @@ from .passlog import PassLog
 from .preprocess import Preprocessing, passes_to_iodata
 from .tractor import identify_tractor, save_results
 from .validation import validate
+from .validation_report import write_validation_report
 
 
 def expand_logs(paths: Sequence[str | Path]) -> list[Path]:
@@ -44,32 +46,48 @@ def _fmt(values: Sequence[float]) -> str:
 def identify_logs(logs: Sequence[str | Path], out_dir: str | Path, order: int | str = "auto",
                   markov: int | str = "auto", normalize: str = "velocity", dt: float = 0.05,
                   method: str = "era-dc", kinds: Sequence[str] = ("local", "velocity-invariant", "central"),
-                  progress: Callable[[int, int], None] | None = None) -> dict:
+                  progress: Callable[[int, int], None] | None = None, latency: str = "auto",
+                  acceptance: str = "refuse") -> dict:
     """Identify the tractor models from pass logs and write ``<out_dir>/<name>.npz``.
 
     Returns a summary with one row per model: name, kind, conditions, order,
-    one-step and free-run fits (%) per output on held-out data.
+    one-step and free-run fits (%) per output on held-out data. ``latency`` is the
+    source of the GPS latency (:func:`identification.delay.measure_latency`); with
+    ``acceptance="refuse"`` nothing is written when a model does not predict
+    (:mod:`identification.acceptance`); ``validation.md`` and a figure are written beside the models.
     """
     files = expand_logs(logs)
     passes = [PassLog.load(f) for f in files]
     pre = Preprocessing(dt=dt, normalize=normalize)
-    results = identify_tractor(passes, pre, {"order": order, "markov": markov, "method": method}, kinds,
-                               progress)
+    results = identify_tractor(passes, pre, {"order": order, "markov": markov, "method": method,
+                                             "latency": latency}, kinds, progress)
+    warnings = enforce([r.acceptance for r in results], acceptance)
     written = save_results(results, out_dir)
+    report = write_validation_report(results, out_dir)
     rows = []
     for r, path in zip(results, written):
         conds = r.model.meta.get("conditions", [])
         rows.append({"name": r.name, "kind": r.kind, "file": str(path), "order": r.model.order,
                      "conditions": [f"{c['implement']}@{c['gear'] or c['nominal_speed']}" for c in conds],
                      "one_step_fit": [float(v) for v in r.validation.one_step_fit],
-                     "free_run_fit": [float(v) for v in r.validation.free_run_fit]})
+                     "free_run_fit": [float(v) for v in r.validation.free_run_fit],
+                     "prediction_fit": r.model.meta["acceptance"]["fit"],
+                     "acceptance": r.model.meta["acceptance"]["status"]})
     outs = ", ".join(results[0].model.meta.get("output_names", [])) if results else ""
     lines = [f"{len(files)} pass logs -> {len(rows)} models in {out_dir} (outputs: {outs})",
-             f"{'model':22s} {'kind':18s} {'n':>2s} {'conds':>5s}  one-step fit %        free-run fit %"]
+             f"{'model':22s} {'kind':18s} {'n':>2s} {'conds':>5s}  one-step fit %        free-run fit %"
+             f"        {results[0].acceptance.prediction.horizon_s if results else 0:g} s prediction fit %"]
     for row in rows:
         lines.append(f"{row['name']:22s} {row['kind']:18s} {row['order']:2d} {len(row['conditions']):5d}  "
-                     f"{_fmt(row['one_step_fit']):20s}  {_fmt(row['free_run_fit'])}")
-    return {"models": rows, "n_logs": len(files), "_text": "\n".join(lines)}
+                     f"{_fmt(row['one_step_fit']):20s}  {_fmt(row['free_run_fit']):20s}  "
+                     f"{_fmt(list(row['prediction_fit'].values()))}  {row['acceptance']}")
+    delay = results[0].model.meta.get("delay") if results else None
+    lines += [f"warning: {w}" for w in [*warnings, *((delay or {}).get("estimate", {}).get("warnings", []))]]
+    lines.append(f"validation report: {report['table']}, {report['figure']}")
+    return {"models": rows, "n_logs": len(files), "warnings": warnings,
+            "delay": delay,
+            "validation_report": {"table": report["table"], "figure": report["figure"]},
+            "_text": "\n".join(lines)}
 
 
 def fit_csv(data: str | Path, inputs: Sequence[str], outputs: Sequence[str], out: str | Path,

@@ -128,6 +128,11 @@ class OracleOptions:
         Deadband and flow-curve compensation: the LQR asks for a valve rate and the oracle sends
         the command whose true steady rate that is (:func:`valve_command`); the model's valve
         gain is then 1. Off: the LQR output is the command and the model uses the secant gain.
+    host_map
+        The host inverts the valve with its measured curve (a commissioned loop,
+        :class:`hil.vehicle.commissioning.MappedBridge`): the model's valve gain is 1, the LQR
+        output is sent as it is and the filter takes it as the valve's rate (``invert_valve`` is
+        then ignored).
     """
 
     dt: float = 0.05
@@ -141,14 +146,17 @@ class OracleOptions:
     rate_noise: float = 0.02
     integral_window: float = 0.1
     invert_valve: bool = True
+    host_map: bool = False
     approach_heading: float = 0.08
 
     def __post_init__(self) -> None:
         if not isinstance(self.weights, OracleWeights):
             raise SimulatorConfigError(f"OracleOptions.weights must be OracleWeights, got {type(self.weights).__name__}")
+        if not isinstance(self.host_map, bool):
+            raise SimulatorConfigError(f"OracleOptions.host_map must be a bool, got {self.host_map!r}")
         if not isinstance(self.invert_valve, bool):
             raise SimulatorConfigError(f"OracleOptions.invert_valve must be a bool, got {self.invert_valve!r}")
-        _positive(self, skip=("weights", "invert_valve", "position_delay", "attitude_delay", "wheel_delay"))
+        _positive(self, skip=("weights", "invert_valve", "host_map", "position_delay", "attitude_delay", "wheel_delay"))
         for name in ("position_delay", "attitude_delay", "wheel_delay"):
             v = getattr(self, name)
             if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
@@ -254,7 +262,7 @@ def design_oracle(condition: Condition, params: SimParams | None = None,
         Ac[:npl, npl + j] = col
         Ac[npl + j, npl + j] = -1.0 / tau
         Qc[npl + j, npl + j] = 2 * sigma ** 2 / tau
-    b_model = lin.B / lin.valve_gain if opt.invert_valve else lin.B
+    b_model = lin.B / lin.valve_gain if opt.invert_valve or opt.host_map else lin.B
     Bc = np.vstack([b_model, np.zeros((nd, 1))])
     # ZOH of (A, B) and Van Loan for the process-noise covariance
     big = expm(np.block([[Ac, Bc], [np.zeros((1, n + 1))]]) * dt)
@@ -317,7 +325,7 @@ def design_oracle(condition: Condition, params: SimParams | None = None,
                                    f"{rho:.4f}); change OracleOptions.weights")
     y_trim = [float(lin.trim[Y]), float(lin.trim[PSI]), d_trim]
     return OracleDesign(lin, dt, *map(_frozen, (A, B, C, K, M, y_trim, X0)),
-                        input_gain=1.0 if opt.invert_valve else lin.valve_gain, n_plant=npl,
+                        input_gain=1.0 if opt.invert_valve or opt.host_map else lin.valve_gain, n_plant=npl,
                         spectral_radius=rho, state_names=tuple(names))
 
 
@@ -390,9 +398,12 @@ class OracleLQG:
         xf[self._ycols] = np.clip(x[self._ycols], -self._capture, self._capture)
         u = -float(d.K[0, :n] @ xf + d.K[0, n] * self._q)
         st = self._steering
-        cmd = valve_command(u, self._params) if self.options.invert_valve else u
-        cmd = min(max(cmd, -st.max_rate), st.max_rate)
-        rate = float(valve_rate(nominal_duty(cmd, st), st))      # what the valve really does
+        if self.options.host_map:      # the host's inverse map makes the valve run at the command
+            cmd = rate = min(max(u, -st.max_rate), st.max_rate)
+        else:
+            cmd = valve_command(u, self._params) if self.options.invert_valve else u
+            cmd = min(max(cmd, -st.max_rate), st.max_rate)
+            rate = float(valve_rate(nominal_duty(cmd, st), st))      # what the valve really does
         if abs(z[0]) <= self.options.integral_window:
             self._q += self.dt * z[0]
         self._xhat = x

@@ -26,11 +26,13 @@ from hil.errors import SimulatorConfigError
 from hil.devices.faults import FaultyLink, LinkFault
 from hil.links.memory import memory_link_pair
 from hil.links.pty import PtyPair
+from hil.vehicle.commissioning import Commissioning, MappedBridge
 from hil.vehicle.loop import LoopConfig, VehicleLoop
 from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
 from hil.devices.technician import two_point_calibration
+from hil.devices.valve_faults import ValveFaults
 
 
 @dataclass(frozen=True)
@@ -84,12 +86,19 @@ class RunSpec:
 
 def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | None = None,
                   loop_config: LoopConfig | None = None,
-                  progress: Callable[[float, float], None] | None = None) -> PassLog:
-    """Run one closed-loop pass on the simulated tractor and return its run log."""
+                  progress: Callable[[float, float], None] | None = None,
+                  commissioning: Commissioning | None = None, map_valve: bool = True) -> PassLog:
+    """Run one closed-loop pass on the simulated tractor and return its run log.
+
+    With ``commissioning`` (a tractor's commissioning file), the loop's rate limit and
+    steering-response monitor come from the measured valve (:func:`hil.vehicle.commissioning.loop_settings`)
+    and, unless ``map_valve`` is false, its rate commands go through the valve's inverse map
+    (:class:`hil.vehicle.commissioning.MappedBridge`).
+    """
     cond = condition_for(spec.implement, spec.speed)
     plant = SimulatedTractor(cond, spec.duration + 1.0, spec.seed, params,
-                             initial={"Y": spec.initial_cross_track, "PSI": spec.initial_heading},
-                             override=spec.override, stuck_valve=spec.stuck_valve)
+                             initial={"Y": spec.initial_cross_track, "PSI": spec.initial_heading})
+    valve = ValveFaults(plant, override=spec.override, stuck_valve=spec.stuck_valve)   # what the bridge drives
     p = plant.params
     cal = two_point_calibration(p.sensor, p.steering)
     geo = spec.geometry
@@ -101,7 +110,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             pos_pty, att_pty = stack.enter_context(PtyPair()), stack.enter_context(PtyPair())
             receivers = [PositionReceiver(plant, pos_pty.device_link(), geo),
                          AttitudeReceiver(plant, att_pty.device_link(), geo)]
-            bench = stack.enter_context(PtyBridge(plant, extra_devices=receivers))
+            bench = stack.enter_context(PtyBridge(valve, extra_devices=receivers))
             sources = [pos_pty.open_serial(baudrate=38400, timeout=0),
                        att_pty.open_serial(baudrate=38400, timeout=0)]
             for s in sources:
@@ -109,7 +118,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
         else:
             # The simulator integrates on its own dt grid whatever the advance; the scheduler need not
             # stop between device wake-ups for it (at most every loop period).
-            bench = stack.enter_context(LockstepBridge(plant, max_step=0.05))
+            bench = stack.enter_context(LockstepBridge(valve, max_step=0.05))
             # the firmware and the receivers share only the plant; each has its own link to the host
             bench.scheduler.independent = True
             receivers, sources = [], []
@@ -131,6 +140,10 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             faulty = FaultyLink(host, clock, spec.link_faults, rng)
             driver = BridgeDriver(faulty, clock, bench.driver.config)
         frontend = GnssFrontEnd(fe_config, sources=sources, clock=clock.now)
+        if commissioning is not None:
+            loop_config = commissioning.loop_config(loop_config)
+            if map_valve:
+                driver = MappedBridge(driver, commissioning.valve)
         loop = VehicleLoop(clock, driver, frontend, geo.ab_line(), controller, cal, loop_config,
                            truth=plant.truth)
         loop.run(spec.duration, start=clock.now(), progress=progress)

@@ -1,0 +1,215 @@
+"""The steering-valve characterisation a technician runs at standstill (or at low speed).
+
+Through the steering bridge, as on the tractor: engage, then for each duty of a list, both ways,
+bring the wheel to the start of its travel (``start_angle`` on the side opposite the step), hold
+it still, hold the command for up to ``step_time`` s (or until the wheel passes ``start_angle`` on
+the other side) and fit a straight ramp to the calibrated wheel-angle reports after the valve's
+transient. Each step gives a :class:`~hil.vehicle.valve_map.RateStep`; the steps together give the
+:class:`~hil.vehicle.valve_map.ValveCurve` (deadband, flow exponent, asymmetry, lag, report noise).
+
+The same routine, given a curve, commands *rates* through the curve's inverse map instead of
+duties (:func:`linearity_check`): what the loop will see once the map is applied.
+
+Only a :class:`~hil.links.clock.Clock`, a bridge driver and the host's wheel-angle calibration are
+used: nothing of the simulator. Commands are refreshed every ``period`` (the bridge's watchdog).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from hil.links.clock import Clock
+from hil.vehicle.bridge.driver import BridgeDriver
+from hil.vehicle.calibration import WheelAngleCalibration
+from hil.vehicle.errors import VehicleConfigError
+from hil.vehicle.valve_map import RateStep, ValveCurve, fit_valve_curve
+
+__all__ = ["ValveTestPlan", "characterise_valve", "run_steps", "linearity_check"]
+
+_DUTIES = (0.03, 0.06, 0.09, 0.12, 0.15, 0.18, 0.22, 0.26, 0.3, 0.35, 0.4, 0.5, 0.6, 0.7, 0.85, 1.0)
+
+
+@dataclass(frozen=True)
+class ValveTestPlan:
+    """How the characterisation steps the valve.
+
+    Attributes
+    ----------
+    duties
+        Duties (fractions of the bridge's full scale, in (0, 1]) stepped each way.
+    start_angle
+        Wheel angle at which each step starts (on the side opposite its direction), rad.
+    step_time
+        Longest time a step is held, s.
+    settle
+        Time the wheel is held still before each step, s.
+    transient
+        Start of each step left out of the ramp fit (valve lag), s.
+    position_duty
+        Duty used to bring the wheel to the start of a step.
+    period
+        Command period, s (shorter than the bridge's watchdog).
+    """
+
+    duties: tuple[float, ...] = _DUTIES
+    start_angle: float = 0.2
+    step_time: float = 3.0
+    settle: float = 0.5
+    transient: float = 0.4
+    position_duty: float = 0.6
+    period: float = 0.05
+
+    def __post_init__(self) -> None:
+        if not self.duties or not all(isinstance(d, (int, float)) and 0 < d <= 1 for d in self.duties):
+            raise VehicleConfigError(f"ValveTestPlan.duties must be numbers in (0, 1], got {self.duties!r}")
+        for name in ("start_angle", "step_time", "settle", "transient", "position_duty", "period"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise VehicleConfigError(f"ValveTestPlan.{name} must be a finite number > 0, got {v!r}")
+        if self.transient >= self.step_time:
+            raise VehicleConfigError(f"ValveTestPlan: transient ({self.transient} s) must be shorter than "
+                                     f"step_time ({self.step_time} s)")
+        if self.position_duty > 1:
+            raise VehicleConfigError(f"ValveTestPlan.position_duty must be in (0, 1], got {self.position_duty!r}")
+
+
+@dataclass
+class _Session:
+    """The bridge, its clock and the reports read so far (times [s], calibrated angles [rad])."""
+
+    driver: BridgeDriver
+    clock: Clock
+    calibration: WheelAngleCalibration
+    period: float
+    t: list[float] = field(default_factory=list)
+    angle: list[float] = field(default_factory=list)
+    confirmed: bool = False
+    started: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.started = self.clock.now()
+
+    def cycle(self, command: float) -> float:
+        """Wait one period, read the reports, send ``command``; return the newest angle."""
+        self.clock.sleep_until(self.clock.now() + self.period)
+        for rep in self.driver.poll():
+            self.confirmed = self.confirmed or rep.engaged
+            if rep.manual_override or (self.confirmed and not rep.engaged):
+                why = "manual override" if rep.manual_override else "watchdog or fault"
+                raise VehicleConfigError(f"valve characterisation stopped: the bridge disengaged ({why}) at "
+                                         f"t = {rep.received_at:.2f} s; release the wheel and run it again")
+            self.t.append(rep.received_at)
+            self.angle.append(float(self.calibration.to_angle(rep.adc_counts)))
+        if not self.driver.is_alive() and (self.t or self.clock.now() - self.started > 1.0):
+            raise VehicleConfigError("valve characterisation: the bridge is silent (no wheel-angle report); "
+                                     "check its power, port and baud rate")
+        self.driver.send_rate(command)
+        return self.angle[-1] if self.angle else math.nan
+
+    def hold(self, command: float, seconds: float, stop: Callable[[float], bool] | None = None) -> None:
+        t_end = self.clock.now() + seconds
+        while self.clock.now() < t_end - 1e-9:
+            a = self.cycle(command)
+            if stop is not None and math.isfinite(a) and stop(a):
+                return
+
+
+def run_steps(driver: BridgeDriver, clock: Clock, calibration: WheelAngleCalibration,
+              commands: Sequence[float], full_scale: float, plan: ValveTestPlan | None = None,
+              progress: Callable[[int, int], None] | None = None) -> list[RateStep]:
+    """Hold each command [rad/s, + left] from the start of the wheel's travel; measure its steady rate.
+
+    The bridge is engaged first and disengaged at the end (also on an error).
+    """
+    plan = plan or ValveTestPlan()
+    s = _Session(driver, clock, calibration, plan.period)
+    driver.engage()
+    out: list[RateStep] = []
+    try:
+        s.hold(0.0, 0.3)
+        for i, cmd in enumerate(commands):
+            direction = 1.0 if cmd > 0 else -1.0
+            start = -direction * plan.start_angle
+            s.hold(-direction * plan.position_duty * full_scale, 6.0,
+                   stop=lambda a: direction * (a - start) <= 0.0)
+            s.hold(0.0, plan.settle)
+            n0 = len(s.t)
+            t0 = clock.now()
+            s.hold(cmd, plan.step_time, stop=lambda a: direction * (a + start) >= 0.0)
+            out.append(_ramp(np.array(s.t[n0:]), np.array(s.angle[n0:]), t0, cmd, np.array(s.angle[max(0, n0 - 5):n0]),
+                             plan.transient))
+            if progress is not None:
+                progress(i + 1, len(commands))
+    finally:
+        driver.send_rate(0.0)
+        driver.disengage()
+    return out
+
+
+def _ramp(t: np.ndarray, a: np.ndarray, t0: float, cmd: float, before: np.ndarray, transient: float) -> RateStep:
+    """Straight-line fit of the reports after the transient; delay = where the line leaves the rest angle."""
+    keep = t >= t0 + transient
+    if keep.sum() < 4:
+        keep = t >= t0
+    if keep.sum() < 2:
+        return RateStep(cmd, 0.0)
+    tt, aa = t[keep] - t0, a[keep]
+    slope, icpt = np.polyfit(tt, aa, 1)
+    resid = float(np.std(aa - (slope * tt + icpt)))
+    rest = float(np.mean(before)) if before.size else float(a[0])
+    delay = (rest - icpt) / slope if abs(slope) > 1e-4 else math.nan
+    return RateStep(command=float(cmd), rate=float(slope), delay=float(delay), residual=resid)
+
+
+def characterise_valve(driver: BridgeDriver, clock: Clock, calibration: WheelAngleCalibration,
+                       full_scale: float, plan: ValveTestPlan | None = None,
+                       progress: Callable[[int, int], None] | None = None) -> tuple[ValveCurve, list[RateStep]]:
+    """Duty steps both ways through the bridge, then the fitted :class:`ValveCurve`.
+
+    Parameters
+    ----------
+    driver, clock
+        The bridge driver and its clock (lockstep, pseudo-terminal or serial port).
+    calibration
+        The host's wheel-angle calibration (counts to rad).
+    full_scale
+        The bridge's nominal rate at full duty, rad/s (its firmware setting).
+    plan
+        Duties and timing.
+
+    Returns
+    -------
+    (ValveCurve, list of RateStep)
+    """
+    plan = plan or ValveTestPlan()
+    commands = [sgn * d * full_scale for d in plan.duties for sgn in (1.0, -1.0)]
+    steps = run_steps(driver, clock, calibration, commands, full_scale, plan, progress)
+    return fit_valve_curve(steps, full_scale), steps
+
+
+def linearity_check(driver: BridgeDriver, clock: Clock, calibration: WheelAngleCalibration, curve: ValveCurve,
+                    fractions: Sequence[float] = (0.05, 0.1, 0.2, 0.35, 0.5, 0.7, 0.9),
+                    plan: ValveTestPlan | None = None) -> dict:
+    """Rates asked through the curve's inverse map versus the rates the wheel then gave.
+
+    Parameters
+    ----------
+    fractions
+        Wanted rates as fractions of ``curve.max_rate``, stepped each way.
+
+    Returns
+    -------
+    dict
+        ``wanted`` and ``measured`` rates [rad/s] and ``max_error`` (largest |measured - wanted|,
+        rad/s) and ``max_error_fraction`` (that over ``curve.max_rate``).
+    """
+    wanted = [sgn * f * curve.max_rate for f in fractions for sgn in (1.0, -1.0)]
+    steps = run_steps(driver, clock, calibration, [curve.command_for(w) for w in wanted], curve.full_scale, plan)
+    measured = np.array([s.rate for s in steps])
+    err = np.abs(measured - np.array(wanted))
+    return {"wanted": wanted, "measured": measured.tolist(), "max_error": float(err.max()),
+            "max_error_fraction": float(err.max() / curve.max_rate)}

@@ -15,6 +15,25 @@ from .errors import IdentificationError
 from .passlog import PassLog
 
 
+CONVERT_HELP = """\
+Convert a pass log between .npz and .csv, or bring in a log from another logger.
+
+A log from another logger (one row per sample, every channel on one clock: a
+single-rate log) is brought in as a CSV:
+  1. header row: time (or t), then the channels, named as the pass log names them:
+     wheel_angle, steer_rate_cmd, cross_track, heading_error, speed;
+  2. values in SI units: s since the start of the pass, rad, rad/s, m, m/s (+ = left,
+     counter-clockwise); convert degrees, mph or counts before, rows in time order;
+  3. the metadata the file lacks given with --meta, at least the implement and the
+     nominal speed (m/s), e.g. --meta '{"implement": "none", "nominal_speed": 1.79, "gear": "9th"}'.
+Then: identification convert their_log.csv pass.npz --meta '{...}'.
+Every channel filled on every row makes a single-rate log: the other time bases
+(t_cross_track, t_heading_error, t_speed) are absent, the channels are on t, and
+the log's meta says so in "time_bases_on_t". A channel left blank on some rows keeps
+its own time base (a multi-rate log, as exported by this tool).
+"""
+
+
 def _convert(args: argparse.Namespace) -> dict:
     src, dst = Path(args.src), Path(args.dst)
     meta = json.loads(args.meta) if args.meta else None
@@ -96,7 +115,8 @@ def _report(args: argparse.Namespace) -> dict:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="identification", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
-    c = sub.add_parser("convert", help="convert a pass log between .npz and .csv")
+    c = sub.add_parser("convert", help="convert a pass log between .npz and .csv",
+                       description=CONVERT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     c.add_argument("src", help="input pass log (.npz or .csv)")
     c.add_argument("dst", help="output pass log (.npz or .csv)")
     c.add_argument("--meta", help="JSON metadata for a CSV from elsewhere, e.g. "

@@ -15,6 +15,12 @@ channel                   time base            unit     meaning
 ``speed``                 ``t_speed``          m/s      ground speed
 ========================  ===================  =======  ==============================================
 
+**Single-rate logs.** Most loggers write one row per sample with every channel
+on one clock. Such a log has only the time base ``t``: each channel whose own
+time base is absent is sampled on ``t``, and the log says so in
+``meta["time_bases_on_t"]`` (the sorted list of the absent bases, set on
+construction; a base listed there must not also be given).
+
 Further channels (``fix_quality``, truth channels ``truth_*`` of a simulated pass,
 ...) may be added; each is declared in ``meta["extra_channels"]`` with its time
 base and unit.
@@ -53,6 +59,8 @@ CHANNELS: Mapping[str, tuple[str, str]] = MappingProxyType({
 })
 TIME_BASES: tuple[str, ...] = ("t", "t_cross_track", "t_heading_error", "t_speed")
 REQUIRED_META: tuple[str, ...] = ("implement", "nominal_speed")
+#: Metadata key listing the time bases a single-rate log leaves out (their channels are on ``t``).
+ON_T = "time_bases_on_t"
 
 
 def _readonly(a: Any, name: str) -> np.ndarray:
@@ -79,6 +87,8 @@ class PassLog:
     times
         Time bases by name (``t``, ``t_cross_track``, ``t_heading_error``,
         ``t_speed``), s since the start of the pass, strictly increasing.
+        Only ``t`` is required: the channels of an absent base are sampled on
+        ``t`` (a single-rate log), recorded in ``meta["time_bases_on_t"]``.
     channels
         Channel values by name, SI units, each as long as its time base.
     meta
@@ -93,12 +103,33 @@ class PassLog:
     meta: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.times, Mapping):
+            raise PassLogError(f"times must map time-base names to arrays, got {type(self.times).__name__}")
+        if not isinstance(self.channels, Mapping):
+            raise PassLogError(f"channels must map names to arrays, got {type(self.channels).__name__}")
         meta = _check_meta(self.meta)
+        absent = sorted(b for b in TIME_BASES[1:] if b not in self.times)
+        declared = meta.get(ON_T, absent)
+        if (not isinstance(declared, list) or any(not isinstance(b, str) for b in declared)
+                or not set(declared) <= set(TIME_BASES[1:])):
+            raise PassLogError(f"meta[{ON_T!r}] must list time bases from {list(TIME_BASES[1:])}, "
+                               f"got {declared!r}")
+        given = sorted(set(declared) - set(absent))
+        if given:
+            raise PassLogError(f"meta[{ON_T!r}] says {given} are absent (channels on 't') but the log "
+                               "gives them; drop them from the log or from the list")
+        if absent:
+            meta[ON_T] = absent
+        else:
+            meta.pop(ON_T, None)
         bases = _channel_bases(meta)
         times = {}
         for name in TIME_BASES:
             if name not in self.times:
-                raise PassLogError(f"missing time base {name!r}; expected {list(TIME_BASES)}")
+                if name == "t":
+                    raise PassLogError("missing time base 't'; every pass log has it (the wheel angle's, "
+                                       "or the one clock of a single-rate log)")
+                continue
             arr = _readonly(self.times[name], name)
             if arr.size < 2:
                 raise PassLogError(f"time base {name!r} has {arr.size} samples; a pass needs at least 2")
@@ -117,8 +148,11 @@ class PassLog:
                 raise PassLogError(f"missing channel {name!r} (declared on time base {base!r})")
             arr = _readonly(self.channels[name], name)
             if arr.shape != times[base].shape:
+                own = _own_base(meta, name)
+                hint = (f" (missing time base {own!r}: in a single-rate log every channel is sampled on 't')"
+                        if own != base else "")
                 raise PassLogError(f"channel {name!r} has {arr.size} samples but its time base "
-                                   f"{base!r} has {times[base].size}")
+                                   f"{base!r} has {times[base].size}{hint}")
             chans[name] = arr
         undeclared = set(self.channels) - set(bases)
         if undeclared:
@@ -148,7 +182,7 @@ class PassLog:
     def content_hash(self) -> str:
         """SHA-256 of the arrays and metadata (independent of file container details)."""
         h = hashlib.sha256()
-        for name in (*TIME_BASES, *sorted(self.channels)):
+        for name in (*(b for b in TIME_BASES if b in self.times), *sorted(self.channels)):
             arr = self.times[name] if name in self.times else self.channels[name]
             h.update(name.encode())
             h.update(np.ascontiguousarray(arr, dtype="<f8").tobytes())
@@ -232,6 +266,10 @@ class PassLog:
     def from_csv(cls, path: str | Path, meta: Mapping[str, Any] | None = None) -> "PassLog":
         """Read a wide CSV (see :meth:`to_csv`).
 
+        A CSV from another logger (no ``# passlog/1`` line) with every channel
+        filled on every row is a single-rate log: its channels are all on ``t``
+        (see the module docstring). The time column may be named ``time`` or ``t``.
+
         Parameters
         ----------
         path
@@ -263,8 +301,9 @@ class PassLog:
             header = next(reader)
         except StopIteration:
             raise PassLogError(f"{path}: empty CSV, expected a header row") from None
-        if not header or header[0] != "time":
-            raise PassLogError(f"{path}: first column must be 'time', got {header[:1]}")
+        if not header or header[0] not in ("time", "t"):
+            raise PassLogError(f"{path}: first column must be 'time' (s since the start of the pass), "
+                               f"got {header[:1]}")
         names = header[1:]
         try:
             bases = _channel_bases(_check_meta(merged))
@@ -295,6 +334,11 @@ class PassLog:
                                    f"other channels of time base {base!r}")
             times.setdefault(base, t)
             chans[n] = np.array([p[1] for p in cols[n]])
+        if not file_meta and "t" in times:
+            # a log from elsewhere: a base sampled exactly on t is the one clock of a single-rate log
+            for b in TIME_BASES[1:]:
+                if b in times and np.array_equal(times[b], times["t"]):
+                    del times[b]
         try:
             return cls(times=times, channels=chans, meta=merged)
         except PassLogError as exc:
@@ -324,7 +368,15 @@ def _check_meta(meta: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _own_base(meta: Mapping[str, Any], name: str) -> str:
+    """The time base a channel is declared on, before a single-rate log maps it to ``t``."""
+    if name in CHANNELS:
+        return CHANNELS[name][0]
+    return (meta.get("extra_channels") or {})[name]["time"]
+
+
 def _channel_bases(meta: Mapping[str, Any]) -> dict[str, str]:
+    """Time base of every channel; those of the bases in ``meta["time_bases_on_t"]`` are on ``t``."""
     bases = {name: base for name, (base, _unit) in CHANNELS.items()}
     extra = meta.get("extra_channels", {}) or {}
     if not isinstance(extra, Mapping):
@@ -335,4 +387,5 @@ def _channel_bases(meta: Mapping[str, Any]) -> dict[str, str]:
         if not isinstance(spec, Mapping) or spec.get("time") not in TIME_BASES:
             raise PassLogError(f"extra channel {name!r} must declare 'time' as one of {list(TIME_BASES)}")
         bases[name] = spec["time"]
-    return bases
+    on_t = set(meta.get(ON_T, ()) or ())
+    return {name: ("t" if base in on_t else base) for name, base in bases.items()}

@@ -19,10 +19,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import control
 import numpy as np
+import scipy.linalg as sla
 
-from .errors import DesignInputError
+from .errors import DesignError, DesignInputError
+from .lqr import dlqr
 
 
 @dataclass(frozen=True)
@@ -99,12 +100,19 @@ def kinematic_lqr(speed: float, dt: float | None = 0.05, weights: KinematicWeigh
     q = np.diag([w.y_max ** -2, w.psi_max ** -2, w.delta_max ** -2])
     r = np.array([[w.u_max ** -2]])
     if dt is None:
-        k, _, _ = control.lqr(a, b, q, r)
+        try:
+            x = sla.solve_continuous_are(a, b, q, r)
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            raise DesignError(f"continuous Riccati equation failed at {speed} m/s ({exc})") from None
+        k = np.linalg.solve(r, b.T @ x)
     else:
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise DesignInputError(f"dt must be a finite number of seconds > 0, got {dt!r}")
-        sysd = control.c2d(control.ss(a, b, np.eye(3), np.zeros((3, 1))), dt, method="zoh")
-        k, _, _ = control.dlqr(sysd.A, sysd.B, q, r)
+        # zero-order hold: expm([[A, B], [0, 0]] dt) = [[Ad, Bd], [0, I]]
+        m = np.zeros((4, 4))
+        m[:3, :3], m[:3, 3:] = a, b
+        e = sla.expm(m * dt)
+        k, _ = dlqr(e[:3, :3], e[:3, 3:], q, r)
     return np.asarray(k, dtype=float).reshape(3)
 
 

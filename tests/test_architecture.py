@@ -37,3 +37,20 @@ def test_every_hil_sub_package_has_a_contract_and_a_line_in_the_readme_map():
         assert re.search(rf"^\| `hil/{sub}/` \|", section, re.M), f"README map has no line for hil/{sub}/"
     for sub in ("truth", "links", "vehicle", "devices", "bench"):
         assert f"hil.{sub}" in sources, f"no contract constrains hil.{sub}"
+
+
+def test_hil_drive_loads_nothing_of_the_simulator_or_the_bench():
+    """At run time too: what `hil drive` imports on a tractor (the contracts check the source).
+
+    matplotlib is not checked here: python-control (the certificate's disk margins) imports it
+    itself; no module of ours does (the vehicle contract forbids it)."""
+    code = ("import sys\n"
+            "from hil.cli import main\n"
+            "try:\n    main(['drive', '--help'])\nexcept SystemExit:\n    pass\n"
+            "import hil.vehicle.drive, hil.vehicle.loop\n"
+            "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('tqdm', 'dask', 'distributed')"
+            " or m.startswith(('hil.truth', 'hil.devices', 'hil.bench', 'hil.calibration')))\n"
+            "print('LOADED', bad)\n")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip().splitlines()[-1] == "LOADED []", done.stdout[-2000:]

@@ -5,8 +5,13 @@
                   [--pole-radius R] [--rate-limit U] --out controllers/robust.json [--json]
     design lqr --model models/central.npz [--verify-on models/local_*.npz] --out controllers/central-lqr.json
     design verify CONTROLLER --models models/*.npz
-    design export CONTROLLER --format json|c-header|csv [--out FILE]
+    design export CONTROLLER --format json|c-header|csv|c [--out FILE | DIR]
     design mpc --models models/*.npz --horizon N [--backend casadi|osqp] [--solver daqp|...] --out controllers/mpc.json
+    design keygen --out DIR                       # Ed25519 key pair for signing controller files
+    design sign CONTROLLER --key DIR/controller-signing.key [--out FILE]
+
+``robust``, ``lqr`` and ``mpc`` take ``--sign KEY`` to sign the file they write. ``verify``
+exits 1 when anything in the file's certificate does not hold on the given models.
 """
 
 from __future__ import annotations
@@ -20,6 +25,8 @@ import numpy as np
 
 from . import cli_mpc, cli_robust
 from .errors import DesignError
+from .files.load import sign_file
+from .files.signature import key_id, keygen, load_private_key
 from .kinematic import KinematicWeights, gains_versus_speed
 
 
@@ -60,6 +67,20 @@ def _cmd_kinematic(args: argparse.Namespace) -> dict:
     return result
 
 
+def _cmd_keygen(args: argparse.Namespace) -> dict:
+    priv, pub = keygen(args.out)
+    return {"private_key": str(priv), "public_key": str(pub), "key_id": key_id(load_private_key(priv).public_key())}
+
+
+def _cmd_sign(args: argparse.Namespace) -> dict:
+    key = load_private_key(args.key)
+    out = sign_file(args.controller, key, args.out)
+    return {"controller": str(args.controller), "out": str(out), "key_id": key_id(key.public_key())}
+
+
+SIGNED_COMMANDS = ("robust", "lqr", "mpc")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="design", description="Controller design for the tractor.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -76,6 +97,19 @@ def build_parser() -> argparse.ArgumentParser:
     k.set_defaults(func=_cmd_kinematic)
     cli_robust.add_parsers(sub, _float)
     cli_mpc.add_parser(sub, _float)
+    for name in SIGNED_COMMANDS:
+        sub.choices[name].add_argument("--sign", metavar="KEY", default=None,
+                                       help="sign the written file with this private key (design keygen)")
+    g = sub.add_parser("keygen", help="make an Ed25519 key pair for signing controller files")
+    g.add_argument("--out", required=True, help="directory for controller-signing.key (mode 0600) and .pub")
+    g.add_argument("--json", action="store_true", help="print the result as JSON")
+    g.set_defaults(func=_cmd_keygen)
+    s = sub.add_parser("sign", help="sign a checked controller file (Ed25519)")
+    s.add_argument("controller")
+    s.add_argument("--key", required=True, help="private key file (design keygen)")
+    s.add_argument("--out", default=None, help="signed file (default: replace CONTROLLER)")
+    s.add_argument("--json", action="store_true", help="print the result as JSON")
+    s.set_defaults(func=_cmd_sign)
     return p
 
 
@@ -84,7 +118,11 @@ def main(argv: list[str] | None = None) -> int:
     if getattr(args, "name", "unset") is None:
         args.name = args.default_name
     try:
+        key = load_private_key(args.sign) if getattr(args, "sign", None) else None     # before any design work
         result = args.func(args)
+        if key is not None:
+            sign_file(result["out"], key)
+            result["signed_by"] = key_id(key.public_key())
     except (DesignError, ValueError) as exc:
         print(f"design {args.command}: error: {exc}", file=sys.stderr)
         return 1
@@ -94,6 +132,11 @@ def main(argv: list[str] | None = None) -> int:
         print(cli_robust.render(result))
     elif args.command == "mpc":
         print(cli_mpc.render(result))
+    elif args.command == "keygen":
+        print(f"wrote {result['private_key']} (mode 0600, keep it on the design machine) and {result['public_key']} "
+              f"(copy it to the field computer); key {result['key_id']}")
+    elif args.command == "sign":
+        print(f"signed {result['out']} with key {result['key_id']}")
     else:
         print(f"{'speed m/s':>10} {'K_y':>10} {'K_psi':>10} {'K_delta':>10}")
         for row in zip(result["speeds"], result["k_cross_track"], result["k_heading"], result["k_wheel_angle"]):

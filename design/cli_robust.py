@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import json
 
 from pathlib import Path
 
 from identification.model import Model
 
-from .controller_file import read_controller_file
+from .files.recheck import recheck
 from .export import FORMATS, export_controller
-from .errors import DesignInputError
+from .errors import DesignInputError, VerificationError
 from .robust import RobustSpec, design_lqr, design_robust
-from .verify import Certificate, certify
 from .weights import OutputWeights
 
 
@@ -78,17 +78,13 @@ def cmd_lqr(args: argparse.Namespace) -> dict:
 
 
 def cmd_verify(args: argparse.Namespace) -> dict:
-    spec = read_controller_file(args.controller, dt=None)
-    models = _load_models(args.models)
-    cert: Certificate = certify(spec.compensator, models)
-    out = {"controller": str(args.controller), "certificate": cert.to_dict()}
-    stored = {r["name"]: r for r in spec.certificate.get("models", [])}
-    diffs = []
-    for c in cert.checks:
-        if c.name in stored and isinstance(stored[c.name].get("spectral_radius"), float):
-            diffs.append(abs(stored[c.name]["spectral_radius"] - c.spectral_radius))
-    out["max_radius_difference_from_file"] = max(diffs) if diffs else None
-    return out
+    """Re-check the file's certificate (:func:`design.files.recheck.recheck`); any problem makes
+    ``design verify`` exit 1."""
+    res = recheck(args.controller, _load_models(args.models))
+    if res["problems"]:
+        print(json.dumps(res, indent=2) if args.json else render(res))
+        raise VerificationError(f"{args.controller}: {len(res['problems'])} problem(s): " + "; ".join(res["problems"]))
+    return res
 
 
 def cmd_export(args: argparse.Namespace) -> dict:

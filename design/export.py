@@ -1,5 +1,7 @@
-"""Export a linear controller file for the vehicle computer: JSON (canonical), a C header or CSV.
+"""Export a linear controller file for the vehicle computer: JSON (canonical), a C header, CSV, or C99.
 
+``c`` writes a directory with a dependency-free C99 step function and test vectors
+(:mod:`design.export_c`).
 The C header holds plain ``static const double`` arrays in row-major order with
 their dimensions, the sample time, the normalisation of each output and the file's
 checksum in comments; the CSV lists one matrix entry per row (``matrix,row,col,value``)
@@ -15,11 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .controller_file import ControllerFile, read_controller_file, read_json
-from .errors import DesignInputError
-from .mpc.file import read_mpc_file
+from .errors import ControllerFileError, DesignInputError
+from .export_c import export_c, safe_name
+from .files.envelope import read_json
+from .files.linear import ControllerFile, from_body
+from .files.mpc import mpc_from_body
 
-FORMATS = ("json", "c-header", "csv")
+FORMATS = ("json", "c-header", "csv", "c")
 MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec", "X0")
 
 
@@ -31,7 +35,7 @@ def _ident(name: str) -> str:
 def _header_lines(spec: ControllerFile, checksum: str) -> list[str]:
     c = spec.compensator
     outs = ", ".join(f"{o.name}{'/speed' if o.normalization == 'speed' else ''} [{o.units}]" for o in spec.outputs)
-    return [f"controller {spec.name}: linear compensator, schema design-controller/1",
+    return [f"controller {safe_name(spec.name)}: linear compensator, schema design-controller/1",
             f"checksum {checksum}",
             f"dt = {c.dt!r} s; states nc = {c.order}; outputs q = {c.n_measurements}; commands m = 1",
             f"y (in order) = {outs}; speed floored at {spec.speed_min!r} m/s",
@@ -75,24 +79,50 @@ def to_csv(spec: ControllerFile, checksum: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _checked(path, read):
+    try:
+        return read()
+    except (ControllerFileError, DesignInputError) as exc:
+        raise ControllerFileError(f"{path}: {exc}") from None
+
+
 def export_controller(path: str | Path, fmt: str, out: str | Path | None = None) -> str:
-    """Read and check a controller file, render it in ``fmt``, write ``out`` if given, return the text."""
+    """Read and check a controller file, render it in ``fmt``, write ``out`` if given, return the text.
+
+    The file is read with every check of :func:`design.files.load.load_controller`: a
+    controller whose certificate is missing, failed or made for other matrices, or whose
+    limits lie outside their physical ranges, is refused and nothing is written.
+    ``fmt="c"`` writes a directory (:mod:`design.export_c`) and needs ``out``.
+
+    Raises
+    ------
+    ControllerFileError
+        The file fails a check.
+    DesignInputError
+        Unknown format, a format the kind does not support, or ``c`` without ``out``.
+    """
     if fmt not in FORMATS:
         raise DesignInputError(f"format must be one of {FORMATS}, got {fmt!r}")
     body = read_json(path)
     if isinstance(body, dict) and body.get("kind") == "mpc":
         if fmt != "json":
             raise DesignInputError(f"{path} is an MPC controller: it is exported as JSON (model, weights, limits, "
-                                   "horizon and solver for the vehicle's MPC); c-header and csv hold a linear "
+                                   "horizon and solver for the vehicle's MPC); c-header, csv and c hold a linear "
                                    "compensator only")
-        text = json.dumps(read_mpc_file(path, dt=None).to_dict(), indent=1) + "\n"
+        _checked(path, lambda: mpc_from_body(body, dt=None))
+        text = json.dumps(body, indent=1) + "\n"          # as read and checked (a signature kept)
         if out is not None:
             Path(out).write_text(text)
         return text
-    spec = read_controller_file(path, dt=None)
-    checksum = json.loads(Path(path).read_text())["checksum"]
+    spec = _checked(path, lambda: from_body(body, dt=None))
+    checksum = body["checksum"]
+    if fmt == "c":
+        if out is None:
+            raise DesignInputError("--format c writes a directory of C sources: give --out DIR")
+        files = export_c(spec, body["certificate"], checksum, out)
+        return "\n".join(str(f) for f in files) + "\n"
     if fmt == "json":
-        text = json.dumps(spec.to_dict(), indent=1) + "\n"
+        text = json.dumps(body, indent=1) + "\n"          # as read and checked (a signature kept)
     elif fmt == "c-header":
         text = to_c_header(spec, checksum)
     else:

@@ -21,8 +21,9 @@ from identification.model import Model
 
 from .anchored import anchored, augment_integral, best_anchor, observer_compensator
 from .compensator import Compensator
-from .controller_file import ControllerFile, outputs_for
 from .errors import DesignInputError
+from .files.linear import ControllerFile, outputs_for
+from .limits import check_model_order
 from .iostate import IOStateLayout, feedback_compensator, io_state_model
 from .lmi import (LMIOptions, StateFeedbackDesign, closed_loop_cost, robust_state_feedback,
                   robust_state_feedback_rounds)
@@ -249,6 +250,7 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
         The exported compensator is not stable on some model (names it).
     """
     spec = spec or RobustSpec()
+    check_model_order(models)
     names = _model_names(models)
     layout, a_list, b_list, d = design_problem(models, spec)
     e0 = None
@@ -314,6 +316,7 @@ def design_lqr(model: Model, verify_on: Sequence[Model] = (), weights: OutputWei
         not guaranteed on every condition; this is how to show it).
     """
     w = weights or OutputWeights()
+    check_model_order([model, *verify_on])
     comp: Compensator = lqg_compensator(model, w)
     family = [model, *verify_on]
     names = _model_names(family)

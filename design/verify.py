@@ -26,6 +26,7 @@ from identification.model import Model
 
 from .compensator import Compensator, closed_loop_matrix, spectral_radius
 from .errors import VerificationError
+from .limits import check_model_order
 
 
 def model_hash(model: Model) -> str:
@@ -218,11 +219,71 @@ def check_model(model: Model, comp: Compensator, name: str | None = None) -> Mod
     return ModelCheck(nm, model_hash(model), rho, gm, grm, pm, delay, dm, dgm, dpm, peak, settle, steady)
 
 
+def compensator_hash(comp: Compensator) -> str:
+    """``sha256:`` of a compensator's matrices (Ac, Bc, Cc, Dc, Ec, X0) and sample time."""
+    h = hashlib.sha256()
+    for name in ("Ac", "Bc", "Cc", "Dc", "Ec", "X0"):
+        arr = np.ascontiguousarray(getattr(comp, name), dtype="<f8")
+        h.update(name.encode() + str(arr.shape).encode() + arr.tobytes())
+    h.update(np.float64(comp.dt).tobytes())
+    return "sha256:" + h.hexdigest()
+
+
+def _clean(v):
+    """JSON-ready copy: non-finite floats as the strings ``"inf"``/``"nan"``, tuples as lists."""
+    if isinstance(v, float):
+        return v if math.isfinite(v) else str(v)
+    if isinstance(v, (list, tuple)):
+        return [_clean(x) for x in v]
+    if isinstance(v, dict):
+        return {str(k): _clean(x) for k, x in v.items()}
+    return v
+
+
+def model_latency(meta) -> dict:
+    """What a model's metadata says about latency and delay (keys present only): ``latency_s``
+    (a number or one per channel, s), ``delay_s`` and ``delay_samples`` (identified input-output delay)."""
+    out = {}
+    for key in ("latency_s", "delay_s", "delay_samples"):
+        if key in meta:
+            out[key] = meta[key]
+    return out
+
+
+def validation_fit(meta) -> dict | None:
+    """The validation fits a model file carries (``meta["fit"]``: every entry whose name holds ``fit``,
+    the validation data's description and any horizon), None if it carries none."""
+    fit = meta.get("fit")
+    if not isinstance(fit, dict):
+        return None
+    keep = {k: v for k, v in fit.items() if "fit" in k or k == "validation" or "horizon" in k}
+    return keep or None
+
+
+def _largest_latency(meta) -> float:
+    lat = model_latency(meta)
+    vals: list[float] = []
+    for key in ("latency_s", "delay_s"):
+        v = lat.get(key)
+        if isinstance(v, dict):
+            vals += [float(x) for x in v.values() if isinstance(x, (int, float)) and not isinstance(x, bool)]
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            vals.append(float(v))
+    return max([x for x in vals if math.isfinite(x)], default=0.0)
+
+
 @dataclass(frozen=True)
 class Certificate:
-    """Per-model checks of one compensator and the worst model."""
+    """Per-model checks of one compensator and the worst model.
+
+    ``models`` (the models checked, in the order of ``checks``) and ``compensator``
+    (the hash of what was checked) are recorded in :meth:`to_dict` so a reader can
+    recompute the closed loops without the model files.
+    """
 
     checks: tuple[ModelCheck, ...]
+    models: tuple[Model, ...] = ()
+    compensator: str = ""
 
     @property
     def worst(self) -> ModelCheck:
@@ -235,21 +296,40 @@ class Certificate:
         return all(c.stable for c in self.checks)
 
     def to_dict(self) -> dict:
-        """JSON-ready form (non-finite numbers as strings ``"inf"``/``"nan"``)."""
-        def clean(v):
-            return v if not isinstance(v, float) or math.isfinite(v) else str(v)
-        rows = [{k: clean(v) for k, v in asdict(c).items()} for c in self.checks]
+        """JSON-ready form (non-finite numbers as strings ``"inf"``/``"nan"``).
+
+        Per model: every :class:`ModelCheck` field, the delay margin in seconds, what the
+        model file states about latency and delay, its validation fits and (when the
+        models are known) its matrices. Overall: the worst model, whether all passed, the
+        compensator's hash, the models checked on and the latency assumed (the largest the
+        models state; the delay margin is extra delay beyond it).
+        """
+        rows = []
+        for i, c in enumerate(self.checks):
+            row = {k: _clean(v) for k, v in asdict(c).items()}
+            m = self.models[i] if i < len(self.models) else None
+            row["delay_margin_s"] = _clean(c.delay_margin_samples * m.dt) if m is not None else None
+            row["latency"] = _clean(model_latency(m.meta)) if m is not None else {}
+            row["validation_fit"] = _clean(validation_fit(m.meta)) if m is not None else None
+            if m is not None:
+                row["model"] = {**{k: getattr(m, k).tolist() for k in ("A", "B", "C", "D", "K")}, "dt": m.dt}
+            rows.append(row)
         return {"models": rows, "worst": self.worst.name, "max_spectral_radius": self.worst.spectral_radius,
-                "passed": self.passed}
+                "passed": self.passed, "compensator_hash": self.compensator,
+                "validation_models": [c.name for c in self.checks],
+                "latency_assumed_s": max((_largest_latency(m.meta) for m in self.models), default=0.0)}
 
 
 def certify(comp: Compensator, models: Sequence[Model], names: Sequence[str] | None = None) -> Certificate:
-    """Check ``comp`` on every model; sample times must agree."""
-    names = list(names) if names is not None else [str(m.meta.get("name", f"model {i}")) for i, m in enumerate(models)]
+    """Check ``comp`` on every model; sample times must agree and orders lie within the limit."""
+    from_meta = [str(m.meta.get("name", f"model {i}")) for i, m in enumerate(models)]
+    names = list(names) if names is not None else from_meta
+    check_model_order(models, VerificationError)
     for nm, m in zip(names, models):
         if abs(m.dt - comp.dt) > 1e-9:
             raise VerificationError(f"{nm}: sample time {m.dt} s, the compensator's is {comp.dt} s")
-    return Certificate(tuple(check_model(m, comp, nm) for nm, m in zip(names, models)))
+    return Certificate(tuple(check_model(m, comp, nm) for nm, m in zip(names, models)), tuple(models),
+                       compensator_hash(comp))
 
 
 def require_stable(cert: Certificate) -> None:

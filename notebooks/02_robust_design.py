@@ -42,7 +42,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from design.compensator import closed_loop_matrix
-from design.controller_file import load_controller
+from design.files.load import load_controller
 from design.export import export_controller
 from design.plausibility import implausible
 from design.robust import RobustSpec, design_lqr, design_robust
@@ -137,7 +137,7 @@ fig.savefig(OUT / "robust_poles_margins.png", dpi=100)
 
 # %% [markdown]
 # ## 6. Export, and the closed loop on the truth simulator
-# The vehicle loads the file through `design.controller_file.load_controller`, which refuses a file that
+# The vehicle loads the file through `design.files.load.load_controller`, which refuses a file that
 # fails its schema, checksum, dimension, finiteness or sample-time checks.
 
 # %%

@@ -18,13 +18,15 @@ import numpy as np
 
 from identification.model import Model
 
-from ..controller_file import read_controller_file
 from ..errors import DesignInputError, SynthesisError
+from ..files.linear import read_controller_file
+from ..files.mpc import MPCFile
 from ..iostate import feedback_compensator
+from ..limits import check_model_order
 from ..verify import Certificate, certify, model_hash, require_stable
 from .backends import SolverSettings
 from .controller import MPCController
-from .file import MPCFile
+from .law import unconstrained_gain
 from .problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 
 
@@ -55,14 +57,6 @@ class MPCDesign:
 def _model_names(models: Sequence[Model]) -> list[str]:
     names = [str(m.meta.get("name", f"model {i}")) for i, m in enumerate(models)]
     return names if len(set(names)) == len(names) else [f"{n}#{i}" for i, n in enumerate(names)]
-
-
-def unconstrained_gain(problem: MPCProblem) -> np.ndarray:
-    """(1, nz) ``K`` with the MPC's first move ``u0 = K z0`` when no limit binds (slack 0)."""
-    qp = problem.condensed()
-    n = problem.horizon
-    sol = np.linalg.solve(qp.H[:n, :n], qp.G[:n])
-    return -sol[:1]
 
 
 def fallback_from_file(path: str | Path, problem: MPCProblem) -> np.ndarray:
@@ -115,6 +109,7 @@ def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | No
         first move from a small state: its settings are wrong.
     """
     spec = spec or MPCSpec()
+    check_model_order([model, *verify_on])
     problem = mpc_problem(model, spec.horizon, spec.weights, spec.limits, spec.past)
     k = unconstrained_gain(problem)
     family = [model, *verify_on]

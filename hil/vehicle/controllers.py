@@ -3,7 +3,7 @@
 A spec is ``kinematic``, ``pure-pursuit`` or ``stanley``, the latter two optionally with gains
 (``pure-pursuit?lookahead_time=1.2&servo=4``, names of :class:`~design.baselines.PurePursuitGains`
 / :class:`~design.baselines.StanleyGains`), or a controller file (``*.json``, see
-:mod:`design.controller_file`). The bench adds the oracle (:mod:`hil.bench.campaign`), which is
+:mod:`design.files`). The bench adds the oracle (:mod:`hil.bench.campaign`), which is
 designed on the simulator's truth and cannot steer a real vehicle.
 """
 
@@ -13,7 +13,10 @@ from pathlib import Path
 
 from design.baselines import PurePursuitController, PurePursuitGains, StanleyController, StanleyGains
 from design.controller import Controller, KinematicLQRController
-from design.controller_file import load_controller
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
+
+from design.errors import ControllerFileError
+from design.files.load import load_controller
 
 from hil.vehicle.errors import VehicleConfigError
 
@@ -36,18 +39,37 @@ def split_spec(spec: str) -> tuple[str, dict[str, float]]:
     return name, opts
 
 
-def vehicle_controller(spec: str) -> Controller:
+def vehicle_controller(spec: str, public_key: Ed25519PublicKey | None = None,
+                       legacy_certificate: bool = False) -> Controller:
     """Build the controller a spec names (see the module docstring).
+
+    A controller file goes through :func:`design.files.load.load_controller`, which refuses
+    it if its certificate is missing, failed or does not match its matrices.
+
+    Parameters
+    ----------
+    spec
+        The name or the file.
+    public_key
+        If given, a controller file must be signed by this key (``hil drive
+        --require-signature``); a built-in law is then refused too.
+    legacy_certificate
+        Accept a file whose certificate predates the re-checkable ones (the simulation
+        bench's historical files only; never on the vehicle).
 
     Raises
     ------
     VehicleConfigError
         For an unknown name, an unknown gain or a missing file.
+    ControllerFileError
+        For a controller file that fails a check.
     """
     if spec.endswith(".json"):
         if not Path(spec).is_file():
             raise VehicleConfigError(f"controller file {spec!r} does not exist")
-        return load_controller(spec)
+        return load_controller(spec, public_key=public_key, legacy_certificate=legacy_certificate)
+    if public_key is not None:
+        raise ControllerFileError(f"a signed controller file is required, got the built-in law {spec!r}")
     name, opts = split_spec(spec)
     gains = {"pure-pursuit": (PurePursuitController, PurePursuitGains), "stanley": (StanleyController, StanleyGains)}
     if name in gains:

@@ -17,7 +17,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.signal import cont2discrete
 
-from design.controller_file import checksum
+from design.files.envelope import checksum
 from identification.model import Model
 
 

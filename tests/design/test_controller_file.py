@@ -10,7 +10,8 @@ import pytest
 
 from design.cli import main as design_main
 from design.controller import Controller, Measurement
-from design.controller_file import load_controller, read_controller_file
+from design.files.linear import read_controller_file
+from design.files.load import load_controller
 from design.errors import ControllerFileError
 from design.robust import RobustSpec, design_robust
 from design.verify import certify

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.controller_file import read_controller_file
+from design.files.linear import read_controller_file
 from design.errors import DesignInputError
 from design.export import export_controller
 from design.robust import RobustSpec, design_robust

@@ -9,11 +9,11 @@ import pytest
 
 from design.cli import main as design_main
 from design.controller import Measurement
-from design.controller_file import load_controller
+from design.files.load import load_controller
 from design.errors import ControllerFileError, DesignInputError, VerificationError
 from design.mpc import MPCController, MPCLimits, SolverSettings
 from design.mpc.design import MPCSpec, design_mpc, fallback_from_file
-from design.mpc.file import read_mpc_file
+from design.files.mpc import read_mpc_file
 from design.robust import RobustSpec, design_robust
 
 from design_family import family, rewrite, tractor_model

@@ -1,4 +1,4 @@
-"""Controller files (JSON) for a linear compensator, and the vehicle-side controller that runs one.
+"""Controller files of kind ``"linear"``: a compensator, and the vehicle-side controller that runs one.
 
 Layout (schema ``design-controller/1``, ``kind: "linear"``)::
 
@@ -8,33 +8,45 @@ Layout (schema ``design-controller/1``, ``kind: "linear"``)::
      "compensator": {"Ac", "Bc", "Cc", "Dc", "Ec", "X0"},  # nested lists
      "limits": {"rate": rad/s, "speed_min": m/s, "output_clip": [number | null per output]},
      "design": {...}, "certificate": {...}, "models": [{"name", "hash"}],
-     "checksum": "sha256:<hex of the canonical JSON of everything else>"}
+     "checksum": "sha256:<hex of the canonical JSON of everything else>",
+     "signature": {...}}                                    # optional (design sign)
+
+The certificate (:mod:`design.files.certificate`) records the models the compensator
+was checked on, with their matrices, and the compensator's hash.
 
 ``xc[k+1] = Ac xc + Bc y + Ec (u_applied - u)``, ``u = Cc xc + Dc y`` (and ``xc = X0 y``
 on the first step after a reset) with ``y`` the
 listed outputs, each divided by ``max(speed, speed_min)`` when its normalisation is
 ``"speed"`` and then clipped to ``±output_clip`` (null = not clipped). The clip keeps a
 large error (a re-engage far from the line) from asking more than the rate-limited
-steering can deliver; inside it the compensator is exactly the certified linear one. :func:`load_controller` refuses a file that fails the schema, the
-checksum, the dimensions, finiteness or the sample time.
+steering can deliver; inside it the compensator is exactly the certified linear one.
+
+:func:`read_controller_file` refuses a file that fails the envelope (schema, keys,
+checksum, size and nesting: :mod:`design.files.envelope`), the dimensions, finiteness,
+the stated limits (:mod:`design.limits`: coefficients, rate, speed floor, clips, sample
+time), the certificate (:mod:`design.files.certificate`) or, when a public key is given,
+the signature (:mod:`design.files.signature`).
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping
 
 import numpy as np
 
-from .compensator import Compensator
-from .controller import Measurement
-from .errors import ControllerFileError, DesignInputError
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-SCHEMA = "design-controller/1"
+from ..compensator import Compensator
+from ..controller import Measurement
+from ..errors import ControllerFileError, DesignInputError
+from ..limits import DT_RANGE, MAX_COEFFICIENT, MAX_MODEL_ORDER, OUTPUT_CLIP_MAX, RATE_LIMIT_MAX, SPEED_MIN_RANGE, in_range
+from .certificate import check_certificate
+from .envelope import SCHEMA, check_envelope, read_json, seal, write_atomically
+from .signature import check_signature
+
 MEASUREMENTS = ("cross_track", "heading_error", "wheel_angle")
 NORMALIZATIONS = ("speed", "none")
 MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec", "X0")
@@ -72,6 +84,29 @@ def outputs_for(meta: Mapping[str, Any]) -> tuple[OutputSpec, ...]:
     raise DesignInputError(f"model normalization must be 'velocity' or 'none', got {norm!r}")
 
 
+def check_output_clip(clip: Any, n: int) -> tuple[float | None, ...]:
+    """Output clips as floats: ``n`` entries, each null or in ``(0, OUTPUT_CLIP_MAX]`` (output units)."""
+    if not isinstance(clip, (list, tuple)) or len(clip) != n or any(
+            c is not None and (isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c)
+                               or c <= 0) for c in clip):
+        raise ControllerFileError(f"limits: output_clip needs {n} entries, each a finite number > 0 or null; "
+                                  f"got {clip!r}")
+    for c in clip:
+        if c is not None and c > OUTPUT_CLIP_MAX:
+            raise ControllerFileError(f"limits: output_clip {c!r} exceeds OUTPUT_CLIP_MAX = {OUTPUT_CLIP_MAX:g} "
+                                      "(output units: s for y/V, rad s/m for psi/V); use null for no clip")
+    return tuple(None if c is None else float(c) for c in clip)
+
+
+def check_coefficients(mats: Mapping[str, np.ndarray], what: str) -> None:
+    """Refuse a matrix entry larger than :data:`design.limits.MAX_COEFFICIENT` in magnitude."""
+    for k, m in mats.items():
+        big = float(np.max(np.abs(m))) if m.size else 0.0
+        if not big <= MAX_COEFFICIENT:
+            raise ControllerFileError(f"{what} {k} has an entry of magnitude {big:.3g}, above MAX_COEFFICIENT = "
+                                      f"{MAX_COEFFICIENT:g}: not a designed controller")
+
+
 @dataclass(frozen=True)
 class ControllerFile:
     """Contents of a linear controller file (validated; see module docstring)."""
@@ -83,7 +118,7 @@ class ControllerFile:
     speed_min: float = 0.3
     output_clip: tuple[float | None, ...] | None = None
     design: Mapping[str, Any] = field(default_factory=dict)
-    certificate: Mapping[str, Any] = field(default_factory=dict)
+    certificate: Mapping[str, Any] | None = field(default_factory=dict)
     models: tuple[Mapping[str, str], ...] = ()
 
     def __post_init__(self) -> None:
@@ -93,16 +128,17 @@ class ControllerFile:
         if self.compensator.n_commands != 1:
             raise ControllerFileError(f"the compensator must write 1 command, got {self.compensator.n_commands}")
         clip = self.output_clip if self.output_clip is not None else (None,) * len(self.outputs)
-        if len(clip) != len(self.outputs) or any(
-                c is not None and (isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c)
-                                   or c <= 0) for c in clip):
-            raise ControllerFileError(f"limits: output_clip needs {len(self.outputs)} entries, each a finite "
-                                      f"number > 0 or null; got {self.output_clip!r}")
-        object.__setattr__(self, "output_clip", tuple(None if c is None else float(c) for c in clip))
-        for nm in ("rate_limit", "speed_min"):
-            v = getattr(self, nm)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise ControllerFileError(f"limits: {nm} must be a finite number > 0, got {v!r}")
+        object.__setattr__(self, "output_clip", check_output_clip(clip, len(self.outputs)))
+        object.__setattr__(self, "rate_limit", in_range(self.rate_limit, 0.0, RATE_LIMIT_MAX,
+                                                        "limits: rate (rad/s)", ControllerFileError))
+        object.__setattr__(self, "speed_min", in_range(self.speed_min, *SPEED_MIN_RANGE,
+                                                       "limits: speed_min (m/s)", ControllerFileError, low_open=False))
+        c = self.compensator
+        in_range(c.dt, *DT_RANGE, "dt (s)", ControllerFileError, low_open=False)
+        check_coefficients({k: getattr(c, k) for k in MATRICES}, "compensator")
+        if c.order > MAX_MODEL_ORDER:
+            raise ControllerFileError(f"the compensator has {c.order} states, above MAX_MODEL_ORDER = "
+                                      f"{MAX_MODEL_ORDER}: not a designed controller")
 
     def to_dict(self) -> dict:
         """The file's JSON object, checksum included."""
@@ -114,55 +150,19 @@ class ControllerFile:
                 "compensator": {k: getattr(c, k).tolist() for k in MATRICES},
                 "limits": {"rate": self.rate_limit, "speed_min": self.speed_min,
                            "output_clip": list(self.output_clip)},
-                "design": dict(self.design), "certificate": dict(self.certificate),
+                "design": dict(self.design),
+                "certificate": None if self.certificate is None else dict(self.certificate),
                 "models": [dict(m) for m in self.models]}
-        body = json.loads(json.dumps(body))
-        body["checksum"] = checksum(body)
-        return body
+        return seal(body)
 
     def save(self, path: str | Path) -> Path:
         """Write the file atomically."""
         return write_atomically(path, self.to_dict())
 
 
-def write_atomically(path: str | Path, body: Mapping[str, Any]) -> Path:
-    """Write a controller file's JSON object to ``path`` (a temporary file renamed into place)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(json.dumps(body, indent=1) + "\n")
-    tmp.replace(path)
-    return path
-
-
-def checksum(body: Mapping[str, Any]) -> str:
-    """``sha256:`` of the canonical JSON (sorted keys, no spaces) of ``body`` without its checksum."""
-    data = {k: v for k, v in body.items() if k != "checksum"}
-    text = json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
-    return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
-
-
-def _reject_constant(token: str) -> float:
-    raise ControllerFileError(f"non-finite number {token} in the controller file")
-
-
-def read_json(path: str | Path) -> Any:
-    """The parsed JSON of a controller file; :class:`ControllerFileError` if unreadable, invalid or non-finite."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ControllerFileError(f"{path}: cannot read ({exc})") from None
-    try:
-        return json.loads(text, parse_constant=_reject_constant)
-    except json.JSONDecodeError as exc:
-        raise ControllerFileError(f"{path}: not valid JSON ({exc})") from None
-    except ControllerFileError as exc:
-        raise ControllerFileError(f"{path}: {exc}") from None
-
-
-def read_controller_file(path: str | Path, dt: float | None = 0.05) -> ControllerFile:
-    """Read and check a controller file.
+def read_controller_file(path: str | Path, dt: float | None = 0.05,
+                         public_key: Ed25519PublicKey | None = None) -> ControllerFile:
+    """Read and check a linear controller file.
 
     Parameters
     ----------
@@ -170,43 +170,40 @@ def read_controller_file(path: str | Path, dt: float | None = 0.05) -> Controlle
         JSON controller file.
     dt
         The loop's sample time, s; the file's must match (``None`` skips the check).
+    public_key
+        If given, the file must carry a valid signature by this key.
 
     Raises
     ------
     ControllerFileError
-        Malformed JSON, unknown schema or kind, bad checksum, wrong dimensions,
-        non-finite numbers or a sample-time mismatch.
+        Malformed JSON, too large or too deeply nested, unknown schema or kind, bad
+        checksum, wrong dimensions, non-finite numbers, limits outside their physical
+        ranges, a sample-time mismatch, a certificate that is missing, failed or made for
+        other matrices, or a missing or invalid signature when one is required.
     """
     body = read_json(path)
     try:
-        return _from_body(body, dt)
+        return from_body(body, dt, public_key)
     except (ControllerFileError, DesignInputError) as exc:
         raise ControllerFileError(f"{path}: {exc}") from None
 
 
-def check_envelope(body: Any, kind: str, top_keys: Sequence[str]) -> None:
-    """Check what every controller file shares: a JSON object of ``SCHEMA`` and ``kind`` with
-    exactly ``top_keys`` and a checksum that matches its content; raise :class:`ControllerFileError`."""
-    if not isinstance(body, dict):
-        raise ControllerFileError(f"expected a JSON object, got {type(body).__name__}")
-    if body.get("schema") != SCHEMA:
-        raise ControllerFileError(f"unsupported schema {body.get('schema')!r}; expected {SCHEMA!r}")
-    if body.get("kind") != kind:
-        raise ControllerFileError(f"kind {body.get('kind')!r} is not supported here; expected {kind!r}")
-    missing = [k for k in top_keys if k not in body]
-    if missing:
-        raise ControllerFileError(f"missing keys {missing}")
-    unknown = sorted(set(body) - set(top_keys))
-    if unknown:
-        raise ControllerFileError(f"unknown keys {unknown}")
-    want = checksum(body)
-    if body["checksum"] != want:
-        raise ControllerFileError(f"checksum mismatch: file says {body['checksum']!r}, content gives {want!r} "
-                                  "(the file was edited or corrupted)")
+def from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519PublicKey | None = None,
+              legacy_certificate: bool = False) -> ControllerFile:
+    """Check a parsed linear controller file (see :func:`read_controller_file`) and return its contents
+    (``legacy_certificate``: see :func:`design.files.certificate.check_certificate`)."""
+    spec = uncertified_from_body(body, dt, public_key)
+    check_certificate(body["certificate"], spec.compensator, "the compensator", legacy_certificate)
+    return spec
 
 
-def _from_body(body: Any, dt: float | None) -> ControllerFile:
+def uncertified_from_body(body: Any, dt: float | None = 0.05,
+                          public_key: Ed25519PublicKey | None = None) -> ControllerFile:
+    """Every check of :func:`from_body` but the certificate's: for ``design verify`` only, which
+    re-computes the certificate and reports on it (:mod:`design.files.recheck`)."""
     check_envelope(body, "linear", TOP_KEYS)
+    if public_key is not None:
+        check_signature(body, public_key)
     fdt = body["dt"]
     if isinstance(fdt, bool) or not isinstance(fdt, (int, float)) or not math.isfinite(fdt) or fdt <= 0:
         raise ControllerFileError(f"dt must be a finite sample time > 0 s, got {fdt!r}")
@@ -251,9 +248,10 @@ def _from_body(body: Any, dt: float | None) -> ControllerFile:
     models = body["models"]
     if not isinstance(models, list):
         raise ControllerFileError("models must be a list")
+    if not isinstance(body["design"], dict):
+        raise ControllerFileError(f"design must be an object, got {type(body['design']).__name__}")
     return ControllerFile(str(body["name"]), comp, specs, lim["rate"], lim["speed_min"], tuple(lim["output_clip"]),
-                          body["design"],
-                          body["certificate"], tuple(models))
+                          body["design"], body["certificate"], tuple(models))
 
 
 class LinearController:
@@ -304,23 +302,3 @@ class LinearController:
 
     def estimate(self) -> tuple[float, ...]:
         return tuple(float(v) for v in self._xc)
-
-
-def load_controller(path: str | Path, dt: float | None = 0.05):
-    """Read, check and instantiate a controller file for the vehicle loop.
-
-    A file of kind ``"linear"`` gives a :class:`LinearController`, one of kind ``"mpc"``
-    a :class:`design.mpc.MPCController` (:mod:`design.mpc.file`).
-
-    Parameters
-    ----------
-    path
-        Controller file (JSON).
-    dt
-        The loop's sample time, s (default 0.05 = 20 Hz); the file must match it.
-    """
-    body = read_json(path)
-    if isinstance(body, dict) and body.get("kind") == "mpc":
-        from .mpc.file import load_mpc      # deferred: the QP solvers load only for MPC files (and mpc imports us)
-        return load_mpc(path, dt)
-    return LinearController(read_controller_file(path, dt))

@@ -1,0 +1,116 @@
+"""``design verify``: re-check everything a controller file's certificate states, on the given model files.
+
+For the law the file certifies (a linear file's compensator, an MPC file's unconstrained
+law) the certificate is computed afresh (:func:`design.verify.certify`) on the given
+models and compared with the file's, row by row for each model of the same hash:
+spectral radius, gain, phase, disk and delay margins, the latency the model file states
+and its validation fits. Every difference, every model the file lists that was not
+given, every loop that is not stable and a certificate that is missing, failed or made
+for other matrices is a *problem*; ``design verify`` exits non-zero when there is one.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Sequence
+
+from identification.model import Model
+
+from ..compensator import Compensator
+from ..errors import ControllerFileError, DesignInputError
+from ..verify import certify, compensator_hash, model_hash
+from .envelope import read_json
+from .linear import uncertified_from_body
+from .mpc import uncertified_mpc_from_body
+
+NUMBERS = ("spectral_radius", "gain_margin_db", "gain_reduction_margin_db", "phase_margin_deg", "delay_margin_samples",
+           "disk_margin", "disk_gain_margin_db", "disk_phase_margin_deg", "delay_margin_s")
+EXACT = ("latency", "validation_fit")
+RELATIVE_TOLERANCE = 1e-6
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
+        return a == b or abs(a - b) <= RELATIVE_TOLERANCE * max(1.0, abs(a), abs(b))
+    return a == b
+
+
+def _law(body: Any) -> tuple[Compensator, Any]:
+    if isinstance(body, dict) and body.get("kind") == "mpc":
+        spec = uncertified_mpc_from_body(body, dt=None)
+        try:
+            return spec.law(), spec.certificate
+        except DesignInputError as exc:
+            raise ControllerFileError(f"the MPC's unconstrained law cannot be formed: {exc}") from None
+    spec = uncertified_from_body(body, dt=None)
+    return spec.compensator, spec.certificate
+
+
+def recheck(path: str | Path, models: Sequence[Model]) -> dict:
+    """Re-compute a controller file's certificate on ``models`` and compare it with the file's.
+
+    Parameters
+    ----------
+    path
+        Controller file (any kind).
+    models
+        Model files to check on; they should include every model the certificate lists.
+
+    Returns
+    -------
+    dict
+        ``controller``, ``certificate`` (the recomputed one, without model matrices),
+        ``problems`` (list of sentences; empty when everything matches and passes),
+        ``passed`` (no problem) and ``max_radius_difference_from_file``.
+
+    Raises
+    ------
+    ControllerFileError
+        If the file cannot be read or fails a check other than its certificate's.
+    """
+    body = read_json(path)
+    try:
+        comp, stored = _law(body)
+    except ControllerFileError as exc:
+        raise ControllerFileError(f"{path}: {exc}") from None
+    cert = certify(comp, models)
+    fresh = cert.to_dict()
+    problems: list[str] = []
+    if stored is None:
+        problems.append("the file's certificate is missing (null)")
+        stored = {}
+    elif not isinstance(stored, dict):
+        problems.append(f"the file's certificate is not an object ({type(stored).__name__})")
+        stored = {}
+    if stored and stored.get("passed") is not True:
+        problems.append("the file's certificate says it failed")
+    if stored and stored.get("compensator_hash") != compensator_hash(comp):
+        problems.append(f"the file's certificate was made for compensator {stored.get('compensator_hash')!r}, its "
+                        f"matrices give {compensator_hash(comp)!r}")
+    for c in cert.checks:
+        if not c.stable:
+            problems.append(f"not stable on {c.name} (spectral radius {c.spectral_radius:.6f}, expected < 1)")
+    by_hash = {model_hash(m): row for m, row in zip(models, fresh["models"])}
+    diffs = []
+    rows = stored.get("models") if isinstance(stored.get("models"), list) else []
+    for row in rows:
+        if not isinstance(row, dict):
+            problems.append("a certificate row is not an object")
+            continue
+        new = by_hash.get(row.get("hash"))
+        if new is None:
+            problems.append(f"model {row.get('name')!r} ({row.get('hash')}) of the certificate was not given: "
+                            "pass its model file with --models")
+            continue
+        for key in NUMBERS + EXACT:
+            if not _same(row.get(key), new.get(key)):
+                problems.append(f"{row.get('name')}: the file states {key} = {row.get(key)!r}, recomputed "
+                                f"{new.get(key)!r}")
+        a, b = row.get("spectral_radius"), new.get("spectral_radius")
+        if isinstance(a, (int, float)) and isinstance(b, (int, float)) and math.isfinite(a) and math.isfinite(b):
+            diffs.append(abs(a - b))
+    for r in fresh["models"]:
+        r.pop("model", None)
+    return {"controller": str(path), "certificate": fresh, "problems": problems, "passed": not problems,
+            "max_radius_difference_from_file": max(diffs) if diffs else None}

@@ -41,7 +41,7 @@ def markdown(rows: Sequence[dict]) -> str:
             + " | ".join(f"{o} {horizon:g} s fit %" for o in outs) + " | verdict |")
     lines = [f"Held-out multi-step prediction from the Kalman state over {horizon:g} s "
              f"(refused below {REFUSE_FIT:g} %, warning below {WARN_FIT:g} %).", "", head,
-             "|" + "---|" * (5 + len(outs) - 1)]
+             "|" + "---|" * (5 + len(outs))]
     for r in rows:
         d = "/".join(f"{v:.3f}" for v in r["delay_s"].values()) or "-"
         fits = " | ".join(f"{r['fit'].get(o, float('nan')):.1f}" for o in outs)

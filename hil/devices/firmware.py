@@ -21,10 +21,7 @@ Behaviour (the contract the host and the tests rely on)
 * Manual override (sampled at every step, and at least every
   ``input_poll_period``): while active the valve is closed, the bridge is
   disengaged and the OVERRIDE flag is set; re-engaging needs an ``Engage``
-  after the driver lets go. A plant that has ``override_steady_until()`` (the
-  simulated tractor) says when the switch can next change; the firmware then
-  skips the polls before that time, which could only read an unchanged switch
-  (and, once it says ``inf``, the samples at every step as well).
+  after the driver lets go.
 * ``Ping``: answered with a ``Pong`` carrying the same token (does not feed
   the watchdog).
 * Bad frames (CRC, length, unknown id, reserved bits, or a bridge-to-host
@@ -59,7 +56,6 @@ from hil.vehicle.bridge.protocol import (
     SteerRateCommand,
     WheelAngleReport,
     encode_frame,
-    frame_packer,
 )
 from hil.links.link import ByteLink
 from hil.links.uart import UartRx, UartTx
@@ -181,10 +177,6 @@ class BridgeFirmware:
         self._commands = 0
         self._refused = 0
         self._link_errors = 0
-        self._steady_until = getattr(plant, "override_steady_until", None)
-        self._watchdog_timeout = self.config.watchdog_timeout
-        self._max_rate = self.config.max_rate
-        self._override_fixed = False   # the plant said its override switch never changes again
         self._due = math.inf           # _deadline() as of the last step
 
     # -- device interface ------------------------------------------------------------------
@@ -220,7 +212,7 @@ class BridgeFirmware:
         if inbox and inbox[0][0] < t:
             t = inbox[0][0]
         if self._engaged:
-            w = self._last_cmd_time + self._watchdog_timeout
+            w = self._last_cmd_time + self.config.watchdog_timeout
             if w < t:
                 t = w
         return t
@@ -233,10 +225,8 @@ class BridgeFirmware:
             self._plant.set_valve_duty(0.0)
             self._duty = 0.0
         self._last_step = now
-        fixed = self._override_fixed   # the switch can no longer change: polls and samples would read the same
-        self._next_poll = math.inf if fixed else self._poll_after(now)
+        self._next_poll = now + self.config.input_poll_period
         # receive: the link is asked here, _ingest runs only when bytes wait (most steps are timer steps)
-        inbox = self._inbox
         try:
             n = self._link.in_waiting
         except OSError:  # cable gone: the bridge hears nothing
@@ -244,22 +234,16 @@ class BridgeFirmware:
             n = 0
         if n > 0:
             self._ingest(now, n)
-        if not fixed:
-            self._sample_override()
+        self._sample_override()
         # Bounded: the inbox only holds events already decoded.
-        timeout = self._watchdog_timeout
-        if inbox:
-            for _ in range(len(inbox)):
-                if inbox[0][0] > now:
-                    break
-                t, seq, item = inbox.popleft()
-                if self._engaged and t >= self._last_cmd_time + timeout:   # _check_watchdog(t)
-                    self._tripped = True
-                    self._cut()
-                self._apply(t, seq, item, now)
-        if self._engaged and now >= self._last_cmd_time + timeout:     # _check_watchdog(now)
-            self._tripped = True
-            self._cut()
+        inbox = self._inbox
+        for _ in range(len(inbox)):
+            if inbox[0][0] > now:
+                break
+            t, seq, item = inbox.popleft()
+            self._check_watchdog(t)
+            self._apply(t, seq, item, now)
+        self._check_watchdog(now)
         if now >= self._next_report - _TIME_EPS:
             self._report(now)
             period = self.config.report_period
@@ -271,20 +255,6 @@ class BridgeFirmware:
             except OSError:
                 self._link_errors += 1
         self._due = self._deadline()
-
-    def _poll_after(self, now: float) -> float:
-        """When to poll the inputs next: ``input_poll_period`` after ``now``; on a plant that
-        says when its override switch can next change (``override_steady_until``), the first
-        such poll from then on (the polls before it would only read an unchanged switch)."""
-        period = self.config.input_poll_period
-        t = now + period
-        if self._steady_until is not None:
-            until = self._steady_until()
-            if until > t:
-                t = now + math.ceil((until - now) / period) * period if math.isfinite(until) else math.inf
-            if until == math.inf:
-                self._override_fixed = True   # never changes again: this step's sample is the last one needed
-        return t
 
     # -- state -----------------------------------------------------------------------------
     @property
@@ -353,12 +323,7 @@ class BridgeFirmware:
             if self._engaged:
                 self._commands += 1
                 self._last_cmd_time = t
-                duty = message.rate / self._max_rate
-                duty = duty if duty > -1.0 else -1.0   # max(-1.0, duty)
-                duty = duty if duty < 1.0 else 1.0     # min(1.0, duty)
-                if duty != self._duty:                 # _set_duty(duty)
-                    self._plant.set_valve_duty(duty)
-                    self._duty = duty
+                self._set_duty(min(max(message.rate / self.config.max_rate, -1.0), 1.0))
         elif kind is Engage:
             if self._override:
                 self._refused += 1
@@ -383,26 +348,14 @@ class BridgeFirmware:
 
     def _report(self, now: float) -> None:
         counts = self._plant.wheel_angle_counts()
-        if counts.__class__ is not int or not 0 <= counts <= 255:
-            if isinstance(counts, bool) or not isinstance(counts, int) or not 0 <= counts <= 255:
-                raise PlantInterfaceError(f"wheel_angle_counts() must return an int in 0..255 (8-bit ADC), "
-                                          f"got {counts!r}")
+        if isinstance(counts, bool) or not isinstance(counts, int) or not 0 <= counts <= 255:
+            raise PlantInterfaceError(f"wheel_angle_counts() must return an int in 0..255 (8-bit ADC), "
+                                      f"got {counts!r}")
         self._reports += 1
-        # encode_frame(WheelAngleReport(...), seq) from the field values, in the layout's order
-        cmd_seq = self._cmd_seq
-        seq = self._seq
-        frame = _PACK_REPORT(
-            seq, counts,
-            _FLAG_VALUES[self._engaged | self._tripped << 1 | self._override << 2],   # = self.state.flags
-            cmd_seq if cmd_seq > 0 else 0, self._duty, self._bad & 0xFFFF, self._dropped & 0xFFFF,
-            round((now - (self._boot or 0.0)) * 1000.0) & 0xFFFF)
-        try:                                          # _transmit(frame, now)
-            self._tx.send(frame, now)
-        except OSError:  # nobody listening: the UART sends into the void, the bridge carries on
-            self._link_errors += 1
-        self._seq = (seq + 1) & 0xFF
+        self._send(WheelAngleReport(adc_counts=counts, flags=self.state.flags, command_seq=max(self._cmd_seq, 0),
+                                    duty=self._duty, bad_frames=self._bad & 0xFFFF,
+                                    dropped_frames=self._dropped & 0xFFFF,
+                                    bridge_time_ms=round((now - (self._boot or 0.0)) * 1000.0) & 0xFFFF), now)
 
 
 _FROM_HOST = frozenset(layout.cls for layout in MESSAGE_TABLE.values() if layout.direction == "host->bridge")
-_PACK_REPORT = frame_packer(WheelAngleReport)
-_FLAG_VALUES = tuple(StatusFlags(i) for i in range(8))   # ENGAGED | WATCHDOG << 1 | OVERRIDE << 2

@@ -163,11 +163,11 @@ class PositionReceiver(_Receiver):
 
     def _recorded(self) -> int:
         # an epoch the simulator has recorded is final: catch the integration up only to look for a newer one
-        n = self.tractor.sim_so_far.n_pos
+        n = self.tractor.sim.n_pos
         return n if n > self.k else self.tractor.sim.n_pos
 
     def _encode(self, k: int, t_valid: float) -> bytes:
-        sim, geo = self.tractor.sim_so_far, self.geometry     # epoch k is recorded (step checked it)
+        sim, geo = self.tractor.sim, self.geometry     # epoch k is recorded (step checked it)
         pos = sim.pos
         x, y = pos["x"].item(0, k), pos["y"].item(0, k)     # float(a[0, k]) without the numpy scalar
         s, c = self._line_sin_cos                  # geo.line_to_enu(x, y), with sin and cos taken once
@@ -199,11 +199,11 @@ class AttitudeReceiver(_Receiver):
         self._encoder = AttitudeEpochEncoder(range=1.5, quality=3, pdop=1.6, num_sv=12)
 
     def _recorded(self) -> int:
-        n = self.tractor.sim_so_far.n_att     # as PositionReceiver._recorded
+        n = self.tractor.sim.n_att     # as PositionReceiver._recorded
         return n if n > self.k else self.tractor.sim.n_att
 
     def _encode(self, k: int, t_valid: float) -> bytes:
-        att, geo = self.tractor.sim_so_far.att, self.geometry   # epoch k is recorded (step checked it)
+        att, geo = self.tractor.sim.att, self.geometry   # epoch k is recorded (step checked it)
         tod = (geo.utc_start + t_valid) % 86400.0
         # encode_avr(Avr(tod, yaw, pitch, roll, 1.5, 3, 1.6, 12))
         return self._encoder.encode(tod, geo.yaw(att["yaw"].item(0, k)), att["pitch"].item(0, k),

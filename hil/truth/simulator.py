@@ -58,8 +58,9 @@ class TractorSimulator:
     initial
         Optional initial values ``{"Y": m, "PSI": rad, "DEL": rad}`` per tractor, shape ``(B,)``.
     scalar
-        Integrate a one-tractor batch with Python floats instead of arrays (several times
-        faster for ``B == 1``, the HIL case; agrees with the array path to rounding).
+        Integrate a one-tractor batch with the compiled stepper (:class:`hil.truth.dynamics.Stepper`) and keep
+        its state and GPS epochs as floats (many times faster for ``B == 1``, the HIL case; agrees
+        with the array path to rounding).
     """
 
     def __init__(self, conditions: Sequence[Condition], duration: float, seeds: Sequence[SeedLike],
@@ -106,13 +107,12 @@ class TractorSimulator:
         # the one-tractor path reads speed and roll per step as floats (truth, GPS epochs)
         self._scalar_exo = {f: _doubles(getattr(self.exo, f)[0]) for f in ("speed", "roll")} if scalar else None
         if scalar:
-            # the one-tractor path: state, inputs and GPS errors as Python floats (see vehicle.scalar_stepper)
-            e = self._scalar_exo
-            self._stepper = vehicle.scalar_stepper(p)
-            self._multistepper = vehicle.scalar_multistepper(p)
+            # the one-tractor path: the compiled stepper over the run's table of inputs, state and GPS
+            # errors as Python floats
+            self._stepper = vehicle.stepper(p)
+            self._inputs = np.ascontiguousarray(
+                np.column_stack([getattr(self.exo, f)[0] for f in vehicle.STEP_INPUTS]), dtype=np.float64)
             self._valve_rates: dict[float, float] = {}   # valve_rate_scalar by duty (a pure function of it)
-            self._step_inputs: list[tuple[float, ...]] | None = None   # the single step's inputs, made when first needed
-            self._multistep_inputs = vehicle.multistep_inputs(p, *(getattr(self.exo, f)[0] for f in vehicle.STEP_INPUTS))
             self._x = self._state[0].tolist()
             self._disker0 = float(self._disker[0])
             self._rate0 = float(self._rate_cmd[0])
@@ -180,46 +180,39 @@ class TractorSimulator:
 
     def step(self) -> None:
         """Advance every tractor by one integration step ``dt``."""
-        if self.k >= self.n_steps:
+        self.steps(1)
+
+    def steps(self, n: int) -> None:
+        """Advance every tractor by ``n`` integration steps with the duties held, recording the GPS
+        epochs on the way."""
+        if self.k + n > self.n_steps:
             raise SimulatorConfigError(f"the simulator was built for {self.duration:.2f} s and has reached it")
-        k, e = self.k, self.exo
-        if self._scalar_exo is not None:
-            if self._step_inputs is None:
-                self._step_inputs = list(zip(*(getattr(e, f)[0].tolist() for f in vehicle.STEP_INPUTS)))
-            self._x = self._stepper(self._x, self._rate0, *self._step_inputs[k], self._disker0)
-            self.k = k + 1
-            self._record_epochs_scalar()
+        if self._scalar_exo is None:
+            for _ in range(n):
+                self._batch_step()
             return
-        else:
-            u = vehicle.Inputs(rate_cmd=self._rate_cmd, speed=e.speed[:, k],
-                               roll=e.roll[:, k], force_y=e.force_y[:, k], ripper_force=e.ripper_force[:, k],
-                               ripper_moment=e.ripper_moment[:, k], draft=e.draft[:, k],
-                               gang_pull=e.gang_pull[:, k], front_load=e.front_load[:, k], disker=self._disker)
-            self.state = vehicle.rk4_step(self.state, u, self.params)
+        k0 = self.k
+        states = self._stepper.steps(self._x, self._rate0, self._disker0, self._inputs[k0:k0 + n])
+        pos_every, att_every = self._pos_every, self._att_every
+        k = k0
+        end = k0 + n
+        while True:   # the steps that record an epoch, in step order, from the states at those steps
+            k = min((k // pos_every + 1) * pos_every, (k // att_every + 1) * att_every)
+            if k > end:
+                break
+            self._x, self.k = states[k - k0 - 1].tolist(), k
+            self._record_epochs_scalar()
+        self._x, self.k = states[-1].tolist(), end
+
+    def _batch_step(self) -> None:
+        k, e = self.k, self.exo
+        u = vehicle.Inputs(rate_cmd=self._rate_cmd, speed=e.speed[:, k],
+                           roll=e.roll[:, k], force_y=e.force_y[:, k], ripper_force=e.ripper_force[:, k],
+                           ripper_moment=e.ripper_moment[:, k], draft=e.draft[:, k],
+                           gang_pull=e.gang_pull[:, k], front_load=e.front_load[:, k], disker=self._disker)
+        self.state = vehicle.rk4_step(self.state, u, self.params)
         self.k += 1
         self._record_epochs()
-
-    def step_scalar(self, n: int) -> None:
-        """:meth:`step` ``n`` times on the one-tractor path, with the duty held (the same steps and
-        GPS epochs as ``n`` calls of :meth:`step`, without the per-step call overhead)."""
-        if self._scalar_exo is None or self.k + n > self.n_steps:
-            for _ in range(n):
-                self.step()
-            return
-        pos_every, att_every = self._pos_every, self._att_every
-        k0 = k = self.k
-        end = k + n
-        bounds = []   # the steps that record an epoch (k % pos_every == 0 or k % att_every == 0), then the end
-        while k < end:
-            k_rec = min((k // pos_every + 1) * pos_every, (k // att_every + 1) * att_every)
-            k = k_rec if k_rec < end else end
-            bounds.append(k)
-        states = self._multistepper(self._x, self._rate0, self._multistep_inputs, k0, bounds, self._disker0)
-        if len(bounds) > 1 or end % pos_every == 0 or end % att_every == 0:
-            for k, x in zip(bounds, states):   # the epochs, in step order, from the states at their steps
-                self._x, self.k = x, k
-                self._record_epochs_scalar()
-        self._x, self.k = states[-1], end
 
     # -- sensors ------------------------------------------------------------------
     def wheel_angle_counts(self) -> np.ndarray:

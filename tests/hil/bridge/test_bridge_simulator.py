@@ -99,12 +99,14 @@ def test_bridge_steers_the_truth_simulator_over_a_pty_in_real_time():
 
 
 @pytest.mark.timeout(30)
-def test_the_simulated_tractor_of_hil_plant_is_a_steering_plant_and_its_override_cuts_the_valve():
+def test_the_simulated_tractor_is_a_steering_plant_and_an_override_in_front_of_it_cuts_the_valve():
     from hil.devices.plant import SimulatedTractor
+    from hil.devices.valve_faults import ValveFaults
 
-    tractor = SimulatedTractor(condition_for("disker", 1.34), 4.0, 3, override=((1.0, 1.5),))
-    assert isinstance(tractor, SteeringPlant)
-    bench = LockstepBridge(tractor, max_step=tractor.params.dt)
+    tractor = SimulatedTractor(condition_for("disker", 1.34), 4.0, 3)
+    faulty = ValveFaults(tractor, override=((1.0, 1.5),))
+    assert isinstance(tractor, SteeringPlant) and isinstance(faulty, SteeringPlant)
+    bench = LockstepBridge(faulty, max_step=tractor.params.dt)
     drv, clock = bench.driver, bench.clock
     drv.engage()
     states = []

@@ -241,9 +241,22 @@ def _clean(v):
 
 
 def model_latency(meta) -> dict:
-    """What a model's metadata says about latency and delay (keys present only): ``latency_s``
-    (a number or one per channel, s), ``delay_s`` and ``delay_samples`` (identified input-output delay)."""
+    """What a model's metadata says about latency and delay (keys present only).
+
+    ``delay`` (``identification.delay.delay_meta``): each output's measurement latency,
+    s, and whether the model holds it (``in_model``); older keys ``latency_s`` (a number
+    or one per channel, s), ``delay_s`` and ``delay_samples`` are kept as they are.
+    """
     out = {}
+    block = meta.get("delay")
+    if isinstance(block, dict):
+        outs = block.get("outputs")
+        if isinstance(outs, dict):
+            out["delay"] = {"outputs_latency_s": {str(k): v.get("latency_s") for k, v in outs.items()
+                                                  if isinstance(v, dict)},
+                            "in_model": block.get("in_model")}
+        else:
+            out["delay"] = {k: v for k, v in block.items() if isinstance(v, (int, float, str, bool))}
     for key in ("latency_s", "delay_s", "delay_samples"):
         if key in meta:
             out[key] = meta[key]
@@ -260,16 +273,23 @@ def validation_fit(meta) -> dict | None:
     return keep or None
 
 
+def _numbers(v) -> list[float]:
+    if isinstance(v, bool):
+        return []
+    if isinstance(v, (int, float)):
+        return [float(v)] if math.isfinite(v) else []
+    if isinstance(v, dict):
+        return [x for item in v.values() for x in _numbers(item)]
+    return []
+
+
 def _largest_latency(meta) -> float:
+    """The largest latency a model's metadata states, s (0 if none)."""
     lat = model_latency(meta)
-    vals: list[float] = []
-    for key in ("latency_s", "delay_s"):
-        v = lat.get(key)
-        if isinstance(v, dict):
-            vals += [float(x) for x in v.values() if isinstance(x, (int, float)) and not isinstance(x, bool)]
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
-            vals.append(float(v))
-    return max([x for x in vals if math.isfinite(x)], default=0.0)
+    vals = _numbers(lat.get("latency_s")) + _numbers(lat.get("delay_s"))
+    delay = lat.get("delay", {})
+    vals += _numbers(delay.get("outputs_latency_s", {})) + _numbers(delay.get("seconds"))
+    return max(vals, default=0.0)
 
 
 @dataclass(frozen=True)

@@ -53,12 +53,15 @@ class Acceptance:
         The held-out multi-step fits the verdict rests on.
     messages
         One message per output below a threshold, each with its fix.
+    refusals
+        The messages of the outputs below :data:`REFUSE_FIT`.
     """
 
     name: str
     status: str
     prediction: MultiStepResult
     messages: tuple[str, ...]
+    refusals: tuple[str, ...] = ()
 
     def as_dict(self) -> dict:
         """JSON-friendly verdict (for the model's metadata)."""
@@ -97,17 +100,18 @@ def assess(name: str, model: Model, data: IOData, warmup: int = 0, horizon_s: fl
         Prediction horizon, s.
     """
     pred = multistep_fit(model.A, model.B, model.C, model.D, model.K, data, horizon_s, warmup=warmup)
-    messages, status = [], "accepted"
+    messages, refusals, status = [], [], "accepted"
     for out, fit in zip(pred.output_names, pred.fit):
         if not np.isfinite(fit) or fit < REFUSE_FIT:
             status = "refused"
-            messages.append(f"{name}: {pred.horizon_s:g} s prediction fit of {out} {fit:.0f} % < {REFUSE_FIT:.0f} %; "
+            refusals.append(f"{name}: {pred.horizon_s:g} s prediction fit of {out} {fit:.0f} % < {REFUSE_FIT:.0f} %; "
                             f"{_fix(model)}")
+            messages.append(refusals[-1])
         elif fit < WARN_FIT:
             status = "warning" if status == "accepted" else status
             messages.append(f"{name}: {pred.horizon_s:g} s prediction fit of {out} {fit:.0f} % < {WARN_FIT:.0f} % "
                             f"(accepted with a warning); {_fix(model)}")
-    return Acceptance(name, status, pred, tuple(messages))
+    return Acceptance(name, status, pred, tuple(messages), tuple(refusals))
 
 
 def enforce(verdicts: Sequence[Acceptance], policy: str = "refuse") -> list[str]:
@@ -117,7 +121,7 @@ def enforce(verdicts: Sequence[Acceptance], policy: str = "refuse") -> list[str]
     """
     if policy not in ("refuse", "warn"):
         raise OptionError(f"acceptance policy must be 'refuse' or 'warn', got {policy!r}")
-    refused = [m for v in verdicts if v.status == "refused" for m in v.messages]
+    refused = [m for v in verdicts for m in v.refusals]
     if refused and policy == "refuse":
         raise ModelRefusedError(f"{sum(v.status == 'refused' for v in verdicts)} model(s) do not predict well "
                                 "enough to design on:\n  " + "\n  ".join(refused)

@@ -18,6 +18,8 @@ from pathlib import Path
 
 from identification.errors import PassLogError
 
+from design.files.signature import load_public_key
+
 from hil.errors import HilError
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, vehicle_controller
 from hil.vehicle.summary import summarize
@@ -60,7 +62,8 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
                       line_a=a, line_b=b, height=args.height, lever_arm=args.lever_arm,
                       wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
                       gnss_baud=args.gnss_baud)
-    log = drive(cfg, vehicle_controller(args.controller), args.duration, implement=args.implement,
+    key = load_public_key(args.require_signature) if args.require_signature else None
+    log = drive(cfg, vehicle_controller(args.controller, key), args.duration, implement=args.implement,
                 nominal_speed=args.speed)
     out = Path(args.out)
     summary = summarize(log)
@@ -80,6 +83,8 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
     d.add_argument("--attitude", help="attitude receiver serial device (default: same as --position)")
     d.add_argument("--controller", required=True, type=_vehicle_spec,
                    help=f"one of {list(VEHICLE_CONTROLLERS)} or a controller file (.json)")
+    d.add_argument("--require-signature", metavar="PUBKEY", default=None,
+                   help="run only a controller file signed with this public key (design keygen's .pub)")
     d.add_argument("--line", required=True, type=parse_floats(4), metavar="LAT_A,LON_A,LAT_B,LON_B",
                    help="guidance line ends in degrees; A is the local origin (write --line=... when a "
                         "value is negative)")

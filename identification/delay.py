@@ -286,6 +286,10 @@ def measure_latency(logs: Sequence[PassLog], source: str = "auto") -> LatencyEst
         elif "attitude" not in result:
             result["attitude"] = identified
             sources["attitude"] = "identified"
+        elif not det.get("line_fits"):       # one speed: the identified value is only an upper bound
+            if result["attitude"] > identified + TOLERANCE_S:
+                warnings.append(f"the declared attitude latency {result['attitude']:.3f} s exceeds the upper bound "
+                                f"identified from the data, {identified:.3f} s; check meta['latency_s']")
         elif abs(result["attitude"] - identified) > TOLERANCE_S:
             warnings.append(f"the declared attitude latency {result['attitude']:.3f} s differs from the one "
                             f"identified from the data, {identified:.3f} s (tolerance {TOLERANCE_S} s); check "

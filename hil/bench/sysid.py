@@ -31,6 +31,7 @@ from hil.errors import SimulatorConfigError
 from hil.truth.gps_errors import control_point_from_antenna
 from hil.truth.params import SimParams
 from hil.truth.simulator import TractorSimulator
+from hil.vehicle.valve_map import ValveCurve
 from hil.truth.steering import nominal_duty
 from hil.devices.technician import two_point_calibration
 
@@ -127,7 +128,8 @@ def pass_name(cond: Condition, index: int) -> str:
 
 def make_passes(plan: SysidPlan, params: SimParams | None = None,
                 driver: DriverExcitation | None = None,
-                progress: Callable[[int, int], None] | None = None) -> list[tuple[str, PassLog]]:
+                progress: Callable[[int, int], None] | None = None,
+                valve: ValveCurve | None = None) -> list[tuple[str, PassLog]]:
     """Simulate every pass of ``plan`` (as one batch) and return ``(name, log)`` pairs.
 
     Parameters
@@ -140,6 +142,10 @@ def make_passes(plan: SysidPlan, params: SimParams | None = None,
         Excitation rule.
     progress
         Called as ``progress(done_steps, total_steps)`` now and then.
+    valve
+        A commissioned tractor's measured valve: the driver slews at its ``max_rate`` and the
+        duty is that of its inverse map for the bridge's full scale (as the commissioned loop
+        drives it; ``meta["valve_map"]``). ``None``: the nominal duty of :func:`nominal_duty`.
     """
     params = params or SimParams()
     driver = driver or DriverExcitation()
@@ -149,23 +155,25 @@ def make_passes(plan: SysidPlan, params: SimParams | None = None,
     # the driver's own random draws come from a stream separate from the simulator's
     sim_seeds, drv_seeds = zip(*(s.spawn(2) for s in seeds))
     sim = TractorSimulator(conds, plan.duration, list(sim_seeds), params)
-    logs = _run_driver(sim, driver, [np.random.default_rng(s) for s in drv_seeds], progress)
+    logs = _run_driver(sim, driver, [np.random.default_rng(s) for s in drv_seeds], progress, valve)
     out = []
     for (cond, i), seed_seq, channels in zip(jobs, seeds, logs):
         meta = _meta(cond, i, plan, params, driver)
+        if valve is not None:
+            meta["valve_map"] = valve.to_dict()
         out.append((pass_name(cond, i), PassLog(times=channels[0], channels=channels[1], meta=meta)))
     return out
 
 
 def _run_driver(sim: TractorSimulator, drv: DriverExcitation, rngs: Sequence[np.random.Generator],
-                progress: Callable[[int, int], None] | None):
+                progress: Callable[[int, int], None] | None, valve: ValveCurve | None = None):
     p = sim.params
     B = sim.B
     sub = int(round(1.0 / (p.sensor.rate * p.dt)))           # integration steps per report
     lag = int(round(p.sensor.latency / p.dt))                 # report latency in steps
     n_ticks = (sim.n_steps - lag) // sub
     cal = two_point_calibration(p.sensor, p.steering)
-    max_rate = p.steering.max_rate
+    max_rate = p.steering.max_rate if valve is None else valve.max_rate
     wheelbase = p.vehicle.wheelbase
     n_dec = int(sim.duration / min(drv.slew_min, drv.hold_min, 0.05) + 16)
     u_len = np.stack([r.random(n_dec) for r in rngs])
@@ -209,7 +217,10 @@ def _run_driver(sim: TractorSimulator, drv: DriverExcitation, rngs: Sequence[np.
             t_end = np.where(due, now + np.where(start_slew, slew_len, hold_len), t_end)
             n_made = n_made + due
         rate_cmd = mode * max_rate
-        sim.set_duty(nominal_duty(rate_cmd, p.steering))
+        if valve is None:
+            sim.set_duty(nominal_duty(rate_cmd, p.steering))
+        else:
+            sim.set_duty(np.array([valve.command_for(float(r)) for r in rate_cmd]) / valve.full_scale)
         tr = sim.truth()
         for key, val in (("t", now), ("wheel_angle", delta_m), ("steer_rate_cmd", rate_cmd),
                          ("truth_cross_track", tr["cross_track"]), ("truth_heading_error", tr["heading_error"]),

@@ -169,3 +169,25 @@ def test_a_stuck_valve_is_still_caught_with_the_measured_thresholds(tractor: str
                         KinematicLQRController(), p, commissioning=com)
     alarms = [e["t"] for e in log.meta["events"] if e["event"] == "disengage" and "steering not responding" in e["reason"]]
     assert alarms and 5.0 < alarms[0] <= 5.0 + window + 1.0, log.meta["events"]
+
+
+def test_identification_passes_through_the_inverse_map_slew_equally_both_ways() -> None:
+    from hil.bench.sysid import SysidPlan, make_passes
+    p = resolve_tractor("worn-valve").params()
+    curve, _ = characterise_on_bench(p, seed=0)
+    plan = SysidPlan(speeds=(1.0,), implements=("none",), passes=1, duration=60.0, seed=4)
+
+    def slew_rates(valve):
+        (_, log), = make_passes(plan, p, valve=valve)
+        t, u, d = log.times["t"], log.channels["steer_rate_cmd"], log.channels["truth_wheel_angle"]
+        rate = np.gradient(d, t)
+        # inside a slew, after the valve's lag: the command held for the last 0.3 s
+        held = np.array([k >= 6 and np.all(u[k - 6:k + 1] == u[k]) for k in range(u.size)])
+        return float(np.median(rate[held & (u > 0)])), float(-np.median(rate[held & (u < 0)])), log
+
+    left, right, log = slew_rates(curve)
+    assert right == pytest.approx(left, rel=0.05)               # linearised: the same rate both ways
+    assert log.meta["valve_map"] == curve.to_dict()
+    raw_left, raw_right, raw = slew_rates(None)
+    assert raw_right / raw_left == pytest.approx(p.steering.right_gain, abs=0.05)   # the raw valve's asymmetry
+    assert "valve_map" not in raw.meta

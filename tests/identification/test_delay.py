@@ -13,7 +13,7 @@ import pytest
 from identification.delay import TOLERANCE_S, latency_from_valid_times, measure_latency
 from identification.errors import DataError, OptionError
 from identification.passlog import PassLog
-from identification.preprocess import Preprocessing
+from identification.preprocess import Preprocessing, passes_to_iodata
 from identification.tractor import identify_tractor
 from idtest_synth import synthetic_pass
 
@@ -122,3 +122,18 @@ def test_simulated_tractor_with_a_large_gps_latency(tmp_path):
     assert all("cross_track" not in p.meta["latency_s"] for p in passes)
     est = measure_latency(passes)
     assert abs(est.attitude - 0.2) <= TOLERANCE_S, json.dumps(est.details["attitude_identification"])
+
+
+def test_preprocessing_latency_overrides_the_declaration():
+    log = _passes(n=1)[0]
+    base = passes_to_iodata([log], Preprocessing(bias="none"))
+    moved = passes_to_iodata([log], Preprocessing(bias="none", latency_s={"heading_error": 0.25}))
+    assert dict(Preprocessing(latency_s={"heading_error": 0.25}).as_dict()["latency_s"]) == {"heading_error": 0.25}
+    # heading moved back 0.2 s more than declared: the same heading values 4 samples earlier on the grid
+    psi0, psi1 = base.experiments[0][1][:, 1], moved.experiments[0][1][:, 1]
+    lag = int(np.argmax(np.correlate(psi1 - psi1.mean(), psi0 - psi0.mean(), "full"))) - (psi0.size - 1)
+    assert lag == -4
+    n = min(psi0.size, psi1.size)
+    np.testing.assert_array_equal(base.experiments[0][1][:n, 2], moved.experiments[0][1][:n, 2])
+    with pytest.raises(OptionError, match="latency_s"):
+        Preprocessing(latency_s={"heading_error": -0.1})

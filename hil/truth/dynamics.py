@@ -254,24 +254,29 @@ class Stepper:
             The state after each step, shape ``(n, 8)`` (a new array).
         """
         n = len(inputs)
+        if not (inputs.flags.c_contiguous and inputs.dtype == np.float64):
+            inputs = np.ascontiguousarray(inputs, dtype=np.float64)
+        if n == 0:
+            return np.empty((0, N_STATE))
+        if n <= MAX_STEPS_PER_CALL:   # the usual call: one compiled function
+            return self._run(n, x, rate_cmd, disker, inputs)
         out = np.empty((n, N_STATE))
-        done = 0
-        state = x
-        while done < n:
-            m = min(n - done, MAX_STEPS_PER_CALL)
-            _, buf, evaluate, args, res = self._call(m)
-            args[:N_STATE] = state
-            args[N_STATE] = rate_cmd
-            args[N_STATE + 1] = disker
-            block = inputs[done:done + m]
-            if not (block.flags.c_contiguous and block.dtype == np.float64):
-                block = np.ascontiguousarray(block, dtype=np.float64)
-            buf.set_arg(3, memoryview(block))
-            evaluate()
-            out[done:done + m] = res
-            state = res[-1]
-            done += m
+        for done in range(0, n, MAX_STEPS_PER_CALL):
+            block = inputs[done:done + MAX_STEPS_PER_CALL]
+            out[done:done + len(block)] = self._run(len(block), x, rate_cmd, disker, block)
+            x = out[done + len(block) - 1]
         return out
+
+    def _run(self, n: int, x, rate_cmd: float, disker: float, inputs: np.ndarray) -> np.ndarray:
+        """One call of the compiled ``n``-step function (``inputs`` C-contiguous float64, ``n`` rows)."""
+        call = self._calls.get(n) or self._call(n)
+        _, buf, evaluate, args, res = call
+        args[:N_STATE] = x
+        args[N_STATE] = rate_cmd
+        args[N_STATE + 1] = disker
+        buf.set_arg(3, memoryview(inputs))
+        evaluate()
+        return res.copy()
 
 
 @functools.lru_cache(maxsize=8)

@@ -1,0 +1,124 @@
+"""``hil commission``: the commissioning recipe end to end on a bench tractor (a thin layer over
+:func:`hil.bench.commission.commission`).
+
+    hil commission --tractor NAME|FILE --out DIR [--speeds ...] [--implements ...] [--passes N]
+        [--duration S] [--seed S] [--hil-seeds N] [--hil-duration S] [--hil-conditions IMPLEMENT:SPEED,...]
+        [--weights auto-if-available|auto|default] [--order N|auto|validate] [--markov N|auto|validate]
+        [--acceptance refuse|warn] [--set group.name=value ...] [--quiet] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from tqdm import tqdm
+
+from hil.bench.commission import WEIGHTS, CommissionOptions, commission
+from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for
+from hil.truth.tractors import Tractor, resolve_tractor
+
+__all__ = ["add_commission_parser"]
+
+
+def _int_or(words: tuple[str, ...]):
+    def parse(text: str) -> int | str:
+        if text in words:
+            return text
+        try:
+            n = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer or one of {list(words)}, got {text!r}") from None
+        if n < 1:
+            raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {n}")
+        return n
+    return parse
+
+
+def _hil_conditions(number):
+    def parse(text: str):
+        out = []
+        for part in text.split(","):
+            imp, sep, speed = part.partition(":")
+            if not sep:
+                raise argparse.ArgumentTypeError(f"expected IMPLEMENT:SPEED[,...], got {text!r}")
+            try:
+                out.append(condition_for(imp, number(speed)))
+            except ValueError as exc:
+                raise argparse.ArgumentTypeError(str(exc)) from None
+        return tuple(out)
+    return parse
+
+
+def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> None:
+    """Add ``commission`` to the bench's sub-commands (``number``/``override``: the CLI's value parsers)."""
+    c = sub.add_parser("commission", help="commission a bench tractor end to end: valve, passes, identification, "
+                       "designs, certificate, HIL comparison and a report, all under --out")
+    c.add_argument("--tractor", required=True, metavar="NAME|FILE.json",
+                   help="the tractor (a tractor file, a name of the family or random-SEED; see `hil tractors`)")
+    c.add_argument("--set", action="append", type=override, metavar="GROUP.NAME=VALUE",
+                   help="override a parameter of that tractor; repeatable")
+    c.add_argument("--out", required=True, help="directory for every output (commissioning.json, logs/, models/, "
+                   "controllers/, report.md, figures, result.json)")
+    c.add_argument("--speeds", nargs="+", type=number, default=list(GEAR_SPEEDS.values()), metavar="M_PER_S")
+    c.add_argument("--implements", nargs="+", choices=IMPLEMENTS, default=list(IMPLEMENTS))
+    c.add_argument("--passes", type=int, default=3, help="identification passes per condition (default 3)")
+    c.add_argument("--duration", type=number, default=120.0, help="seconds per identification pass (default 120)")
+    c.add_argument("--seed", type=int, default=1997, help="seed of the passes and the valve test (default 1997)")
+    c.add_argument("--hil-seeds", type=int, default=1, help="closed-loop passes per condition and controller "
+                   "(seeds 0..N-1, default 1)")
+    c.add_argument("--hil-duration", type=number, default=60.0, help="seconds per closed-loop pass (default 60)")
+    c.add_argument("--hil-conditions", type=_hil_conditions(number), default=None, metavar="IMPLEMENT:SPEED,...",
+                   help="conditions of the HIL comparison (default: those of the passes)")
+    c.add_argument("--weights", choices=WEIGHTS, default="auto-if-available",
+                   help="robust/MPC weights: from specifications (auto) or the design commands' defaults")
+    c.add_argument("--order", type=_int_or(("auto", "validate")), default="auto", help="model order")
+    c.add_argument("--markov", type=_int_or(("auto", "validate")), default="auto",
+                   help="Markov parameters (past window)")
+    c.add_argument("--acceptance", choices=("refuse", "warn"), default="refuse",
+                   help="a model that does not predict: stop (refuse) or go on with a warning")
+    c.add_argument("--quiet", action="store_true", help="no progress")
+    c.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+    c.set_defaults(func=run_commission)
+
+
+def run_commission(args: argparse.Namespace) -> dict:
+    """The command: build the options, run the recipe with progress on stderr, return a summary."""
+    base = resolve_tractor(args.tractor)
+    tractor = base
+    if args.set:
+        merged = {g: dict(v) for g, v in base.parameters.items()}
+        for key, value in args.set:
+            group, _, name = key.partition(".")
+            merged.setdefault(group, {})[name] = value
+        tractor = Tractor(name=f"{base.name}-modified", description=f"{base.description} With --set "
+                          f"{', '.join(f'{k}={v:g}' for k, v in args.set)}.", parameters=merged, source=base.source)
+    opts = CommissionOptions(speeds=tuple(args.speeds), implements=tuple(args.implements), passes=args.passes,
+                             pass_duration=args.duration, seed=args.seed,
+                             hil_seeds=tuple(range(args.hil_seeds)) if args.hil_seeds >= 1 else (),
+                             hil_duration=args.hil_duration, hil_conditions=args.hil_conditions,
+                             weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance)
+    bars: dict[str, tqdm] = {}
+
+    def progress(step: str, done: int, total: int) -> None:
+        if args.quiet:
+            return
+        bar = bars.get(step)
+        if bar is None:
+            bar = bars[step] = tqdm(total=total, desc=f"    {step}", file=sys.stderr, leave=False)
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    def say(line: str) -> None:
+        for bar in bars.values():
+            bar.close()
+        bars.clear()
+        if not args.quiet:
+            print(line, file=sys.stderr, flush=True)
+
+    res = commission(tractor, args.out, opts, say=say, progress=progress)
+    for bar in bars.values():
+        bar.close()
+    return {"out": args.out, "tractor": tractor.name, "steps": res["steps"], "files": res["files"],
+            "valve": res.get("valve"), "hil": res["hil"]}

@@ -1,0 +1,340 @@
+"""The commissioning recipe end to end on a bench tractor (issue 14 item 7): ``hil commission``.
+
+For one tractor (a tractor file or a name of the family, :mod:`hil.truth.tractors`), every output
+under one directory:
+
+1. **valve** -- the steering-valve characterisation through the emulated bridge at standstill
+   (:func:`hil.bench.valve_bench.characterise_on_bench`), the inverse map's linearity check, the
+   commissioning file ``commissioning.json`` (:mod:`hil.vehicle.commissioning`);
+2. **passes** -- the open-loop identification passes through the inverse map (``logs/``,
+   :func:`hil.bench.sysid.make_passes` with ``valve=``);
+3. **identification** -- :func:`identification.workflow.identify_logs` (``models/``, its
+   ``validation.md``);
+4. **designs** -- the paper's central LQR, the robust controller and the MPC through the
+   ``design`` commands (``controllers/``, each with its certificate), their command limits set to
+   the valve's measured rate; the weights are the design's defaults or, when ``design`` offers
+   them, chosen from specifications (``--weights auto``, :attr:`CommissionOptions.weights`);
+5. **HIL** -- closed-loop passes of those three and of the oracle on the tractor, through the
+   commissioned loop (inverse map and thresholds), ``hil/`` and the report's table;
+6. **report** -- ``report.md`` and figures (:mod:`hil.bench.commission_report`).
+
+Steps that fail are recorded with their error in the report and ``result.json``; later steps that
+need their output are skipped, so a tractor the recipe cannot commission says why.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+from hil.bench.oracle import OracleOptions, oracle_for
+from hil.bench.run import RunSpec, simulated_run
+from hil.bench.sysid import SysidPlan, make_passes
+from hil.bench.valve_bench import characterise_on_bench, linearity_on_bench
+from hil.errors import SimulatorConfigError
+from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, Condition, all_conditions
+from hil.truth.tractors import Tractor
+from hil.vehicle.commissioning import Commissioning, save_commissioning
+from hil.vehicle.summary import summarize
+
+__all__ = ["CommissionOptions", "commission", "CONTROLLERS"]
+
+#: Controllers of the HIL comparison, in the report's order: file stem (or ``oracle``) -> label.
+CONTROLLERS = {"central-lqr": "paper's method", "robust": "robust", "mpc": "MPC", "oracle": "oracle"}
+WEIGHTS = ("auto-if-available", "auto", "default")
+
+
+@dataclass(frozen=True)
+class CommissionOptions:
+    """Settings of the recipe (defaults: the main job's passes, one HIL seed).
+
+    Attributes
+    ----------
+    speeds, implements
+        Conditions of the identification passes and of the HIL comparison (default: the paper's 15).
+    passes, pass_duration
+        Identification passes per condition and their length, s.
+    seed
+        Seed of the passes and of the valve test; the HIL passes use ``hil_seeds``.
+    hil_seeds, hil_duration
+        Seeds and length, s, of the closed-loop passes per condition and controller.
+    hil_conditions
+        Conditions of the HIL comparison (default: all of the passes').
+    weights
+        ``"auto"``: the designs choose their weights from specifications (``design ... --weights auto``);
+        ``"default"``: the design commands' default weights; ``"auto-if-available"``: auto when the
+        installed ``design`` offers it.
+    order, markov
+        Identification's order and Markov-parameter choice (``identify_logs``).
+    acceptance
+        ``"refuse"`` (a model that does not predict stops the recipe) or ``"warn"``.
+    integral
+        Integral action in the robust design.
+    """
+
+    speeds: tuple[float, ...] = tuple(GEAR_SPEEDS.values())
+    implements: tuple[str, ...] = IMPLEMENTS
+    passes: int = 3
+    pass_duration: float = 120.0
+    seed: int = 1997
+    hil_seeds: tuple[int, ...] = (0,)
+    hil_duration: float = 60.0
+    hil_conditions: tuple[Condition, ...] | None = None
+    weights: str = "auto-if-available"
+    order: int | str = "auto"
+    markov: int | str = "auto"
+    acceptance: str = "refuse"
+    integral: bool = True
+
+    def __post_init__(self) -> None:
+        SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
+                  duration=self.pass_duration, seed=self.seed)   # validates those
+        if not self.hil_seeds or not all(isinstance(s, int) and s >= 0 for s in self.hil_seeds):
+            raise SimulatorConfigError(f"hil_seeds must be integers >= 0, got {self.hil_seeds!r}")
+        RunSpec(duration=self.hil_duration)
+        if self.weights not in WEIGHTS:
+            raise SimulatorConfigError(f"weights must be one of {list(WEIGHTS)}, got {self.weights!r}")
+        if self.acceptance not in ("refuse", "warn"):
+            raise SimulatorConfigError(f"acceptance must be 'refuse' or 'warn', got {self.acceptance!r}")
+
+    def conditions(self) -> list[Condition]:
+        """The HIL comparison's conditions."""
+        if self.hil_conditions is not None:
+            return list(self.hil_conditions)
+        return all_conditions(tuple(self.speeds), tuple(self.implements))
+
+
+def _design(argv: list[str]) -> dict:
+    """Run one ``design`` command in-process; its JSON result, or raise with its error message."""
+    from design.cli import main as design_main
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = design_main([*argv, "--json"])
+    if status != 0:
+        raise RuntimeError(err.getvalue().strip() or f"design {argv[0]} exited with {status}")
+    return json.loads(out.getvalue())
+
+
+def _design_offers(command: str, option: str) -> bool:
+    """Whether the installed ``design COMMAND`` has an option (the automatic weights are being added)."""
+    from design.cli import build_parser
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    return option in sub.choices[command]._option_string_actions   # type: ignore[union-attr]
+
+
+def _auto_weights(options: CommissionOptions) -> bool:
+    if options.weights == "default":
+        return False
+    offered = _design_offers("robust", "--weights") and _design_offers("mpc", "--weights")
+    if options.weights == "auto" and not offered:
+        raise SimulatorConfigError("weights='auto' needs `design robust/mpc --weights auto`, which this "
+                                   "installation does not offer; use weights='default'")
+    return offered
+
+
+class _Steps:
+    """Runs the recipe's steps, timing them, recording failures, reporting progress."""
+
+    def __init__(self, say: Callable[[str], None]) -> None:
+        self.say = say
+        self.record: list[dict] = []
+
+    def run(self, name: str, what: str, fn: Callable[[], object]) -> object | None:
+        self.say(f"[{len(self.record) + 1}] {what} ...")
+        t0 = time.perf_counter()
+        try:
+            value = fn()
+        except Exception as exc:  # noqa: BLE001 - a step that fails is reported, the recipe goes on where it can
+            self.record.append({"step": name, "ok": False, "seconds": time.perf_counter() - t0,
+                                "error": f"{type(exc).__name__}: {exc}"})
+            self.say(f"    {name} failed: {type(exc).__name__}: {exc}")
+            return None
+        self.record.append({"step": name, "ok": True, "seconds": time.perf_counter() - t0})
+        self.say(f"    done in {time.perf_counter() - t0:.1f} s")
+        return value
+
+
+def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | None = None,
+               say: Callable[[str], None] | None = None,
+               progress: Callable[[str, int, int], None] | None = None) -> dict:
+    """Commission ``tractor`` on the bench; every output under ``out``.
+
+    Parameters
+    ----------
+    tractor
+        The tractor (its simulator parameters are the bench's truth).
+    out
+        Output directory.
+    options
+        Passes, seeds, weights (see :class:`CommissionOptions`).
+    say
+        Called with one line per step (default: print to stderr).
+    progress
+        Called as ``progress(step, done, total)`` inside the long steps.
+
+    Returns
+    -------
+    dict
+        What ``result.json`` holds: the steps, the measured valve, identification and design
+        summaries, the HIL table (per condition and controller) and the report's files.
+    """
+    from identification.workflow import identify_logs
+
+    from hil.bench.commission_report import write_commission_report
+    opts = options or CommissionOptions()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    say = say or (lambda line: print(line, file=sys.stderr, flush=True))
+    tick = progress or (lambda step, done, total: None)
+    params = tractor.params()
+    steps = _Steps(say)
+    res: dict = {"tractor": tractor.to_dict(), "options": _options_dict(opts)}
+
+    def valve() -> Commissioning:
+        curve, rate_steps = characterise_on_bench(params, seed=opts.seed,
+                                                  progress=lambda d, n: tick("valve", d, n))
+        lin = linearity_on_bench(curve, params, seed=opts.seed + 1)
+        com = Commissioning(tractor.name, curve, lin, notes="hil commission: valve test at standstill on the bench")
+        save_commissioning(com, out / "commissioning.json")
+        res["valve_steps"] = [asdict(s) for s in rate_steps]
+        return com
+    com = steps.run("valve", "valve characterisation through the bridge (standstill)", valve)
+    if com is not None:
+        res["valve"] = com.valve.to_dict()
+        res["linearity"] = dict(com.linearity or {})
+        res["loop"] = asdict(com.loop_config())
+
+    def passes() -> list[str]:
+        plan = SysidPlan(speeds=opts.speeds, implements=opts.implements, passes=opts.passes,
+                         duration=opts.pass_duration, seed=opts.seed)
+        made = make_passes(plan, params, progress=lambda d, n: tick("passes", d, n), valve=com.valve)
+        return [str(log.save(out / "logs" / f"{name}.npz")) for name, log in made]
+    logs = steps.run("passes", f"identification passes through the inverse map ({opts.passes} per condition, "
+                     f"{opts.pass_duration:g} s)", passes) if com is not None else None
+
+    models_dir = out / "models"
+
+    def identify() -> dict:
+        r = identify_logs([str(out / "logs")], models_dir, order=opts.order, markov=opts.markov,
+                          latency="auto", acceptance=opts.acceptance,
+                          progress=lambda d, n: tick("identification", d, n))
+        return {k: v for k, v in r.items() if k != "_text"}
+    ident = steps.run("identification", "identification (OKID/ERA, validation on held-out passes)",
+                      identify) if logs else None
+    if ident is not None:
+        res["identification"] = ident
+
+    designs: dict[str, dict] = {}
+    if ident is not None and com is not None:
+        ctrl = out / "controllers"
+        local = sorted(str(p) for p in models_dir.glob("local_*.npz"))
+        limit = f"{com.valve.max_rate:.6g}"
+        auto = _auto_weights(opts)
+        weights = ["--weights", "auto"] if auto else []
+        if auto and _design_offers("robust", "--latency-from-logs"):
+            weights += ["--latency-from-logs", str(out / "logs")]   # the latency the margins must cover
+        res["weights"] = "auto (from specifications)" if auto else "the design commands' defaults"
+        plan = {
+            "central-lqr": ["lqr", "--model", str(models_dir / "central.npz"), "--verify-on", *local,
+                            "--allow-unstable", "--command-limit", limit, "--out", str(ctrl / "central-lqr.json")],
+            "robust": ["robust", "--models", *local, *(["--integral"] if opts.integral else []), *weights,
+                       "--command-limit", limit, "--out", str(ctrl / "robust.json")],
+            "mpc": ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *weights,
+                    "--rate-limit", limit, "--out", str(ctrl / "mpc.json")],
+        }
+        for name, argv in plan.items():
+            if name == "mpc" and "robust" not in designs:
+                continue
+            r = steps.run(f"design {name}", f"design {' '.join(a for a in argv[:1])} ({name})",
+                          lambda argv=argv: _design(argv))
+            if r is not None:
+                designs[name] = {"file": argv[argv.index("--out") + 1], "result": r,
+                                 "command": "design " + " ".join(argv)}
+    res["designs"] = designs
+
+    def hil() -> list[dict]:
+        return _hil_table(params, com, designs, opts, lambda d, n: tick("hil", d, n))
+    table = steps.run("hil", f"HIL comparison on the tractor ({len(opts.conditions())} conditions, "
+                      f"{len(opts.hil_seeds)} seed(s), {opts.hil_duration:g} s, commissioned loop)",
+                      hil) if com is not None else None
+    res["hil"] = table or []
+    res["steps"] = steps.record
+    res["files"] = write_commission_report(res, out)
+    (out / "result.json").write_text(json.dumps(res, indent=2, default=_jsonable) + "\n")
+    return res
+
+
+def _jsonable(o: object) -> object:
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    if isinstance(o, Condition):
+        return {"implement": o.implement, "speed": o.speed}
+    return str(o)
+
+
+def _options_dict(o: CommissionOptions) -> dict:
+    d = asdict(o)
+    d["hil_conditions"] = None if o.hil_conditions is None else [c.name for c in o.hil_conditions]
+    return d
+
+
+def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: CommissionOptions,
+               progress: Callable[[int, int], None]) -> list[dict]:
+    """Closed-loop passes of every designed controller and the oracle, commissioned loop, per condition."""
+    from hil.bench.campaign import make_controller
+    names = [n for n in CONTROLLERS if n == "oracle" or n in designs]
+    conds = opts.conditions()
+    total, done = len(names) * len(conds) * len(opts.hil_seeds), 0
+    rows = []
+    for cond in conds:
+        for name in names:
+            sigmas, biases, dis, errors = [], [], 0, []
+            for seed in opts.hil_seeds:
+                try:
+                    if name == "oracle":
+                        ctrl = oracle_for(cond.implement, cond.speed, params,
+                                          OracleOptions(invert_valve=False, host_map=True))
+                    else:
+                        ctrl = make_controller(designs[name]["file"])
+                    log = simulated_run(RunSpec(implement=cond.implement, speed=cond.speed,
+                                                duration=opts.hil_duration, seed=seed), ctrl, params,
+                                        commissioning=com)
+                    s = summarize(log)
+                    dis += s["disengagements"]
+                    if "measured_sigma_m" in s:
+                        sigmas.append(s["measured_sigma_m"])
+                        biases.append(s["measured_bias_m"])
+                except Exception as exc:  # noqa: BLE001 - one failing pass is a cell's result, not the end
+                    errors.append(f"{type(exc).__name__}: {exc}")
+                done += 1
+                progress(done, total)
+            rows.append({"implement": cond.implement, "speed": cond.speed, "controller": name,
+                         "sigma_m": sum(sigmas) / len(sigmas) if sigmas else math.nan,
+                         "bias_m": sum(biases) / len(biases) if biases else math.nan,
+                         "disengagements": dis, "passes": len(opts.hil_seeds), "errors": errors})
+    return rows
+
+
+def hil_ratios(rows: Sequence[dict]) -> list[dict]:
+    """Per condition: 1-sigma of robust and MPC over the oracle's and the paper's method's."""
+    by = {(r["implement"], r["speed"], r["controller"]): r for r in rows}
+    out = []
+    for imp, speed in sorted({(r["implement"], r["speed"]) for r in rows}, key=lambda k: (IMPLEMENTS.index(k[0]), k[1])):
+        cell = {"implement": imp, "speed": speed}
+        for c in CONTROLLERS:
+            r = by.get((imp, speed, c))
+            cell[c] = r["sigma_m"] if r else math.nan
+            cell[f"{c}_disengagements"] = r["disengagements"] if r else None
+        for c in ("robust", "mpc"):
+            cell[f"{c}_over_oracle"] = cell[c] / cell["oracle"] if cell["oracle"] > 0 else math.nan
+            cell[f"{c}_over_paper"] = cell[c] / cell["central-lqr"] if cell["central-lqr"] > 0 else math.nan
+        out.append(cell)
+    return out
+

@@ -1,0 +1,147 @@
+"""The report of ``hil commission``: ``report.md``, the valve figure and the 1-sigma figure.
+
+Everything is read from the recipe's result (:func:`hil.bench.commission.commission`); nothing is
+recomputed here.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from hil.vehicle.valve_map import ValveCurve
+
+__all__ = ["write_commission_report"]
+
+
+def _cm(v: float) -> str:
+    return "-" if v is None or not math.isfinite(v) else f"{v * 100:.2f}"
+
+
+def _x(v: float) -> str:
+    return "-" if v is None or not math.isfinite(v) else f"{v:.2f}"
+
+
+def _valve_figure(res: dict, path: Path) -> Path:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    curve = ValveCurve(**res["valve"])
+    c = np.array([s["command"] for s in res["valve_steps"]])
+    r = np.array([s["rate"] for s in res["valve_steps"]])
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+    grid = np.linspace(-curve.full_scale, curve.full_scale, 401)
+    a.plot(c, r, "o", label="measured steps")
+    a.plot(grid, curve.rate(grid), "-", label=f"fit: deadband {curve.deadband:.3f}, exponent "
+                                            f"{curve.flow_exponent:.2f}, right/left {curve.asymmetry:.2f}")
+    a.set_xlabel("command sent to the bridge, rad/s")
+    a.set_ylabel("wheel-angle rate, rad/s")
+    a.set_title("valve characterisation")
+    a.grid(True)
+    a.legend(fontsize=8)
+    lin = res.get("linearity") or {}
+    if lin:
+        w, m = np.array(lin["wanted"]), np.array(lin["measured"])
+        b.plot(w, m, "o", label="through the inverse map")
+        b.plot(w, w, "k--", lw=0.8, label="ideal")
+        b.set_title(f"linearised: max error {lin['max_error_fraction'] * 100:.1f} % of max rate")
+        b.set_xlabel("wanted rate, rad/s")
+        b.set_ylabel("measured rate, rad/s")
+        b.grid(True)
+        b.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _sigma_figure(cells: list[dict], path: Path) -> Path:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from hil.bench.commission import CONTROLLERS
+    imps = sorted({c["implement"] for c in cells})
+    fig, axes = plt.subplots(1, len(imps), figsize=(4 * len(imps), 3.5), squeeze=False)
+    for ax, imp in zip(axes[0], imps):
+        row = sorted((c for c in cells if c["implement"] == imp), key=lambda c: c["speed"])
+        v = [c["speed"] for c in row]
+        for key, label in CONTROLLERS.items():
+            ax.plot(v, [c[key] * 100 for c in row], "o-", label=label)
+        ax.set_title(imp)
+        ax.set_xlabel("speed, m/s")
+        ax.set_ylabel("1-sigma cross-track, cm")
+        ax.grid(True)
+    axes[0][0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_commission_report(res: dict, out: Path) -> list[str]:
+    """Write ``report.md`` and its figures under ``out``; returns the files written."""
+    from hil.bench.commission import hil_ratios
+    files: list[str] = []
+    t = res["tractor"]
+    lines = [f"# Commissioning of `{t['name']}`", "", t["description"], "",
+             "Made by `hil commission` on the bench (every number below measured in this run).", "",
+             "## Steps", "", "| step | result | time, s |", "|---|---|---:|"]
+    for s in res.get("steps", []):
+        lines.append(f"| {s['step']} | {'ok' if s['ok'] else 'FAILED: ' + s['error'].replace('|', '/')} | "
+                     f"{s['seconds']:.1f} |")
+    if "valve" in res:
+        v = res["valve"]
+        truth = t["parameters"].get("steering", {})
+        lines += ["", "## Steering valve (commissioning.json)", "",
+                  "| quantity | measured | the bench's truth |", "|---|---:|---:|",
+                  f"| deadband, duty | {v['deadband']:.3f} | {truth.get('deadband', 0.08):.3f} |",
+                  f"| flow exponent | {v['flow_exponent']:.2f} | {truth.get('flow_exponent', 1.3):.2f} |",
+                  f"| right/left rate | {v['right_rate'] / v['left_rate']:.3f} | {truth.get('right_gain', 0.85):.3f} |",
+                  f"| full-duty rate left / right, rad/s (host's angle) | {v['left_rate']:.3f} / {v['right_rate']:.3f} | "
+                  f"{truth.get('max_rate', 0.35):.3f} (left) |",
+                  f"| command-to-motion delay, s | {v['lag']:.3f} | lag {truth.get('lag', 0.08):.3f} + latencies |",
+                  f"| report noise, rad | {v['angle_noise']:.4f} | |"]
+        lin = res.get("linearity") or {}
+        if lin:
+            lines.append(f"\nThrough the inverse map the measured rate follows the wanted one within "
+                         f"{lin['max_error_fraction'] * 100:.1f} % of the max rate.")
+        lp = res.get("loop", {})
+        if lp:
+            lines.append(f"Loop settings from the valve: rate limit {lp['max_rate']:.3f} rad/s, response monitor "
+                         f"window {lp['response_window']:.2f} s, judged from {math.degrees(lp['response_min_command']):.1f} "
+                         f"deg commanded, alarm below {lp['response_min_ratio']:.2f} of it.")
+        files.append(str(_valve_figure(res, out / "valve.png")))
+        lines += ["", "![valve](valve.png)"]
+    ident = res.get("identification")
+    if ident:
+        lines += ["", "## Identification", "", f"{ident['n_logs']} pass logs; models in `models/` "
+                  "(validation: `models/validation.md`).", "",
+                  "| model | order | prediction fit % | acceptance |", "|---|---:|---|---|"]
+        for m in ident["models"]:
+            fits = ", ".join(f"{k} {v:.0f}" for k, v in m.get("prediction_fit", {}).items())
+            lines.append(f"| {m['name']} | {m['order']} | {fits} | {m.get('acceptance', '')} |")
+        for w in ident.get("warnings", []):
+            lines.append(f"\nwarning: {w}")
+    if res.get("designs"):
+        lines += ["", "## Designs", "", f"Weights: {res.get('weights', '')}.", ""]
+        for name, d in res["designs"].items():
+            lines.append(f"- `{name}`: `{d['command']}`")
+    cells = hil_ratios(res.get("hil", []))
+    if cells:
+        lines += ["", "## HIL on this tractor (commissioned loop)", "",
+                  "1-sigma of the measured cross-track, cm (disengagements in brackets); ratios of the robust "
+                  "controller and the MPC to the oracle and to the paper's method (central LQR).", "",
+                  "| implement | m/s | paper's method | robust | MPC | oracle | robust/oracle | MPC/oracle | "
+                  "robust/paper | MPC/paper |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        for c in cells:
+            def s(k: str) -> str:
+                return f"{_cm(c[k])} ({c[k + '_disengagements']})" if c[k + "_disengagements"] is not None else "-"
+            lines.append(f"| {c['implement']} | {c['speed']:.2f} | {s('central-lqr')} | {s('robust')} | {s('mpc')} | "
+                         f"{s('oracle')} | {_x(c['robust_over_oracle'])} | {_x(c['mpc_over_oracle'])} | "
+                         f"{_x(c['robust_over_paper'])} | {_x(c['mpc_over_paper'])} |")
+        files.append(str(_sigma_figure(cells, out / "sigma_vs_speed.png")))
+        lines += ["", "![1-sigma versus speed](sigma_vs_speed.png)"]
+    (out / "report.md").write_text("\n".join(lines) + "\n")
+    return [str(out / "report.md"), *files]

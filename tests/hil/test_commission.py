@@ -1,0 +1,66 @@
+"""hil commission (issue 14 item 7): the recipe end to end on a bench tractor, every output under --out."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import pytest
+
+from hil.bench.cli_commission import add_commission_parser
+from hil.bench.commission import CommissionOptions, commission, hil_ratios
+from hil.truth.conditions import condition_for
+from hil.truth.tractors import resolve_tractor
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="hil")
+    sub = p.add_subparsers(dest="command", required=True)
+    add_commission_parser(sub, float, lambda t: (t.partition("=")[0], float(t.partition("=")[2])))
+    return p
+
+
+@pytest.mark.slow
+def test_commission_runs_end_to_end_and_writes_everything_under_out(tmp_path: Path) -> None:
+    out = tmp_path / "worn"
+    opts = CommissionOptions(speeds=(1.0, 2.24), implements=("none",), passes=2, pass_duration=40.0,
+                             hil_duration=20.0, acceptance="warn", weights="default")
+    lines: list[str] = []
+    res = commission(resolve_tractor("worn-valve"), out, opts, say=lines.append)
+    steps = {s["step"]: s for s in res["steps"]}
+    for name in ("valve", "passes", "identification", "design central-lqr", "design robust", "design mpc", "hil"):
+        assert steps[name]["ok"], steps[name]
+    assert any(line.startswith("[1] valve") for line in lines)       # progress, one line per step
+    # the measured valve is the worn one, and the file says so
+    com = json.loads((out / "commissioning.json").read_text())
+    assert abs(com["valve"]["deadband"] - 0.2) < 0.03
+    for f in ("commissioning.json", "report.md", "valve.png", "sigma_vs_speed.png", "result.json",
+              "controllers/robust.json", "controllers/mpc.json", "controllers/central-lqr.json",
+              "models/central.npz", "logs/none_5th_pass0.npz"):
+        assert (out / f).is_file(), f
+    assert all(Path(f).resolve().is_relative_to(out.resolve()) for f in res["files"])
+    cells = hil_ratios(res["hil"])
+    assert {(c["implement"], c["speed"]) for c in cells} == {("none", 1.0), ("none", 2.24)}
+    for c in cells:
+        for k in ("central-lqr", "robust", "mpc", "oracle"):
+            assert c[k] > 0, (k, c)
+    report = (out / "report.md").read_text()
+    assert "| deadband, duty |" in report and "robust/oracle" in report
+
+
+def test_the_command_refuses_bad_options(capsys) -> None:
+    p = _parser()
+    with pytest.raises(SystemExit):
+        p.parse_args(["commission", "--tractor", "x", "--out", "o", "--order", "zero"])
+    with pytest.raises(SystemExit):
+        p.parse_args(["commission", "--tractor", "x", "--out", "o", "--hil-conditions", "plough:1.0"])
+    with pytest.raises(SystemExit):
+        p.parse_args(["commission", "--tractor", "x"])
+    args = p.parse_args(["commission", "--tractor", "heavy-11t", "--out", "o", "--hil-conditions", "disker:1.79",
+                         "--order", "validate"])
+    assert args.hil_conditions == (condition_for("disker", 1.79),) and args.order == "validate"
+    with pytest.raises(ValueError, match="weights must be one of"):
+        CommissionOptions(weights="tuned")
+    with pytest.raises(ValueError, match="hil_seeds"):
+        CommissionOptions(hil_seeds=())

@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
 from .errors import IdentificationError
-from .passlog import PassLog
+from .outputs import output_file
+from .passlog import PassLog, check_physical
 
 
 CONVERT_HELP = """\
@@ -36,6 +38,7 @@ its own time base (a multi-rate log, as exported by this tool).
 
 def _convert(args: argparse.Namespace) -> dict:
     src, dst = Path(args.src), Path(args.dst)
+    output_file(dst, (".npz", ".csv"), "output")
     meta = json.loads(args.meta) if args.meta else None
     if meta is not None and not isinstance(meta, dict):
         raise IdentificationError("--meta must be a JSON object")
@@ -45,6 +48,7 @@ def _convert(args: argparse.Namespace) -> dict:
         log = PassLog.from_csv(src, meta=meta)
     else:
         raise IdentificationError(f"{src}: expected a .npz or .csv pass log")
+    check_physical(log, str(src))
     if dst.suffix == ".npz":
         log.save(dst)
     elif dst.suffix == ".csv":
@@ -55,23 +59,65 @@ def _convert(args: argparse.Namespace) -> dict:
             "duration_s": log.duration, "content_hash": log.content_hash()}
 
 
-def _order(text: str) -> int | str:
-    if text in ("auto", "validate"):
-        return text
+#: Largest model order and observer Markov parameter count taken on the command line (the
+#: Hankel and regression matrices grow with their square; the tractor's models are of order 4-8).
+MAX_ORDER, MAX_MARKOV = 50, 200
+
+
+def _count(limit: int):
+    def parse(text: str) -> int | str:
+        if text in ("auto", "validate"):
+            return text
+        try:
+            value = int(text)
+        except ValueError:
+            value = 0
+        if not 1 <= value <= limit:
+            raise argparse.ArgumentTypeError(f"expected 'auto', 'validate' or an integer 1-{limit}, got {text!r}")
+        return value
+    return parse
+
+
+_order, _markov = _count(MAX_ORDER), _count(MAX_MARKOV)
+
+
+def _seconds(lo: float, hi: float):
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not lo <= value <= hi:      # also refuses NaN
+            raise argparse.ArgumentTypeError(f"expected a sample time in [{lo:g}, {hi:g}] s, got {text!r}")
+        return value
+    return parse
+
+
+def _fraction(text: str) -> float:
     try:
-        value = int(text)
+        value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'auto', 'validate' or a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected 'auto', 'validate' or a positive integer, got {text!r}")
+        value = math.nan
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected a fraction strictly between 0 and 1, got {text!r}")
     return value
 
 
 def _columns(text: str) -> list[str]:
     cols = [c.strip() for c in text.split(",") if c.strip()]
     if not cols:
-        raise argparse.ArgumentTypeError("expected comma-separated column names")
+        raise argparse.ArgumentTypeError(f"expected comma-separated column names, got {text!r}")
+    twice = sorted({c for c in cols if cols.count(c) > 1})
+    if twice:
+        raise argparse.ArgumentTypeError(f"column(s) {twice} named more than once in {text!r}")
     return cols
+
+
+class _Parser(argparse.ArgumentParser):
+    """Usage errors in one line (``<prog>: error: ... (see --help)``), exit status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def _okid(args: argparse.Namespace) -> dict:
@@ -79,16 +125,24 @@ def _okid(args: argparse.Namespace) -> dict:
 
     from tqdm import tqdm
 
-    with tqdm(total=1, unit="model", desc="identifying", file=sys.stderr, disable=args.json) as bar:
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
+    bars: list = []    # made at the first model, so that an early error prints one line only
 
+    def progress(done: int, total: int) -> None:
+        if not bars:
+            bars.append(tqdm(total=total, unit="model", desc="identifying", file=sys.stderr,
+                             disable=args.json))
+        bars[0].total = total
+        bars[0].n = done
+        bars[0].refresh()
+
+    try:
         return identify_logs(args.logs, args.out, order=args.order, markov=args.markov,
                              normalize=args.normalize, dt=args.dt, method=args.method,
                              kinds=args.kinds, progress=progress, latency=args.latency,
                              acceptance=args.acceptance)
+    finally:
+        for bar in bars:
+            bar.close()
 
 
 def _fit(args: argparse.Namespace) -> dict:
@@ -113,7 +167,7 @@ def _report(args: argparse.Namespace) -> dict:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="identification", description=__doc__.splitlines()[0])
+    p = _Parser(prog="identification", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
     c = sub.add_parser("convert", help="convert a pass log between .npz and .csv",
                        description=CONVERT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -129,7 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--out", required=True, help="directory for models/<name>.npz")
     o.add_argument("--order", type=_order, default="auto",
                    help="model order, 'auto' (default, Hankel gap) or 'validate' (held-out 3 s prediction)")
-    o.add_argument("--markov", "--past", type=_order, default="auto", dest="markov",
+    o.add_argument("--markov", "--past", type=_markov, default="auto", dest="markov",
                    help="observer Markov parameters p (the past window), 'auto' (default, Akaike) or 'validate'")
     o.add_argument("--latency", choices=("auto", "declared", "identified", "valid-time"), default="auto",
                    help="GPS latency source (default auto: valid times, else declared, attitude checked)")
@@ -137,7 +191,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a model that does not predict: refuse (default, nothing written) or warn")
     o.add_argument("--normalize", choices=("velocity", "none"), default="velocity",
                    help="outputs y/V, psi/V, delta (default) or y, psi, delta")
-    o.add_argument("--dt", type=float, default=0.05, help="sample time, s (default 0.05)")
+    o.add_argument("--dt", type=_seconds(0.005, 1.0), default=0.05, help="sample time, s (default 0.05; 0.005-1)")
     o.add_argument("--method", choices=("era-dc", "era"), default="era-dc")
     o.add_argument("--kinds", nargs="+", choices=("local", "velocity-invariant", "central"),
                    default=["local", "velocity-invariant", "central"])
@@ -150,13 +204,14 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--outputs", type=_columns, required=True, help="output columns, comma-separated")
     f.add_argument("--out", required=True, help="model file to write (.npz)")
     f.add_argument("--order", type=_order, default="auto")
-    f.add_argument("--markov", type=_order, default="auto")
-    f.add_argument("--dt", type=float, default=None, help="sample time, s (default: from a time column, else 1)")
+    f.add_argument("--markov", type=_markov, default="auto")
+    f.add_argument("--dt", type=_seconds(1e-9, 1e6), default=None,
+                   help="sample time, s (default: from a time column, else 1)")
     f.add_argument("--method", choices=("era-dc", "era"), default="era-dc")
     f.add_argument("--no-feedthrough", action="store_true", help="fix D = 0")
     f.add_argument("--refine", choices=("pem", "oe", "none"), default="pem",
                    help="re-estimate B, D for one-step prediction (pem, default) or simulation (oe)")
-    f.add_argument("--split", type=float, default=None,
+    f.add_argument("--split", type=_fraction, default=None,
                    help="fit on this leading fraction of each experiment and validate on the rest")
     f.add_argument("--experiment-column", default=None, help="column that numbers separate experiments")
     f.add_argument("--json", action="store_true")
@@ -167,7 +222,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("data", help="CSV file with a header row")
     v.add_argument("--inputs", type=_columns, required=True)
     v.add_argument("--outputs", type=_columns, required=True)
-    v.add_argument("--dt", type=float, default=None)
+    v.add_argument("--dt", type=_seconds(1e-9, 1e6), default=None, help="sample time, s")
     v.add_argument("--experiment-column", default=None)
     v.add_argument("--json", action="store_true")
     v.set_defaults(func=_validate)
@@ -183,12 +238,27 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one sub-command; 0 on success, 1 on an error (one line), 2 on a usage error, 130 on Ctrl-C.
+
+    Files are written whole or not at all, so an interrupt leaves no partial file.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         result = args.func(args)
+    except KeyboardInterrupt:
+        print(f"identification {args.command}: interrupted; no partial file was written", file=sys.stderr)
+        return 130
     except (IdentificationError, ValueError, json.JSONDecodeError) as exc:
-        print(f"identification {args.command}: error: {exc}", file=sys.stderr)
+        print(f"identification {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        where = f" ({exc.filename})" if exc.filename else ""
+        print(f"identification {args.command}: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print(f"identification {args.command}: error: out of memory; use a smaller order, fewer "
+              "Markov parameters or a shorter record", file=sys.stderr)
         return 1
     text = result.pop("_text", None)
     if args.json:
@@ -199,6 +269,10 @@ def main(argv: list[str] | None = None) -> int:
         for k, v in result.items():
             print(f"{k:>14}: {v}")
     return 0
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
 
 
 if __name__ == "__main__":

@@ -26,11 +26,47 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .errors import ModelFileError
+from .errors import ModelFileError, OptionError
+from .outputs import atomic_write, check_name
 
 SCHEMA = "identification-model/1"
 KINDS = ("local", "velocity-invariant", "central", "generic")
 ARRAYS = ("A", "B", "C", "D", "K")
+NORMALIZATIONS = ("velocity", "none")
+MAX_SPEED = 30.0   # m/s, the pass logs' bound on a nominal speed
+
+
+def _speed(value: Any, what: str) -> None:
+    if (isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value)
+            or not 0.0 <= value <= MAX_SPEED):
+        raise ModelFileError(f"{what} must be a speed in m/s, a finite number in [0, {MAX_SPEED:g}], "
+                             f"got {value!r}")
+
+
+def _check_meta_fields(meta: Mapping[str, Any]) -> None:
+    """The metadata fields that other code reads: normalisation, nominal speeds, condition labels."""
+    if "normalization" in meta and meta["normalization"] not in NORMALIZATIONS:
+        raise ModelFileError(f"meta['normalization'] must be one of {NORMALIZATIONS}, "
+                             f"got {meta['normalization']!r}")
+    if "nominal_speed" in meta:
+        _speed(meta["nominal_speed"], "meta['nominal_speed']")
+    if "name" in meta and not isinstance(meta["name"], str):
+        raise ModelFileError(f"meta['name'] must be a string, got {meta['name']!r}")
+    conds = meta.get("conditions", [])
+    if not isinstance(conds, list):
+        raise ModelFileError(f"meta['conditions'] must be a list, got {type(conds).__name__}")
+    for i, c in enumerate(conds):
+        if not isinstance(c, Mapping):
+            raise ModelFileError(f"meta['conditions'][{i}] must be an object with implement, gear and "
+                                 f"nominal_speed, got {c!r}")
+        try:
+            check_name(c.get("implement"), f"meta['conditions'][{i}]['implement']")
+            if c.get("gear") is not None:
+                check_name(c["gear"], f"meta['conditions'][{i}]['gear']")
+        except OptionError as exc:
+            raise ModelFileError(str(exc)) from None
+        if "nominal_speed" in c:
+            _speed(c["nominal_speed"], f"meta['conditions'][{i}]['nominal_speed']")
 
 
 def _matrix(value: Any, name: str) -> np.ndarray:
@@ -106,6 +142,7 @@ class Model:
             meta = json.loads(json.dumps(meta))
         except (TypeError, ValueError) as exc:
             raise ModelFileError(f"meta is not JSON-serialisable ({exc})") from None
+        _check_meta_fields(meta)
         for name in ARRAYS:
             object.__setattr__(self, name, mats[name])
         object.__setattr__(self, "dt", float(dt))
@@ -148,12 +185,9 @@ class Model:
         path = Path(path)
         if path.suffix != ".npz":
             raise ModelFileError(f"{path}: a model file must end in .npz")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".part")
-        with open(tmp, "wb") as fh:
+        with atomic_write(path) as fh:
             np.savez(fh, A=self.A, B=self.B, C=self.C, D=self.D, K=self.K,
                      dt=np.float64(self.dt), meta=np.array(json.dumps(dict(self.meta), sort_keys=True)))
-        tmp.replace(path)
         return path
 
     @classmethod

@@ -45,7 +45,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .errors import PassLogError
+from .errors import OptionError, PassLogError
+from .outputs import atomic_write, check_name
 
 SCHEMA = "passlog/1"
 
@@ -59,8 +60,29 @@ CHANNELS: Mapping[str, tuple[str, str]] = MappingProxyType({
 })
 TIME_BASES: tuple[str, ...] = ("t", "t_cross_track", "t_heading_error", "t_speed")
 REQUIRED_META: tuple[str, ...] = ("implement", "nominal_speed")
+#: Physical ranges of the standard channels and of every time stamp (SI), checked by
+#: :func:`check_physical` before a log is used for identification: a value outside is a unit or
+#: logging error (degrees for radians, a corrupted field), refused before it can reach a fit.
+RANGES: Mapping[str, tuple[float, float]] = MappingProxyType({
+    "wheel_angle": (-math.pi / 2, math.pi / 2),      # rad: no front wheel turns beyond 90 deg
+    "steer_rate_cmd": (-10.0, 10.0),                 # rad/s: 570 deg/s, far beyond any steering valve
+    "cross_track": (-1e4, 1e4),                      # m: 10 km off the line is not a pass
+    "heading_error": (-2 * math.pi, 2 * math.pi),    # rad: one turn either way
+    "speed": (-30.0, 30.0),                          # m/s: 108 km/h, either direction
+})
+TIME_RANGE: tuple[float, float] = (-1e6, 1e6)        # s since the start of the pass (11.6 days)
+MAX_NOMINAL_SPEED = 30.0                             # m/s
+
 #: Metadata key listing the time bases a single-rate log leaves out (their channels are on ``t``).
 ON_T = "time_bases_on_t"
+
+
+def _in_range(arr: np.ndarray, name: str, lo: float, hi: float, unit: str) -> None:
+    bad = np.flatnonzero((arr < lo) | (arr > hi))
+    if bad.size:
+        i = int(bad[0])
+        raise PassLogError(f"channel {name!r}: value {float(arr[i])!r} {unit} at index {i} is outside "
+                           f"[{lo:g}, {hi:g}] {unit}; expected SI units ({unit}) and a physical value")
 
 
 def _readonly(a: Any, name: str) -> np.ndarray:
@@ -194,17 +216,24 @@ class PassLog:
         """Write the canonical ``.npz`` file (no pickled objects)."""
         path = Path(path)
         arrays = {**self.times, **self.channels, "meta": np.array(json.dumps(dict(self.meta)))}
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".part")
-        with open(tmp, "wb") as fh:
+        with atomic_write(path) as fh:
             np.savez_compressed(fh, **arrays)
-        tmp.replace(path)
         return path
 
     @classmethod
     def load(cls, path: str | Path) -> "PassLog":
         """Read a ``.npz`` pass log with ``allow_pickle=False``; refuse anything malformed."""
         path = Path(path)
+        try:
+            with open(path, "rb") as fh:
+                magic = fh.read(4)
+        except FileNotFoundError:
+            raise PassLogError(f"{path}: no such file") from None
+        except OSError as exc:
+            raise PassLogError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        if magic[:2] != b"PK":
+            raise PassLogError(f"{path}: not a .npz pass log (expected a zip archive, got leading bytes "
+                               f"{magic!r}); a CSV log is read with 'identification convert'")
         try:
             with np.load(path, allow_pickle=False) as npz:
                 keys = list(npz.files)
@@ -252,8 +281,7 @@ class PassLog:
             t, v = self.channel(name)
             for ti, vi in zip(t.tolist(), v.tolist()):
                 rows.setdefault(ti, {})[name] = vi
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with open(path, "w", newline="") as fh:
+        with atomic_write(path, "w") as fh:
             fh.write(f"# {SCHEMA} meta={json.dumps(dict(self.meta), sort_keys=True)}\n")
             w = csv.writer(fh)
             w.writerow(["time", *names])
@@ -345,6 +373,31 @@ class PassLog:
             raise PassLogError(f"{path}: {exc}") from None
 
 
+def check_physical(log: PassLog, where: str = "") -> None:
+    """Refuse a log whose values cannot be physical, before it is used for identification.
+
+    Every standard channel must lie in its :data:`RANGES` interval, every time
+    stamp in :data:`TIME_RANGE`, and the tractor must move: a speed that is 0
+    on every sample leaves nothing to normalise by and no lateral dynamics.
+
+    Raises
+    ------
+    PassLogError
+        With the channel, the value, its index and the expected range.
+    """
+    prefix = f"{where}: " if where else ""
+    try:
+        for name, arr in log.times.items():
+            _in_range(arr, name, *TIME_RANGE, "s")
+        for name, (lo, hi) in RANGES.items():
+            _in_range(log.channels[name], name, lo, hi, CHANNELS[name][1])
+    except PassLogError as exc:
+        raise PassLogError(prefix + str(exc)) from None
+    if not np.any(log.channels["speed"] != 0.0):
+        raise PassLogError(f"{prefix}speed is 0 m/s on every sample; a pass for identification must "
+                           "move (expected a ground speed > 0 on at least part of the pass)")
+
+
 def _check_meta(meta: Mapping[str, Any]) -> dict[str, Any]:
     if not isinstance(meta, Mapping):
         raise PassLogError(f"meta must be a mapping, got {type(meta).__name__}")
@@ -358,9 +411,18 @@ def _check_meta(meta: Mapping[str, Any]) -> dict[str, Any]:
                            "nominal speed (m/s)")
     if not isinstance(out["implement"], str) or not out["implement"]:
         raise PassLogError(f"meta['implement'] must be a non-empty string, got {out['implement']!r}")
+    gear = out.get("gear")
+    try:
+        check_name(out["implement"], "meta['implement']")
+        if gear is not None and not (isinstance(gear, int) and not isinstance(gear, bool) and 0 < gear < 100):
+            check_name(gear, "meta['gear'] (a name, or a gear number 1-99)")
+    except OptionError as exc:
+        raise PassLogError(str(exc)) from None
     v = out["nominal_speed"]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-        raise PassLogError(f"meta['nominal_speed'] must be a finite speed >= 0 m/s, got {v!r}")
+    if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0
+            or v > MAX_NOMINAL_SPEED):
+        raise PassLogError(f"meta['nominal_speed'] must be a finite speed >= 0 m/s (at most "
+                           f"{MAX_NOMINAL_SPEED:g} m/s), got {v!r}")
     try:
         json.dumps(out)
     except (TypeError, ValueError) as exc:

@@ -23,7 +23,8 @@ from dataclasses import replace
 from .acceptance import assess
 from .data import IOData
 from .delay import delay_meta, measure_latency
-from .passlog import PassLog
+from .outputs import inside
+from .passlog import PassLog, check_physical
 from .preprocess import Preprocessing, condition_of, passes_to_iodata
 from .selection import fit_select
 from .validation import ValidationResult, validate
@@ -120,6 +121,8 @@ def identify_tractor(logs: Sequence[PassLog], pre: Preprocessing = Preprocessing
     progress
         Called as ``progress(models_done, models_total)``.
     """
+    for i, log in enumerate(logs):
+        check_physical(log, f"pass {i} ({log.meta.get('source', 'no source')})")
     opts = dict(okid_options or {})
     latency = measure_latency(logs, opts.pop("latency", "auto"))
     given = dict(pre.latency_s)
@@ -147,6 +150,11 @@ def identify_tractor(logs: Sequence[PassLog], pre: Preprocessing = Preprocessing
 
 
 def save_results(results: Sequence[TractorResult], out_dir: str | Path) -> list[Path]:
-    """Write ``<out_dir>/<name>.npz`` for every result."""
-    out_dir = Path(out_dir)
-    return [r.model.save(out_dir / f"{r.name}.npz") for r in results]
+    """Write ``<out_dir>/<name>.npz`` for every result.
+
+    Every path is resolved and checked to stay under ``out_dir`` before the
+    first file is written (:func:`identification.outputs.inside`); each file is
+    written whole or not at all.
+    """
+    paths = [inside(out_dir, f"{r.name}.npz") for r in results]
+    return [r.model.save(p) for r, p in zip(results, paths)]

@@ -17,7 +17,8 @@ from .csvdata import read_csv
 from .errors import DataError
 from .model import Model
 from .okid import OKID
-from .passlog import PassLog
+from .outputs import output_dir, output_file
+from .passlog import PassLog, check_physical
 from .preprocess import Preprocessing, passes_to_iodata
 from .tractor import identify_tractor, save_results
 from .validation import validate
@@ -56,8 +57,11 @@ def identify_logs(logs: Sequence[str | Path], out_dir: str | Path, order: int | 
     ``acceptance="refuse"`` nothing is written when a model does not predict
     (:mod:`identification.acceptance`); ``validation.md`` and a figure are written beside the models.
     """
+    output_dir(out_dir)
     files = expand_logs(logs)
     passes = [PassLog.load(f) for f in files]
+    for f, log in zip(files, passes):
+        check_physical(log, str(f))
     pre = Preprocessing(dt=dt, normalize=normalize)
     results = identify_tractor(passes, pre, {"order": order, "markov": markov, "method": method,
                                              "latency": latency}, kinds, progress)
@@ -95,6 +99,7 @@ def fit_csv(data: str | Path, inputs: Sequence[str], outputs: Sequence[str], out
             method: str = "era-dc", feedthrough: bool = True, split: float | None = None,
             experiment_column: str | None = None, refine: str = "pem") -> dict:
     """Identify a model from a CSV record and write it to ``out`` (.npz)."""
+    output_file(out, (".npz",), "--out")
     io = read_csv(data, inputs, outputs, dt, experiment_column)
     fit, val = io.split(split) if split is not None else (io, io)
     est = OKID(order=order, markov=markov, method=method, feedthrough=feedthrough, refine=refine).fit(
@@ -126,6 +131,7 @@ def validate_csv(model: str | Path, data: str | Path, inputs: Sequence[str], out
 def make_report(models_dir: str | Path, out_dir: str | Path, logs: Sequence[str | Path] | None = None) -> dict:
     """Figures 6 (Hankel SV), 7 (modal SV) and, with pass logs, 8 (reconstruction) and Table 1."""
     models_dir, out_dir = Path(models_dir), Path(out_dir)
+    output_dir(out_dir)
     files = sorted(models_dir.glob("*.npz"))
     if not files:
         raise DataError(f"{models_dir}: no model files (*.npz)")

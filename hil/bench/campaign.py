@@ -195,13 +195,20 @@ class Campaign:
                 if progress:
                     progress(done, total)
         else:
-            with ProcessPoolExecutor(max_workers=workers or os.cpu_count()) as pool:
+            pool = ProcessPoolExecutor(max_workers=workers or os.cpu_count())
+            try:
                 futures = [pool.submit(run_one, k, self.params) for k in todo]
                 for fut in as_completed(futures):
                     self._save(fut.result())
                     done += 1
                     if progress:
                         progress(done, total)
+            except BaseException:
+                # Ctrl-C or a failed pass: pending passes are cancelled, the running ones are not waited
+                # for (what finished is saved; a rerun resumes)
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
+            pool.shutdown(wait=True)
         return self.results()
 
     def realtime_plan(self, controllers: Sequence[str] | None = None, duration: float | None = None

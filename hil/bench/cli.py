@@ -39,6 +39,22 @@ from hil.truth.conditions import condition_for
 from hil.bench.report import write_report
 from hil.bench.sysid import SysidPlan, make_passes
 from hil.vehicle.cli import add_drive_parser, print_run_result
+from hil.vehicle.outputs import prepare_out_dir, prepare_out_file, write_text_atomic
+
+#: Sub-commands whose --out is a directory, and those whose --out is a file (checked before any work).
+OUT_DIRS = ("sysid", "run", "compare", "tune", "calibrate", "tractors")
+OUT_FILES = {"plot": (".png", ".pdf", ".svg")}
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before the work starts, an --out that cannot be written (one line, no traceback)."""
+    out = getattr(args, "out", None)
+    if out is None:
+        return
+    if args.command in OUT_FILES:
+        prepare_out_file(out, suffixes=OUT_FILES[args.command])
+    elif args.command in OUT_DIRS:
+        prepare_out_dir(out)
 
 
 def _float(text: str) -> float:
@@ -46,6 +62,16 @@ def _float(text: str) -> float:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def _workers(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1 or n > 256:
+        raise argparse.ArgumentTypeError(f"expected a number of processes from 1 to 256, got {text!r}")
+    return n
 
 
 def _override(text: str) -> tuple[str, float]:
@@ -256,7 +282,7 @@ def _cmd_run(args: argparse.Namespace) -> dict:
     result = {"out": str(out), "controller": controller_label(args.controller), "implement": spec.implement, "speed": spec.speed,
               "mode": log.meta["mode"], "summary": summary, "events": list(log.meta["events"]),
               "files": [str(out / "run_log.npz"), str(out / "track.png"), str(out / "summary.json")]}
-    (out / "summary.json").write_text(json.dumps(result, indent=2) + "\n")
+    write_text_atomic(out / "summary.json", json.dumps(result, indent=2) + "\n")
     return result
 
 
@@ -339,7 +365,7 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--duration", type=_float, default=60.0, help="seconds per pass (default 60)")
     cp.add_argument("--executor", choices=EXECUTORS, default="local")
     cp.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://10.0.0.5:8786 (with --executor dask)")
-    cp.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
+    cp.add_argument("--workers", type=_workers, default=None, help="local processes (default: all cores)")
     cp.add_argument("--realtime", type=_conditions, default=None, metavar="IMPLEMENT:SPEED,...",
                     help="also run these conditions (first seed, every controller) in real time over "
                          "pseudo-terminals, one after the other; reported apart")
@@ -363,7 +389,7 @@ def build_parser() -> argparse.ArgumentParser:
     tu.add_argument("--duration", type=_float, default=40.0)
     tu.add_argument("--executor", choices=EXECUTORS, default="local")
     tu.add_argument("--scheduler")
-    tu.add_argument("--workers", type=int, default=None)
+    tu.add_argument("--workers", type=_workers, default=None)
     tu.add_argument("--out", required=True)
     tu.add_argument("--quiet", action="store_true")
     tu.set_defaults(func=_cmd_tune)
@@ -389,7 +415,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="score 1-sigma by its distance outside the +-30 %% band (default: ln(ratio)^2)")
     ca.add_argument("--all-passes", action="store_true",
                     help="score cells on every pass, also those with a disengagement (default: clean passes)")
-    ca.add_argument("--workers", type=int, default=None, help="local processes (default: all cores)")
+    ca.add_argument("--workers", type=_workers, default=None, help="local processes (default: all cores)")
     ca.add_argument("--quiet", action="store_true")
     ca.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     ca.set_defaults(func=_cmd_calibrate)
@@ -457,6 +483,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        check_outputs(args)
         result = args.func(args)
     except (HilError, PassLogError, ValueError) as exc:
         print(f"hil {args.command}: error: {exc}", file=sys.stderr)

@@ -22,6 +22,7 @@ from design.files.signature import load_public_key
 
 from hil.errors import HilError
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, vehicle_controller
+from hil.vehicle.outputs import prepare_out_dir, write_text_atomic
 from hil.vehicle.summary import summarize
 
 
@@ -71,7 +72,7 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
     result = {"out": str(out), "controller": controller_label(args.controller), "implement": args.implement,
               "speed": args.speed, "mode": "vehicle", "summary": summary, "events": list(log.meta["events"]),
               "files": [str(out / "run_log.npz"), str(out / "summary.json")]}
-    (out / "summary.json").write_text(json.dumps(result, indent=2) + "\n")
+    write_text_atomic(out / "summary.json", json.dumps(result, indent=2) + "\n")
     return result
 
 
@@ -130,6 +131,7 @@ def main(argv: list[str] | None = None) -> int:
     add_drive_parser(sub)
     args = parser.parse_args(["drive", *(sys.argv[2:] if argv is None else argv)])
     try:
+        prepare_out_dir(args.out)
         result = args.func(args)
     except (HilError, PassLogError, ValueError) as exc:
         print(f"hil drive: error: {exc}", file=sys.stderr)

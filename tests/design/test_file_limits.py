@@ -87,7 +87,8 @@ def test_cli_refuses_an_over_order_model_with_one_line(tmp_path, capsys):
     path = big_stable_model(MAX_MODEL_ORDER + 1).save(tmp_path / "big.npz")
     assert design_main(["lqr", "--model", str(path), "--out", str(tmp_path / "x.json")]) == 1
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and f"has {MAX_MODEL_ORDER + 1} states" in err
+    assert err.count("\n") == 1 and f"has {MAX_MODEL_ORDER + 1} states; the design tools take at most " \
+                                     f"MAX_MODEL_ORDER = {MAX_MODEL_ORDER}" in err
     assert not (tmp_path / "x.json").exists()
 
 

@@ -221,3 +221,43 @@ def feedback_compensator(k: np.ndarray, layout: IOStateLayout) -> Compensator:
     for lag in range(1, p + 1):
         x0[idx(layout.output_slot(lag))] = np.eye(q)
     return Compensator(ac, bc, cc, dc, layout.dt, ec, x0)
+
+
+def observable_past(models, most: int = 12, tolerance: float = 1e-6) -> int:
+    """Smallest window ``past`` whose outputs determine every model's state (the automatic ``--past``).
+
+    Parameters
+    ----------
+    models
+        Strictly proper models (any order, any state basis) with ``A`` (n x n) and ``C`` (q x n).
+    most
+        Longest window tried, samples.
+    tolerance
+        Smallest accepted ratio of the n-th to the first singular value of
+        ``[C; CA; ...; CA^p]`` (well-conditioned ``Phi`` of :func:`window_to_state`, not only
+        full rank).
+
+    Raises
+    ------
+    DesignInputError
+        No window up to ``most`` samples determines some model's state (names it).
+    """
+    need = 1
+    for i, m in enumerate(models):
+        a, c = np.asarray(m.A, dtype=float), np.asarray(m.C, dtype=float)
+        n = a.shape[0]
+        rows, ratio = [c], 0.0
+        for p in range(0, most + 1):
+            if p:
+                rows.append(rows[-1] @ a)
+            sv = np.linalg.svd(np.vstack(rows), compute_uv=False)
+            ratio = float(sv[n - 1] / sv[0]) if sv.size >= n and sv[0] > 0 else 0.0
+            if p >= 1 and ratio > tolerance:
+                need = max(need, p)
+                break
+        else:
+            name = getattr(m, "meta", {}).get("name", f"model {i}")
+            raise DesignInputError(f"{name}: no window of up to {most + 1} output samples determines its {n} states "
+                                   f"(best conditioning {ratio:.3g}, expected > {tolerance:g}); the model is not "
+                                   "observable from its outputs: re-identify it or give --past explicitly")
+    return need

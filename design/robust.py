@@ -12,7 +12,7 @@ Nothing that fails verification is returned.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
@@ -24,7 +24,7 @@ from .compensator import Compensator
 from .errors import DesignInputError
 from .files.linear import ControllerFile, outputs_for
 from .limits import check_model_order
-from .iostate import IOStateLayout, feedback_compensator, io_state_model
+from .iostate import IOStateLayout, feedback_compensator, io_state_model, observable_past
 from .lmi import (LMIOptions, StateFeedbackDesign, closed_loop_cost, robust_state_feedback,
                   robust_state_feedback_rounds)
 from .lqr import dlqr, lqg_compensator
@@ -60,7 +60,9 @@ class RobustSpec:
     integral
         Integrate the first output (cross-track / speed) so a steady pull leaves no bias.
     past
-        Past samples in the measured state (>= 1).
+        Past samples in the measured state (>= 1), or None: the shortest window whose outputs
+        determine every model's state (:func:`design.iostate.observable_past`; 1 for the
+        order-4 models, 3 for order 10 with 3 outputs).
     command_limit
         Clip of the exported controller's command, rad/s (the loop's limit).
     speed_min
@@ -93,7 +95,7 @@ class RobustSpec:
     rate_limit: float | None = None
     initial_errors: tuple[float, ...] = (0.03, 0.01, 0.0)
     integral: bool = False
-    past: int = 1
+    past: int | None = 1
     command_limit: float = 0.35
     speed_min: float = 0.3
     name: str = "robust"
@@ -111,8 +113,8 @@ class RobustSpec:
             raise DesignInputError("the observer structure needs a nominal model (e.g. the central model)")
         if self.method not in METHODS:
             raise DesignInputError(f"method must be one of {METHODS}, got {self.method!r}")
-        if isinstance(self.past, bool) or not isinstance(self.past, int) or self.past < 1:
-            raise DesignInputError(f"past must be an integer >= 1, got {self.past!r}")
+        if self.past is not None and (isinstance(self.past, bool) or not isinstance(self.past, int) or self.past < 1):
+            raise DesignInputError(f"past must be an integer >= 1 or None (automatic), got {self.past!r}")
 
 
 @dataclass(frozen=True)
@@ -160,6 +162,8 @@ def design_problem(models: Sequence[Model], spec: RobustSpec) -> tuple[IOStateLa
     w = spec.weights
     if spec.structure == "observer":
         return _anchored_problem(models, spec)
+    if spec.past is None:
+        spec = replace(spec, past=observable_past(models))
     layout = IOStateLayout(q, 1, spec.past, (0,) if spec.integral else (), models[0].dt)
     a_list, b_list = [], []
     for m in models:
@@ -251,6 +255,9 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
     """
     spec = spec or RobustSpec()
     check_model_order(models)
+    if spec.past is None and spec.structure == "window":
+        _check_family(models)
+        spec = replace(spec, past=observable_past(models))
     names = _model_names(models)
     layout, a_list, b_list, d = design_problem(models, spec)
     e0 = None

@@ -10,19 +10,26 @@ the unconstrained law is checked closed around every other model given.
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 from identification.model import Model
 
-from .cli_robust import _load_models, certificate_table
+from .auto_designs import auto_mpc
+from .cli_robust import _load_models, _weights, certificate_table, spec_lines
+from .cli_specs import add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of
+from .iostate import feedback_compensator, observable_past
+from .robust import _model_names
+from .specs import check_specs
 from .errors import DesignInputError
 from .mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
-from .mpc.design import MPCSpec, design_mpc, fallback_from_file
+from .mpc.design import MPCSpec, design_mpc, fallback_from_file, read_controller_file
 from .mpc.problem import TERMINALS, MPCLimits, MPCWeights, mpc_problem
-from .weights import OutputWeights
 
 
 def cmd_mpc(args: argparse.Namespace) -> dict:
+    refuse_mixed(args)
     models = _load_models(args.models)
+    validate = _load_models(args.validate_on) if args.validate_on else []
     if args.central:
         central = Model.load(args.central)
         others = models
@@ -33,24 +40,53 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
                                    f"{len(centrals)}; name the prediction model with --central")
         central = centrals[0]
         others = [m for m in models if m is not central]
-    weights = MPCWeights(OutputWeights(tuple(args.y_max), args.u_max, args.i_max), args.slack_weight,
-                         args.slack_weight * 1e-2, args.terminal)
+    past = args.past
+    if past is None:
+        past = fallback_past(args.fallback) if args.fallback else observable_past([central])
+    weights = MPCWeights(_weights(args), args.slack_weight, args.slack_weight * 1e-2, args.terminal)
     limits = MPCLimits(args.rate_limit, args.wheel_angle_limit)
     settings = SolverSettings(args.backend, args.solver, args.max_iter, args.time_budget_ms * 1e-3)
-    spec = MPCSpec(args.horizon, weights, limits, settings, args.past,
+    spec = MPCSpec(args.horizon, weights, limits, settings, past,
                    tuple(None if c <= 0 else c for c in args.output_clip), args.speed_min, args.name)
-    gain = None
-    if args.fallback:
-        gain = fallback_from_file(args.fallback, mpc_problem(central, args.horizon, weights, limits, args.past))
-    res = design_mpc(central, others, spec, gain, require=not args.allow_unstable)
+    family = [central, *others, *validate]
+    latency = latency_of(args, family)
+    specs = specs_of(args, latency, args.rate_limit, True)
+    checked = None
+    if args.weights == "auto":
+        res, _search = auto_mpc(central, others, spec, specs, validate, search_of(args), args.fallback,
+                                require=not args.allow_unstable, progress=progress_of(args))
+        weights = res.file.weights
+    else:
+        gain = None
+        if args.fallback:
+            gain = fallback_from_file(args.fallback, mpc_problem(central, args.horizon, weights, limits, past))
+        res = design_mpc(central, others, spec, gain, require=not args.allow_unstable)
+        if latency is not None:
+            comp = feedback_compensator(res.unconstrained_gain, res.problem.layout)
+            names = _model_names([central, *others, *validate])
+            names = [n if i <= len(others) else f"validation:{n}" for i, n in enumerate(names)]
+            checked = {"specifications": specs.to_dict(),
+                       "achieved": check_specs(comp, family, specs, latency, names).to_dict()}
+            res = replace(res, file=replace(res.file, design={**res.file.design, "specifications_check": checked}))
     res.file.save(args.out)
     f = res.file
     return {"out": str(args.out), "horizon": f.horizon, "dt": f.dt, "prediction_model": f.design["design_model"],
+            "past": f.past,
             "weights": {**f.design["weights"], "slack_linear": weights.slack_linear,
                         "slack_quadratic": weights.slack_quadratic, "terminal": weights.terminal},
             "limits": {"rate": limits.rate, "wheel_angle": limits.wheel_angle},
             "solver": settings.to_dict(), "fallback": f.fallback_law,
-            "unconstrained_gain": f.design["unconstrained_gain"], "certificate": dict(f.certificate)}
+            "unconstrained_gain": f.design["unconstrained_gain"], "certificate": dict(f.certificate),
+            "auto_weights": f.design.get("auto_weights"), "specifications_check": checked}
+
+
+def fallback_past(path: str) -> int:
+    """The measured window (``past``) of a robust controller file, so the MPC's state is the fallback's."""
+    d = read_controller_file(path, dt=None).design
+    past = d.get("past")
+    if isinstance(past, bool) or not isinstance(past, int) or past < 1:
+        raise DesignInputError(f"{path}: the design records no measured window (past = {past!r}); give --past")
+    return past
 
 
 def add_parser(sub: argparse._SubParsersAction, number) -> None:
@@ -73,14 +109,17 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--terminal", choices=TERMINALS, default="riccati")
     p.add_argument("--fallback", help="robust controller file (window structure, --integral) whose gain is the "
                                       "fallback law (default: the unconstrained LQR)")
-    p.add_argument("--past", type=int, default=1, help="past samples in the measured state")
+    p.add_argument("--past", type=parse_past, default=None,
+                   help="past samples in the measured state, or 'auto' (default): the fallback's window, else the "
+                        "shortest that determines the central model's state")
     p.add_argument("--output-clip", type=number, nargs=3, default=[0.1, 0.05, 0.0],
                    help="clip of each normalised output (0 = none)")
     p.add_argument("--speed-min", type=number, default=0.3, help="speed floor of the normalisation, m/s")
-    p.add_argument("--y-max", type=number, nargs="+", default=[0.05, 0.03, 0.09],
-                   help="Bryson output maxima in model units (y/V s, psi/V rad s/m, delta rad)")
-    p.add_argument("--u-max", type=number, default=0.35, help="Bryson steering rate, rad/s")
-    p.add_argument("--i-max", type=number, default=0.5, help="Bryson integral of y/V, s^2")
+    p.add_argument("--y-max", type=number, nargs="+", default=None,
+                   help="Bryson output maxima in model units (y/V s, psi/V rad s/m, delta rad; default 0.05 0.03 0.09)")
+    p.add_argument("--u-max", type=number, default=None, help="Bryson steering rate, rad/s (default 0.35)")
+    p.add_argument("--i-max", type=number, default=None, help="Bryson integral of y/V, s^2 (default 0.5)")
+    add_spec_arguments(p, number)
     p.add_argument("--allow-unstable", action="store_true",
                    help="write it even if the unconstrained law is unstable on some model (recorded)")
     p.add_argument("--name", default=None)
@@ -101,5 +140,6 @@ def render(result: dict) -> str:
              f"fallback law: {result['fallback']}",
              "unconstrained law closed around each model:",
              certificate_table(result["certificate"]),
+             *spec_lines(result),
              f"wrote {result['out']}"]
     return "\n".join(lines)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
-
+from dataclasses import replace
 from pathlib import Path
 
 from identification.model import Model
@@ -12,7 +12,10 @@ from identification.model import Model
 from .files.recheck import recheck
 from .export import FORMATS, export_controller
 from .errors import DesignInputError, VerificationError
-from .robust import RobustSpec, design_lqr, design_robust
+from .auto_designs import auto_robust
+from .cli_specs import add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of
+from .robust import RobustSpec, _model_names, design_lqr, design_robust
+from .specs import check_specs
 from .weights import OutputWeights
 
 
@@ -27,7 +30,9 @@ def _load_models(paths: list[str]) -> list[Model]:
 
 
 def _weights(args: argparse.Namespace) -> OutputWeights:
-    return OutputWeights(tuple(args.y_max), args.u_max, args.i_max)
+    d = OutputWeights()
+    return OutputWeights(tuple(args.y_max) if args.y_max is not None else d.y_max,
+                         d.u_max if args.u_max is None else args.u_max, d.i_max if args.i_max is None else args.i_max)
 
 
 def certificate_table(cert: dict) -> str:
@@ -50,22 +55,68 @@ def certificate_table(cert: dict) -> str:
     return "\n".join(lines)
 
 
+def spec_lines(result: dict) -> list[str]:
+    """Text lines of the chosen weights and the specifications met (automatic or checked)."""
+    lines = []
+    auto = result.get("auto_weights")
+    checked = result.get("specifications_check")
+    if auto:
+        w, sp, ach = auto["weights"], auto["specifications"], auto["achieved"]
+        lines.append(f"weights chosen from the specifications: scale {auto['chosen_scale']:.4g} -> y_max "
+                     f"{', '.join(f'{v:.4g}' for v in w['y_max'])}, u_max {w['u_max']:g} rad/s, i_max {w['i_max']:.4g} "
+                     f"({len(auto['search']['trials'])} trials)")
+    elif checked:
+        sp, ach = checked["specifications"], checked["achieved"]
+    else:
+        return lines
+    wst = ach["worst"]
+    lines.append(f"specifications (latency {', '.join(f'{v:g}' for v in ach['latency_s'])} s in the loop): disk margin "
+                 f">= {sp['disk_margin']:g} (worst {wst['disk_margin']:.3f}), delay reserve >= {sp['delay_reserve']:g} s "
+                 f"(worst {wst['delay_reserve_s']:.3g} s), peak command <= {sp['rate_limit']:g} rad/s (worst "
+                 f"{float(wst['peak_rate']):.3f}) on {len(ach['models'])} models: "
+                 f"{'all met' if ach['passed'] else 'NOT MET'}")
+    if not ach["passed"]:
+        for r in ach["models"]:
+            for f in r["failures"]:
+                lines.append(f"  {r['name']}: {f}")
+    return lines
+
+
 def cmd_robust(args: argparse.Namespace) -> dict:
+    refuse_mixed(args)
     models = _load_models(args.models)
+    validate = _load_models(args.validate_on) if args.validate_on else []
     nominal = Model.load(args.nominal) if args.nominal else None
     spec = RobustSpec(_weights(args), args.formulation, args.solver, args.pole_radius, args.rate_limit,
                       tuple(args.initial_errors), args.integral, args.past, args.command_limit, name=args.name,
                       structure=args.structure, nominal=nominal,
                       output_clip=tuple(None if c <= 0 else c for c in args.output_clip), method=args.method,
                       backend=args.backend, refine=args.refine)
-    res = design_robust(models, spec)
+    latency = latency_of(args, [*models, *validate])
+    specs = specs_of(args, latency, args.command_limit, args.integral)
+    checked = None
+    if args.weights == "auto":
+        res, _search = auto_robust(models, spec, specs, validate, search_of(args), progress_of(args))
+    else:
+        res = design_robust(models, spec)
+        if latency is not None:
+            checked = check_specs(res.file.compensator, [*models, *validate], specs, latency,
+                                  _spec_names(models, validate)).to_dict()
+            res = replace(res, file=replace(res.file, design={**res.file.design, "specifications_check": {
+                "specifications": specs.to_dict(), "achieved": checked}}))
     res.file.save(args.out)
     d = res.file.design
     return {"out": str(args.out), "certificate": dict(res.file.certificate), "guaranteed_cost": d["guaranteed_cost"],
             "implausible_models": d["implausible_models"],
             "conservatism": d["conservatism"], "times_s": d["times_s"], "formulation": spec.formulation,
             "synthesis_bound": d["synthesis_bound"], "refine_steps": d["refine_steps"],
-            "solver": spec.solver}
+            "solver": spec.solver, "past": d["past"], "weights": d["weights"],
+            "auto_weights": d.get("auto_weights"), "specifications_check": checked and d["specifications_check"]}
+
+
+def _spec_names(models: list[Model], validate: list[Model]) -> list[str]:
+    names = _model_names([*models, *validate])
+    return [n if i < len(models) else f"validation:{n}" for i, n in enumerate(names)]
 
 
 def cmd_lqr(args: argparse.Namespace) -> dict:
@@ -96,10 +147,10 @@ def cmd_export(args: argparse.Namespace) -> dict:
 def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     """Register ``robust``, ``lqr`` and ``verify`` on the ``design`` parser."""
     def common(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--y-max", type=number, nargs="+", default=[0.05, 0.03, 0.09],
-                       help="Bryson output maxima in model units (y/V s, psi/V rad s/m, delta rad)")
-        p.add_argument("--u-max", type=number, default=0.35, help="Bryson steering rate, rad/s")
-        p.add_argument("--i-max", type=number, default=0.5, help="Bryson integral of y/V, s^2")
+        p.add_argument("--y-max", type=number, nargs="+", default=None,
+                       help="Bryson output maxima in model units (y/V s, psi/V rad s/m, delta rad; default 0.05 0.03 0.09)")
+        p.add_argument("--u-max", type=number, default=None, help="Bryson steering rate, rad/s (default 0.35)")
+        p.add_argument("--i-max", type=number, default=None, help="Bryson integral of y/V, s^2 (default 0.5)")
         p.add_argument("--command-limit", type=number, default=0.35, help="command clip, rad/s")
         p.add_argument("--name", default=None)
         p.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -122,13 +173,16 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     r.add_argument("--initial-errors", type=number, nargs="+", default=[0.03, 0.01, 0.0],
                    help="half-widths of the initial-error set of --rate-limit, model units (y/V s, psi/V rad s/m, "
                         "delta rad); the default is on-line tracking error size")
-    r.add_argument("--past", type=int, default=1, help="past samples in the measured state")
+    r.add_argument("--past", type=parse_past, default=None,
+                   help="past samples in the measured state, or 'auto' (default): the shortest window that "
+                        "determines every model's state (1 for order 4, 3 for order 10)")
     r.add_argument("--structure", choices=("window", "observer"), default="window",
                    help="measured-window state feedback, or anchored coordinates + the nominal model's predictor")
     r.add_argument("--output-clip", type=number, nargs="+", default=[0.1, 0.05, 0.0],
                    help="clip of each normalised output before the compensator (0 = none)")
     r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
+    add_spec_arguments(r, number)
     r.set_defaults(func=cmd_robust, default_name="robust")
 
     q = sub.add_parser("lqr", help="LQR + Kalman predictor on one model (the paper's controller)")
@@ -167,6 +221,7 @@ def render(result: dict) -> str:
         lines.append(f"guaranteed cost {result['guaranteed_cost']:.6g}{refined}, conservatism "
                      f"{result['conservatism']:.3f}; times " +
                      ", ".join(f"{k} {v:.3f} s" for k, v in result["times_s"].items()))
+    lines.extend(spec_lines(result))
     for c in result.get("implausible_models", []):
         lines.append(f"warning: {c['name']}: a left steering pulse gives outputs "
                      f"{', '.join(f'{v:+.3g}' for v in c['pulse_outputs'])} after 3 s (expected all > 0); "

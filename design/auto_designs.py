@@ -1,0 +1,100 @@
+"""The robust LMI design and the MPC with weights chosen from specifications (:mod:`design.autotune`).
+
+:func:`auto_robust` searches the aggressiveness scale of :func:`design.autotune.scaled_weights`
+for the robust design over the local models; :func:`auto_mpc` does the same for the MPC's
+unconstrained law (the linear law the MPC is wherever no limit binds) on the central model.
+Each checks the specifications on the design models and on any validation models (e.g.
+models of a higher order identified from the same passes), with the latency in the loop.
+The chosen weights, the specifications, the latency assumed and the achieved margins go into
+the controller file's design metadata (``design["auto_weights"]``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Callable, Sequence
+
+from identification.model import Model
+
+from .autotune import SearchOptions, SearchResult, search_weights
+from .iostate import feedback_compensator, observable_past
+from .mpc.design import MPCDesign, MPCSpec, design_mpc, fallback_from_file, unconstrained_gain
+from .mpc.problem import mpc_problem
+from .robust import RobustResult, RobustSpec, _model_names, design_robust
+from .specs import Specifications, resolve_latency
+from .weights import OutputWeights
+
+
+def _names(models: Sequence[Model], validate_on: Sequence[Model]) -> list[str]:
+    names = _model_names([*models, *validate_on])
+    return [n if i < len(models) else f"validation:{n}" for i, n in enumerate(names)]
+
+
+def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications,
+                validate_on: Sequence[Model] = (), options: SearchOptions | None = None,
+                progress: Callable[[str], None] | None = None) -> tuple[RobustResult, SearchResult]:
+    """The robust design at the most aggressive weights that meet ``specs`` on every model.
+
+    ``spec`` gives everything but the weights (its ``integral`` is replaced by the
+    specification's, its ``past`` None is resolved once over ``models``).
+
+    Raises
+    ------
+    SpecificationError
+        Even the gentlest weights fail a specification (named, with what was achieved).
+    """
+    options = options or SearchOptions()
+    family = [*models, *validate_on]
+    latency = resolve_latency(specs, family)
+    past = spec.past if spec.past is not None or spec.structure != "window" else observable_past(models)
+    base = replace(spec, integral=specs.integral, past=past)
+    result = search_weights(lambda w: design_robust(models, replace(base, weights=w)),
+                            lambda r: r.file.compensator, family, specs, latency, options,
+                            _names(models, validate_on), progress)
+    record = result.to_dict(specs, options)
+    chosen: RobustResult = result.design
+    file = replace(chosen.file, design={**chosen.file.design, "auto_weights": record})
+    return replace(chosen, file=file), result
+
+
+def auto_mpc(model: Model, verify_on: Sequence[Model], spec: MPCSpec, specs: Specifications,
+             validate_on: Sequence[Model] = (), options: SearchOptions | None = None,
+             fallback: str | Path | None = None, require: bool = True,
+             progress: Callable[[str], None] | None = None) -> tuple[MPCDesign, SearchResult]:
+    """The MPC whose unconstrained law is the most aggressive that meets ``specs`` on every model.
+
+    Parameters
+    ----------
+    model
+        Prediction model (the central model).
+    verify_on
+        The other design models (local ones).
+    spec
+        Horizon, limits, solver, normalisation; its output weights are replaced.
+    fallback
+        Robust controller file whose gain is the fall-back law (same measured state).
+
+    Raises
+    ------
+    SpecificationError
+        Even the gentlest weights fail a specification.
+    """
+    options = options or SearchOptions()
+    family = [model, *verify_on, *validate_on]
+    latency = resolve_latency(specs, family)
+
+    def law(w: OutputWeights):
+        weights = replace(spec.weights, outputs=w)
+        problem = mpc_problem(model, spec.horizon, weights, spec.limits, spec.past)
+        return feedback_compensator(unconstrained_gain(problem), problem.layout)
+
+    result = search_weights(law, lambda c: c, family, specs, latency, options,
+                            _names([model, *verify_on], validate_on), progress)
+    final = replace(spec, weights=replace(spec.weights, outputs=result.weights))
+    gain = None
+    if fallback is not None:
+        gain = fallback_from_file(fallback, mpc_problem(model, final.horizon, final.weights, final.limits, final.past))
+    des = design_mpc(model, verify_on, final, gain, require=require)
+    file = replace(des.file, design={**des.file.design, "auto_weights": result.to_dict(specs, options)})
+    return replace(des, file=file), result

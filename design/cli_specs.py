@@ -1,0 +1,109 @@
+"""Command-line options shared by ``design robust`` and ``design mpc``: weights from specifications.
+
+    --weights auto [--disk-margin A] [--delay-reserve S] [--actuator-rate R] [--tracking-errors E E E]
+                   [--latency S [S S] | --latency-from-logs LOGS...] [--validate-on MODELS...]
+                   [--scale-range LO HI] [--scan N] [--search-steps N]
+
+``--weights explicit`` (the default) designs with ``--y-max/--u-max/--i-max`` as given and,
+when a latency is known, reports the specifications it meets without enforcing them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Callable
+
+from identification.model import Model
+
+from .autotune import SearchOptions
+from .errors import DesignInputError
+from .specs import Specifications, latency_from_logs, latency_from_models
+
+WEIGHT_MODES = ("explicit", "auto")
+
+
+def parse_past(text: str) -> int | None:
+    """``--past``: ``auto`` (None) or an integer >= 1."""
+    if text == "auto":
+        return None
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or an integer >= 1, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or an integer >= 1, got {text!r}")
+    return v
+
+
+def add_spec_arguments(p: argparse.ArgumentParser, number: Callable[[str], float]) -> None:
+    """Register the weights mode, the specifications and the search options on ``p``."""
+    p.add_argument("--weights", choices=WEIGHT_MODES, default="explicit",
+                   help="explicit: --y-max/--u-max/--i-max as given; auto: the most aggressive weights that meet "
+                        "the specifications below on every model")
+    p.add_argument("--disk-margin", type=number, default=Specifications.disk_margin,
+                   help="smallest balanced disk margin at the plant input, with the latency in the loop")
+    p.add_argument("--delay-reserve", type=number, default=Specifications.delay_reserve,
+                   help="extra plant-input delay tolerated beyond the latency, s")
+    p.add_argument("--actuator-rate", type=number, default=None,
+                   help="actuator's steering-rate limit, rad/s (default: --command-limit / --rate-limit); also the "
+                        "Bryson steering-rate size of the automatic weights")
+    p.add_argument("--tracking-errors", type=number, nargs="+", default=list(Specifications.initial_errors),
+                   help="tracking-error half-widths whose peak command must stay within the actuator rate, model "
+                        "units (y/V s, psi/V rad s/m, delta rad)")
+    p.add_argument("--latency", type=number, nargs="+", default=None,
+                   help="measurement latency per output, s (one value: cross-track and heading, wheel angle 0)")
+    p.add_argument("--latency-from-logs", nargs="+", default=None,
+                   help="pass logs (files or directories) whose recorded latency the models do not hold")
+    p.add_argument("--validate-on", nargs="+", default=[],
+                   help="further models (e.g. of a higher order) the specifications must also hold on")
+    p.add_argument("--scale-range", type=number, nargs=2, default=[SearchOptions.low, SearchOptions.high],
+                   metavar=("LOW", "HIGH"), help="aggressiveness scales searched")
+    p.add_argument("--scan", type=int, default=SearchOptions.scan, help="scales scanned before the bisection")
+    p.add_argument("--search-steps", type=int, default=SearchOptions.steps, help="bisection steps after the scan")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+
+
+def latency_of(args: argparse.Namespace, models: list[Model]) -> tuple[float, ...] | None:
+    """The latency (s per output): ``--latency``, else ``--latency-from-logs``, else the models' metadata."""
+    q = models[0].n_outputs
+    if args.latency is not None and args.latency_from_logs:
+        raise DesignInputError("give the latency either with --latency or with --latency-from-logs, not both")
+    if args.latency is not None:
+        lat = list(args.latency)
+        if len(lat) == 1:
+            lat = [lat[0]] * min(2, q) + [0.0] * max(q - 2, 0)
+        if len(lat) != q:
+            raise DesignInputError(f"--latency takes 1 or {q} values (s), got {len(lat)}")
+        return tuple(lat)
+    if args.latency_from_logs:
+        return latency_from_logs(args.latency_from_logs, q)
+    return latency_from_models(models)
+
+
+def specs_of(args: argparse.Namespace, latency: tuple[float, ...] | None, default_rate: float,
+             integral: bool) -> Specifications:
+    """The :class:`Specifications` of the options."""
+    rate = args.actuator_rate if args.actuator_rate is not None else default_rate
+    return Specifications(args.disk_margin, args.delay_reserve, latency, rate, tuple(args.tracking_errors), integral)
+
+
+def search_of(args: argparse.Namespace) -> SearchOptions:
+    """The :class:`SearchOptions` of the options."""
+    return SearchOptions(args.scale_range[0], args.scale_range[1], args.scan, args.search_steps)
+
+
+def progress_of(args: argparse.Namespace) -> Callable[[str], None] | None:
+    """Progress lines on stderr unless ``--quiet``."""
+    if args.quiet:
+        return None
+    return lambda line: print(line, file=sys.stderr, flush=True)
+
+
+
+def refuse_mixed(args: argparse.Namespace) -> None:
+    """``--weights auto`` with an explicit ``--y-max/--u-max/--i-max`` is refused (never silently ignored)."""
+    given = [f"--{n.replace('_', '-')}" for n in ("y_max", "u_max", "i_max") if getattr(args, n) is not None]
+    if args.weights == "auto" and given:
+        raise DesignInputError(f"--weights auto chooses the weights itself, but {', '.join(given)} were given; "
+                               "drop them, or use --weights explicit")

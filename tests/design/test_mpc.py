@@ -17,7 +17,7 @@ import pytest
 from design.controller import Controller, Measurement
 from design.errors import DesignInputError
 from design.mpc import MPCLimits, MPCWeights, build_mpc, mpc_problem
-from design.mpc.design import unconstrained_gain
+from design.mpc.law import unconstrained_gain
 
 from design_family import tractor_model
 

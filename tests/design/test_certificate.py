@@ -178,3 +178,14 @@ def test_verify_rechecks_every_stated_figure(saved, models, tmp_path, capsys):
     rewrite(saved, lambda b: b["certificate"]["models"][1].__setitem__("disk_margin", 9.0))
     assert design_main(["verify", str(saved), "--models", *paths]) == 1
     assert "v1_a0.6: the file states disk_margin = 9.0, recomputed" in capsys.readouterr().err
+
+
+def test_verify_rechecks_an_mpc_files_unconstrained_law(tmp_path, capsys):
+    central = tractor_model(1.79, name="central").with_meta(kind="central")
+    local = family(speeds=(1.0,), authorities=(1.0,))
+    p = design_mpc(central, local, MPCSpec(horizon=15)).file.save(tmp_path / "mpc.json")
+    paths = [str(m.save(tmp_path / f"{m.meta['name']}.npz")) for m in (central, *local)]
+    assert design_main(["verify", str(p), "--models", *paths]) == 0
+    assert "all stable" in capsys.readouterr().out
+    assert design_main(["verify", str(p), "--models", paths[1]]) == 1
+    assert "model 'central'" in capsys.readouterr().err

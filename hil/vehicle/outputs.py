@@ -1,9 +1,9 @@
 """Output paths of the ``hil`` commands, checked before any work starts, and written whole.
 
 A run that takes minutes must not fail at its end because ``--out`` names an existing file or an
-unwritable place: :func:`prepare_out_dir` and :func:`prepare_out_file` create what is missing and
-prove the place writable with a real probe file (as root, permission bits prove nothing), and refuse
-with one line that says what to give instead. :func:`write_text_atomic` writes a file under its final
+unwritable place: :func:`prepare_out_dir` and :func:`prepare_out_file` prove the place writable with
+a real probe file (as root, permission bits prove nothing) without creating anything, and refuse with
+one line that says what to give instead. :func:`write_text_atomic` writes a file under its final
 name only once it is complete, so an interrupt never leaves half a file.
 """
 
@@ -26,7 +26,10 @@ def _probe(directory: Path, what: str) -> None:
 
 
 def prepare_out_dir(path: str | os.PathLike[str], option: str = "--out") -> Path:
-    """Create the output directory ``path`` if needed and check that it can be written.
+    """Check that the output directory ``path`` can be made and written, changing nothing.
+
+    An existing ``path`` must be a writable directory; a missing one needs its nearest existing
+    ancestor to be a writable directory (the command creates ``path`` when it writes its first file).
 
     Raises
     ------
@@ -34,21 +37,25 @@ def prepare_out_dir(path: str | os.PathLike[str], option: str = "--out") -> Path
         If ``path`` exists and is not a directory, cannot be created, or cannot be written.
     """
     p = Path(path)
-    if p.exists() and not p.is_dir():
-        raise VehicleConfigError(f"{option} {str(p)!r} exists and is not a directory; give a directory "
-                                 "(it is created if missing)")
-    try:
-        p.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise VehicleConfigError(f"cannot create {option} {str(p)!r} ({exc.strerror or exc}); give a directory "
-                                 "you can write to") from None
-    _probe(p, option)
+    if p.exists():
+        if not p.is_dir():
+            raise VehicleConfigError(f"{option} {str(p)!r} exists and is not a directory; give a directory "
+                                     "(it is created if missing)")
+        _probe(p, option)
+        return p
+    ancestor = p.absolute().parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise VehicleConfigError(f"cannot create {option} {str(p)!r} ({str(ancestor)!r} is not a directory); "
+                                 "give a directory you can write to")
+    _probe(ancestor, f"cannot create {option} {str(p)!r}:")
     return p
 
 
 def prepare_out_file(path: str | os.PathLike[str], option: str = "--out",
                      suffixes: tuple[str, ...] = ()) -> Path:
-    """Check that the output file ``path`` can be written (its folder is created if missing).
+    """Check that the output file ``path`` can be written (its folder may be missing), changing nothing.
 
     Parameters
     ----------

@@ -44,7 +44,7 @@ def test_an_output_that_cannot_be_created_is_refused_in_one_line(tmp_path, capsy
     blocker = tmp_path / "a_file"
     blocker.write_text("x")
     err = _one_line_error(capsys, hil_main([*argv, "--out", str(blocker / "sub")]))
-    assert "cannot create --out" in err and "Not a directory" in err
+    assert "cannot create --out" in err and "is not a directory" in err
 
 
 def test_plot_output_must_be_a_figure_file(tmp_path, capsys):

@@ -320,6 +320,10 @@ class BridgeFirmware:
         self._host_seq = seq
         if kind is SteerRateCommand:
             self._cmd_seq = seq
+            if not math.isfinite(message.rate):     # defence in depth: a decoder never yields one
+                self._bad += 1
+                self._cut()
+                return
             if self._engaged:
                 self._commands += 1
                 self._last_cmd_time = t

@@ -304,7 +304,8 @@ def _to_wire(field: Field, value: object, cls_name: str) -> int:
     if field.kind == "scaled":
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise EncodeError(f"{cls_name}.{field.name} must be a finite number ({field.unit}), got {value!r}")
-        raw = round(float(value) / field.scale)  # type: ignore[operator]
+        scaled = float(value) / field.scale  # type: ignore[operator]
+        raw = round(scaled) if math.isfinite(scaled) else (hi + 1 if scaled > 0 else lo - 1)   # 1e308 / scale = inf
         if not lo <= raw <= hi:
             raise EncodeError(
                 f"{cls_name}.{field.name}={value!r} {field.unit} is outside the encodable range "

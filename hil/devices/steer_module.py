@@ -161,6 +161,8 @@ class SteerModuleState:
         Configuration in force.
     frames, bad_frames, unexpected_frames, replies, loops, link_errors : int
         Counters since boot.
+    checksum_ignored : int
+        Frames applied although their checksum is wrong (the stock firmware, ``verify_checksum=False``).
     """
 
     time: float
@@ -179,6 +181,7 @@ class SteerModuleState:
     replies: int
     loops: int
     link_errors: int
+    checksum_ignored: int = 0
 
 
 class SteerModule:
@@ -274,7 +277,8 @@ class SteerModule:
             time=self._last_step, watchdog=self._watchdog, motor_on=self._motor_on,
             steer_switch_on=self._steer_switch == 0, setpoint=-math.radians(self._setpoint),
             angle=-math.radians(self._actual), pwm=self._pwm, speed=self._speed_kmh / 3.6,
-            settings=self._settings, config=self._setup, **self._n)
+            settings=self._settings, config=self._setup, checksum_ignored=self._decoder.counters.checksum_ignored,
+            **self._n)
 
     # -- the firmware's loop ----------------------------------------------------------------
     def _loop(self) -> None:

@@ -34,7 +34,7 @@ Event = tuple[int, int | None, "Message | FrameError"]
 ``end`` is the stream index (0 = first byte ever fed) of the frame's last byte."""
 
 _KEYS = ("frames", "checksum_errors", "length_errors", "unknown_pgns", "source_errors", "field_errors",
-         "resyncs", "bytes_discarded")
+         "resyncs", "bytes_discarded", "checksum_ignored")
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,8 @@ class PgnCounters:
         Runs of bytes skipped while hunting for a preamble.
     bytes_discarded : int
         Bytes that were not part of an accepted frame.
+    checksum_ignored : int
+        Frames accepted although their checksum is wrong (only with ``verify_checksum=False``).
     """
 
     frames: int = 0
@@ -61,6 +63,7 @@ class PgnCounters:
     field_errors: int = 0
     resyncs: int = 0
     bytes_discarded: int = 0
+    checksum_ignored: int = 0
 
     @property
     def bad_frames(self) -> int:
@@ -168,6 +171,8 @@ class PgnStreamDecoder:
                 self._n["bytes_discarded"] += total
             else:
                 self._n["frames"] += 1
+                if got != want:
+                    self._n["checksum_ignored"] += 1
                 events.append((end, source, message))
             del buf[:total]
             self._base += total

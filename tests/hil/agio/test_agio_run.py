@@ -1,0 +1,54 @@
+"""Bench passes through the AgOpenGPS bridge (hil.bench.run.simulated_run with bridge='agopengps'):
+lockstep on in-memory links, real time over UDP on 127.0.0.1, and the two agreeing."""
+
+from __future__ import annotations
+
+import pytest
+
+from hil.bench.run import RunSpec, simulated_run
+from hil.devices.faults import LinkFault
+from hil.errors import SimulatorConfigError
+from hil.vehicle.controllers import vehicle_controller
+from hil.vehicle.summary import summarize
+
+pytestmark = pytest.mark.timeout(300)
+
+
+def test_a_lockstep_pass_through_the_module_steers_like_one_through_the_hc11_bridge():
+    logs = {b: simulated_run(RunSpec(speed=1.79, duration=30, seed=3, bridge=b), vehicle_controller("kinematic"))
+            for b in ("agopengps", "hc11")}
+    agio, hc11 = (summarize(logs[b]) for b in ("agopengps", "hc11"))
+    assert logs["agopengps"].meta["bridge"] == "agopengps" and logs["agopengps"].meta["mode"] == "lockstep"
+    bridge_trips = [e for e in logs["agopengps"].meta["events"]
+                    if e["event"] == "disengage" and not e["reason"].startswith(("gps", "end of run"))]
+    assert bridge_trips == [] and agio["engaged_fraction"] > 0.9   # the GPS has its own (simulated) outages
+    stats = logs["agopengps"].meta["bridge_stats"]
+    assert stats["checksum_errors"] == 0 and stats["reports_received"] > 550
+    assert logs["agopengps"].meta["firmware"]["frames"] > 550
+    # the same controller through either bridge: within 25 % of the other's 1-sigma (measured 5-10 %)
+    assert agio["true_sigma_m"] == pytest.approx(hc11["true_sigma_m"], rel=0.25)
+
+
+def test_link_faults_of_the_bench_act_on_the_module_link():
+    spec = RunSpec(speed=1.79, duration=20, seed=1, bridge="agopengps",
+                   link_faults=(LinkFault("corrupt", 5.0, 15.0, rate=0.2),))
+    log = simulated_run(spec, vehicle_controller("kinematic"))
+    assert log.meta["bridge_stats"]["checksum_errors"] + log.meta["firmware"]["bad_frames"] > 10
+
+
+def test_an_unknown_bridge_is_refused():
+    with pytest.raises(SimulatorConfigError, match="'hc11' or 'agopengps'"):
+        RunSpec(bridge="agio")
+
+
+@pytest.mark.realtime
+def test_real_time_over_udp_loopback_agrees_with_lockstep():
+    """Stated tolerance: the true 1-sigma within 35 % + 1 cm, the bias within 2 cm (different noise
+    realisations: the real-time host's timing differs from the virtual clock's)."""
+    spec = RunSpec(speed=1.79, duration=20, seed=2, bridge="agopengps")
+    rt = simulated_run(RunSpec(**{**spec.__dict__, "realtime": True}), vehicle_controller("kinematic"))
+    ls = simulated_run(spec, vehicle_controller("kinematic"))
+    a, b = summarize(rt), summarize(ls)
+    assert rt.meta["mode"] == "realtime-udp" and a["disengagements"] == b["disengagements"]
+    assert abs(a["true_sigma_m"] - b["true_sigma_m"]) <= 0.35 * b["true_sigma_m"] + 0.01
+    assert abs(a["true_bias_m"] - b["true_bias_m"]) <= 0.02

@@ -129,17 +129,23 @@ def _latency_vector(values: object, q: int, where: str) -> tuple[float, ...]:
 def latency_from_models(models: Sequence[Model]) -> tuple[float, ...] | None:
     """Largest per-output latency (s) recorded in the models' metadata; None if none records it.
 
-    ``meta["latency_s"]`` is per channel (a mapping or one value per output), or one number
-    for the GPS outputs (cross-track and heading; the wheel angle then 0). A model whose
+    The identification's record ``meta["delay"]`` (``in_model`` and, per output name,
+    ``outputs[name]["latency_s"]``) comes first. Else ``meta["latency_s"]`` is per channel (a
+    mapping or one value per output), or one number for the GPS outputs (cross-track and
+    heading; the wheel angle then 0). A model whose
     dynamics hold the delay (``meta["latency_in_model"]`` true, or an identified
     input-output delay ``delay_s`` / ``delay_samples``) contributes zeros.
     """
     found = None
     for i, m in enumerate(models):
         meta = m.meta
+        where = str(meta.get("name", f"model {i}"))
+        if "delay" in meta:
+            lat = _latency_of_delay_record(meta["delay"], m, where)
+            found = lat if found is None else tuple(max(a, b) for a, b in zip(found, lat))
+            continue
         if not any(k in meta for k in ("latency_s", "latency_in_model", "delay_s", "delay_samples")):
             continue
-        where = str(meta.get("name", f"model {i}"))
         if meta.get("latency_in_model") is True or "delay_s" in meta or "delay_samples" in meta:
             lat = (0.0,) * m.n_outputs
         else:
@@ -149,6 +155,22 @@ def latency_from_models(models: Sequence[Model]) -> tuple[float, ...] | None:
             lat = _latency_vector(raw, m.n_outputs, where)
         found = lat if found is None else tuple(max(a, b) for a, b in zip(found, lat))
     return found
+
+
+def _latency_of_delay_record(rec: object, model: Model, where: str) -> tuple[float, ...]:
+    """Per-output latency of the identification's ``meta["delay"]`` record (zeros when ``in_model``)."""
+    q = model.n_outputs
+    if not isinstance(rec, Mapping) or not isinstance(rec.get("in_model"), bool):
+        raise DesignInputError(f"{where}: meta['delay'] must be a record with a boolean 'in_model', got {rec!r:.120}")
+    if rec["in_model"]:
+        return (0.0,) * q
+    outs = rec.get("outputs")
+    names = list(model.meta.get("output_names") or [])
+    if not isinstance(outs, Mapping) or len(names) != q or any(
+            not isinstance(outs.get(n), Mapping) or "latency_s" not in outs[n] for n in names):
+        raise DesignInputError(f"{where}: meta['delay']['outputs'] must give latency_s for each output {names}, "
+                               f"got {outs!r:.160}")
+    return tuple(_finite(outs[n]["latency_s"], f"{where}: latency of {n}", 0.0, 2.0) for n in names)
 
 
 def latency_from_logs(paths: Sequence[str | Path], q: int = 3) -> tuple[float, ...]:

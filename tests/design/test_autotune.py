@@ -131,6 +131,12 @@ def test_latency_comes_from_the_model_metadata_and_a_model_holding_its_delay_add
     assert latency_from_models([a]) == (0.15, 0.15, 0.0)
     assert latency_from_models([a, b]) == (0.15, 0.2, 0.01)
     assert latency_from_models([c]) == (0.0, 0.0, 0.0)
+    rec = {"in_model": False, "outputs": {"y/V": {"latency_s": 0.15}, "psi/V": {"latency_s": 0.12},
+                                          "delta": {"latency_s": 0.01}}}
+    d = type(base)(base.A, base.B, base.C, base.D, base.K, base.dt, {**base.meta, "delay": rec})
+    held = type(base)(base.A, base.B, base.C, base.D, base.K, base.dt, {**base.meta, "delay": {"in_model": True}})
+    assert latency_from_models([d]) == (0.15, 0.12, 0.01)          # the identification's record
+    assert latency_from_models([held]) == (0.0, 0.0, 0.0)
     bad = type(base)(base.A, base.B, base.C, base.D, base.K, base.dt, {**base.meta, "latency_s": {"gps": 0.1}})
     with pytest.raises(DesignInputError, match="unknown channels"):
         latency_from_models([bad])

@@ -19,6 +19,7 @@ from design.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
 from identification.passlog import PassLog
 
+from hil.bench.agio_bench import AgioLockstepBench, AgioUdpBench
 from hil.bench.bridge_bench import LockstepBridge, PtyBridge
 from hil.truth.conditions import condition_for
 from hil.vehicle.bridge.driver import BridgeDriver
@@ -27,6 +28,7 @@ from hil.devices.faults import FaultyLink, LinkFault
 from hil.links.memory import memory_link_pair
 from hil.links.pty import PtyPair
 from hil.vehicle.commissioning import Commissioning, MappedBridge
+from hil.vehicle.agio.driver import ANGLE_CALIBRATION, module_loop_config
 from hil.vehicle.loop import LoopConfig, VehicleLoop
 from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
@@ -64,6 +66,9 @@ class RunSpec:
         Receiver fault intervals: no GPS output at all; position reported as RTK float.
     link_faults
         Faults on the bridge link, host side (see :mod:`hil.devices.faults`).
+    bridge
+        ``hc11`` (the emulated HC11 board) or ``agopengps`` (an emulated AgOpenGPS steer module:
+        in-memory link in lockstep, UDP on 127.0.0.1 in real time; :mod:`hil.bench.agio_bench`).
     """
 
     implement: str = "none"
@@ -78,6 +83,7 @@ class RunSpec:
     gps_outage: tuple[tuple[float, float], ...] = ()
     rtk_float: tuple[tuple[float, float], ...] = ()
     link_faults: tuple[LinkFault, ...] = ()
+    bridge: str = "hc11"
     geometry: FieldGeometry = field(default_factory=FieldGeometry)
 
     def __post_init__(self) -> None:
@@ -95,6 +101,8 @@ class RunSpec:
                 math.isfinite(self.speed) and SPEED_RANGE[0] <= self.speed <= SPEED_RANGE[1]):
             raise SimulatorConfigError(f"speed must be {SPEED_RANGE[0]:g}-{SPEED_RANGE[1]:g} m/s (field work; the "
                                        f"paper's gears are 1.00-2.91 m/s), got {self.speed!r}")
+        if self.bridge not in ("hc11", "agopengps"):
+            raise SimulatorConfigError(f"bridge must be 'hc11' or 'agopengps', got {self.bridge!r}")
         condition_for(self.implement, self.speed)   # validates implement
 
 
@@ -119,12 +127,14 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
     vp = p.vehicle
     fe_config = FrontEndConfig(origin=geo.origin, lever_arm=(vp.antenna_ahead_of_cg, vp.antenna_left_of_cg,
                                                              vp.antenna_height))
+    agio = spec.bridge == "agopengps"
     with ExitStack() as stack:
         if spec.realtime:
             pos_pty, att_pty = stack.enter_context(PtyPair()), stack.enter_context(PtyPair())
             receivers = [PositionReceiver(plant, pos_pty.device_link(), geo),
                          AttitudeReceiver(plant, att_pty.device_link(), geo)]
-            bench = stack.enter_context(PtyBridge(valve, extra_devices=receivers))
+            bench = stack.enter_context(AgioUdpBench(valve, cal, p.steering, extra_devices=receivers) if agio
+                                        else PtyBridge(valve, extra_devices=receivers))
             sources = [pos_pty.open_serial(baudrate=38400, timeout=0),
                        att_pty.open_serial(baudrate=38400, timeout=0)]
             for s in sources:
@@ -132,7 +142,8 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
         else:
             # The simulator integrates on its own dt grid whatever the advance; the scheduler need not
             # stop between device wake-ups for it (at most every loop period).
-            bench = stack.enter_context(LockstepBridge(valve, max_step=0.05))
+            bench = stack.enter_context(AgioLockstepBench(valve, cal, p.steering, max_step=0.05) if agio
+                                        else LockstepBridge(valve, max_step=0.05))
             # the firmware and the receivers share only the plant; each has its own link to the host
             bench.scheduler.independent = True
             receivers, sources = [], []
@@ -152,11 +163,16 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             host = bench.port if spec.realtime else bench.host_link
             rng = np.random.default_rng(np.random.SeedSequence(spec.seed, spawn_key=(99,)))
             faulty = FaultyLink(host, clock, spec.link_faults, rng)
-            driver = BridgeDriver(faulty, clock, bench.driver.config)
+            driver = bench.driver_for(faulty) if agio else BridgeDriver(faulty, clock, bench.driver.config)
         frontend = GnssFrontEnd(fe_config, sources=sources, clock=clock.now)
+        if agio:   # the module needs the ground speed (PGN 254); its angle comes in 0.01 degree
+            driver.set_speed_source(lambda: frontend.solution(clock.now()).speed)
+            cal = ANGLE_CALIBRATION
+            if commissioning is None:
+                loop_config = module_loop_config(loop_config)
         if commissioning is not None:
             loop_config = commissioning.loop_config(loop_config)
-            if map_valve:
+            if map_valve and not agio:   # the AgOpenGPS module closes its own angle loop
                 driver = MappedBridge(driver, commissioning.valve)
         loop = VehicleLoop(clock, driver, frontend, geo.ab_line(), controller, cal, loop_config,
                            truth=plant.truth)
@@ -166,7 +182,8 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
         firmware = bench.firmware.state
     meta = {"implement": cond.implement, "nominal_speed": cond.speed, "gear": cond.gear, "seed": spec.seed,
             "source": "hil.bench.run (closed loop on the simulated tractor)",
-            "mode": "realtime-pty" if spec.realtime else "lockstep",
+            "mode": ("realtime-udp" if agio else "realtime-pty") if spec.realtime else "lockstep",
+            "bridge": spec.bridge,
             "initial": {"cross_track": spec.initial_cross_track, "heading": spec.initial_heading},
             "faults": {"override": list(spec.override), "stuck_valve": list(spec.stuck_valve),
                        "gps_outage": list(spec.gps_outage), "rtk_float": list(spec.rtk_float),

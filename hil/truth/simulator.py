@@ -27,7 +27,7 @@ from hil.truth import disturbances, dynamics as vehicle, gps_errors as gps
 from hil.truth.conditions import Condition
 from hil.errors import SimulatorConfigError
 from hil.truth.params import SimParams
-from hil.truth.steering import sensor_counts, valve_rate, valve_rate_scalar
+from hil.truth.steering import sensor_counts, sensor_counts_float, valve_rate, valve_rate_scalar
 from hil.truth.dynamics import DEL, N_STATE, PSI, X, Y
 
 SeedLike = int | np.random.SeedSequence
@@ -225,10 +225,8 @@ class TractorSimulator:
         if self._scalar_exo is None:
             return int(self.wheel_angle_counts()[0])
         p = self.params
-        s, st = p.sensor, p.steering
-        x = self._x[DEL] / st.max_wheel_angle
-        counts = s.center_counts + s.counts_at_stop * (x + s.cubic * (x ** 3 - x)) + self._noise0[self.k]
-        return int(min(max(round(counts), 0), 255))
+        counts = sensor_counts_float(self._x[DEL], p.sensor, p.steering) + self._noise0[self.k]
+        return int(min(max(round(counts), 0), 255))   # sensor_counts's rint and clip, on a float
 
     def truth_scalar(self) -> dict[str, float]:
         """:meth:`truth` of a one-tractor batch, as floats."""

@@ -61,9 +61,10 @@ def nominal_duty(rate_cmd: np.ndarray, p: SteeringParams) -> np.ndarray:
     return np.clip(np.asarray(rate_cmd, dtype=float) / p.max_rate, -1.0, 1.0)
 
 
-def sensor_counts_float(delta: np.ndarray, s: WheelSensorParams, st: SteeringParams) -> np.ndarray:
-    """Noise-free potentiometer output in (fractional) ADC counts for a wheel angle in rad."""
-    x = np.asarray(delta, dtype=float) / st.max_wheel_angle
+def sensor_counts_float(delta: np.ndarray | float, s: WheelSensorParams, st: SteeringParams) -> np.ndarray | float:
+    """Noise-free potentiometer output in (fractional) ADC counts for a wheel angle in rad (an array, or a
+    float for one reading: the same arithmetic either way)."""
+    x = (delta if isinstance(delta, float) else np.asarray(delta, dtype=float)) / st.max_wheel_angle
     return s.center_counts + s.counts_at_stop * (x + s.cubic * (x ** 3 - x))
 
 

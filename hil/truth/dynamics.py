@@ -188,41 +188,52 @@ def rk4_step_scalar(x: list[float], u: Inputs, p: SimParams) -> list[float]:
 MAX_STEPS_PER_CALL = 10
 
 
+@functools.lru_cache(maxsize=8)
+def _step_function(p: SimParams) -> casadi.Function:
+    """One RK4 step of :func:`_rates` with the wheel-angle stops, as a casadi function of the state, the
+    valve's rate, the disker flag and the step's exogenous inputs (built once per parameter set)."""
+    x = casadi.SX.sym("x", N_STATE)
+    rate, disker = casadi.SX.sym("rate_cmd"), casadi.SX.sym("disker")
+    e = casadi.SX.sym("exogenous", len(STEP_INPUTS))
+    u = Inputs(rate_cmd=rate, disker=disker, **{name: e[i] for i, name in enumerate(STEP_INPUTS)})
+    nxt = _rk4(lambda z: casadi.vertcat(*_rates(_SymbolicOps, casadi.vertsplit(z), u, p)), x, p.dt)
+    dmax = p.steering.max_wheel_angle
+    nxt[DEL] = casadi.fmin(casadi.fmax(nxt[DEL], -dmax), dmax)
+    return casadi.Function("rk4_step", [x, rate, disker, e], [nxt])
+
+
+@functools.lru_cache(maxsize=8 * MAX_STEPS_PER_CALL)
+def _steps_function(p: SimParams, n: int) -> casadi.Function:
+    """:func:`_step_function` accumulated over ``n`` steps (``mapaccum``), the rate and flag held."""
+    x = casadi.SX.sym("x", N_STATE)
+    rate, disker = casadi.SX.sym("rate_cmd"), casadi.SX.sym("disker")
+    e = casadi.SX.sym("exogenous", len(STEP_INPUTS), n)
+    many = _step_function(p).mapaccum(f"rk4_steps_{n}", n)
+    return casadi.Function(f"rk4_steps_{n}", [x, rate, disker, e],
+                           [many(x, casadi.repmat(rate, 1, n), casadi.repmat(disker, 1, n), e)])
+
+
 class Stepper:
     """RK4 steps of one tractor, :func:`_rates` compiled once as a casadi function.
 
     The equations are those of :func:`_rates` (evaluated on casadi expressions instead of floats, so
     there is no second copy of them), integrated by :func:`_rk4` with the wheel-angle stops, and
     accumulated over up to :data:`MAX_STEPS_PER_CALL` steps in one function (casadi ``mapaccum``); it
-    is evaluated through casadi's buffer interface on numpy memory, so a call costs about a
-    microsecond per step and no Python object per value. Results agree with :func:`rk4_step` to
-    rounding (casadi may order the floating-point operations differently).
-
-    Build with :func:`stepper` (one per parameter set, cached).
+    is evaluated through casadi's buffer interface on this stepper's own numpy memory (so two
+    steppers never share a buffer), a call costing about a microsecond per step and no Python object
+    per value. Results agree with :func:`rk4_step` to rounding (casadi may order the floating-point
+    operations differently). The compiled functions are built once per process and parameter set.
     """
 
     def __init__(self, p: SimParams) -> None:
         self.params = p
-        x = casadi.SX.sym("x", N_STATE)
-        rate, disker = casadi.SX.sym("rate_cmd"), casadi.SX.sym("disker")
-        e = casadi.SX.sym("exogenous", len(STEP_INPUTS))
-        u = Inputs(rate_cmd=rate, disker=disker, **{name: e[i] for i, name in enumerate(STEP_INPUTS)})
-        nxt = _rk4(lambda z: casadi.vertcat(*_rates(_SymbolicOps, casadi.vertsplit(z), u, p)), x, p.dt)
-        dmax = p.steering.max_wheel_angle
-        nxt[DEL] = casadi.fmin(casadi.fmax(nxt[DEL], -dmax), dmax)
-        self._step = casadi.Function("rk4_step", [x, rate, disker, e], [nxt])
         self._calls: dict[int, tuple] = {}
 
     def _call(self, n: int) -> tuple:
         """The compiled ``n``-step function with its argument and result buffers (made when first needed)."""
         call = self._calls.get(n)
         if call is None:
-            x = casadi.SX.sym("x", N_STATE)
-            rate, disker = casadi.SX.sym("rate_cmd"), casadi.SX.sym("disker")
-            e = casadi.SX.sym("exogenous", len(STEP_INPUTS), n)
-            many = self._step.mapaccum(f"rk4_steps_{n}", n)
-            fn = casadi.Function(f"rk4_steps_{n}", [x, rate, disker, e],
-                                 [many(x, casadi.repmat(rate, 1, n), casadi.repmat(disker, 1, n), e)])
+            fn = _steps_function(self.params, n)
             buf, evaluate = fn.buffer()
             args = np.zeros(N_STATE + 2)   # x, rate_cmd, disker
             res = np.zeros((n, N_STATE))   # row j: the state after step j + 1 (casadi's column-major 8 x n)
@@ -279,7 +290,6 @@ class Stepper:
         return res.copy()
 
 
-@functools.lru_cache(maxsize=8)
 def stepper(p: SimParams) -> Stepper:
-    """The compiled :class:`Stepper` of a parameter set (built once per process and parameter set)."""
+    """A :class:`Stepper` for the parameter set ``p`` (its own buffers; the compiled functions shared)."""
     return Stepper(p)

@@ -79,7 +79,9 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
 def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add the ``drive`` sub-command to a ``hil`` parser."""
     d = sub.add_parser("drive", help="run the vehicle loop on real serial ports (on a tractor)")
-    d.add_argument("--bridge", required=True, help="steering bridge serial device")
+    d.add_argument("--bridge", required=True,
+                   help="steering bridge: a serial device of the HC11 board (or hc11:PORT), or an AgOpenGPS steer "
+                        "module, agopengps:udp:HOST:PORT (192.168.5.126:8888) or agopengps:serial:PORT")
     d.add_argument("--position", required=True, help="position receiver serial device")
     d.add_argument("--attitude", help="attitude receiver serial device (default: same as --position)")
     d.add_argument("--controller", required=True, type=_vehicle_spec,

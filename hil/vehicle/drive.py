@@ -24,6 +24,8 @@ from gnss.geodesy import LocalFrame
 from gnss.guidance import ABLine
 from identification.passlog import PassLog
 
+from hil.vehicle.agio.driver import ANGLE_CALIBRATION, AgioDriver, module_loop_config
+from hil.vehicle.agio.spec import open_agio_link, parse_bridge
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.errors import HilError
 from hil.vehicle.errors import VehicleConfigError
@@ -45,7 +47,10 @@ class DriveConfig:
     Attributes
     ----------
     bridge_port
-        Serial device of the steering bridge, e.g. ``/dev/ttyS0``.
+        The steering bridge (:func:`hil.vehicle.agio.spec.parse_bridge`): a serial device of the HC11
+        board (``/dev/ttyS0`` or ``hc11:/dev/ttyS0``), or an AgOpenGPS steer module,
+        ``agopengps:udp:192.168.5.126:8888`` or ``agopengps:serial:/dev/ttyACM0`` (its angle comes in
+        0.01 degree: ``wheel_calibration`` is not used).
     position_port
         Serial device of the position receiver (GGA/VTG, or UBX).
     attitude_port
@@ -85,6 +90,7 @@ class DriveConfig:
             raise VehicleConfigError(f"line ends must be (lat, lon) in degrees, got {a}, {b}")
         _finite("lever_arm", self.lever_arm, 3)
         WheelAngleCalibration(*_finite("wheel_calibration", self.wheel_calibration, 2))
+        parse_bridge(self.bridge_port)
         for name in ("bridge_baud", "gnss_baud"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not 300 <= v <= 4_000_000:
@@ -113,7 +119,10 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
     ports: list[serial.Serial] = []
     try:
         try:
-            bridge = open_port(cfg.bridge_port, baudrate=cfg.bridge_baud, timeout=0)
+            spec = parse_bridge(cfg.bridge_port)
+            agio = spec.kind == "agopengps"
+            bridge = (open_agio_link(spec, open_port, cfg.bridge_baud) if agio
+                      else open_port(spec.device, baudrate=cfg.bridge_baud, timeout=0))
             ports.append(bridge)
             sources = [open_port(cfg.position_port, baudrate=cfg.gnss_baud, timeout=0)]
             ports.append(sources[0])
@@ -123,11 +132,14 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
         except (serial.SerialException, OSError) as exc:
             raise HilError(f"cannot open a serial port: {exc}") from None
         clock = RealClock()
-        driver = BridgeDriver(bridge, clock)
+        driver = AgioDriver(bridge, clock) if agio else BridgeDriver(bridge, clock)
         frontend = GnssFrontEnd(FrontEndConfig(origin=origin, lever_arm=cfg.lever_arm), sources=sources,
                                 clock=clock.now)
+        if agio:   # the module takes the ground speed in PGN 254 and reports its angle in 0.01 degree
+            driver.set_speed_source(lambda: frontend.solution(clock.now()).speed)
         loop = VehicleLoop(clock, driver, frontend, line, controller,
-                           WheelAngleCalibration(*cfg.wheel_calibration), cfg.loop)
+                           ANGLE_CALIBRATION if agio else WheelAngleCalibration(*cfg.wheel_calibration),
+                           module_loop_config(cfg.loop) if agio else cfg.loop)
         interrupted = False
         try:
             loop.run(duration, start=clock.now(), progress=progress)

@@ -1,0 +1,124 @@
+"""Bridge specifications of ``hil drive --bridge``: which steering bridge, over which link.
+
+    hc11:PORT                          the HC11 board on a serial port (a bare PORT means the same)
+    agopengps:serial:PORT              an AgOpenGPS steer module on a USB serial port
+    agopengps:udp:HOST:PORT[:LOCAL]    an AgOpenGPS steer module over UDP: it listens on HOST:PORT
+                                       (192.168.5.126:8888), the host binds LOCAL (default 9999)
+"""
+
+from __future__ import annotations
+
+import ipaddress
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from hil.links.link import ByteLink
+from hil.links.udp import UdpLink
+from hil.vehicle.agio.errors import AgioConfigError
+
+__all__ = ["BridgeSpec", "parse_bridge", "open_agio_link", "AGIO_LOCAL_PORT", "AGIO_MODULE_PORT"]
+
+AGIO_LOCAL_PORT = 9999
+"""Port AgIO (and the host) binds; the modules reply to it."""
+AGIO_MODULE_PORT = 8888
+"""Port the steer module listens on."""
+
+
+@dataclass(frozen=True)
+class BridgeSpec:
+    """A parsed ``--bridge`` value.
+
+    Parameters
+    ----------
+    kind : str
+        ``hc11`` or ``agopengps``.
+    transport : str
+        ``serial`` or ``udp``.
+    device : str
+        Serial device (serial transport).
+    host, port, local_port
+        The module's IPv4 address and port, and the port the host binds (udp transport).
+    """
+
+    kind: str
+    transport: str
+    device: str = ""
+    host: str = ""
+    port: int = 0
+    local_port: int = AGIO_LOCAL_PORT
+
+
+def _port(text: str, what: str, spec: str) -> int:
+    if not text.isdigit() or not 0 <= int(text) <= 65535:
+        raise AgioConfigError(f"bridge {spec!r}: {what} must be a port number 0..65535, got {text!r}")
+    return int(text)
+
+
+def parse_bridge(text: str) -> BridgeSpec:
+    """Parse ``hc11:PORT``, ``agopengps:serial:PORT``, ``agopengps:udp:HOST:PORT[:LOCAL]`` or a bare PORT.
+
+    Raises
+    ------
+    AgioConfigError
+        An unknown kind or transport, a malformed address or port, an empty device.
+    """
+    if not isinstance(text, str) or not text:
+        raise AgioConfigError("the bridge must be named: hc11:PORT, agopengps:serial:PORT or agopengps:udp:HOST:PORT")
+    kind, sep, rest = text.partition(":")
+    if kind == "hc11":
+        if not rest:
+            raise AgioConfigError(f"bridge {text!r}: hc11:PORT needs a serial device, e.g. hc11:/dev/ttyS0")
+        return BridgeSpec("hc11", "serial", device=rest)
+    if kind != "agopengps":
+        if kind.startswith("/") or not sep:      # a bare device path: the HC11 board, as before
+            return BridgeSpec("hc11", "serial", device=text)
+        raise AgioConfigError(f"unknown bridge {kind!r} in {text!r}; expected hc11:PORT, agopengps:serial:PORT "
+                              "or agopengps:udp:HOST:PORT")
+    transport, _, where = rest.partition(":")
+    if transport == "serial":
+        if not where:
+            raise AgioConfigError(f"bridge {text!r}: agopengps:serial:PORT needs a device, e.g. /dev/ttyACM0")
+        return BridgeSpec("agopengps", "serial", device=where)
+    if transport != "udp":
+        raise AgioConfigError(f"bridge {text!r}: the transport must be serial or udp, got {transport!r}")
+    parts = where.split(":")
+    if len(parts) not in (2, 3):
+        raise AgioConfigError(f"bridge {text!r}: expected agopengps:udp:HOST:PORT[:LOCALPORT], "
+                              f"e.g. agopengps:udp:192.168.5.126:8888")
+    try:
+        ipaddress.IPv4Address(parts[0])
+    except ValueError:
+        raise AgioConfigError(f"bridge {text!r}: {parts[0]!r} is not an IPv4 address (the module is "
+                              "usually 192.168.5.126)") from None
+    local = _port(parts[2], "the local port", text) if len(parts) == 3 else AGIO_LOCAL_PORT
+    return BridgeSpec("agopengps", "udp", host=parts[0], port=_port(parts[1], "the module's port", text),
+                      local_port=local)
+
+
+def open_agio_link(spec: BridgeSpec, open_port: Callable[..., ByteLink], baud: int) -> ByteLink:
+    """Open the link to an AgOpenGPS module.
+
+    Parameters
+    ----------
+    spec
+        A parsed ``agopengps:...`` specification.
+    open_port
+        Opens a serial port (``serial.Serial``'s signature), for the serial transport.
+    baud
+        Serial line rate, bit/s (a USB CDC port ignores it).
+
+    Raises
+    ------
+    AgioConfigError
+        ``spec`` is not an AgOpenGPS bridge.
+    OSError
+        The socket cannot be bound or the port opened.
+    """
+    if spec.kind != "agopengps":
+        raise AgioConfigError(f"not an AgOpenGPS bridge: {spec}")
+    if spec.transport == "serial":
+        return open_port(spec.device, baudrate=baud, timeout=0)
+    broadcast = ipaddress.IPv4Address(spec.host) == ipaddress.IPv4Address("255.255.255.255") \
+        or spec.host.endswith(".255")
+    return UdpLink(("0.0.0.0", spec.local_port), peer=(spec.host, spec.port), accept_any=broadcast,
+                   broadcast=broadcast)

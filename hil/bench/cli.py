@@ -4,6 +4,7 @@
     hil plot LOG.npz --out figure.png
     hil params [--tractor NAME|FILE] [--set group.name=value ...]
     hil tractors [--markdown] [--random SEED ... --out DIR]
+    hil commission --tractor NAME|FILE --out DIR [--passes N] [--duration S] [--hil-seeds N] ...
     hil calibrate --out out/calibration [--controller central-lqr.json] [--budget 30] [--seeds 2]
     hil run --controller kinematic --implement none --speed 1.79 --duration 60 --out runs/NAME
         [--realtime] [--seed N] [--fault KIND:START-END ...]
@@ -39,10 +40,12 @@ from hil.truth.conditions import condition_for
 from hil.bench.report import write_report
 from hil.bench.sysid import SysidPlan, make_passes
 from hil.vehicle.cli import add_drive_parser, print_run_result
+from hil.vehicle.commissioning import load_commissioning
+from hil.bench.cli_commission import add_commission_parser
 from hil.vehicle.outputs import prepare_out_dir, prepare_out_file, write_text_atomic
 
 #: Sub-commands whose --out is a directory, and those whose --out is a file (checked before any work).
-OUT_DIRS = ("sysid", "run", "compare", "tune", "calibrate", "tractors")
+OUT_DIRS = ("sysid", "run", "compare", "tune", "calibrate", "tractors", "commission")
 OUT_FILES = {"plot": (".png", ".pdf", ".svg")}
 
 
@@ -266,14 +269,19 @@ def _cmd_run(args: argparse.Namespace) -> dict:
                    realtime=args.realtime, initial_cross_track=args.initial_cross_track,
                    **{k: tuple(v) for k, v in faults.items()})
     params = _params(args)
-    controller = make_controller(args.controller, spec.implement, spec.speed, params)
+    com = load_commissioning(args.commissioning) if args.commissioning else None
+    if com is not None and args.controller == "oracle":      # behind the host's inverse map
+        from hil.bench.oracle import OracleOptions, oracle_for
+        controller = oracle_for(spec.implement, spec.speed, params, OracleOptions(invert_valve=False, host_map=True))
+    else:
+        controller = make_controller(args.controller, spec.implement, spec.speed, params)
     bar = tqdm(total=round(spec.duration), unit="s", desc="closed-loop pass", disable=args.quiet, file=sys.stderr)
 
     def progress(done: float, total: float) -> None:
         bar.n = round(done)
         bar.refresh()
 
-    log = simulated_run(spec, controller, params, progress=progress)
+    log = simulated_run(spec, controller, params, progress=progress, commissioning=com)
     bar.close()
     out = Path(args.out)
     summary = summarize(log)
@@ -351,6 +359,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"inject a fault, KIND in {sorted(FAULT_KINDS) + list(LINK_FAULT_KINDS)}; link "
                         "faults take @RATE, the probability per chunk (default 1); repeatable")
     r.add_argument("--out", required=True, help="directory for run_log.npz, track.png, summary.json")
+    r.add_argument("--commissioning", metavar="FILE.json", help="the tractor's commissioning file (hil commission): "
+                   "rate commands through its valve's inverse map, loop thresholds from the measured valve")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=_cmd_run)
 
@@ -429,6 +439,7 @@ def build_parser() -> argparse.ArgumentParser:
     em.set_defaults(func=_cmd_emulate)
 
     add_drive_parser(sub)
+    add_commission_parser(sub, _float, _override)
 
     pa = sub.add_parser("params", parents=[common], help="list the simulator's parameters")
     pa.add_argument("--markdown", action="store_true", help="print the table as Markdown")
@@ -472,6 +483,10 @@ def _print_human(command: str, result: dict) -> None:
         print(f"report: {result['files'][0]}")
     elif command in ("run", "drive"):
         print_run_result(result)
+    elif command == "commission":
+        for st in result["steps"]:
+            print(f"{st['step']:<20} {'ok' if st['ok'] else 'FAILED: ' + st['error']}")
+        print(f"report: {result['files'][0]}")
     elif command == "sysid":
         print(f"wrote {result['passes']} pass logs of {result['duration_s']:.0f} s to {result['out']}")
     else:

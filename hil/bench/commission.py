@@ -10,7 +10,8 @@ under one directory:
    :func:`hil.bench.sysid.make_passes` with ``valve=``);
 3. **identification** -- :func:`identification.workflow.identify_logs` (``models/``, its
    ``validation.md``);
-4. **designs** -- the paper's central LQR, the robust controller and the MPC through the
+4. **designs** -- the paper's central LQR (certified on the central model, as the paper's), the
+   robust controller and the MPC (certified on every local model) through the
    ``design`` commands (``controllers/``, each with its certificate), their command limits set to
    the valve's measured rate; the weights are the design's defaults or, when ``design`` offers
    them, chosen from specifications (``--weights auto``, :attr:`CommissionOptions.weights`);
@@ -240,10 +241,14 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         weights = ["--weights", "auto"] if auto else []
         if auto and _design_offers("robust", "--latency-from-logs"):
             weights += ["--latency-from-logs", str(out / "logs")]   # the latency the margins must cover
+        if auto and _design_offers("robust", "--actuator-rate"):
+            weights += ["--actuator-rate", limit]                    # the valve's measured rate
         res["weights"] = "auto (from specifications)" if auto else "the design commands' defaults"
         plan = {
-            "central-lqr": ["lqr", "--model", str(models_dir / "central.npz"), "--verify-on", *local,
-                            "--allow-unstable", "--command-limit", limit, "--out", str(ctrl / "central-lqr.json")],
+            # the paper's method: one LQR on the central model, certified on that model only (as in the paper;
+            # a certificate failed on the local models would make the loader refuse the reference)
+            "central-lqr": ["lqr", "--model", str(models_dir / "central.npz"), "--command-limit", limit,
+                            "--out", str(ctrl / "central-lqr.json")],
             "robust": ["robust", "--models", *local, *(["--integral"] if opts.integral else []), *weights,
                        "--command-limit", limit, "--out", str(ctrl / "robust.json")],
             "mpc": ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *weights,

@@ -137,10 +137,15 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
                   "robust/paper | MPC/paper |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
         for c in cells:
             def s(k: str) -> str:
-                return f"{_cm(c[k])} ({c[k + '_disengagements']})" if c[k + "_disengagements"] is not None else "-"
+                if c[k + "_disengagements"] is None:
+                    return "-"
+                return f"{_cm(c[k])} ({c[k + '_disengagements']})" if math.isfinite(c[k]) else "failed"
             lines.append(f"| {c['implement']} | {c['speed']:.2f} | {s('central-lqr')} | {s('robust')} | {s('mpc')} | "
                          f"{s('oracle')} | {_x(c['robust_over_oracle'])} | {_x(c['mpc_over_oracle'])} | "
                          f"{_x(c['robust_over_paper'])} | {_x(c['mpc_over_paper'])} |")
+        errors = sorted({f"{r['controller']}: {e}" for r in res.get("hil", []) for e in r.get("errors", [])})
+        if errors:
+            lines += ["", "Passes that failed:", ""] + [f"- {e}" for e in errors]
         files.append(str(_sigma_figure(cells, out / "sigma_vs_speed.png")))
         lines += ["", "![1-sigma versus speed](sigma_vs_speed.png)"]
     (out / "report.md").write_text("\n".join(lines) + "\n")

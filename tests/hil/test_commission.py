@@ -64,3 +64,28 @@ def test_the_command_refuses_bad_options(capsys) -> None:
         CommissionOptions(weights="tuned")
     with pytest.raises(ValueError, match="hil_seeds"):
         CommissionOptions(hil_seeds=())
+
+
+def test_hil_run_takes_a_commissioning_file_and_hil_commission_refuses_an_unknown_tractor(tmp_path: Path,
+                                                                                        capsys) -> None:
+    from hil.bench.cli import main
+    from hil.bench.valve_bench import characterise_on_bench, linearity_on_bench
+    from hil.vehicle.commissioning import Commissioning, save_commissioning
+    p = resolve_tractor("default").params()
+    curve, _ = characterise_on_bench(p, seed=0)
+    f = save_commissioning(Commissioning("default", curve, linearity_on_bench(curve, p)), tmp_path / "c.json")
+    assert main(["run", "--tractor", "default", "--commissioning", str(f), "--controller", "oracle",
+                 "--implement", "disker", "--speed", "1.79", "--duration", "25", "--out", str(tmp_path / "r"),
+                 "--quiet", "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert not [e for e in r["events"] if "steering not responding" in e["reason"]], r["events"]
+    from identification.passlog import PassLog
+    loop = PassLog.load(tmp_path / "r" / "run_log.npz").meta["loop"]
+    assert loop["max_rate"] == pytest.approx(curve.max_rate)                  # the measured valve's settings
+    assert loop["response_min_command"] == pytest.approx(
+        Commissioning("default", curve, linearity_on_bench(curve, p)).loop_config().response_min_command)
+    assert main(["commission", "--tractor", "no-such", "--out", str(tmp_path / "c"), "--quiet"]) == 1
+    assert "unknown tractor 'no-such'" in capsys.readouterr().err
+    assert main(["run", "--commissioning", str(tmp_path / "none.json"), "--controller", "kinematic",
+                 "--out", str(tmp_path / "r2"), "--quiet"]) == 1
+    assert "does not exist" in capsys.readouterr().err

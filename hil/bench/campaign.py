@@ -66,17 +66,19 @@ class RunKey:
     speed: float
     seed: int
     duration: float
+    bridge: str = "hc11"
 
     @property
     def name(self) -> str:
-        return f"{controller_label(self.controller)}__{self.implement}_{self.speed:.2f}__seed{self.seed}"
+        via = "" if self.bridge == "hc11" else f"__{self.bridge}"
+        return f"{controller_label(self.controller)}__{self.implement}_{self.speed:.2f}__seed{self.seed}{via}"
 
 
 def run_one(key: RunKey, params: dict, realtime: bool = False) -> dict:
     """Run one pass (in lockstep, or in real time over pseudo-terminals) and return its summary."""
     ctrl = make_controller(key.controller, key.implement, key.speed, SimParams.from_dict(params))
     log = simulated_run(RunSpec(implement=key.implement, speed=key.speed, duration=key.duration, seed=key.seed,
-                                realtime=realtime), ctrl, SimParams.from_dict(params))
+                                realtime=realtime, bridge=key.bridge), ctrl, SimParams.from_dict(params))
     solver = ctrl.diagnostics() if callable(getattr(ctrl, "diagnostics", None)) else None
     t = log.times["t"]
     every = max(1, int(round(0.25 / float(t[1] - t[0]))))      # a 4 Hz trace for the overlay figures
@@ -107,23 +109,28 @@ class Campaign:
     params
         Simulator parameters (part of the campaign's identity: resuming with other
         parameters is refused).
+    bridge
+        ``hc11`` or ``agopengps`` (see :class:`~hil.bench.run.RunSpec`).
     """
 
     def __init__(self, out: str | Path, controllers: Sequence[str], conditions: Sequence[Condition] | None = None,
-                 seeds: Sequence[int] = (0,), duration: float = 60.0, params: SimParams | None = None) -> None:
+                 seeds: Sequence[int] = (0,), duration: float = 60.0, params: SimParams | None = None,
+                 bridge: str = "hc11") -> None:
         if not controllers:
             raise SimulatorConfigError("a campaign needs at least one controller")
         for c in controllers:
             make_controller(c)
         if not seeds or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
             raise SimulatorConfigError(f"seeds must be integers >= 0, got {list(seeds)!r}")
-        RunSpec(duration=duration)   # validates the duration
+        RunSpec(duration=duration, bridge=bridge)   # validates the duration and the bridge
+        self.bridge = bridge
         self.out = Path(out)
         self.params = (params or SimParams()).to_dict()
         conditions = list(conditions or all_conditions())
-        self.keys = [RunKey(ctrl, c.implement, c.speed, int(s), float(duration))
+        self.keys = [RunKey(ctrl, c.implement, c.speed, int(s), float(duration), bridge)
                      for ctrl in controllers for c in conditions for s in seeds]
         self.identity = {"controllers": list(controllers), "seeds": [int(s) for s in seeds], "duration": duration,
+                         "bridge": bridge,
                          "conditions": [[c.implement, c.speed] for c in conditions], "params": self.params,
                          "controller_files": {c: hashlib.sha256(Path(c).read_bytes()).hexdigest()
                                               for c in controllers if c.endswith(".json")}}
@@ -154,7 +161,7 @@ class Campaign:
     def _save(self, result: dict) -> None:
         key = RunKey(**{f: result[f] for f in RunKey.__dataclass_fields__ if f != "controller"},
                      controller=result["controller_spec"])
-        path = self._path(key, result.get("mode") == "realtime-pty")
+        path = self._path(key, str(result.get("mode", "")).startswith("realtime"))
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".part")
         tmp.write_text(json.dumps(result, indent=2) + "\n")
@@ -248,7 +255,7 @@ class Campaign:
         specs, dur = self.realtime_plan(controllers, duration)
         self._prepare()
         seed = self.identity["seeds"][0]
-        keys = [RunKey(ctrl, c.implement, c.speed, seed, dur) for ctrl in specs for c in conditions]
+        keys = [RunKey(ctrl, c.implement, c.speed, seed, dur, self.bridge) for ctrl in specs for c in conditions]
         for i, k in enumerate(keys):
             if not self._path(k, True).exists():
                 self._save(run_one(k, self.params, realtime=True))

@@ -15,6 +15,7 @@ from . import report as rp
 from .acceptance import enforce
 from .csvdata import read_csv
 from .errors import DataError
+from .generic import fit_record
 from .model import Model
 from .okid import OKID
 from .outputs import output_dir, output_file
@@ -102,16 +103,24 @@ def fit_csv(data: str | Path, inputs: Sequence[str], outputs: Sequence[str], out
     output_file(out, (".npz",), "--out")
     io = read_csv(data, inputs, outputs, dt, experiment_column)
     fit, val = io.split(split) if split is not None else (io, io)
-    est = OKID(order=order, markov=markov, method=method, feedthrough=feedthrough, refine=refine).fit(
-        fit, meta={"kind": "generic", "name": Path(out).stem, "source": str(data)})
-    m = est.model_
+    meta = {"kind": "generic", "name": Path(out).stem, "source": str(data)}
+    if order == "validate" or refine in ("oe-all", "validate"):
+        # structure chosen on the fit data only; all of A, B, C, D refined by output error
+        m, _sel = fit_record(fit, order, refine, {"markov": markov, "method": method,
+                                                  "feedthrough": feedthrough}, meta=meta)
+        n_lags = int(m.meta["n_observer_markov"])
+    else:
+        est = OKID(order=order, markov=markov, method=method, feedthrough=feedthrough, refine=refine).fit(
+            fit, meta=meta)
+        m, n_lags = est.model_, est.n_lags_
     res = validate(m.A, m.B, m.C, m.D, m.K, val)
     m = m.with_meta(fit={**res.as_dict(), "validation": "held-out tail" if split else "training data"})
     path = m.save(out)
     text = (f"model {path}: order {m.order}, {m.n_inputs} input(s), {m.n_outputs} output(s), dt {m.dt:g} s\n"
             f"free-run fit % {_fmt(res.free_run_fit)}   one-step fit % {_fmt(res.one_step_fit)}"
             f"  ({'held-out data' if split else 'training data'})")
-    return {"written": str(path), "order": m.order, "n_observer_markov": est.n_lags_,
+    return {"written": str(path), "order": m.order, "n_observer_markov": n_lags,
+            "refine": m.meta.get("refine"),
             **res.as_dict(), "_text": text}
 
 

@@ -8,6 +8,9 @@
 2. Decoding the Trimble NMEA capture with ``gnss.reader`` versus ``pynmeagps.NMEAReader`` alone.
 3. Cross-track of N points: vectorised ``ABLine.errors`` / ``CurvedLine.errors`` versus a scalar
    Python loop over the points.
+4. Hostile input (issue 18): streams made of one repeated unit (``$``, ``$``-lines, UBX and RTCM 3 headers
+   that announce long frames) decoded by ``gnss.reader``, against the clean Trimble capture repeated to
+   the same size: the ratio is what line noise or a hostile file costs over a real receiver's bytes.
 
 Prints a table with times and ratios (ours / baseline).  ``--quick`` runs fewer repetitions.
 """
@@ -33,6 +36,15 @@ from gnss.reader import GnssReader, strip_comment_header  # noqa: E402
 DATA = ROOT.parent / "shared" / "data" / "gnss"
 UBLOX = DATA / "gpsd_ublox_zed_f9r_ubx_nmea_rtcm" / "ublox-zed-f9r.log"
 TRIMBLE = DATA / "gpsd_trimble_nmea_rtk" / "nmea-rtk.log"
+
+
+HOSTILE = {
+    "'$'": b"$",
+    "'$'*80 CRLF": b"$" * 80 + b"\r\n",
+    "UBX hdr 8 kB": b"\xb5\x62\x01\x01\x00\x20",
+    "RTCM hdr 1 kB": b"\xd3\x03\xff",
+}
+"""Repeated units of hostile streams: '$' floods, and headers announcing frames that fail their checksum."""
 
 
 def best_of(fn, reps: int) -> tuple[float, object]:
@@ -103,6 +115,14 @@ def main(argv: list[str]) -> int:
         t_ours, n_ours = best_of(lambda: ours(data), reps)
         t_base, n_base = best_of(lambda: base(data), reps)
         rows.append((f"decode {name}", f"gnss.reader ({n_ours} msgs)", t_ours, f"{base_name} ({n_base} msgs)", t_base))
+    n_hostile = 40_000 if quick else 150_000
+    clean = (trimble * (n_hostile // len(trimble) + 1))[:n_hostile]
+    t_clean, n_clean = best_of(lambda: ours(clean), reps)
+    for unit_name, unit in HOSTILE.items():
+        hostile = (unit * (n_hostile // len(unit) + 1))[:n_hostile]
+        t_h, n_h = best_of(lambda: ours(hostile), reps)
+        rows.append((f"hostile {unit_name} ({n_hostile // 1000} kB)", f"gnss.reader ({n_h} msgs)", t_h,
+                     f"same size clean ({n_clean} msgs)", t_clean))
     rng = np.random.default_rng(0)
     n_pts = 20_000 if quick else 100_000
     e, n = rng.uniform(-200, 200, (2, n_pts))

@@ -3,8 +3,14 @@
 :class:`StreamDecoder` is push-style (``feed(bytes, t_arrival)``), :class:`GnssReader`
 pulls from any object with ``read(n)`` (a file, ``io.BytesIO``, ``serial.Serial``
 or an emulated port).  Both resynchronise after garbage: bytes that do not start a
-valid frame are skipped one at a time, and every frame that fails its checksum is
-refused (never yielded) and counted in :class:`ReaderStats`.
+valid frame are skipped, and every frame that fails its checksum is refused (never
+yielded) and counted in :class:`ReaderStats`.
+
+Time is linear in the input whatever it holds (line noise, floods of ``$``, headers that
+announce long frames): every byte is examined a bounded number of times, and the decoder
+holds back at most one frame's worth of bytes (:attr:`StreamDecoder.buffered`: under
+:data:`~gnss.nmea.NMEA_MAX_LENGTH` after a ``$``, at most ``8 + UBX_MAX_PAYLOAD`` after a
+UBX header). The counts are those of trying a frame at every byte, one at a time.
 """
 
 from __future__ import annotations
@@ -20,15 +26,15 @@ from typing import Literal, Protocol
 from .errors import ConfigError, ParseError
 from .fastinit import positional_maker
 from .messages import Message, message_key
-from .nmea import NMEA_MAX_LENGTH, _parse_fast, _parse_full, parse_nmea
-from .rtcm import parse_rtcm
-from .ubx import UBX_MAX_PAYLOAD, parse_ubx
+from .framecheck import RangeChecks
+from .nmea import NMEA_MAX_LENGTH, parse_nmea
+from .rtcm import parse_rtcm, rtcm_crc_error
+from .ubx import UBX_MAX_PAYLOAD, parse_ubx, ubx_checksum_error
 
 __all__ = ["Received", "ReaderStats", "StreamDecoder", "GnssReader", "ByteSource", "read_messages", "strip_comment_header"]
 
 _SYNC = re.compile(rb"\$|\xb5\x62|\xd3")
 _PRINTABLE = re.compile(rb"[\x20-\x7e]*")
-_NMEA_LINE = re.compile(rb"\$[\x20-\x7e]*\r?\n")   # a whole sentence: printable run, then [CR] LF
 
 
 class ByteSource(Protocol):
@@ -114,6 +120,8 @@ class StreamDecoder:
         self.on_error = on_error
         self.stats = ReaderStats()
         self._buf = bytearray()
+        self._pos = 0                     # stream position of self._buf[0]
+        self._sums = RangeChecks()        # checksums of frames refused or accepted, by range
         self._pending: list[Received] = []
 
     def feed(self, data: bytes, t_arrival: float = math.nan) -> list[Received]:
@@ -126,105 +134,145 @@ class StreamDecoder:
         """End of stream: decode what is complete and count the unfinished rest as garbage."""
         return self._drain(t_arrival, final=True)
 
-    def _need(self, have: int, need: int, final: bool) -> bool | None:
-        """True = complete, None = wait for more bytes, False = abandon (final and incomplete)."""
-        if have >= need:
-            return True
-        return False if final else None
+    @property
+    def buffered(self) -> int:
+        """Bytes held back, waiting for the rest of a frame (at most the longest frame accepted)."""
+        return len(self._buf)
+
+    def _refuse(self, exc: ParseError, buf: bytearray, i: int, out: list[Received]) -> None:
+        """Count a refused frame; in ``"raise"`` mode drop ``buf[:i]``, keep ``out`` for later and raise."""
+        self.stats.errors[type(exc).__name__] += 1
+        self.stats.last_error = str(exc)
+        if self.on_error == "raise":
+            self._pos += i
+            del buf[:i]
+            self._pending = out
+            raise exc
 
     def _drain(self, t: float, final: bool) -> list[Received]:  # noqa: C901 - one framing loop
+        # Every byte is examined a bounded number of times: the search for a sync byte moves forward
+        # only; an NMEA sentence is the printable run from its '$' to CR LF, scanned once for all the
+        # '$' in it; UBX and RTCM frames are checked from running sums (gnss.framecheck), so a refused
+        # frame costs the same whatever its declared length.
         out, self._pending = self._pending, []
-        buf, stats, check = self._buf, self.stats, self.check
+        buf, stats, check, pos = self._buf, self.stats, self.check, self._pos
         n, i = len(buf), 0
-        while i < n:    # (at i == n the search below finds nothing and keeps nothing)
-            if buf[i] == 0x24:      # a frame starts right here (the search would find it at i)
-                j, lead = i, 0x24
-            else:
-                m = _SYNC.search(buf, i)
-                if m is None:
-                    keep = 1 if (not final and n > i and buf[-1] == 0xB5) else 0
-                    stats.garbage_bytes += n - i - keep
-                    i = n - keep
-                    break
-                j = m.start()
-                stats.garbage_bytes += j - i
-                i = j
-                lead = buf[j]
-            if lead == 0x24:  # '$' NMEA
-                line = _NMEA_LINE.match(buf, j)
-                if line is not None and line.end() - j <= NMEA_MAX_LENGTH:
-                    # the common case, a complete sentence (what the branches below find for it, in one match)
-                    frame = line.group()
+        while i < n:
+            m = _SYNC.search(buf, i)
+            if m is None:
+                keep = 1 if (not final and buf[-1] == 0xB5) else 0
+                stats.garbage_bytes += n - i - keep
+                i = n - keep
+                break
+            j = m.start()
+            stats.garbage_bytes += j - i
+            i = j
+            lead = buf[j]
+            if lead == 0x24:  # '$' NMEA: the printable run from j holds every '$' up to its end
+                e = _PRINTABLE.match(buf, j + 1).end()
+                last = buf.rfind(b"$", j, e)
+                term = e + 1 if e < n and buf[e] == 0x0D else e
+                if term < n and buf[term] == 0x0A:
+                    line_end = term + 1
+                    first = max(j, line_end - NMEA_MAX_LENGTH)   # a '$' before it makes a sentence too long
+                    first = buf.find(b"$", first, last + 1)
+                    if first < 0:
+                        stats.garbage_bytes += last + 1 - j
+                        i = last + 1
+                        continue
+                    stats.garbage_bytes += first - j
+                    # each '$' before the last one starts a sentence with a '$' inside: refused as malformed
+                    n_cut = buf.count(b"$", first, last)
+                    if n_cut:   # ('"raise"' stops at the first of them, "skip" counts them all at once)
+                        cut = first if self.on_error == "raise" else buf.rfind(b"$", first, last)
+                        try:
+                            parse_nmea(bytes(buf[cut:line_end]), check=check)
+                        except ParseError as exc:
+                            if self.on_error == "skip":
+                                stats.garbage_bytes += last - first - n_cut
+                                stats.errors[type(exc).__name__] += n_cut - 1
+                            self._refuse(exc, buf, cut + 1, out)
+                        else:   # pragma: no cover - split_sentence refuses a '$' in the body
+                            raise AssertionError(f"a sentence with '$' inside was accepted: {buf[cut:line_end]!r}")
+                    frame = bytes(buf[last:line_end])
                     try:
-                        msg = _parse_fast(frame) if check else None     # parse_nmea(frame, check=check)
-                        if msg is None:
-                            msg = _parse_full(frame, check)
+                        msg = parse_nmea(frame, check=check)
                     except ParseError as exc:
-                        stats.errors[type(exc).__name__] += 1
-                        stats.last_error = str(exc)
-                        i = j + 1
-                        if self.on_error == "raise":
-                            del buf[:i]
-                            self._pending = out
-                            raise
+                        self._refuse(exc, buf, last + 1, out)
+                        i = last + 1
                         continue
                     out.append(_make_received(msg, t, frame))   # Received(msg, t, frame)
                     stats.messages[message_key(msg)] += 1
-                    i = line.end()
+                    i = line_end
                     continue
-                end = _PRINTABLE.match(buf, j + 1).end()
-                if end < n and buf[end] == 0x0D:
-                    end += 1
-                if end < n and buf[end] == 0x0A and end + 1 - j <= NMEA_MAX_LENGTH:
-                    size, parse = end + 1 - j, parse_nmea
-                elif end >= n and n - j < NMEA_MAX_LENGTH and not final:
-                    break  # possibly a sentence still arriving
-                else:
-                    stats.garbage_bytes += 1
-                    i = j + 1
-                    continue
-            elif lead == 0xB5:  # UBX
-                ok = self._need(n - j, 6, final)
-                if ok is None:
+                if term >= n and not final:   # the line may still be arriving: wait from its first '$'
+                    first = buf.find(b"$", max(j, n - NMEA_MAX_LENGTH + 1), last + 1)
+                    if first >= 0:
+                        stats.garbage_bytes += first - j
+                        i = first
+                        break
+                stats.garbage_bytes += last + 1 - j   # no line end: every '$' of the run is garbage
+                i = last + 1
+                continue
+            if lead == 0xB5:  # UBX: sync, class, id, length (LE), payload, CK_A, CK_B
+                if n - j < 6:
+                    if final:
+                        stats.garbage_bytes += 1
+                        i = j + 1
+                        continue
                     break
-                size = 8 + (buf[j + 4] | buf[j + 5] << 8) if ok else 0
-                if not ok or size - 8 > UBX_MAX_PAYLOAD:
+                size = 8 + (buf[j + 4] | buf[j + 5] << 8)
+                if size - 8 > UBX_MAX_PAYLOAD:
                     stats.garbage_bytes += 1
                     i = j + 1
                     continue
                 parse = parse_ubx
-            else:  # 0xD3 RTCM 3
-                ok = self._need(n - j, 3, final)
-                if ok is None:
+            else:  # 0xD3 RTCM 3: preamble, 6 zero bits, 10-bit length, payload, CRC-24Q
+                if n - j < 3:
+                    if final:
+                        stats.garbage_bytes += 1
+                        i = j + 1
+                        continue
                     break
-                if not ok or buf[j + 1] & 0xFC:
+                if buf[j + 1] & 0xFC:
                     stats.garbage_bytes += 1
                     i = j + 1
                     continue
                 size = 6 + ((buf[j + 1] & 0x03) << 8 | buf[j + 2])
                 parse = parse_rtcm
-            ok = self._need(n - j, size, final)
-            if ok is None:
+            if n - j < size:
+                if final:
+                    stats.garbage_bytes += 1
+                    i = j + 1
+                    continue
                 break
-            if not ok:
-                stats.garbage_bytes += 1
-                i = j + 1
-                continue
+            frame_check = check
+            if check:   # the checksum from the running sums, before the frame is copied
+                frame_check = False
+                exc = None
+                if lead == 0xB5:
+                    calc = self._sums.fletcher(buf, pos, pos + j + 2, pos + j + size - 2)
+                    if calc != buf[j + size - 2 : j + size]:
+                        exc = ubx_checksum_error(buf[j + size - 2 : j + size], calc)
+                elif size >= 8:   # (a shorter RTCM frame is refused by parse_rtcm before its CRC)
+                    crc = self._sums.crc24q(buf, pos, pos + j, pos + j + size - 3)
+                    if crc != int.from_bytes(buf[j + size - 3 : j + size], "big"):
+                        exc = rtcm_crc_error(buf[j + size - 3 : j + size], crc)
+                if exc is not None:
+                    self._refuse(exc, buf, j + 1, out)
+                    i = j + 1
+                    continue
             frame = bytes(buf[j : j + size])
             try:
-                msg = parse(frame, check=self.check)
+                msg = parse(frame, check=frame_check)
             except ParseError as exc:
-                stats.errors[type(exc).__name__] += 1
-                stats.last_error = str(exc)
+                self._refuse(exc, buf, j + 1, out)
                 i = j + 1
-                if self.on_error == "raise":
-                    del buf[:i]
-                    self._pending = out
-                    raise
                 continue
             out.append(_make_received(msg, t, frame))   # Received(msg, t, frame)
             stats.messages[message_key(msg)] += 1
             i = j + size
+        self._pos += i
         del buf[:i]
         return out
 

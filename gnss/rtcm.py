@@ -11,7 +11,7 @@ from pyrtcm import RTCMReader, calc_crc24q
 from .errors import EncodeError, RTCMParseError
 from .messages import RtcmFrame
 
-__all__ = ["RTCM_PREAMBLE", "crc24q", "frame_rtcm", "parse_rtcm", "decode_rtcm"]
+__all__ = ["RTCM_PREAMBLE", "crc24q", "frame_rtcm", "parse_rtcm", "decode_rtcm", "rtcm_crc_error"]
 
 RTCM_PREAMBLE = 0xD3
 
@@ -49,11 +49,16 @@ def parse_rtcm(frame: bytes, *, check: bool = True) -> RtcmFrame:
     length = ((frame[1] & 0x03) << 8) | frame[2]
     if len(frame) != length + 6:
         raise RTCMParseError(f"RTCM length field says {length} payload bytes, frame has {len(frame) - 6}")
-    if check and crc24q(frame[:-3]) != int.from_bytes(frame[-3:], "big"):
-        raise RTCMParseError(
-            f"invalid RTCM CRC-24Q {frame[-3:].hex()} - should be {crc24q(frame[:-3]):06x}; the frame was refused"
-        )
+    if check:
+        calc = crc24q(frame[:-3])
+        if calc != int.from_bytes(frame[-3:], "big"):
+            raise rtcm_crc_error(frame[-3:], calc)
     return RtcmFrame(msg_type=(frame[3] << 4) | (frame[4] >> 4), raw=bytes(frame))
+
+
+def rtcm_crc_error(given: bytes, calc: int) -> RTCMParseError:
+    """The error of a frame whose CRC bytes ``given`` (3) are not the CRC-24Q ``calc`` of its bytes."""
+    return RTCMParseError(f"invalid RTCM CRC-24Q {bytes(given).hex()} - should be {calc:06x}; the frame was refused")
 
 
 def decode_rtcm(frame: RtcmFrame) -> object:

@@ -23,6 +23,7 @@ __all__ = [
     "NAV_PVT_LAYOUT",
     "NAV_RELPOSNED_LAYOUT",
     "ubx_checksum",
+    "ubx_checksum_error",
     "frame_ubx",
     "parse_ubx",
     "encode_nav_pvt",
@@ -87,10 +88,15 @@ def _check_frame(frame: bytes, check: bool) -> tuple[int, int, bytes]:
     if check:
         calc = ubx_checksum(frame[2:-2])
         if calc != frame[-2:]:
-            raise UBXParseError(
-                f"invalid UBX checksum {frame[-2:].hex()} - should be {calc.hex()}; the frame is corrupt and was refused"
-            )
+            raise ubx_checksum_error(frame[-2:], calc)
     return frame[2], frame[3], bytes(frame[6:-2])
+
+
+def ubx_checksum_error(given: bytes, calc: bytes) -> UBXParseError:
+    """The error of a frame whose checksum ``given`` is not the ``calc`` of its bytes (2 bytes each)."""
+    return UBXParseError(
+        f"invalid UBX checksum {bytes(given).hex()} - should be {bytes(calc).hex()}; the frame is corrupt and was refused"
+    )
 
 
 def _pvt(m: object) -> NavPvt:

@@ -57,3 +57,28 @@ def test_bad_input_exit_nonzero_with_message(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["xtrack", str(TRIMBLE_EXCERPT), "--a", "91,0", "--b", "0,0"])
     assert "|LAT| <= 90" in capsys.readouterr().err
+
+
+def test_replay_of_300_kB_of_dollars_ends_at_once_with_one_line(tmp_path, capsys):
+    """Issue 18: this did not finish in 120 s (quadratic framing); now a refusal in well under a second
+    (asserted: 20 s, for a stalled host), exit status 1, one line saying what was found."""
+    import time
+
+    flood = tmp_path / "flood.nmea"
+    flood.write_bytes(b"$" * 300_000)
+    t0 = time.perf_counter()
+    assert main(["replay", str(flood)]) == 1
+    assert time.perf_counter() - t0 < 20.0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no NMEA, UBX or RTCM 3 message found in 300000 bytes" in err[0]
+    assert "300000 garbage bytes" in err[0]
+
+
+def test_replay_of_a_capture_inside_line_noise_counts_the_capture_exactly(tmp_path, capsys):
+    """The Trimble excerpt's 40 sentences after 100 kB of '$' and '\\xd3\\x03\\xff' noise: all 40 decoded."""
+    noisy = tmp_path / "noisy.nmea"
+    body = TRIMBLE_EXCERPT.read_bytes().split(b"\n", 9)[-1]   # without the 9 '#' header lines
+    noisy.write_bytes(b"$" * 50_000 + b"\xd3\x03\xff" * 16_000 + b"\r\n" + body)
+    assert main(["replay", str(noisy), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["messages"] == {"GNGGA": 10, "GNRMC": 10, "GPGGA": 10, "GPRMC": 10}

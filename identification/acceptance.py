@@ -52,9 +52,9 @@ class Acceptance:
     prediction
         The held-out multi-step fits the verdict rests on.
     messages
-        One message per output below a threshold, each with its fix.
+        At most two messages (the outputs below each threshold), each with its fix.
     refusals
-        The messages of the outputs below :data:`REFUSE_FIT`.
+        The message of the outputs below :data:`REFUSE_FIT` (empty if none).
     """
 
     name: str
@@ -62,6 +62,7 @@ class Acceptance:
     prediction: MultiStepResult
     messages: tuple[str, ...]
     refusals: tuple[str, ...] = ()
+    fix: str = ""
 
     def as_dict(self) -> dict:
         """JSON-friendly verdict (for the model's metadata)."""
@@ -100,18 +101,22 @@ def assess(name: str, model: Model, data: IOData, warmup: int = 0, horizon_s: fl
         Prediction horizon, s.
     """
     pred = multistep_fit(model.A, model.B, model.C, model.D, model.K, data, horizon_s, warmup=warmup)
-    messages, refusals, status = [], [], "accepted"
-    for out, fit in zip(pred.output_names, pred.fit):
-        if not np.isfinite(fit) or fit < REFUSE_FIT:
-            status = "refused"
-            refusals.append(f"{name}: {pred.horizon_s:g} s prediction fit of {out} {fit:.0f} % < {REFUSE_FIT:.0f} %; "
-                            f"{_fix(model)}")
-            messages.append(refusals[-1])
-        elif fit < WARN_FIT:
-            status = "warning" if status == "accepted" else status
-            messages.append(f"{name}: {pred.horizon_s:g} s prediction fit of {out} {fit:.0f} % < {WARN_FIT:.0f} % "
-                            f"(accepted with a warning); {_fix(model)}")
-    return Acceptance(name, status, pred, tuple(messages), tuple(refusals))
+    low = [(o, f) for o, f in zip(pred.output_names, pred.fit) if not np.isfinite(f) or f < REFUSE_FIT]
+    weak = [(o, f) for o, f in zip(pred.output_names, pred.fit) if np.isfinite(f) and REFUSE_FIT <= f < WARN_FIT]
+
+    def listed(items: list) -> str:
+        return ", ".join(f"{o} {f:.0f} %" for o, f in items)
+
+    refusals, messages = [], []
+    if low:
+        refusals.append(f"{name}: {pred.horizon_s:g} s prediction fit of {listed(low)} < {REFUSE_FIT:.0f} %; "
+                        f"{_fix(model)}")
+        messages += refusals
+    if weak:
+        messages.append(f"{name}: {pred.horizon_s:g} s prediction fit of {listed(weak)} < {WARN_FIT:.0f} % "
+                        f"(accepted with a warning); {_fix(model)}")
+    status = "refused" if low else "warning" if weak else "accepted"
+    return Acceptance(name, status, pred, tuple(messages), tuple(refusals), _fix(model))
 
 
 def enforce(verdicts: Sequence[Acceptance], policy: str = "refuse") -> list[str]:
@@ -121,9 +126,15 @@ def enforce(verdicts: Sequence[Acceptance], policy: str = "refuse") -> list[str]
     """
     if policy not in ("refuse", "warn"):
         raise OptionError(f"acceptance policy must be 'refuse' or 'warn', got {policy!r}")
-    refused = [m for v in verdicts for m in v.refusals]
-    if refused and policy == "refuse":
-        raise ModelRefusedError(f"{sum(v.status == 'refused' for v in verdicts)} model(s) do not predict well "
-                                "enough to design on:\n  " + "\n  ".join(refused)
+    bad = [v for v in verdicts if v.refusals]
+    if bad and policy == "refuse":
+        fixes = {v.fix for v in bad}
+        if len(fixes) == 1:      # one fix for all: said once, after the list
+            lines = [m[:-len(v.fix) - 2] if m.endswith("; " + v.fix) else m for v in bad for m in v.refusals]
+            lines.append(f"to fix: {fixes.pop()}")
+        else:
+            lines = [m for v in bad for m in v.refusals]
+        raise ModelRefusedError(f"{len(bad)} model(s) do not predict well enough to design on:\n  "
+                                + "\n  ".join(lines)
                                 + "\n(--acceptance warn writes them anyway, marked refused in their metadata)")
     return [m for v in verdicts for m in v.messages]

@@ -197,7 +197,7 @@ def _conditions(text: str):
 def _cmd_compare(args: argparse.Namespace) -> dict:
     campaign = Campaign(Path(args.out) / "campaign", args.controllers, args.conditions,
                         seeds=list(range(args.seed, args.seed + args.seeds)), duration=args.duration,
-                        params=_params(args))
+                        params=_params(args), bridge=args.bridge)
     if (args.realtime_controllers or args.realtime_duration is not None) and not args.realtime:
         raise SimulatorConfigError("--realtime-controllers and --realtime-duration need --realtime IMPLEMENT:SPEED")
     if args.realtime:
@@ -266,7 +266,7 @@ def _cmd_run(args: argparse.Namespace) -> dict:
     for kind, span in args.fault or []:
         faults.setdefault(kind, []).append(span)
     spec = RunSpec(implement=args.implement, speed=args.speed, duration=args.duration, seed=args.seed,
-                   realtime=args.realtime, initial_cross_track=args.initial_cross_track,
+                   realtime=args.realtime, initial_cross_track=args.initial_cross_track, bridge=args.bridge,
                    **{k: tuple(v) for k, v in faults.items()})
     params = _params(args)
     com = load_commissioning(args.commissioning) if args.commissioning else None
@@ -354,6 +354,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--duration", type=_float, default=60.0, help="seconds (default 60)")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--realtime", action="store_true", help="real time over pseudo-terminals (default: lockstep)")
+    r.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
+                   help="steering bridge: the emulated HC11 board or an emulated AgOpenGPS steer module "
+                        "(in real time over UDP on 127.0.0.1)")
     r.add_argument("--initial-cross-track", type=_float, default=0.3, help="start offset from the line, m")
     r.add_argument("--fault", action="append", type=_fault, metavar="KIND:START-END",
                    help=f"inject a fault, KIND in {sorted(FAULT_KINDS) + list(LINK_FAULT_KINDS)}; link "
@@ -371,6 +374,8 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--conditions", type=_conditions, default=None, metavar="all|IMPLEMENT:SPEED,...",
                     help="default: the paper's 15")
     cp.add_argument("--seeds", type=int, default=2, help="passes per condition and controller (default 2)")
+    cp.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
+                    help="steering bridge of every pass: the emulated HC11 board or an AgOpenGPS steer module")
     cp.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     cp.add_argument("--duration", type=_float, default=60.0, help="seconds per pass (default 60)")
     cp.add_argument("--executor", choices=EXECUTORS, default="local")

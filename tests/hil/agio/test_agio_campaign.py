@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from hil.bench.campaign import Campaign, RunKey
+from hil.cli import main as hil_main
 from hil.errors import SimulatorConfigError
+from identification.passlog import PassLog
 from hil.truth.conditions import condition_for
 
 pytestmark = pytest.mark.timeout(300)
@@ -25,3 +29,14 @@ def test_a_campaign_through_the_module_runs_and_names_its_passes_apart(tmp_path)
 def test_an_unknown_bridge_is_refused_by_the_campaign(tmp_path):
     with pytest.raises(SimulatorConfigError, match="bridge"):
         Campaign(tmp_path, ["kinematic"], bridge="can")
+
+
+def test_hil_run_and_compare_take_the_bridge(tmp_path, capsys):
+    rc = hil_main(["run", "--controller", "kinematic", "--implement", "none", "--speed", "1.79", "--duration", "6",
+                   "--bridge", "agopengps", "--out", str(tmp_path / "run"), "--json"])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["events"][0]["event"] == "engage"
+    assert PassLog.load(tmp_path / "run" / "run_log.npz").meta["bridge"] == "agopengps"
+    with pytest.raises(SystemExit):
+        hil_main(["compare", "kinematic", "--bridge", "can", "--out", str(tmp_path / "c")])

@@ -139,7 +139,7 @@ def _okid(args: argparse.Namespace) -> dict:
         return identify_logs(args.logs, args.out, order=args.order, markov=args.markov,
                              normalize=args.normalize, dt=args.dt, method=args.method,
                              kinds=args.kinds, progress=progress, latency=args.latency,
-                             acceptance=args.acceptance)
+                             acceptance=args.acceptance, delay=args.delay)
     finally:
         for bar in bars:
             bar.close()
@@ -187,6 +187,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="observer Markov parameters p (the past window), 'auto' (default, Akaike) or 'validate'")
     o.add_argument("--latency", choices=("auto", "declared", "identified", "valid-time"), default="auto",
                    help="GPS latency source (default auto: valid times, else declared, attitude checked)")
+    o.add_argument("--delay", choices=("augment", "in-model"), default="augment",
+                   help="GPS delay: data aligned, delay in the metadata for the design (default), or held by the model")
     o.add_argument("--acceptance", choices=("refuse", "warn"), default="refuse",
                    help="a model that does not predict: refuse (default, nothing written) or warn")
     o.add_argument("--normalize", choices=("velocity", "none"), default="velocity",

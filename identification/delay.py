@@ -306,7 +306,7 @@ def measure_latency(logs: Sequence[PassLog], source: str = "auto") -> LatencyEst
 
 
 def delay_meta(estimate: LatencyEstimate, logs: Sequence[PassLog], pre: "Preprocessing",
-               given: Mapping[str, float] | None = None) -> dict:
+               given: Mapping[str, float] | None = None, in_model: bool = False) -> dict:
     """The ``meta["delay"]`` block of a model: the measurement delay of each output.
 
     Parameters
@@ -316,20 +316,24 @@ def delay_meta(estimate: LatencyEstimate, logs: Sequence[PassLog], pre: "Preproc
     logs
         The pass logs (for the declared latency of channels the estimate does not cover).
     pre
-        The pre-processing used (its ``latency_s`` is what the data were moved back by).
+        The pre-processing used.
     given
         Latencies the caller set by hand (their source is ``"given"``).
+    in_model
+        False: the data were moved back by these latencies (the model is delay-free; the
+        design augments the delays). True: the GPS channels were kept at their arrival
+        times, so the model itself carries the GPS delays (do not augment them again).
     """
     from .preprocess import channel_labels
 
     given = dict(given or {})
-    used = dict(pre.latency_s)
+    measured = {**estimate.latency_s(), **given}
     per = {}
     for name, chan in zip(channel_labels(pre)[0], pre.outputs):
         if chan.startswith("truth_"):
             s, src = 0.0, "truth channel"
-        elif chan in used:
-            s = used[chan]
+        elif chan in measured:
+            s = measured[chan]
             group = "position" if chan in GROUPS["position"] else "attitude"
             src = "given" if chan in given else estimate.sources.get(group, "declared")
         else:
@@ -337,7 +341,48 @@ def delay_meta(estimate: LatencyEstimate, logs: Sequence[PassLog], pre: "Preproc
             s, src = (float(np.median(vals)), "declared") if vals else (0.0, "none declared")
         per[name] = {"latency_s": s, "samples": s / pre.dt, "whole_samples": int(np.ceil(s / pre.dt - 1e-9)),
                      "source": src}
-    return {"outputs": per, "in_model": False, "dt": pre.dt,
-            "note": "the model is identified on data moved back to the time of measurement; each output "
-                    "reaches the loop latency_s later: augment the design with these output delays",
-            "estimate": estimate.as_dict()}
+    note = ("the GPS outputs were kept at their arrival times: the model carries their delays (do not "
+            "augment them again); other outputs were moved back by their latency" if in_model else
+            "the model is identified on data moved back to the time of measurement; each output reaches "
+            "the loop latency_s later: augment the design with these output delays")
+    return {"outputs": per, "in_model": in_model, "dt": pre.dt, "note": note, "estimate": estimate.as_dict()}
+
+
+def align(logs: Sequence[PassLog], pre: "Preprocessing", source: str = "auto", mode: str = "augment"
+          ) -> tuple["Preprocessing", dict, int]:
+    """Measure the latency and set the pre-processing for it.
+
+    Parameters
+    ----------
+    logs, source
+        As :func:`measure_latency`.
+    pre
+        Pre-processing settings; latencies it names are kept (``"given"``).
+    mode
+        ``"augment"``: GPS channels moved back by their latency, a delay-free model and
+        ``meta["delay"]`` for the design to augment; ``"in-model"``: GPS channels kept at
+        their arrival times, so that the identified model holds the delay (and needs the
+        states for it: the past window is raised to cover it).
+
+    Returns
+    -------
+    pre
+        The pre-processing to identify with.
+    delay
+        The ``meta["delay"]`` block (:func:`delay_meta`).
+    delay_samples
+        Longest delay the model must carry itself, samples (0 with ``"augment"``).
+    """
+    from dataclasses import replace
+
+    if mode not in ("augment", "in-model"):
+        raise OptionError(f"delay mode must be 'augment' or 'in-model', got {mode!r}")
+    estimate = measure_latency(logs, source)
+    given = dict(pre.latency_s)
+    if mode == "augment":
+        new = replace(pre, latency_s={**estimate.latency_s(), **given})
+    else:
+        new = replace(pre, latency_s={**{k: 0.0 for k in estimate.latency_s()}, **given})
+    delay = delay_meta(estimate, logs, new, given, in_model=(mode == "in-model"))
+    carried = [v["whole_samples"] for v in delay["outputs"].values() if v["source"] != "truth channel"]
+    return new, delay, (max(carried, default=0) if mode == "in-model" else 0)

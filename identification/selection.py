@@ -74,7 +74,8 @@ def fit_select(fit: IOData, held_out: IOData, okid_options: dict[str, Any], dela
         Options of :class:`~identification.okid.OKID`; ``order="validate"`` and/or
         ``markov="validate"`` ask for the choice here, any other value is used as given.
     delay_samples
-        Longest output delay the model must carry, samples (raises the shortest past).
+        Longest output delay the model must carry, samples (raises the shortest past); also
+        read from ``okid_options["delay_samples"]``.
     horizon_s
         Prediction horizon of the score, s.
 
@@ -88,6 +89,7 @@ def fit_select(fit: IOData, held_out: IOData, okid_options: dict[str, Any], dela
         JSON-friendly record: the candidates, their scores and the choice.
     """
     opts = dict(okid_options)
+    delay_samples = max(int(delay_samples), int(opts.pop("delay_samples", 0)))
     choose = opts.get("order") == "validate" or opts.get("markov") == "validate"
     if not choose:
         return OKID(**opts).fit(fit), held_out, {"method": "as given", "order": opts.get("order", "auto"),

@@ -18,11 +18,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-from dataclasses import replace
-
 from .acceptance import assess
 from .data import IOData
-from .delay import delay_meta, measure_latency
+from .delay import align
 from .outputs import inside
 from .passlog import PassLog, check_physical
 from .preprocess import Preprocessing, condition_of, passes_to_iodata
@@ -124,10 +122,8 @@ def identify_tractor(logs: Sequence[PassLog], pre: Preprocessing = Preprocessing
     for i, log in enumerate(logs):
         check_physical(log, f"pass {i} ({log.meta.get('source', 'no source')})")
     opts = dict(okid_options or {})
-    latency = measure_latency(logs, opts.pop("latency", "auto"))
-    given = dict(pre.latency_s)
-    pre = replace(pre, latency_s={**latency.latency_s(), **given})
-    opts["delay"] = delay_meta(latency, logs, pre, given)
+    pre, opts["delay"], opts["delay_samples"] = align(logs, pre, opts.pop("latency", "auto"),
+                                                      opts.pop("delay_mode", "augment"))
     jobs: list[tuple[str, str, list[PassLog]]] = []
     if "local" in kinds:
         groups: dict[tuple[str, str], list[PassLog]] = {}

@@ -49,12 +49,13 @@ def identify_logs(logs: Sequence[str | Path], out_dir: str | Path, order: int | 
                   markov: int | str = "auto", normalize: str = "velocity", dt: float = 0.05,
                   method: str = "era-dc", kinds: Sequence[str] = ("local", "velocity-invariant", "central"),
                   progress: Callable[[int, int], None] | None = None, latency: str = "auto",
-                  acceptance: str = "refuse") -> dict:
+                  acceptance: str = "refuse", delay: str = "augment") -> dict:
     """Identify the tractor models from pass logs and write ``<out_dir>/<name>.npz``.
 
     Returns a summary with one row per model: name, kind, conditions, order,
     one-step and free-run fits (%) per output on held-out data. ``latency`` is the
-    source of the GPS latency (:func:`identification.delay.measure_latency`); with
+    source of the GPS latency (:func:`identification.delay.measure_latency`) and ``delay``
+    whether the models are delay-free for the design to augment or hold it (:func:`identification.delay.align`); with
     ``acceptance="refuse"`` nothing is written when a model does not predict
     (:mod:`identification.acceptance`); ``validation.md`` and a figure are written beside the models.
     """
@@ -65,7 +66,7 @@ def identify_logs(logs: Sequence[str | Path], out_dir: str | Path, order: int | 
         check_physical(log, str(f))
     pre = Preprocessing(dt=dt, normalize=normalize)
     results = identify_tractor(passes, pre, {"order": order, "markov": markov, "method": method,
-                                             "latency": latency}, kinds, progress)
+                                             "latency": latency, "delay_mode": delay}, kinds, progress)
     warnings = enforce([r.acceptance for r in results], acceptance)
     written = save_results(results, out_dir)
     report = write_validation_report(results, out_dir)

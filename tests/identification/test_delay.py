@@ -137,3 +137,15 @@ def test_preprocessing_latency_overrides_the_declaration():
     np.testing.assert_array_equal(base.experiments[0][1][:n, 2], moved.experiments[0][1][:n, 2])
     with pytest.raises(OptionError, match="latency_s"):
         Preprocessing(latency_s={"heading_error": -0.1})
+
+
+def test_in_model_mode_keeps_arrival_times_and_says_the_model_holds_the_delay():
+    logs = [_relog(p, 0.1) for p in _passes(speeds=(1.0, 2.5), n=2)]
+    res = identify_tractor(logs, Preprocessing(), {"order": "validate", "markov": "validate",
+                                                   "delay_mode": "in-model"}, ("central",))
+    meta = res[0].model.meta
+    assert meta["delay"]["in_model"] is True and "do not augment" in meta["delay"]["note"]
+    assert dict(meta["preprocessing"]["latency_s"])["heading_error"] == 0.0
+    assert abs(meta["delay"]["outputs"]["psi/V"]["latency_s"] - 0.15) <= TOLERANCE_S
+    with pytest.raises(OptionError, match="'augment' or 'in-model'"):
+        identify_tractor(logs, Preprocessing(), {"order": 4, "delay_mode": "inside"}, ("central",))

@@ -126,3 +126,16 @@ def test_public_key_files_are_checked(tmp_path):
     bad.write_text("hello")
     with pytest.raises(DesignInputError, match="not a PEM public key"):
         load_public_key(bad)
+
+
+def test_an_mpc_file_signs_and_loads_with_its_key(keys, tmp_path):
+    from design.mpc.design import MPCSpec, design_mpc
+    from design_family import tractor_model
+
+    (priv, pub), (_, other_pub) = keys
+    p = design_mpc(tractor_model(1.79, name="central"), family(speeds=(1.0,), authorities=(1.0,)),
+                   MPCSpec(horizon=15)).file.save(tmp_path / "mpc.json")
+    sign_file(p, load_private_key(priv))
+    assert load_controller(p, public_key=load_public_key(pub)).name == "mpc:mpc"
+    with pytest.raises(ControllerFileError, match="but the required key is"):
+        load_controller(p, public_key=load_public_key(other_pub))

@@ -13,18 +13,30 @@ one-step fit [%] (mean of the two outputs) on a fresh 5 000-sample record. A
 peer is skipped at sizes where its measured growth (time or memory, from the
 smaller sizes) projects beyond 300 s or 4 GB, and the table says so.
 
-Part 2 - DaISy robot_arm and CD_player_arm, first half to fit, second half to
-validate, free-run fit from a least-squares initial state (the same metric for
-all). Peers are given their best order from {2, 4, 6, 8}; OKID runs with the
-settings pinned in tests/identification/test_daisy.py.
+Part 2 - every DaISy record in tests/data/sysid/ (byte copies of shared/data/sysid/,
+provenance beside each), first half to fit, second half to validate, free-run fit
+from a least-squares initial state (the same metric for all). Peers are given
+their best order from 2..10 *chosen on the validation half itself* (generous to
+them); ``okid-pinned`` runs with the settings pinned in
+tests/identification/test_daisy.py; ``okid-best-n`` is treated like the peers (each order 2..10
+with the refinement chosen on the fit half, the best order on the validation half);
+``okid-validate`` is the automatic path of
+``identification fit --order validate --refine validate``: order 1..10 and the
+refinement (B, D only, or all of A, B, C, D by output error) chosen on the fit
+half alone (identification/generic.py), so it never sees the validation half.
 
-Run: ``.venv/bin/python benchmarks/bench_identification.py [--sizes 5000 50000 ...] [--quick]``.
+Every process runs on one BLAS thread (set before numpy is imported): on a
+shared 2-core host, threaded BLAS made the small products of these fits two
+orders of magnitude slower.
+
+Run: ``.venv/bin/python benchmarks/bench_identification.py [--sizes 5000 50000 ...] [--quick] [--daisy-only]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -32,12 +44,16 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from identification.data import IOData  # noqa: E402
+from identification.generic import fit_record  # noqa: E402
 from identification.okid import OKID  # noqa: E402
 from identification.simulate import simulate  # noqa: E402
 from identification.validation import validate  # noqa: E402
@@ -46,6 +62,13 @@ sys.path.insert(0, str(ROOT / "tests" / "identification"))
 from idtest_synth import true_system  # noqa: E402  (the tests' reference system, one definition)
 
 DAISY = ROOT / "tests" / "data" / "sysid"
+#: Inputs of every DaISy record (the first columns; the rest are outputs), from its PROVENANCE.txt.
+DAISY_INPUTS = {"robot_arm": 1, "CD_player_arm": 2}
+#: OKID settings pinned per record in tests/identification/test_daisy.py.
+DAISY_PINNED = {"robot_arm": dict(order=8, markov=13, method="era", hankel_rows=20, hankel_cols=20),
+                "CD_player_arm": dict(order=8, markov=6, refine="oe")}
+DAISY_METHODS = ("okid-pinned", "okid-validate", "okid-best-n", "control", "sippy-n4sid", "sippy-moesp", "sippy-cva",
+                 "nfoursid")
 METHODS = ("okid", "control", "sippy-n4sid", "nfoursid")
 LIMIT_S, LIMIT_MB = 300.0, 4096.0
 
@@ -202,24 +225,42 @@ def _fmt_row(r: dict) -> str:
             f"{r['markov_error']:10.2e} {r['free_run_fit']:8.2f} {one}")
 
 
+def daisy_records() -> list[str]:
+    """Every record folder under :data:`DAISY`; one without a known input count is an error."""
+    names = sorted(p.name for p in DAISY.iterdir() if p.is_dir())
+    unknown = [n for n in names if n not in DAISY_INPUTS]
+    if unknown:
+        raise SystemExit(f"DaISy record(s) {unknown} have no input count in DAISY_INPUTS; add it from "
+                         "their PROVENANCE.txt")
+    return names
+
+
 def daisy_table() -> list[dict]:
     rows = []
-    cases = {"robot_arm": (1, dict(order=8, markov=13, method="era", hankel_rows=20, hankel_cols=20)),
-             "CD_player_arm": (2, dict(order=8, markov=6, refine="oe"))}
-    for name, (m, okid_kw) in cases.items():
+    for name in daisy_records():
+        m = DAISY_INPUTS[name]
         raw = np.loadtxt(DAISY / name / f"{name}.dat")
         u, y = raw[:, :m], raw[:, m:]
         h = raw.shape[0] // 2
-        for method in ("okid", "control", "sippy-n4sid", "sippy-moesp", "sippy-cva", "nfoursid"):
-            best, best_order, t_best = None, None, 0.0
-            orders = [okid_kw["order"]] if method == "okid" else [2, 4, 6, 8]
+        for method in DAISY_METHODS:
+            best, best_order, t_best, chosen = None, None, 0.0, "validation half"
+            orders = [None] if method in ("okid-pinned", "okid-validate") else list(range(2, 11))
             for order in orders:
                 try:
                     t0 = time.perf_counter()
-                    if method == "okid":
-                        kw = dict(okid_kw)
-                        kw.pop("order")
+                    if method == "okid-pinned":
+                        kw = dict(DAISY_PINNED[name])
+                        order = kw.pop("order")
                         mats = fit_okid(u[:h], y[:h], order, **kw)
+                        chosen = "pinned in test_daisy.py"
+                    elif method == "okid-validate":
+                        md, sel = fit_record(IOData.from_arrays(u[:h], y[:h]))
+                        mats = (md.A, md.B, md.C, md.D, md.K)
+                        order, chosen = f"{sel.order}{'*' if sel.refine == 'oe-all' else ''}", "fit half"
+                    elif method == "okid-best-n":     # like the peers: each order, the best on validation
+                        md, sel = fit_record(IOData.from_arrays(u[:h], y[:h]), order=order)
+                        mats = (md.A, md.B, md.C, md.D, md.K)
+                        order = f"{order}{'*' if sel.refine == 'oe-all' else ''}"
                     else:
                         mats = FITTERS[method](u[:h], y[:h], order)
                     el = time.perf_counter() - t0
@@ -230,11 +271,12 @@ def daisy_table() -> list[dict]:
                 fit = res.free_run_fit
                 if np.all(np.isfinite(fit)) and (best is None or fit.mean() > best.mean()):
                     best, best_order, t_best = fit, order, el
-            rows.append({"data": name, "method": method, "order": best_order,
+            rows.append({"data": name, "method": method, "order": best_order, "order_chosen_on": chosen,
                          "free_run_fit": None if best is None else [float(v) for v in best],
                          "time_s": t_best})
             fr = "failed" if best is None else " ".join(f"{v:7.2f}" for v in best) + f"   mean {best.mean():6.2f}"
-            print(f"{name:14s} {method:12s} n={best_order!s:>2s} {fr}", flush=True)
+            print(f"{name:14s} {method:13s} n={best_order!s:>3s} {fr}   ({t_best:5.2f} s; order: {chosen})",
+                  flush=True)
     return rows
 
 
@@ -243,6 +285,7 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[5_000, 50_000, 200_000, 1_000_000])
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--quick", action="store_true", help="sizes 5k and 50k only")
+    ap.add_argument("--daisy-only", action="store_true", help="only part 2 (the DaISy records)")
     ap.add_argument("--json", help="also write the results to this JSON file")
     ap.add_argument("--case", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -250,11 +293,15 @@ def main() -> None:
         print(json.dumps(run_case(args.case[0], int(args.case[1]))))
         return
     sizes = [5_000, 50_000] if args.quick else args.sizes
+    syn: list[dict] = []
+    if args.daisy_only:
+        sizes = []
     print("Synthetic 4th-order 2x2 system (one BLAS thread each; fits on a fresh 5k record, mean of 2 outputs)")
     print(f"{'method':12s} {'N':>8s} {'time [s]':>9s} {'peak [MB]':>9s} {'Markov err':>10s} "
           f"{'free %':>8s} {'1-step %':>6s}")
-    syn = synthetic_table(sizes, args.methods)
-    print("\nDaISy records, free-run validation fit % per output (first half fit, second half validate)")
+    syn = synthetic_table(sizes, args.methods) if sizes else []
+    print("\nDaISy records, free-run validation fit % per output (first half fit, second half validate;"
+          " n* = all of A, B, C, D refined by output error)")
     dai = daisy_table()
     if args.json:
         Path(args.json).write_text(json.dumps({"synthetic": syn, "daisy": dai}, indent=2))

@@ -11,7 +11,6 @@ report fix quality 5 instead of 4 (NMEA GGA convention).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -144,61 +143,3 @@ def attitude_epoch(psi: np.ndarray, roll: np.ndarray, k: int, err: GpsErrors,
     t_valid = k / g.attitude_rate
     return {"yaw": psi + n[:, 0], "roll": roll + n[:, 1], "pitch": n[:, 2],
             "lost": err.att_lost[:, k], "t_arrival": t_valid + g.attitude_latency + err.att_jitter[:, k]}
-
-
-@dataclass(frozen=True)
-class ScalarErrors:
-    """One tractor's :class:`GpsErrors` as Python lists (the scalar path's per-epoch look-ups).
-
-    Same fields as :class:`GpsErrors` without the batch axis; 2- and 3-vectors per epoch
-    become tuples.
-    """
-
-    pos_noise: list
-    multipath: list
-    pos_float: list
-    pos_lost: list
-    pos_jitter: list
-    speed_noise: list
-    att_noise: list
-    att_lost: list
-    att_jitter: list
-    pos_corrupt: list
-    att_corrupt: list
-
-    @classmethod
-    def of(cls, err: GpsErrors, b: int = 0) -> "ScalarErrors":
-        """Tractor ``b`` of a stacked batch's errors."""
-        def rows(a: np.ndarray) -> list:
-            v = a[b].tolist()
-            return [tuple(r) for r in v] if a.ndim == 3 else v
-        return cls(*(rows(getattr(err, k)) for k in GpsErrors.__dataclass_fields__))
-
-
-#: The fields :func:`position_epoch_scalar` and :func:`attitude_epoch_scalar` return, in order.
-POSITION_EPOCH_FIELDS = ("x", "y", "fix", "lost", "t_arrival")
-ATTITUDE_EPOCH_FIELDS = ("yaw", "roll", "pitch", "lost", "t_arrival")
-
-
-def position_epoch_scalar(x: float, y: float, psi: float, roll: float, k: int, err: ScalarErrors,
-                          g: GpsParams, vp: VehicleParams) -> tuple:
-    """:func:`position_epoch` for one tractor on floats (the same operations, so the same values),
-    as a tuple in :data:`POSITION_EPOCH_FIELDS` order."""
-    xr = vp.antenna_ahead_of_cg
-    yr = vp.antenna_left_of_cg * math.cos(roll) - vp.antenna_height * math.sin(roll)
-    c, s = math.cos(psi), math.sin(psi)
-    dx, dy = xr * c - yr * s, xr * s + yr * c
-    flt = err.pos_float[k]
-    sigma = g.float_noise if flt else g.position_noise
-    nx, ny = err.pos_noise[k]
-    mx, my = err.multipath[k]
-    t_valid = k / g.position_rate
-    return (x + dx + (nx * sigma + mx), y + dy + (ny * sigma + my), FIX_RTK_FLOAT if flt else FIX_RTK_FIXED,
-            err.pos_lost[k], t_valid + g.position_latency + err.pos_jitter[k])
-
-
-def attitude_epoch_scalar(psi: float, roll: float, k: int, err: ScalarErrors, g: GpsParams) -> tuple:
-    """:func:`attitude_epoch` for one tractor on floats, as a tuple in :data:`ATTITUDE_EPOCH_FIELDS` order."""
-    n0, n1, n2 = err.att_noise[k]
-    t_valid = k / g.attitude_rate
-    return psi + n0, roll + n1, n2, err.att_lost[k], t_valid + g.attitude_latency + err.att_jitter[k]

@@ -58,9 +58,9 @@ class TractorSimulator:
     initial
         Optional initial values ``{"Y": m, "PSI": rad, "DEL": rad}`` per tractor, shape ``(B,)``.
     scalar
-        Integrate a one-tractor batch with the compiled stepper (:class:`hil.truth.dynamics.Stepper`) and keep
-        its state and GPS epochs as floats (many times faster for ``B == 1``, the HIL case; agrees
-        with the array path to rounding).
+        Integrate a one-tractor batch with the compiled stepper (:class:`hil.truth.dynamics.Stepper`)
+        and keep its state as floats (many times faster for ``B == 1``, the HIL case; agrees with the
+        array path to rounding). The GPS epochs are recorded by the same array functions either way.
     """
 
     def __init__(self, conditions: Sequence[Condition], duration: float, seeds: Sequence[SeedLike],
@@ -107,8 +107,7 @@ class TractorSimulator:
         # the one-tractor path reads speed and roll per step as floats (truth, GPS epochs)
         self._scalar_exo = {f: _doubles(getattr(self.exo, f)[0]) for f in ("speed", "roll")} if scalar else None
         if scalar:
-            # the one-tractor path: the compiled stepper over the run's table of inputs, state and GPS
-            # errors as Python floats
+            # the one-tractor path: the compiled stepper over the run's table of inputs, the state as floats
             self._stepper = vehicle.stepper(p)
             self._inputs = np.ascontiguousarray(
                 np.column_stack([getattr(self.exo, f)[0] for f in vehicle.STEP_INPUTS]), dtype=np.float64)
@@ -116,7 +115,6 @@ class TractorSimulator:
             self._x = self._state[0].tolist()
             self._disker0 = float(self._disker[0])
             self._rate0 = float(self._rate_cmd[0])
-            self._gps0 = gps.ScalarErrors.of(self.gps_errors)
             self._noise0 = _doubles(self._sensor_noise[0])
         g = p.gps
         self._pos_every = int(round(1.0 / (g.position_rate * p.dt)))
@@ -128,9 +126,6 @@ class TractorSimulator:
         self.att = {k: np.zeros((B, n_att)) for k in ("yaw", "roll", "pitch", "t_arrival")}
         self.att["lost"] = np.zeros((B, n_att), dtype=bool)
         self.n_pos = self.n_att = 0
-        # the one-tractor path writes an epoch's values into these row views, in the scalar functions' order
-        self._pos_rows = tuple(self.pos[f][0] for f in (*gps.POSITION_EPOCH_FIELDS, "speed"))
-        self._att_rows = tuple(self.att[f][0] for f in gps.ATTITUDE_EPOCH_FIELDS)
         self._record_epochs()
 
     @property
@@ -201,7 +196,7 @@ class TractorSimulator:
             if k > end:
                 break
             self._x, self.k = states[k - k0 - 1].tolist(), k
-            self._record_epochs_scalar()
+            self._record_epochs()
         self._x, self.k = states[-1].tolist(), end
 
     def _batch_step(self) -> None:
@@ -262,31 +257,6 @@ class TractorSimulator:
             m = gps.attitude_epoch(s[:, PSI], roll, i, self.gps_errors, p.gps)
             for key, arr in self.att.items():
                 arr[:, i] = m[key]
-            self.n_att += 1
-
-    def _record_epochs_scalar(self) -> None:
-        """:meth:`_record_epochs` for the one-tractor path (the same values, on floats)."""
-        k = self.k
-        pos_due = k % self._pos_every == 0 and self.n_pos < len(self._pos_rows[0])
-        att_due = k % self._att_every == 0 and self.n_att < len(self._att_rows[0])
-        if not (pos_due or att_due):
-            return
-        p, x, g0 = self.params, self._x, self._gps0
-        roll = self._scalar_exo["roll"][k]
-        if pos_due:
-            i = self.n_pos
-            px, py, fix, lost, t_arrival = gps.position_epoch_scalar(x[X], x[Y], x[PSI], roll, i, g0, p.gps,
-                                                                     p.vehicle)
-            ground = float(np.hypot(self._scalar_exo["speed"][k], x[vehicle.V]))
-            rx, ry, rf, rl, rt, rs = self._pos_rows
-            rx[i], ry[i], rf[i], rl[i], rt[i] = px, py, fix, lost, t_arrival
-            rs[i] = max(ground + g0.speed_noise[i], 0.0)
-            self.n_pos += 1
-        if att_due:
-            i = self.n_att
-            yaw, att_roll, pitch, lost, t_arrival = gps.attitude_epoch_scalar(x[PSI], roll, i, g0, p.gps)
-            ry, rr, rp, rl, rt = self._att_rows
-            ry[i], rr[i], rp[i], rl[i], rt[i] = yaw, att_roll, pitch, lost, t_arrival
             self.n_att += 1
 
     #: How many of the newest epochs :meth:`latest_position` / :meth:`latest_attitude` look at.

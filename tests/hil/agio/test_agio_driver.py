@@ -84,7 +84,7 @@ def test_send_rate_refuses_to_steer_while_disengaged():
 
 
 def test_engage_is_bumpless_and_the_rate_is_integrated_into_the_setpoint():
-    clock, plant, module, wire, driver = bench()
+    clock, plant, module, wire, driver = bench(AgioDriverConfig(lead_time=0.0))
     plant.angle = 0.061           # 10 counts left of centre
     cycles(clock, driver, 10)
     measured = driver.latest.angle
@@ -103,8 +103,24 @@ def test_engage_is_bumpless_and_the_rate_is_integrated_into_the_setpoint():
     assert wire.steer_frames()[-1][1].status == GuidanceStatus.AUTOSTEER
 
 
+def test_the_sent_setpoint_leads_the_integral_by_lead_time_times_the_rate():
+    clock, plant, module, wire, driver = bench(AgioDriverConfig(lead_time=0.2))
+    cycles(clock, driver, 5)
+    driver.engage()
+    t = clock.now()
+    for k in range(1, 6):
+        clock.sleep_until(t + 0.05 * k)
+        driver.poll()
+        sent = driver.send_rate(0.1)
+    assert sent == pytest.approx(driver.setpoint + 0.2 * 0.1)
+    assert driver.sent_setpoint == sent and wire.steer_frames()[-1][1].steer_angle == pytest.approx(sent, abs=1e-4)
+    with pytest.raises(AgioConfigError, match="lead_time"):
+        AgioDriverConfig(lead_time=-0.1)
+
+
 def test_the_setpoint_is_limited_in_rate_lead_and_angle():
-    clock, plant, module, wire, driver = bench(AgioDriverConfig(max_rate=0.2, max_lead=0.05, max_angle=0.3))
+    clock, plant, module, wire, driver = bench(AgioDriverConfig(max_rate=0.2, max_lead=0.05, max_angle=0.3,
+                                                                lead_time=0.0))
     cycles(clock, driver, 5)
     driver.engage()
     t = clock.now()

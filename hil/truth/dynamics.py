@@ -37,8 +37,8 @@ from hil.truth.disturbances import Exogenous
 from hil.truth.params import SimParams
 
 X, Y, PSI, V, R, DEL, OM, PHI = range(8)
-#: The exogenous channels (fields of :class:`hil.truth.disturbances.Exogenous`) the one-tractor steppers take
-#: per step, in their argument order.
+#: The exogenous channels (fields of :class:`hil.truth.disturbances.Exogenous`) the compiled stepper takes per
+#: step: the columns of its input table (:meth:`Stepper.steps`).
 STEP_INPUTS = ("speed", "roll", "force_y", "ripper_force", "ripper_moment", "draft", "gang_pull", "front_load")
 N_STATE = 8
 STATE_NAMES = ("X", "Y", "PSI", "V", "R", "DEL", "OM", "PHI")
@@ -69,7 +69,7 @@ class _ArrayOps:
 
 
 class _ScalarOps:
-    """The same operations on Python floats (one tractor: no per-call array overhead)."""
+    """The same operations on Python floats (one state at a time, e.g. the truth linearisation's differences)."""
 
     cos, sin, tanh, abs, maximum = math.cos, math.sin, math.tanh, abs, max
 

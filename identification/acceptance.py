@@ -17,8 +17,10 @@ Every model is judged by the fit of its :data:`~identification.multistep.HORIZON
 
 Each message names the model, the output, the fit against its threshold and
 the fixes that usually help, e.g.
-``local_disker_9th: 3 s prediction fit of y/V 12 % < 50 %; record longer or
-more passes, raise --order (or use --order validate), or check the sensor``.
+``local_disker_11th: 3 s prediction fit of y/V -264.7 %, psi/V -585.0 %, delta
+-157.1 % < 50 %; record longer or more passes, raise --order (or use --order
+validate), check the GPS latency (--latency), or check the sensor`` (the worn-valve
+tractor's order-2 model of today's recipe).
 """
 
 from __future__ import annotations
@@ -105,7 +107,7 @@ def assess(name: str, model: Model, data: IOData, warmup: int = 0, horizon_s: fl
     weak = [(o, f) for o, f in zip(pred.output_names, pred.fit) if np.isfinite(f) and REFUSE_FIT <= f < WARN_FIT]
 
     def listed(items: list) -> str:
-        return ", ".join(f"{o} {f:.0f} %" for o, f in items)
+        return ", ".join(f"{o} {f:.1f} %" for o, f in items)
 
     refusals, messages = [], []
     if low:

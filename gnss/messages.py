@@ -342,7 +342,13 @@ class NavPvt:
 
 @dataclass(frozen=True, slots=True)
 class NavRelPosNed:
-    """UBX NAV-RELPOSNED version 1 (0x01 0x3C): moving-baseline relative position.
+    """UBX NAV-RELPOSNED (0x01 0x3C): moving-baseline relative position, version 1 (F9P) or 0 (M8P).
+
+    Version 0 (40-byte payload) sends no length, heading or their accuracies: the length and heading
+    are computed here from the baseline vector, the accuracies are ``None``, and the heading is valid
+    when the baseline is (``rel_pos_valid``), comes from a carrier-phase solution (``carr_soln`` 1 or
+    2: a code-only baseline of a metre has a heading error of tens of degrees) and has a horizontal
+    length. An invalid baseline is a message without heading, never an error.
 
     Attributes
     ----------
@@ -353,13 +359,16 @@ class NavRelPosNed:
     rel_pos_n, rel_pos_e, rel_pos_d : float
         Baseline from the reference (base antenna) to the rover antenna, NED, m (0.1 mm resolution).
     rel_pos_length : float
-        Baseline length, m.
+        Baseline length, m (version 0: the norm of the NED vector).
     rel_pos_heading : float
-        Baseline heading, rad, 0 = north, clockwise (1e-5 deg resolution).
-    acc_n, acc_e, acc_d, acc_length : float
+        Baseline heading, rad, 0 = north, clockwise (1e-5 deg resolution; version 0: of the N, E
+        components, 0 when both are 0).
+    acc_n, acc_e, acc_d : float
         Accuracies, m.
-    acc_heading : float
-        Heading accuracy, rad.
+    acc_length : float or None
+        Length accuracy, m (``None`` in version 0).
+    acc_heading : float or None
+        Heading accuracy, rad (``None`` in version 0).
     gnss_fix_ok, diff_soln, rel_pos_valid : bool
         Status flags.
     carr_soln : int
@@ -367,7 +376,9 @@ class NavRelPosNed:
     is_moving : bool
         Moving-base mode.
     rel_pos_heading_valid : bool
-        ``rel_pos_heading`` is valid.
+        ``rel_pos_heading`` is valid (version 1: the receiver's flag; version 0: see above).
+    version : int
+        Message version, 1 (64-byte payload) or 0 (40 bytes).
     """
 
     itow: float
@@ -380,14 +391,15 @@ class NavRelPosNed:
     acc_n: float
     acc_e: float
     acc_d: float
-    acc_length: float
-    acc_heading: float
+    acc_length: float | None
+    acc_heading: float | None
     gnss_fix_ok: bool
     diff_soln: bool
     rel_pos_valid: bool
     carr_soln: int
     is_moving: bool = False
     rel_pos_heading_valid: bool = False
+    version: int = 1
 
 
 @dataclass(frozen=True, slots=True)

@@ -216,3 +216,26 @@ def test_yaw_rate_from_10hz_attitude_not_from_duplicate_sentences():
     assert nav.yaw_rate == pytest.approx(rate, abs=0.01)
     # extrapolated 50 ms ahead with the rate
     assert fe.solution(clock.t + 0.05).yaw == pytest.approx(nav.yaw + rate * 0.05, abs=2e-3)
+
+
+def test_m8p_version_0_relposned_gives_heading_only_with_a_valid_carrier_baseline():
+    """An M8P rover's NAV-RELPOSNED version 0 (built by pyubx2): no attitude while the baseline is invalid,
+    the baseline's heading (45 deg) once it is valid and carrier-fixed."""
+    from pyubx2 import GET, UBXMessage
+
+    def v0(valid: int, carr: int) -> bytes:
+        return UBXMessage("NAV", "NAV-RELPOSNED", GET, version=0, iTOW=200_000_000, relPosN=71, relPosE=71,
+                          relPosD=0, gnssFixOK=1, relPosValid=valid, carrSoln=carr, isMoving=1).serialize()
+
+    fe, port, clock = make()
+    lat, lon, h = ORIGIN.to_geodetic([5.0, -2.0, 0.0])
+    pvt = encode_nav_pvt(NavPvt(200000.0, 3, True, True, 2, 22, float(lat), float(lon), float(h), float(h) - 30,
+                                0.014, 0.02, 1.0, 0.0, 0.0, 1.0, 0.0, last_correction_age=2))
+    port.write(pvt + v0(0, 0))
+    nav = fe.step()
+    assert fe.readers[0].stats.n_errors == 0
+    assert not math.isfinite(nav.yaw) if isinstance(nav.yaw, float) else nav.yaw is None
+    port.write(pvt + v0(1, 2))
+    nav = fe.step()
+    assert fe.readers[0].stats.n_errors == 0
+    assert nav.yaw == pytest.approx(math.radians(45.0), abs=1e-9)

@@ -15,7 +15,8 @@ from gnss.nmea import nmea_checksum
 from gnss.nmea_encode import encode_gga, encode_hdt
 from gnss.reader import GnssReader, StreamDecoder, read_messages, strip_comment_header
 from gnss.rtcm import crc24q, frame_rtcm
-from gnss.ubx import encode_nav_pvt, ubx_checksum
+from gnss.ubx import encode_nav_pvt
+from pyubx2.ubxhelpers import calc_checksum
 
 GGA = encode_gga(Gga("GN", 3600.0, math.radians(45.0), math.radians(7.0), 4, 20, 0.6, 250.0, 48.0, 1.0, 7))
 HDT = encode_hdt(Hdt("GN", math.radians(244.28)))
@@ -31,7 +32,7 @@ def frame_is_valid(raw: bytes) -> bool:
         body, cs = raw.rstrip(b"\r\n")[1:].split(b"*")
         return nmea_checksum(body) == int(cs, 16)
     if raw[:2] == b"\xb5\x62":
-        return ubx_checksum(raw[2:-2]) == raw[-2:]
+        return calc_checksum(raw[2:-2]) == raw[-2:]
     return raw[0] == 0xD3 and crc24q(raw[:-3]) == int.from_bytes(raw[-3:], "big")
 
 

@@ -26,9 +26,9 @@ from .specs import Specifications, resolve_latency
 from .weights import OutputWeights
 
 
-def _names(models: Sequence[Model], validate_on: Sequence[Model]) -> list[str]:
-    names = _model_names([*models, *validate_on])
-    return [n if i < len(models) else f"validation:{n}" for i, n in enumerate(names)]
+def spec_names(models: Sequence[Model], validate_on: Sequence[Model]) -> list[str]:
+    """Design models' names, then ``validation:<name>`` for each validation model."""
+    return [*_model_names(models), *(f"validation:{n}" for n in _model_names(validate_on))]
 
 
 def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications,
@@ -51,7 +51,7 @@ def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications
     base = replace(spec, integral=specs.integral, past=past)
     result = search_weights(lambda w: design_robust(models, replace(base, weights=w)),
                             lambda r: r.file.compensator, family, specs, latency, options,
-                            _names(models, validate_on), progress)
+                            spec_names(models, validate_on), progress)
     record = result.to_dict(specs, options)
     chosen: RobustResult = result.design
     file = replace(chosen.file, design={**chosen.file.design, "auto_weights": record})
@@ -90,7 +90,7 @@ def auto_mpc(model: Model, verify_on: Sequence[Model], spec: MPCSpec, specs: Spe
         return feedback_compensator(unconstrained_gain(problem), problem.layout)
 
     result = search_weights(law, lambda c: c, family, specs, latency, options,
-                            _names([model, *verify_on], validate_on), progress)
+                            spec_names([model, *verify_on], validate_on), progress)
     final = replace(spec, weights=replace(spec.weights, outputs=result.weights))
     gain = None
     if fallback is not None:

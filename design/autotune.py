@@ -202,7 +202,10 @@ def _nothing_meets(trials: Sequence[Trial], specs: Specifications, options: Sear
             parts.append(f"{label} {rel} {want:g}: best worst-model value {fmt.format(v)} at scale {t.scale:.3g}"
                          + ("" if ok else " (NOT MET)"))
     errors = [t.failures[0] for t in trials if t.worst is None]
-    detail = "; ".join(parts) if parts else f"every design failed (first: {errors[0]})"
-    return (f"no weights meet the specifications at any of {len(trials)} aggressiveness scales "
-            f"{options.low:g}-{options.high:g}: {detail}. Relax the specification marked NOT MET "
-            "(--disk-margin, --delay-reserve, --actuator-rate), check the latency assumed, or widen --scale-range")
+    head = (f"no weights meet the specifications at any of {len(trials)} aggressiveness scales "
+            f"{options.low:g}-{options.high:g}: ")
+    if not parts:
+        return head + (f"no design was found at any scale, so no specification could be checked (first: "
+                       f"{errors[0]}); follow the synthesis' advice above, or check the models")
+    return head + "; ".join(parts) + (". Relax the specification marked NOT MET (--disk-margin, --delay-reserve, "
+                                      "--actuator-rate), check the latency assumed, or widen --scale-range")

@@ -14,11 +14,10 @@ from dataclasses import replace
 
 from identification.model import Model
 
-from .auto_designs import auto_mpc
+from .auto_designs import auto_mpc, spec_names
 from .cli_robust import _load_models, _weights, certificate_table, spec_lines
 from .cli_specs import add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of
 from .iostate import feedback_compensator, observable_past
-from .robust import _model_names
 from .specs import check_specs
 from .errors import DesignInputError
 from .mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
@@ -63,8 +62,7 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
         res = design_mpc(central, others, spec, gain, require=not args.allow_unstable)
         if latency is not None:
             comp = feedback_compensator(res.unconstrained_gain, res.problem.layout)
-            names = _model_names([central, *others, *validate])
-            names = [n if i <= len(others) else f"validation:{n}" for i, n in enumerate(names)]
+            names = spec_names([central, *others], validate)
             checked = {"specifications": specs.to_dict(),
                        "achieved": check_specs(comp, family, specs, latency, names).to_dict()}
             res = replace(res, file=replace(res.file, design={**res.file.design, "specifications_check": checked}))

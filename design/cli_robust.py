@@ -12,9 +12,9 @@ from identification.model import Model
 from .files.recheck import recheck
 from .export import FORMATS, export_controller
 from .errors import DesignInputError, VerificationError
-from .auto_designs import auto_robust
+from .auto_designs import auto_robust, spec_names
 from .cli_specs import add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of
-from .robust import RobustSpec, _model_names, design_lqr, design_robust
+from .robust import RobustSpec, design_lqr, design_robust
 from .specs import check_specs
 from .weights import OutputWeights
 
@@ -101,7 +101,7 @@ def cmd_robust(args: argparse.Namespace) -> dict:
         res = design_robust(models, spec)
         if latency is not None:
             checked = check_specs(res.file.compensator, [*models, *validate], specs, latency,
-                                  _spec_names(models, validate)).to_dict()
+                                  spec_names(models, validate)).to_dict()
             res = replace(res, file=replace(res.file, design={**res.file.design, "specifications_check": {
                 "specifications": specs.to_dict(), "achieved": checked}}))
     res.file.save(args.out)
@@ -112,11 +112,6 @@ def cmd_robust(args: argparse.Namespace) -> dict:
             "synthesis_bound": d["synthesis_bound"], "refine_steps": d["refine_steps"],
             "solver": spec.solver, "past": d["past"], "weights": d["weights"],
             "auto_weights": d.get("auto_weights"), "specifications_check": checked and d["specifications_check"]}
-
-
-def _spec_names(models: list[Model], validate: list[Model]) -> list[str]:
-    names = _model_names([*models, *validate])
-    return [n if i < len(models) else f"validation:{n}" for i, n in enumerate(names)]
 
 
 def cmd_lqr(args: argparse.Namespace) -> dict:

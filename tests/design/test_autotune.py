@@ -53,11 +53,15 @@ def _independent_margins(model, comp, latency_samples: int, reserve_samples: int
 def test_automatic_robust_weights_meet_their_margin_specifications_on_every_model():
     models = family(speeds=(1.0, 2.91))
     specs = Specifications(disk_margin=0.4, delay_reserve=0.1, latency=LATENCY, rate_limit=1.0)   # delay binds
-    res, search = auto_robust(models, RobustSpec(integral=True), specs, options=SearchOptions(0.1, 30.0, 4, 2))
+    # a validation model of order 6 (one more sample of lag on the GPS outputs, held in its dynamics)
+    extra = delayed_model(tractor_model(1.79, 0.8, name="o6"), (0.05, 0.05, 0.0))
+    res, search = auto_robust(models, RobustSpec(integral=True), specs, validate_on=[extra],
+                              options=SearchOptions(0.1, 30.0, 4, 2))
     comp = res.file.compensator
     rec = res.file.design["auto_weights"]
     assert search.trials[0].scale == pytest.approx(0.1)
-    for m, row in zip(models, rec["achieved"]["models"]):
+    assert [r["name"] for r in rec["achieved"]["models"]][-1] == "validation:o6+latency"
+    for m, row in zip([*models, extra], rec["achieved"]["models"]):
         dm, stable = _independent_margins(m, comp, latency_samples=3, reserve_samples=2)
         assert stable, m.meta["name"]
         assert dm >= 0.4 - 1e-3, (m.meta["name"], dm)

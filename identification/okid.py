@@ -35,7 +35,9 @@ class OKID:
     ----------
     order
         Model order, or ``"auto"`` (largest log-gap of the Hankel singular values
-        up to ``max_order``, see :func:`identification.era.select_order`).
+        up to ``max_order``, see :func:`identification.era.select_order`). The order
+        (and ``markov``) chosen by held-out multi-step prediction is
+        :func:`identification.selection.fit_select`, which fits one estimator per candidate.
     markov
         Number of observer Markov parameters ``p`` (lags), or ``"auto"``
         (Akaike's criterion over 1..``max_markov``).
@@ -109,6 +111,10 @@ class OKID:
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
                 extra = " or 'auto'" if allow_auto else (" or None" if allow_none else "")
                 raise OptionError(f"{name} must be a positive integer{extra}, got {v!r}")
+        for name in ("order", "markov"):
+            if getattr(self, name) == "validate":
+                raise OptionError(f"{name}='validate' is chosen by identification.selection.fit_select "
+                                  "(which fits one OKID per candidate); OKID itself takes an integer or 'auto'")
         pos_int("order", allow_auto=True)
         pos_int("markov", allow_auto=True)
         for name in ("max_markov", "max_order", "dc_blocks", "dc_lag", "block_rows"):

@@ -69,3 +69,11 @@ def test_too_little_held_out_data_is_refused():
     sys_ = _system(2, seed=8)
     with pytest.raises(OptionError, match="record more passes or give --order"):
         fit_select(_data(sys_, 1, 1500, 5), _data(sys_, 1, 100, 6), {"order": "validate"})
+
+
+def test_okid_itself_points_to_the_selection_for_validate():
+    from identification.okid import OKID
+
+    sys_ = _system(2, seed=9)
+    with pytest.raises(OptionError, match="identification.selection.fit_select"):
+        OKID(order="validate").fit(_data(sys_, 1, 500, 1))

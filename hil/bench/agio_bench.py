@@ -10,12 +10,11 @@ simulated tractor (:func:`module_settings`), over the wire (PGN 251 and 252) as 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from types import TracebackType
 
 from hil.devices.firmware import SteeringPlant
-from hil.devices.steer_module import SteerModule, SteerModuleConfig, commissioned_settings
+from hil.devices.steer_module import INNER_KP, SteerModule, SteerModuleConfig, module_settings
 from hil.links.clock import RealClock, VirtualClock
 from hil.links.link import ByteLink
 from hil.links.memory import MemoryEndpoint, memory_link_pair
@@ -24,31 +23,9 @@ from hil.links.scheduler import Device, LockstepScheduler
 from hil.links.udp import UdpLink, udp_loopback_pair
 from hil.truth.params import SteeringParams
 from hil.vehicle.agio.driver import AgioDriver, AgioDriverConfig
-from hil.vehicle.agio.protocol import SteerConfig, SteerSettings
 from hil.vehicle.calibration import WheelAngleCalibration
 
 __all__ = ["module_settings", "AgioLockstepBench", "AgioUdpBench", "INNER_KP"]
-
-INNER_KP = 100
-"""Inner-loop gain loaded into the module on the bench, PWM counts per degree: with the simulated
-valve (deadband 0.08 duty, flow exponent 1.3, 0.35 rad/s) it closes the module's angle loop at
-about 7 rad/s, well inside the valve lag's (0.08 s) and the 40 Hz loop's phase budget."""
-
-
-def module_settings(calibration: WheelAngleCalibration, steering: SteeringParams) -> tuple[SteerSettings, SteerConfig]:
-    """The settings for the simulated tractor: its wheel-angle calibration, its valve's deadband as the
-    minimum PWM (what the valve characterisation measures), full PWM as the limit, :data:`INNER_KP`.
-
-    Parameters
-    ----------
-    calibration
-        The technician's wheel-angle calibration of the simulated potentiometer.
-    steering
-        The simulated valve.
-    """
-    return commissioned_settings(calibration.center_counts, calibration.rad_per_count, kp=INNER_KP,
-                                 min_pwm=min(255, math.ceil(steering.deadband * 255)), high_pwm=255)
-
 
 class _Common:
     driver: AgioDriver

@@ -299,7 +299,7 @@ def _cmd_emulate(args: argparse.Namespace) -> dict:
 
     from hil.devices.emulate import EmulatedTractor
     with EmulatedTractor(implement=args.implement, speed=args.speed, duration=args.duration, seed=args.seed,
-                         params=_params(args)) as tractor:
+                         params=_params(args), bridge=args.bridge, module_port=args.module_port) as tractor:
         drive = "hil drive " + " ".join(tractor.setup.drive_args()) + " --controller kinematic --duration 60 --out runs/x"
         info = {"bridge": tractor.setup.bridge, "position": tractor.setup.position,
                 "attitude": tractor.setup.attitude, "drive_command": drive}
@@ -441,6 +441,11 @@ def build_parser() -> argparse.ArgumentParser:
     em.add_argument("--speed", type=_float, default=1.34, help="nominal speed, m/s")
     em.add_argument("--duration", type=_float, default=600.0, help="seconds before it stops by itself")
     em.add_argument("--seed", type=int, default=0)
+    em.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
+                    help="the HC11 board on a pty, or an AgOpenGPS steer module on UDP 127.0.0.1")
+    em.add_argument("--module-port", type=int, default=0, metavar="PORT",
+                    help="UDP port of the emulated AgOpenGPS module (default: chosen by the system; 8888 as on "
+                         "a tractor)")
     em.set_defaults(func=_cmd_emulate)
 
     add_drive_parser(sub)

@@ -17,6 +17,9 @@ from types import TracebackType
 import numpy as np
 
 from hil.devices.firmware import BridgeFirmware
+from hil.errors import SimulatorConfigError
+from hil.devices.steer_module import SteerModule, SteerModuleConfig, module_settings
+from hil.links.udp import UdpLink
 from hil.truth.conditions import condition_for
 from hil.links.clock import RealClock
 from hil.links.pty import PtyPair
@@ -75,6 +78,11 @@ class EmulatedTractor:
         Seed of the simulated tractor.
     initial_cross_track
         Start offset from the line, m.
+    bridge
+        ``hc11`` (the HC11 board on a pty) or ``agopengps`` (an AgOpenGPS steer module on UDP,
+        127.0.0.1:``module_port``, with the settings AgOpenGPS would have stored in it).
+    module_port
+        UDP port of the emulated module (0: chosen by the system; 8888 as on a tractor).
     """
 
     implement: str = "none"
@@ -84,17 +92,32 @@ class EmulatedTractor:
     initial_cross_track: float = 0.3
     params: SimParams | None = None
     geometry: FieldGeometry = field(default_factory=FieldGeometry)
+    bridge: str = "hc11"
+    module_port: int = 0
 
     def __enter__(self) -> "EmulatedTractor":
+        if self.bridge not in ("hc11", "agopengps"):
+            raise SimulatorConfigError(f"bridge must be 'hc11' or 'agopengps', got {self.bridge!r}")
         self.plant = SimulatedTractor(condition_for(self.implement, self.speed), self.duration + 1.0, self.seed,
                                       self.params, initial={"Y": self.initial_cross_track})
         self._stack = ExitStack()
         try:
-            bridge, pos, att = (self._stack.enter_context(PtyPair()) for _ in range(3))
-            devices = [BridgeFirmware(bridge.device_link(), self.plant),
+            pos, att = (self._stack.enter_context(PtyPair()) for _ in range(2))
+            p = self.plant.params
+            wake = []
+            if self.bridge == "agopengps":
+                link = self._stack.enter_context(UdpLink(("127.0.0.1", self.module_port), accept_any=True))
+                settings, config = module_settings(two_point_calibration(p.sensor, p.steering), p.steering)
+                steering = SteerModule(link, self.plant, SteerModuleConfig(settings=settings, config=config))
+                bridge_name = f"agopengps:udp:127.0.0.1:{link.local_address[1]}:0"
+                wake = [link.fileno()]
+            else:
+                bridge = self._stack.enter_context(PtyPair())
+                steering, bridge_name = BridgeFirmware(bridge.device_link(), self.plant), bridge.slave_name
+            devices = [steering,
                        PositionReceiver(self.plant, pos.device_link(), self.geometry),
                        AttitudeReceiver(self.plant, att.device_link(), self.geometry)]
-            self.runner = RealTimeRunner(RealClock(), devices, self.plant, max_duration=self.duration)
+            self.runner = RealTimeRunner(RealClock(), devices, self.plant, max_duration=self.duration, wake_fds=wake)
             self.runner.start()
             self._stack.callback(self.runner.stop)
         except BaseException:
@@ -106,7 +129,7 @@ class EmulatedTractor:
         cal = two_point_calibration(p.sensor, p.steering)
         vp = p.vehicle
         self.setup = VehicleSetup(
-            bridge=bridge.slave_name, position=pos.slave_name, attitude=att.slave_name,
+            bridge=bridge_name, position=pos.slave_name, attitude=att.slave_name,
             line=(math.degrees(geo.origin.lat0), math.degrees(geo.origin.lon0),
                   math.degrees(float(lat_b)), math.degrees(float(lon_b))),
             height=geo.origin.h0, lever_arm=(vp.antenna_ahead_of_cg, vp.antenna_left_of_cg, vp.antenna_height),

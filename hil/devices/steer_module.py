@@ -38,6 +38,8 @@ from dataclasses import dataclass, replace
 
 from hil.devices.firmware import SteeringPlant
 from hil.links.link import ByteLink
+from hil.truth.params import SteeringParams
+from hil.vehicle.calibration import WheelAngleCalibration
 from hil.vehicle.agio.errors import AgioConfigError
 from hil.vehicle.agio.framing import PgnStreamDecoder
 from hil.vehicle.agio.protocol import (
@@ -57,7 +59,7 @@ from hil.vehicle.agio.protocol import (
     encode_frame,
 )
 
-__all__ = ["FIRMWARE_SETTINGS", "FIRMWARE_CONFIG", "SteerModuleConfig", "SteerModuleState", "SteerModule",
+__all__ = ["FIRMWARE_SETTINGS", "FIRMWARE_CONFIG", "INNER_KP", "module_settings", "SteerModuleConfig", "SteerModuleState", "SteerModule",
            "ADS_FULL_SCALE", "ADS_CENTER", "LOW_HIGH_DEGREES", "WATCHDOG_THRESHOLD", "WATCHDOG_FORCE",
            "commissioned_settings"]
 
@@ -427,3 +429,23 @@ def commissioned_settings(center_counts: float, rad_per_count: float, kp: int = 
                          | ConfigBits0.STEER_SWITCH, pulse_count_max=5, min_speed=0, setting1=ConfigBits1.NONE)
     return settings, config
 
+
+
+INNER_KP = 100
+"""Inner-loop gain loaded into the module on the bench, PWM counts per degree (the firmware's PWM limit,
+``lowPWM + 76.7 |error|`` with full PWM at 255, binds before it below 3 degrees of error)."""
+
+
+def module_settings(calibration: WheelAngleCalibration, steering: SteeringParams) -> tuple[SteerSettings, SteerConfig]:
+    """The settings for the simulated tractor: its wheel-angle calibration, its valve's deadband as the
+    minimum PWM (what the valve characterisation measures), full PWM as the limit, :data:`INNER_KP`.
+
+    Parameters
+    ----------
+    calibration
+        The technician's wheel-angle calibration of the simulated potentiometer.
+    steering
+        The simulated valve.
+    """
+    return commissioned_settings(calibration.center_counts, calibration.rad_per_count, kp=INNER_KP,
+                                 min_pwm=min(255, math.ceil(steering.deadband * 255)), high_pwm=255)

@@ -22,3 +22,8 @@ def decode_file(path: Path) -> tuple[list[Received], StreamDecoder]:
     dec = StreamDecoder()
     got = dec.feed(data, 0.0) + dec.flush(0.0)
     return got, dec
+
+# Real captures kept in tests/data/gnss (provenance in its PROVENANCE.txt)
+SEPTENTRIO = LOCAL / "septentrio_polarx2.nmea"
+HEMISPHERE_HDT_EMPTY = LOCAL / "hemisphere_hdt_empty_excerpt.nmea"
+UBLOX_M8N = LOCAL / "ublox_neo_m8n_excerpt.nmea"

@@ -154,7 +154,11 @@ def make_report(models_dir: str | Path, out_dir: str | Path, logs: Sequence[str 
         central = models[names.index("central")] if "central" in names else models[0]
         pre_meta = central.meta.get("preprocessing", {})
         pre = Preprocessing(**{k: (tuple(v) if k == "outputs" else v) for k, v in pre_meta.items()})
-        data = passes_to_iodata([PassLog.load(f) for f in expand_logs(logs)], pre)
+        passes = []
+        for f in expand_logs(logs):
+            passes.append(PassLog.load(f))
+            check_physical(passes[-1], str(f))
+        data = passes_to_iodata(passes, pre)
         res = validate(central.A, central.B, central.C, central.D, central.K, data)
         written.append(str(rp.save(rp.plot_reconstruction(central, res), out_dir / "fig8_reconstruction.png")))
         table = rp.table1(central, res)

@@ -152,15 +152,19 @@ def test_ctrl_c_exits_130_with_one_line_and_no_partial_file(tmp_path):
             synthetic_pass(rng, imp, "9th", 1.79, duration=30.0).save(logs / f"{imp}{i}.npz")
     out = tmp_path / "models"
     exe = Path(sys.executable).parent / "identification"
-    proc = subprocess.Popen([str(exe), "okid", str(logs), "--out", str(out), "--order", "4",
-                             "--acceptance", "warn"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and not (out.exists() and any(out.glob("*.npz"))) \
-            and proc.poll() is None:
-        time.sleep(0.01)
-    assert proc.poll() is None, "the run ended before it could be interrupted"
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
+    err_path = tmp_path / "stderr.txt"
+    with open(err_path, "wb") as err_file:
+        proc = subprocess.Popen([str(exe), "okid", str(logs), "--out", str(out), "--order", "4",
+                                 "--acceptance", "warn"], stdout=subprocess.DEVNULL, stderr=err_file)
+        deadline = time.monotonic() + 120
+        # the progress bar appears when the first of the 7 models is done: well inside the run
+        while time.monotonic() < deadline and b"identifying" not in err_path.read_bytes() \
+                and proc.poll() is None:
+            time.sleep(0.01)
+        assert proc.poll() is None, "the run ended before it could be interrupted"
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=60)
+    err = err_path.read_bytes()
     assert proc.returncode == 130
     lines = [ln for ln in err.decode().replace("\r", "\n").splitlines() if ln.strip()
              and not ln.startswith("identifying")]

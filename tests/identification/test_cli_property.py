@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -99,17 +99,18 @@ def select_structure(data: IOData, okid_options: dict[str, Any], orders: list[in
     tail_head, tail_tail = data.split(1.0 - INNER_FIT)
     folds = ((head, tail), (tail_tail, tail_head))     # fit on 70 %, select on the other 30 %, both ways
     scores: dict[tuple[int, str], float] = {}
+    last = ""
     for n in orders:
         for r in refinements:
             try:
                 scores[(n, r)] = float(np.mean([_score(_identify(f, n, r, okid_options), s)
                                                 for f, s in folds]))
-            except (RealizationError, DataError, np.linalg.LinAlgError):
-                scores[(n, r)] = -np.inf
+            except (RealizationError, DataError, np.linalg.LinAlgError) as exc:
+                scores[(n, r)], last = -np.inf, str(exc)
     best = max(scores.values())
     if not np.isfinite(best):
-        raise RealizationError(f"no candidate order in {orders} gave a model that simulates; "
-                               "record longer, or lower --markov")
+        raise RealizationError(f"no candidate order in {orders} gave a model that simulates (last "
+                               f"failure: {last}); record longer, or lower --markov")
     n, r = next(key for key in sorted(scores, key=lambda k: (k[0], refinements.index(k[1])))
                 if scores[key] >= best - PARSIMONY_POINTS)
     return Selection(n, r, {f"{k[0]}/{k[1]}": (round(v, 3) if np.isfinite(v) else None)

@@ -43,6 +43,8 @@ from .simulate import estimate_x0, free_response_basis, simulate
 
 #: Largest number of residual evaluations of one refinement.
 MAX_NFEV = 60
+#: Largest Jacobian (samples x outputs x parameters) formed, in floats (8 bytes each: 400 MB).
+MAX_JACOBIAN = 50_000_000
 
 
 def _rho(a: np.ndarray) -> float:
@@ -145,6 +147,13 @@ def refine_output_error(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarr
     if not feedthrough:
         d = np.zeros_like(d)
     nsamp = data.n_samples
+    q, m = c.shape[0], b.shape[1]
+    size = nsamp * q * (n * (n + m) + q * n + q * m + n * data.n_experiments)
+    if size > MAX_JACOBIAN:
+        raise DataError(f"the output-error refinement would form a {nsamp} x {q} x "
+                        f"{size // (nsamp * q)} Jacobian ({size * 8 / 1e6:.0f} MB, limit "
+                        f"{MAX_JACOBIAN * 8 / 1e6:.0f} MB); use a shorter record or a lower order, "
+                        "or refine B and D only (--refine oe)")
     su = np.sqrt(sum((u ** 2).sum(axis=0) for u, _ in data.experiments) / nsamp)
     sy = np.sqrt(sum((y ** 2).sum(axis=0) for _, y in data.experiments) / nsamp)
     if not (np.all(su > 0) and np.all(sy > 0)):

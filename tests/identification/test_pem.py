@@ -109,3 +109,12 @@ def test_fit_cli_with_order_and_refinement_chosen_by_validation(tmp_path, capsys
     m = Model.load(out)
     assert m.meta["selection"]["refine"] == "oe-all" and res["order"] == m.meta["selection"]["order"]
     assert res["free_run_fit"][0] > 80.0
+
+
+def test_a_jacobian_beyond_the_limit_is_refused_before_the_work():
+    from identification.errors import DataError
+
+    a, b, c, d = true_system()
+    u = np.ones((700_000, 2))          # 700k x 2 outputs x 40 parameters > 50 M floats
+    with pytest.raises(DataError, match="Jacobian .* MB, limit 400 MB"):
+        refine_output_error(a, b, c, d, IOData.from_arrays(u, u))

@@ -11,6 +11,9 @@
 4. Hostile input (issue 18): streams made of one repeated unit (``$``, ``$``-lines, UBX and RTCM 3 headers
    that announce long frames) decoded by ``gnss.reader``, against the clean Trimble capture repeated to
    the same size: the ratio is what line noise or a hostile file costs over a real receiver's bytes.
+5. One point from ENU to geodetic and back (what the emulated receiver and the front-end do at 5 Hz):
+   ``gnss.geodesy_scalar.ScalarFrame`` (math on floats) versus ``gnss.geodesy.LocalFrame`` (pymap3d on
+   arrays): why the scalar path is kept.
 
 Prints a table with times and ratios (ours / baseline).  ``--quick`` runs fewer repetitions.
 """
@@ -30,6 +33,8 @@ from pyubx2 import NMEA_PROTOCOL, RTCM3_PROTOCOL, UBX_PROTOCOL, UBXReader
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from gnss.geodesy import LocalFrame  # noqa: E402
+from gnss.geodesy_scalar import ScalarFrame  # noqa: E402
 from gnss.guidance import ABLine, CurvedLine  # noqa: E402
 from gnss.reader import GnssReader, strip_comment_header  # noqa: E402
 
@@ -123,6 +128,14 @@ def main(argv: list[str]) -> int:
         t_h, n_h = best_of(lambda: ours(hostile), reps)
         rows.append((f"hostile {unit_name} ({n_hostile // 1000} kB)", f"gnss.reader ({n_h} msgs)", t_h,
                      f"same size clean ({n_clean} msgs)", t_clean))
+    frame = LocalFrame.from_degrees(37.4275, -122.1697, 30.0)
+    scalar = ScalarFrame(frame)
+    n_geo = 500 if quick else 3000
+    lat, lon, h = scalar.to_geodetic(12.0, 34.0, 2.0)
+    t_s, _ = best_of(lambda: [scalar.to_enu(*scalar.to_geodetic(12.0, 34.0, 2.0)) for _ in range(n_geo)], reps)
+    t_l, _ = best_of(lambda: [frame.to_enu(*(float(v) for v in frame.to_geodetic([12.0, 34.0, 2.0])))
+                              for _ in range(n_geo)], reps)
+    rows.append((f"ENU -> geodetic -> ENU, {n_geo} points", "ScalarFrame (math)", t_s, "LocalFrame (pymap3d)", t_l))
     rng = np.random.default_rng(0)
     n_pts = 20_000 if quick else 100_000
     e, n = rng.uniform(-200, 200, (2, n_pts))

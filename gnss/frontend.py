@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import ConfigError
-from .fastinit import positional_maker
 from .geodesy import LocalFrame
 from .geodesy_scalar import ScalarFrame
 from .integrity import FixQuality, Integrity, IntegrityConfig, assess, fix_from_gga, fix_from_nav_pvt
@@ -362,8 +361,8 @@ class GnssFrontEnd:
             speed = float(ve * math.sin(yaw) + vn * math.cos(yaw))
         else:
             speed = float(np.hypot(ve, vn))
-        return _make_solution(   # NavSolution(t, t_validity, t_arrival, east, north, up, yaw, pitch, roll,
-            t,                   #             yaw_rate, speed, velocity_east, velocity_north, fix, integrity)
+        return NavSolution(   # (t, t_validity, t_arrival, east, north, up, yaw, pitch, roll,
+            t,                #  yaw_rate, speed, velocity_east, velocity_north, fix, integrity)
             t_validity, pos_ta if pos_ta > -math.inf else math.nan,
             east, north, up, yaw, pitch, roll, rate, speed, float(ve), float(vn), self._fix, integrity,
         )
@@ -395,9 +394,6 @@ def _rotate_arm(yaw: float, pitch: float, roll: float, arm: np.ndarray,
                s * m0[0] + c * m1[0], s * m0[1] + c * m1[1], s * m0[2] + c * m1[2],
                st, ct * sp, ct * cp)
     return r.dot(arm).tolist()   # r @ arm: the same BLAS product (gemv), with less call overhead
-
-
-_make_solution = positional_maker(NavSolution)
 
 
 def _tag(m: object, use_tod: bool) -> float | None:

@@ -1,9 +1,11 @@
 """Strict NMEA 0183 sentence decoding.
 
-Standard sentences (GGA, VTG, RMC, GST, HDT, THS) are decoded by :mod:`pynmeagps`
-and converted to the typed messages of :mod:`gnss.messages`; the proprietary
-Trimble ``$PTNL,AVR`` and Hemisphere ``$PSAT,HPR`` sentences, which pynmeagps
-does not know (it has an unrelated ``HPR`` layout), are decoded here.  Every
+RMC, GST, HDT and THS are decoded by :mod:`pynmeagps` and converted to the typed
+messages of :mod:`gnss.messages`. GGA and VTG (what a position receiver sends 5 to 20
+times a second; pynmeagps's generic machinery costs about 50-100 microseconds a
+sentence) and the proprietary Trimble ``$PTNL,AVR`` and Hemisphere ``$PSAT,HPR``
+(which pynmeagps does not know: it has an unrelated ``HPR`` layout) are decoded here
+from their fields. One path per sentence type.  Every
 other checksum-valid sentence is returned as :class:`~gnss.messages.NmeaSentence`.
 Latitude and longitude are decoded here from the raw fields, because pynmeagps rounds
 them to 1e-10 degree, coarser than the 1e-8 arc-minute of RTK receivers.
@@ -17,10 +19,8 @@ from __future__ import annotations
 import datetime as _dt
 import math
 from pynmeagps import NMEAReader
-from pynmeagps.nmeatypes_get import NMEA_PAYLOADS_GET
 
 from .errors import ChecksumError, NMEAParseError
-from .fastinit import positional_maker
 from .messages import Avr, Gga, Gst, Hdt, Hpr, NmeaMessage, NmeaSentence, Rmc, Ths, Vtg
 
 __all__ = ["nmea_checksum", "split_sentence", "parse_nmea", "KNOT", "NMEA_MAX_LENGTH"]
@@ -33,7 +33,6 @@ NMEA_MAX_LENGTH = 255
 
 _TWO_PI = 2.0 * math.pi
 _HEX_DIGITS = frozenset(b"0123456789ABCDEFabcdef")   # the checksum's two characters (as byte values)
-_make_gga, _make_vtg, _make_avr = (positional_maker(c) for c in (Gga, Vtg, Avr))
 _MIN_FIELDS = {"GGA": 14, "VTG": 8, "RMC": 11, "GST": 8, "HDT": 2, "THS": 2}
 
 
@@ -197,15 +196,15 @@ def _avr(fields: list[str]) -> Avr:
         raise NMEAParseError(
             f"expected $PTNL,AVR,time,yaw,Yaw,tilt,Tilt,roll,Roll,range,quality,pdop,nsv, got fields {fields!r}"
         )
-    return _make_avr(   # Avr(time, yaw, tilt, roll, range, quality, pdop, num_sv)
-        _time_field(fields[0]),
-        _heading(fields[1]),
-        _rad(fields[3]),
-        _rad(fields[5]),
-        _opt(fields[7]),
-        int(fields[8]) if fields[8] else 0,
-        _opt(fields[9]),
-        _opt_int(fields[10]),
+    return Avr(
+        time=_time_field(fields[0]),
+        yaw=_heading(fields[1]),
+        tilt=_rad(fields[3]),
+        roll=_rad(fields[5]),
+        range=_opt(fields[7]),
+        quality=int(fields[8]) if fields[8] else 0,
+        pdop=_opt(fields[9]),
+        num_sv=_opt_int(fields[10]),
     )
 
 
@@ -222,32 +221,42 @@ def _hpr(fields: list[str]) -> Hpr:
     )
 
 
+def _gga(talker: str, f: list[str]) -> Gga:
+    """GGA fields: time, lat, N|S, lon, E|W, quality, numSV, HDOP, alt, M, sep, M, diffAge, diffStation."""
+    return Gga(
+        talker=talker,
+        time=_time_field(f[0]),
+        lat=_latlon(f[1], f[2], 2),
+        lon=_latlon(f[3], f[4], 3),
+        quality=int(f[5]) if f[5] else 0,
+        num_sv=_opt_int(f[6]),
+        hdop=_opt(f[7]),
+        alt=_opt(f[8]),
+        geoid_sep=_opt(f[10]),
+        diff_age=_opt(f[12]),
+        station_id=_opt_int(f[13]),
+    )
+
+
+def _vtg(talker: str, f: list[str]) -> Vtg:
+    """VTG fields: course true, T, course magnetic, M, speed kn, N, speed km/h, K[, FAA mode].
+
+    The km/h field must be a number (or empty) too; the speed is taken from the knots.
+    """
+    _opt(f[6])
+    sogn = _opt(f[4])
+    return Vtg(
+        talker=talker,
+        course=_heading(f[0]),
+        course_mag=_heading(f[2]),
+        speed=None if sogn is None else sogn * KNOT,
+        mode=(f[8] or None) if len(f) > 8 else None,
+    )
+
+
 def _from_pynmeagps(kind: str, talker: str, m: object, fields: list[str]) -> NmeaMessage:
-    # pynmeagps stores decoded fields as instance attributes; the fast path gives them as a dict
-    g = m.get if isinstance(m, dict) else m.__dict__.get
-    if kind == "GGA":
-        return _make_gga(   # Gga(talker, time, lat, lon, quality, num_sv, hdop, alt, geoid_sep, diff_age, station_id)
-            talker,
-            _time_field(fields[0]),
-            _latlon(fields[1], fields[2], 2),
-            _latlon(fields[3], fields[4], 3),
-            int(g("quality") or 0),
-            _opt_int(g("numSV")),
-            _opt(g("HDOP")),
-            _opt(g("alt")),
-            _opt(g("sep")),
-            _opt(g("diffAge")),
-            _opt_int(g("diffStation")),
-        )
-    if kind == "VTG":
-        sogn = _opt(g("sogn"))
-        return _make_vtg(   # Vtg(talker, course, course_mag, speed, mode)
-            talker,
-            _heading(g("cogt")),
-            _heading(g("cogm")),
-            None if sogn is None else sogn * KNOT,
-            g("posMode") or None,
-        )
+    # pynmeagps stores decoded fields as instance attributes
+    g = m.__dict__.get
     if kind == "RMC":
         spd = _opt(g("spd"))
         mv = _rad(g("mv"))
@@ -310,15 +319,6 @@ def parse_nmea(sentence: bytes, *, check: bool = True) -> NmeaMessage:
     NMEAParseError
         Malformed framing or a field that is not what the sentence type requires.
     """
-    if check:
-        fast = _parse_fast(sentence)
-        if fast is not None:
-            return fast
-    return _parse_full(sentence, check)
-
-
-def _parse_full(sentence: bytes, check: bool) -> NmeaMessage:
-    """:func:`parse_nmea` without its fast path (every sentence type, every error)."""
     address, fields = split_sentence(sentence, check=check)
     if address.startswith("P"):
         sub = fields[0] if fields else ""
@@ -341,140 +341,13 @@ def _parse_full(sentence: bytes, check: bool) -> NmeaMessage:
     if len(fields) < need:
         raise NMEAParseError(f"{address}: expected at least {need} fields, got {len(fields)}: {fields!r}")
     try:
-        if kind in _LIBRARY_LAYOUTS:
-            decoded = _library_values(kind, fields)
-        else:
-            raw = sentence if sentence.endswith(b"\r\n") else sentence.rstrip(b"\r\n") + b"\r\n"
-            decoded = NMEAReader.parse(raw, validate=0)
-        return _from_pynmeagps(kind, talker, decoded, fields)
+        if kind == "GGA":
+            return _gga(talker, fields)
+        if kind == "VTG":
+            return _vtg(talker, fields)
+        raw = sentence if sentence.endswith(b"\r\n") else sentence.rstrip(b"\r\n") + b"\r\n"
+        return _from_pynmeagps(kind, talker, NMEAReader.parse(raw, validate=0), fields)
     except NMEAParseError:
         raise
     except Exception as exc:  # pynmeagps raises assorted types on bad fields; normalise them
         raise NMEAParseError(f"{address}: a field is not what the sentence type requires ({exc}); fields {fields!r}") from exc
-
-
-# GGA and VTG (what the position receivers send 5 times a second) are decoded without building a
-# pynmeagps message object, which costs ~50 microseconds of generic machinery per sentence: their
-# layouts are read from pynmeagps's own table and each field gets the conversion pynmeagps gives its
-# type, in the same order, with the same error, so the result is what NMEAReader.parse gives
-# (tests/gnss/test_nmea_fast.py checks this with hypothesis against pynmeagps itself).
-_LIBRARY_LAYOUTS = {kind: tuple(NMEA_PAYLOADS_GET[kind].items()) for kind in ("GGA", "VTG")}
-_NEVER_FAILS = {"CH", "ST", "LAD", "LND", "QS", "HX", "TM", "LA", "LN"}  # pynmeagps maps bad text to "" or keeps it
-
-
-class _LibraryTypeError(ValueError):
-    """The error pynmeagps raises for a field it cannot convert (its text, for identical messages)."""
-
-
-def _library_values(kind: str, fields: list[str]) -> dict:
-    """The attribute values pynmeagps decodes from ``fields`` of a ``kind`` sentence (GET mode), by name.
-
-    ``IN`` fields become ``int``, ``DE`` fields ``float`` (empty text stays ``""``); time and
-    latitude/longitude fields never fail in pynmeagps and are decoded strictly by this module
-    from the raw text instead, so they are kept as text. A payload shorter than the layout ends
-    the attributes (pynmeagps skips the missing ones).
-    """
-    out = {}
-    for (name, convert), text in zip(_CONVERSIONS[kind], fields):
-        if convert is not None and text != "":
-            try:
-                text = convert(text)
-            except ValueError:
-                raise _LibraryTypeError(f"Incorrect type for attribute {name} in msgID {kind}.") from None
-        out[name] = text
-    return out
-
-
-def _conversions(kind: str) -> tuple[tuple[str, type | None], ...]:
-    """Per field of pynmeagps's ``kind`` layout: its name and conversion (``float`` for DE, ``int``
-    for IN, ``None`` for the types kept as text)."""
-    out = []
-    for name, typ in _LIBRARY_LAYOUTS[kind]:
-        if typ not in ("DE", "IN") and typ not in _NEVER_FAILS:  # pragma: no cover - a layout change in pynmeagps
-            def unsupported(text: str, typ: str = typ, name: str = name) -> None:
-                raise NMEAParseError(f"pynmeagps type {typ!r} of {kind}.{name} has no fast decoding")
-            out.append((name, unsupported))
-        else:
-            out.append((name, float if typ == "DE" else int if typ == "IN" else None))
-    return tuple(out)
-
-
-_CONVERSIONS = {kind: _conversions(kind) for kind in _LIBRARY_LAYOUTS}
-
-
-# The sentences of the HIL bench's receivers (GGA, VTG, Trimble AVR: ~1200 a simulated minute) are
-# framed, checked and decoded in one function, with no per-field helper calls. It is the same framing
-# checks, the same checksum and the same conversions (int, float, _time_field, _latlon) of the same
-# text in the same places, so whatever it returns is what the path above returns; a sentence it does
-# not take, or one that fails any check, is handed to that path, which gives its message or raises its
-# error (tests/gnss/test_nmea_fast.py compares both on hypothesis-generated and corrupted sentences).
-_radians = math.radians
-
-
-def _parse_fast(sentence: bytes) -> NmeaMessage | None:
-    """:func:`parse_nmea` (with ``check``) of a GGA, VTG or ``$PTNL,AVR`` sentence; ``None``: use the full path."""
-    s = sentence.rstrip(b"\r\n")
-    if len(s) < 6 or s[0] != 0x24 or s[-3] != 0x2A:
-        return None
-    body = s[1:-3]
-    if s[-2] not in _HEX_DIGITS or s[-1] not in _HEX_DIGITS:
-        return None
-    try:
-        given = int(s[-2:], 16)
-        text = body.decode("ascii")
-    except (ValueError, UnicodeDecodeError):
-        return None
-    if not text.isprintable() or "$" in text or "*" in text or nmea_checksum(body) != given:
-        return None
-    p = text.split(",")
-    address = p[0]
-    try:
-        if address == "PTNL":
-            # PTNL,AVR,time,yaw,Yaw,tilt,Tilt,roll,Roll,range,quality,pdop,numSV (as _avr)
-            if len(p) < 13 or p[1] != "AVR" or p[4] != "Yaw" or p[6] != "Tilt" or p[8] not in ("Roll", ""):
-                return None
-            v = p[3]
-            yaw = None if v == "" else _radians(float(v)) % _TWO_PI
-            v = p[5]
-            tilt = None if v == "" else _radians(float(v))
-            v = p[7]
-            roll = None if v == "" else _radians(float(v))
-            v = p[9]
-            rng = None if v == "" else float(v)
-            quality = int(p[10]) if p[10] else 0
-            v = p[11]
-            pdop = None if v == "" else float(v)
-            v = p[12]
-            return _make_avr(_time_field(p[2]), yaw, tilt, roll, rng, quality, pdop, None if v == "" else int(v))
-        if len(address) != 5 or address[0] == "P" or not address.isalnum():
-            return None
-        kind = address[2:]
-        if kind == "GGA":
-            # GGA,time,lat,N|S,lon,E|W,quality,numSV,HDOP,alt,M,sep,M,diffAge,diffStation: pynmeagps's
-            # conversions (int for IN fields, float for DE fields, "" kept), then _from_pynmeagps's
-            if len(p) < 15:
-                return None
-            q, n, hdop, alt, sep, age, stn = p[6], p[7], p[8], p[9], p[11], p[13], p[14]
-            return _make_gga(
-                address[:2], _time_field(p[1]), _latlon(p[2], p[3], 2), _latlon(p[4], p[5], 3),
-                int(q) if q else 0, int(n) if n else None, float(hdop) if hdop else None,
-                float(alt) if alt else None, float(sep) if sep else None, float(age) if age else None,
-                int(stn) if stn else None,
-            )
-        if kind == "VTG":
-            # VTG,cogt,T,cogm,M,sogn,N,sogk,K[,posMode]
-            if len(p) < 9:
-                return None
-            cogt, cogm, sogn, sogk = p[1], p[3], p[5], p[7]
-            if sogk:
-                float(sogk)    # decoded (and so checked) by pynmeagps, not kept
-            return _make_vtg(
-                address[:2],
-                _radians(float(cogt)) % _TWO_PI if cogt else None,
-                _radians(float(cogm)) % _TWO_PI if cogm else None,
-                float(sogn) * KNOT if sogn else None,
-                (p[9] or None) if len(p) > 9 else None,
-            )
-    except Exception:  # noqa: BLE001 - NMEAParseError of _time_field and _latlon, ValueError of int and float:
-        return None    # the full path decides (and raises its own error)
-    return None

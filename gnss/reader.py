@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 from typing import Literal, Protocol
 
 from .errors import ConfigError, ParseError
-from .fastinit import positional_maker
 from .messages import Message, message_key
 from .framecheck import RangeChecks
 from .nmea import NMEA_MAX_LENGTH, parse_nmea
@@ -95,9 +94,6 @@ class ReaderStats:
     def n_errors(self) -> int:
         """Total refused frames."""
         return sum(self.errors.values())
-
-
-_make_received = positional_maker(Received)
 
 
 class StreamDecoder:
@@ -201,7 +197,7 @@ class StreamDecoder:
                         self._refuse(exc, buf, last + 1, out)
                         i = last + 1
                         continue
-                    out.append(_make_received(msg, t, frame))   # Received(msg, t, frame)
+                    out.append(Received(msg, t, frame))
                     stats.messages[message_key(msg)] += 1
                     i = line_end
                     continue
@@ -269,7 +265,7 @@ class StreamDecoder:
                 self._refuse(exc, buf, j + 1, out)
                 i = j + 1
                 continue
-            out.append(_make_received(msg, t, frame))   # Received(msg, t, frame)
+            out.append(Received(msg, t, frame))
             stats.messages[message_key(msg)] += 1
             i = j + size
         self._pos += i

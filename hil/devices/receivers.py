@@ -25,7 +25,8 @@ import numpy as np
 from gnss.geodesy import LocalFrame
 from gnss.geodesy_scalar import ScalarFrame
 from gnss.guidance import ABLine
-from gnss.nmea_epoch import AttitudeEpochEncoder, PositionEpochEncoder
+from gnss.messages import Avr, Gga, Vtg
+from gnss.nmea_encode import encode_avr, encode_gga, encode_vtg
 
 from hil.errors import SimulatorConfigError
 from hil.truth.gps_errors import corrupt
@@ -159,7 +160,6 @@ class PositionReceiver(_Receiver):
         self.downgraded: list[tuple[float, float]] = []     # fault injection: report RTK float instead
         self._frame = ScalarFrame(geometry.origin)
         self._line_sin_cos = (math.sin(geometry.line_yaw), math.cos(geometry.line_yaw))
-        self._encoder = PositionEpochEncoder("GP", num_sv=14, hdop=0.8, geoid_sep=0.0, station_id=1, mode="D")
 
     def _recorded(self) -> int:
         # an epoch the simulator has recorded is final: catch the integration up only to look for a newer one
@@ -182,10 +182,9 @@ class PositionReceiver(_Receiver):
         n_att = sim.n_att if ia < sim.n_att else self.tractor.sim.n_att   # catch up only if it is not recorded
         ia = min(ia, n_att - 1)
         course = geo.yaw(sim.att["yaw"].item(0, ia))
-        # encode_gga(Gga("GP", tod, lat, lon, quality, 14, 0.8, h, 0.0, diff_age, 1))
-        # + encode_vtg(Vtg("GP", course, None, speed, "D")); ScalarFrame gives Python floats
-        return self._encoder.encode(tod, lat, lon, quality, h, 1.0 if quality in (4, 5) else None, course,
-                                    pos["speed"].item(0, k))
+        diff_age = 1.0 if quality in (4, 5) else None
+        return (encode_gga(Gga("GP", tod, lat, lon, quality, 14, 0.8, h, 0.0, diff_age, 1))
+                + encode_vtg(Vtg("GP", course, None, pos["speed"].item(0, k), "D")))
 
 
 class AttitudeReceiver(_Receiver):
@@ -196,7 +195,6 @@ class AttitudeReceiver(_Receiver):
         g, err = tractor.params.gps, tractor.sim.gps_errors
         super().__init__(tractor, link, geometry, line or LineConfig(baud=38400), g.attitude_rate,
                          g.attitude_latency, err.att_jitter[0], err.att_lost[0], err.att_corrupt[0])
-        self._encoder = AttitudeEpochEncoder(range=1.5, quality=3, pdop=1.6, num_sv=12)
 
     def _recorded(self) -> int:
         n = self.tractor.sim.n_att     # as PositionReceiver._recorded
@@ -205,6 +203,5 @@ class AttitudeReceiver(_Receiver):
     def _encode(self, k: int, t_valid: float) -> bytes:
         att, geo = self.tractor.sim.att, self.geometry   # epoch k is recorded (step checked it)
         tod = (geo.utc_start + t_valid) % 86400.0
-        # encode_avr(Avr(tod, yaw, pitch, roll, 1.5, 3, 1.6, 12))
-        return self._encoder.encode(tod, geo.yaw(att["yaw"].item(0, k)), att["pitch"].item(0, k),
-                                    att["roll"].item(0, k))
+        return encode_avr(Avr(tod, geo.yaw(att["yaw"].item(0, k)), att["pitch"].item(0, k), att["roll"].item(0, k),
+                              1.5, 3, 1.6, 12))

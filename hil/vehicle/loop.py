@@ -30,7 +30,6 @@ from typing import Callable
 import numpy as np
 
 from design.controller import Controller, Measurement
-from gnss.fastinit import positional_maker
 from gnss.frontend import GnssFrontEnd
 from gnss.guidance import ABLine, TrackErrors
 from gnss.integrity import IntegrityState
@@ -44,7 +43,6 @@ from hil.vehicle.calibration import WheelAngleCalibration
 INTEGRITY_CODES = {"RTK_FIXED": 0, "RTK_FLOAT": 1, "DEGRADED": 2, "STALE": 3, "LOST": 4}
 # by id(): hashing an Enum member runs Python code (Enum.__hash__), id() does not
 _INTEGRITY_BY_ID = {id(s): float(INTEGRITY_CODES.get(s.name, 9)) for s in IntegrityState}
-_make_measurement = positional_maker(Measurement)   # Measurement(t, cross_track, heading_error, wheel_angle, speed)
 
 
 @dataclass(frozen=True)
@@ -211,7 +209,7 @@ class VehicleLoop:
                 if near and now - self._healthy_since >= cfg.engage_after - 1e-9:
                     self._engage(now, link_ok)
         if self.engaged:
-            m = _make_measurement(now, xte, he, delta, speed)
+            m = Measurement(now, xte, he, delta, speed)
             why = None
             try:
                 raw = float(self.controller.step(m))

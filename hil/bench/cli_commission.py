@@ -72,7 +72,8 @@ def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> 
                    help="conditions of the HIL comparison (default: those of the passes)")
     c.add_argument("--weights", choices=WEIGHTS, default="auto-if-available",
                    help="robust/MPC weights: from specifications (auto) or the design commands' defaults")
-    c.add_argument("--order", type=_int_or(("auto", "validate")), default="auto", help="model order")
+    c.add_argument("--order", type=_int_or(("auto", "validate")), default="validate",
+                   help="model order (default: chosen by held-out prediction)")
     c.add_argument("--markov", type=_int_or(("auto", "validate")), default="auto",
                    help="Markov parameters (past window)")
     c.add_argument("--acceptance", choices=("refuse", "warn"), default="refuse",

@@ -14,7 +14,9 @@ under one directory:
    robust controller and the MPC (certified on every local model) through the
    ``design`` commands (``controllers/``, each with its certificate), their command limits set to
    the valve's measured rate; the weights are the design's defaults or, when ``design`` offers
-   them, chosen from specifications (``--weights auto``, :attr:`CommissionOptions.weights`);
+   them, chosen from specifications (``--weights auto``, :attr:`CommissionOptions.weights`; when no
+   weights meet the specifications the step is recorded as failed and, with ``auto-if-available``,
+   the design is made again with the defaults);
 5. **HIL** -- closed-loop passes of those three and of the oracle on the tractor, through the
    commissioned loop (inverse map and thresholds), ``hil/`` and the report's table;
 6. **report** -- ``report.md`` and figures (:mod:`hil.bench.commission_report`).
@@ -73,7 +75,9 @@ class CommissionOptions:
         ``"default"``: the design commands' default weights; ``"auto-if-available"``: auto when the
         installed ``design`` offers it.
     order, markov
-        Identification's order and Markov-parameter choice (``identify_logs``).
+        Identification's order and Markov-parameter choice (``identify_logs``); the order is chosen
+        by held-out multi-step prediction by default (``"validate"``: on the worn valve ``"auto"``
+        picked order 2 and every model was refused).
     acceptance
         ``"refuse"`` (a model that does not predict stops the recipe) or ``"warn"``.
     integral
@@ -89,7 +93,7 @@ class CommissionOptions:
     hil_duration: float = 60.0
     hil_conditions: tuple[Condition, ...] | None = None
     weights: str = "auto-if-available"
-    order: int | str = "auto"
+    order: int | str = "validate"
     markov: int | str = "auto"
     acceptance: str = "refuse"
     integral: bool = True
@@ -118,8 +122,9 @@ def _design(argv: list[str]) -> dict:
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
         status = design_main([*argv, "--json"])
-    if status != 0:
-        raise RuntimeError(err.getvalue().strip() or f"design {argv[0]} exited with {status}")
+    if status != 0:   # its error line (the progress lines before it are not the reason)
+        errors = [line for line in err.getvalue().splitlines() if "error:" in line]
+        raise RuntimeError(errors[-1] if errors else err.getvalue().strip() or f"design {argv[0]} exited with {status}")
     return json.loads(out.getvalue())
 
 
@@ -244,23 +249,32 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         if auto and _design_offers("robust", "--actuator-rate"):
             weights += ["--actuator-rate", limit]                    # the valve's measured rate
         res["weights"] = "auto (from specifications)" if auto else "the design commands' defaults"
-        plan = {
-            # the paper's method: one LQR on the central model, certified on that model only (as in the paper;
-            # a certificate failed on the local models would make the loader refuse the reference)
-            "central-lqr": ["lqr", "--model", str(models_dir / "central.npz"), "--command-limit", limit,
-                            "--out", str(ctrl / "central-lqr.json")],
-            "robust": ["robust", "--models", *local, *(["--integral"] if opts.integral else []), *weights,
-                       "--command-limit", limit, "--out", str(ctrl / "robust.json")],
-            "mpc": ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *weights,
-                    "--rate-limit", limit, "--out", str(ctrl / "mpc.json")],
-        }
+
+        def argv_for(name: str, w: list[str]) -> list[str]:
+            return {
+                # the paper's method: one LQR on the central model, certified on that model only (as in the
+                # paper; a certificate failed on the local models would make the loader refuse the reference)
+                "central-lqr": ["lqr", "--model", str(models_dir / "central.npz"), "--command-limit", limit,
+                                "--out", str(ctrl / "central-lqr.json")],
+                "robust": ["robust", "--models", *local, *(["--integral"] if opts.integral else []), *w,
+                           "--command-limit", limit, "--out", str(ctrl / "robust.json")],
+                "mpc": ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *w,
+                        "--rate-limit", limit, "--out", str(ctrl / "mpc.json")],
+            }[name]
+        plan = {name: argv_for(name, weights) for name in ("central-lqr", "robust", "mpc")}
         for name, argv in plan.items():
             if name == "mpc" and "robust" not in designs:
                 continue
-            r = steps.run(f"design {name}", f"design {' '.join(a for a in argv[:1])} ({name})",
-                          lambda argv=argv: _design(argv))
+            r = steps.run(f"design {name}", f"design {argv[0]} ({name})", lambda argv=argv: _design(argv))
+            used = "auto" if auto and name != "central-lqr" else "default"
+            if r is None and used == "auto" and opts.weights == "auto-if-available":
+                # no weights met the specifications: say so, and design with the defaults as the recipe did before
+                argv = argv_for(name, [])
+                r = steps.run(f"design {name} (default weights)", f"design {argv[0]} ({name}) with the design's "
+                              "default weights, the automatic ones having failed", lambda argv=argv: _design(argv))
+                used = "default (the automatic weights failed)"
             if r is not None:
-                designs[name] = {"file": argv[argv.index("--out") + 1], "result": r,
+                designs[name] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": used,
                                  "command": "design " + " ".join(argv)}
     res["designs"] = designs
 

@@ -127,7 +127,7 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
     if res.get("designs"):
         lines += ["", "## Designs", "", f"Weights: {res.get('weights', '')}.", ""]
         for name, d in res["designs"].items():
-            lines.append(f"- `{name}`: `{d['command']}`")
+            lines.append(f"- `{name}` (weights: {d.get('weights', '')}): `{d['command']}`")
     cells = hil_ratios(res.get("hil", []))
     if cells:
         lines += ["", "## HIL on this tractor (commissioned loop)", "",

@@ -1,10 +1,13 @@
 """Weights from specifications: the most aggressive Bryson weights that meet them on every model.
 
 One aggressiveness scale ``s`` moves the Bryson weights along a line: the output and
-integral sizes shrink as ``1/sqrt(s)`` from a base (``y_max`` 0.05 s, 0.03 rad s/m,
-0.09 rad; ``i_max`` 0.5 s^2) while the steering-rate size stays the actuator's rate limit,
-so ``Q`` grows as ``s`` against a fixed ``R``: a larger ``s`` is a faster, higher-bandwidth
-loop. :func:`search_weights` finds the largest ``s`` in ``[low, high]`` whose design meets
+integral sizes shrink as ``1/sqrt(s)`` from a base (the design's defaults: ``y_max`` 0.05 s,
+0.03 rad s/m, 0.09 rad; ``i_max`` 0.5 s^2) while the steering-rate size stays the base's
+0.35 rad/s, so ``Q`` grows as ``s`` against a fixed ``R``: a larger ``s`` is a faster,
+higher-bandwidth loop. The actuator's rate limit is a specification, not a weight: tying
+``u_max`` to it made a slower valve (0.28 rad/s) *raise* the chosen scale (the same
+delay-bound bandwidth with a dearer input) and, with the command clipped at 0.28 rad/s,
+the heavy tractor's loop saturated into 12-45 cm at 1.79-2.91 m/s (docs/weights_from_specifications.md). :func:`search_weights` finds the largest ``s`` in ``[low, high]`` whose design meets
 every :class:`design.specs.Specifications` on every model (a geometric scan, then bisection
 on ``log s`` above the largest passing scale; each trial designs, exports and re-checks the
 controller exactly, :func:`design.specs.check_specs`), and refuses, naming each unmet
@@ -30,12 +33,13 @@ T = TypeVar("T")
 BASE = OutputWeights()
 
 
-def scaled_weights(scale: float, rate_limit: float, base: OutputWeights = BASE) -> OutputWeights:
-    """Bryson weights at aggressiveness ``scale`` (> 0): sizes ``base / sqrt(scale)``, ``u_max = rate_limit`` rad/s."""
+def scaled_weights(scale: float, base: OutputWeights = BASE) -> OutputWeights:
+    """Bryson weights at aggressiveness ``scale`` (> 0): output and integral sizes ``base / sqrt(scale)``,
+    the steering-rate size the base's (rad/s)."""
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) or scale <= 0:
         raise DesignInputError(f"aggressiveness scale must be a finite number > 0, got {scale!r}")
     r = 1.0 / math.sqrt(scale)
-    return OutputWeights(tuple(v * r for v in base.y_max), rate_limit, base.i_max * r)
+    return OutputWeights(tuple(v * r for v in base.y_max), base.u_max, base.i_max * r)
 
 
 @dataclass(frozen=True)
@@ -106,8 +110,8 @@ class SearchResult(Generic[T]):
                 "weights": {"y_max": list(self.weights.y_max), "u_max": self.weights.u_max,
                             "i_max": self.weights.i_max},
                 "specifications": specs.to_dict(), "achieved": self.report.to_dict(),
-                "search": {"line": "y_max, i_max = base / sqrt(scale); u_max = rate_limit",
-                           "base": {"y_max": list(BASE.y_max), "i_max": BASE.i_max},
+                "search": {"line": "y_max, i_max = base / sqrt(scale); u_max = base",
+                           "base": {"y_max": list(BASE.y_max), "u_max": BASE.u_max, "i_max": BASE.i_max},
                            "low": options.low, "high": options.high, "scan": options.scan, "steps": options.steps,
                            "trials": [t.to_dict() for t in self.trials]}}
 
@@ -146,7 +150,7 @@ def search_weights(design_at: Callable[[OutputWeights], T], compensator_of: Call
 
     def attempt(scale: float) -> bool:
         nonlocal best
-        w = scaled_weights(scale, specs.rate_limit)
+        w = scaled_weights(scale)
         try:
             d = design_at(w)
             rep = check_specs(compensator_of(d), models, specs, latency, names)

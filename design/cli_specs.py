@@ -46,8 +46,8 @@ def add_spec_arguments(p: argparse.ArgumentParser, number: Callable[[str], float
     p.add_argument("--delay-reserve", type=number, default=Specifications.delay_reserve,
                    help="extra plant-input delay tolerated beyond the latency, s")
     p.add_argument("--actuator-rate", type=number, default=None,
-                   help="actuator's steering-rate limit, rad/s (default: --command-limit / --rate-limit); also the "
-                        "Bryson steering-rate size of the automatic weights")
+                   help="actuator's steering-rate limit, rad/s (default: --command-limit / --rate-limit): the peak "
+                        "command from --tracking-errors must stay within it")
     p.add_argument("--tracking-errors", type=number, nargs="+", default=list(Specifications.initial_errors),
                    help="tracking-error half-widths whose peak command must stay within the actuator rate, model "
                         "units (y/V s, psi/V rad s/m, delta rad)")

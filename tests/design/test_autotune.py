@@ -156,6 +156,6 @@ def test_specifications_and_scales_refuse_bad_values():
     with pytest.raises(DesignInputError, match="low .* must be below high"):
         SearchOptions(2.0, 1.0)
     with pytest.raises(DesignInputError, match="scale must be a finite number > 0"):
-        scaled_weights(-1.0, 0.35)
-    w = scaled_weights(4.0, 0.28)
-    assert w.y_max == pytest.approx((0.025, 0.015, 0.045)) and w.u_max == 0.28 and w.i_max == pytest.approx(0.25)
+        scaled_weights(-1.0)
+    w = scaled_weights(4.0)
+    assert w.y_max == pytest.approx((0.025, 0.015, 0.045)) and w.u_max == 0.35 and w.i_max == pytest.approx(0.25)

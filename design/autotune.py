@@ -5,9 +5,10 @@ integral sizes shrink as ``1/sqrt(s)`` from a base (the design's defaults: ``y_m
 0.03 rad s/m, 0.09 rad; ``i_max`` 0.5 s^2) while the steering-rate size stays the base's
 0.35 rad/s, so ``Q`` grows as ``s`` against a fixed ``R``: a larger ``s`` is a faster,
 higher-bandwidth loop. The actuator's rate limit is a specification, not a weight: tying
-``u_max`` to it made a slower valve (0.28 rad/s) *raise* the chosen scale (the same
-delay-bound bandwidth with a dearer input) and, with the command clipped at 0.28 rad/s,
-the heavy tractor's loop saturated into 12-45 cm at 1.79-2.91 m/s (docs/weights_from_specifications.md). :func:`search_weights` finds the largest ``s`` in ``[low, high]`` whose design meets
+``u_max`` to it made a slower valve (0.28 rad/s) *raise* the chosen scale (5.37 -> 8.27 on
+the heavy tractor: the same delay-bound bandwidth with a dearer input). (Measured apart: on
+that tractor, clipping the command at 0.28 instead of 0.35 rad/s with either gain gave
+12-45 cm at 1.79-2.91 m/s, against 3-13 cm; docs/weights_from_specifications.md.) :func:`search_weights` finds the largest ``s`` in ``[low, high]`` whose design meets
 every :class:`design.specs.Specifications` on every model (a geometric scan, then bisection
 on ``log s`` above the largest passing scale; each trial designs, exports and re-checks the
 controller exactly, :func:`design.specs.check_specs`), and refuses, naming each unmet

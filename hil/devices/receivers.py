@@ -2,9 +2,10 @@
 
 Three layers, as in ArduPilot's simulated GPS: the truth and its errors come from
 the simulator (:mod:`hil.truth.gps_errors`, drawn per pass: white noise, multipath, latency,
-outages, RTK float episodes, and messages with a flipped bit), the encoding from :mod:`gnss`
-(the same encoders the front-end's tests round-trip), and line timing from a
-UART at the receiver's baud rate. Each receiver is a device on the bench clock
+outages, RTK float episodes, and messages with a flipped bit), every fault of a receiver is
+applied by its fault layer (:class:`hil.devices.gps_faults.ReceiverFaults`: outages, RTK float
+windows, bit flips), the encoding comes from :mod:`gnss` (the same encoders the front-end's tests
+round-trip), and line timing from a UART at the receiver's baud rate. Each receiver is a device on the bench clock
 (``next_wakeup`` / ``step``) writing to a byte link, so the same receiver feeds an
 in-memory link in lockstep or a pseudo-terminal in real time.
 
@@ -29,9 +30,9 @@ from gnss.messages import Avr, Gga, Vtg
 from gnss.nmea_encode import encode_avr, encode_gga, encode_vtg
 
 from hil.errors import SimulatorConfigError
-from hil.truth.gps_errors import corrupt
 from hil.links.link import ByteLink
 from hil.links.uart import LineConfig, UartTx
+from hil.devices.gps_faults import ReceiverFaults
 from hil.devices.plant import SimulatedTractor
 
 _EPS = 1e-9
@@ -84,15 +85,24 @@ class _Receiver:
         self.uart = UartTx(line, link)
         self.rate, self.latency = rate, latency
         # per-epoch values as Python lists (read once per epoch, and next_wakeup is asked often)
-        self._jitter, self._lost, self._corruption = jitter.tolist(), lost.tolist(), corruption.tolist()
-        self._n = len(self._lost)
+        self._jitter = jitter.tolist()
+        self.faults = ReceiverFaults(lost.tolist(), corruption.tolist())   # outages, RTK float, bit flips
+        self._n = len(self.faults)
         self._due = self._arrival(0) if self._n else math.inf
-        self.corrupted = 0
         self.k = 0
         self._retry = -math.inf
         self._wake = self._due      # the later of _due and _retry, kept with them (next_wakeup is asked often)
         self.sent = 0
-        self.suppressed: list[tuple[float, float]] = []   # fault injection: (start, end) with no output
+
+    @property
+    def suppressed(self) -> list[tuple[float, float]]:
+        """Injected outage windows, (start, end) s with no output (``faults.outages``)."""
+        return self.faults.outages
+
+    @property
+    def corrupted(self) -> int:
+        """Epochs sent with a flipped bit (``faults.corrupted``)."""
+        return self.faults.corrupted
 
     def _arrival(self, k: int) -> float:
         return k / self.rate + self.latency + self._jitter[k]
@@ -117,13 +127,10 @@ class _Receiver:
             self.k += 1
             self._due = self._arrival(self.k) if self.k < self._n else math.inf
             t_valid = k / self.rate
-            if self._lost[k] or (self.suppressed and any(a <= t_valid < b for a, b in self.suppressed)):
+            faults = self.faults
+            if faults.drops(k, t_valid):
                 continue
-            data = self._encode(k, t_valid)
-            if self._corruption[k] >= 0:
-                data = corrupt(data, self._corruption[k])
-                self.corrupted += 1
-            uart.send(data, now)
+            uart.send(faults.damage(k, self._encode(k, t_valid)), now)
             self.sent += 1
         self._retry = -math.inf
         self._wake = self._due
@@ -157,9 +164,13 @@ class PositionReceiver(_Receiver):
         g, err = tractor.params.gps, tractor.sim.gps_errors
         super().__init__(tractor, link, geometry, line or LineConfig(baud=38400), g.position_rate,
                          g.position_latency, err.pos_jitter[0], err.pos_lost[0], err.pos_corrupt[0])
-        self.downgraded: list[tuple[float, float]] = []     # fault injection: report RTK float instead
         self._frame = ScalarFrame(geometry.origin)
         self._line_sin_cos = (math.sin(geometry.line_yaw), math.cos(geometry.line_yaw))
+
+    @property
+    def downgraded(self) -> list[tuple[float, float]]:
+        """Injected RTK-float windows, (start, end) s reported as fix quality 5 (``faults.rtk_float``)."""
+        return self.faults.rtk_float
 
     def _recorded(self) -> int:
         # an epoch the simulator has recorded is final: catch the integration up only to look for a newer one
@@ -174,9 +185,7 @@ class PositionReceiver(_Receiver):
         east, north = x * s - y * c, x * c + y * s
         up = self.tractor.params.vehicle.antenna_height
         lat, lon, h = self._frame.to_geodetic(east, north, up)
-        quality = int(pos["fix"].item(0, k))
-        if self.downgraded and any(a <= t_valid < b for a, b in self.downgraded):
-            quality = 5
+        quality = self.faults.quality(int(pos["fix"].item(0, k)), t_valid)
         tod = (geo.utc_start + t_valid) % 86400.0
         ia = int(round(t_valid * sim.params.gps.attitude_rate))
         n_att = sim.n_att if ia < sim.n_att else self.tractor.sim.n_att   # catch up only if it is not recorded

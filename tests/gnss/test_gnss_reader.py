@@ -262,13 +262,14 @@ def test_hostile_input_time_grows_linearly(unit):
 
 @pytest.mark.parametrize("unit", list(_HOSTILE.values()), ids=list(_HOSTILE))
 def test_hostile_input_costs_no_more_than_a_clean_capture_of_its_size(unit):
-    """A stream of hostile bytes decodes at most 10 times slower than a real receiver capture of the same size
-    (measured 0.0 to 1.7 times; before the change, 60 kB of RTCM headers took 56 s, 1078 times as long)."""
+    """A stream of hostile bytes decodes at most 20 times slower than a real receiver capture of the same size
+    (measured 0.0 to 4.1 times on a loaded host; before the change, 60 kB of RTCM headers took 56 s, 1078
+    times as long)."""
     from gnss_testdata import TRIMBLE
 
     clean = strip_comment_header(TRIMBLE.read_bytes())
     clean = _fill(clean, 60_000)
-    assert _best_time(_fill(unit, len(clean))) < 10.0 * _best_time(clean)
+    assert _best_time(_fill(unit, len(clean))) < 20.0 * _best_time(clean)
 
 
 @pytest.mark.parametrize("unit", list(_HOSTILE.values()), ids=list(_HOSTILE))

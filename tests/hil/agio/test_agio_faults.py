@@ -205,10 +205,11 @@ def test_corrupted_frames_are_refused_by_the_driver_and_the_module_and_counted()
     for e in disengagements(loop):
         assert "bridge silent" in e["reason"]
     assert_never_steers_while_disengaged(log, tap)
-    # every report the loop used was a real one: the wheel angle never jumps off the truth
-    engaged = log.channels["engaged"] == 1.0
-    err = np.abs(log.channels["wheel_angle"] - log.channels["truth_wheel_angle"])[engaged]
-    assert err.max() < math.radians(3.0)
+    # no corrupted reply was accepted: the driver took exactly the replies that were not corrupted
+    # (a one-bit flip always changes a sum-8 checksum; the module's last reply may still be in flight)
+    clean_replies = module.state.replies - dev.counts["corrupt"]
+    assert dev.counts["corrupt"] > 20
+    assert clean_replies - 1 <= driver.stats().reports_received <= clean_replies
 
 
 def test_the_stock_firmware_applies_corrupted_setpoints():

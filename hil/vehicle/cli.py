@@ -21,6 +21,7 @@ from identification.errors import PassLogError
 from design.files.signature import load_public_key
 
 from hil.errors import HilError
+from hil.vehicle.agio.driver import LEAD_TIME, AgioDriverConfig
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, vehicle_controller
 from hil.vehicle.outputs import prepare_out_dir, write_text_atomic
 from hil.vehicle.summary import summarize
@@ -62,7 +63,7 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
     cfg = DriveConfig(bridge_port=args.bridge, position_port=args.position, attitude_port=args.attitude,
                       line_a=a, line_b=b, height=args.height, lever_arm=args.lever_arm,
                       wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
-                      gnss_baud=args.gnss_baud)
+                      gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time))
     key = load_public_key(args.require_signature) if args.require_signature else None
     log = drive(cfg, vehicle_controller(args.controller, key), args.duration, implement=args.implement,
                 nominal_speed=args.speed)
@@ -98,6 +99,9 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
                    metavar="CENTER,RAD_PER_COUNT")
     d.add_argument("--bridge-baud", type=int, default=9600)
     d.add_argument("--gnss-baud", type=int, default=38400)
+    d.add_argument("--lead-time", type=parse_float, default=LEAD_TIME, metavar="S",
+                   help=f"AgOpenGPS module: the setpoint leads the integrated rate by S x rate, about the module's "
+                        f"measured lag (default {LEAD_TIME} s)")
     d.add_argument("--duration", type=parse_float, required=True, help="seconds (Ctrl-C stops earlier)")
     d.add_argument("--implement", default="unknown", help="label for the run log")
     d.add_argument("--speed", type=parse_float, default=0.0, help="nominal speed for the run log, m/s")

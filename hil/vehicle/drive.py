@@ -24,7 +24,7 @@ from gnss.geodesy import LocalFrame
 from gnss.guidance import ABLine
 from identification.passlog import PassLog
 
-from hil.vehicle.agio.driver import ANGLE_CALIBRATION, AgioDriver, module_loop_config
+from hil.vehicle.agio.driver import ANGLE_CALIBRATION, AgioDriver, AgioDriverConfig, module_loop_config
 from hil.vehicle.agio.spec import open_agio_link, parse_bridge
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.errors import HilError
@@ -66,6 +66,8 @@ class DriveConfig:
         ``(centre counts, rad per count)`` of the wheel-angle potentiometer.
     bridge_baud, gnss_baud
         Line rates, bit/s.
+    agio
+        Settings of the AgOpenGPS driver (setpoint limits and lead), used with an ``agopengps`` bridge.
     """
 
     bridge_port: str
@@ -79,6 +81,7 @@ class DriveConfig:
     bridge_baud: int = 9600
     gnss_baud: int = 38400
     loop: LoopConfig = field(default_factory=LoopConfig)
+    agio: AgioDriverConfig = field(default_factory=AgioDriverConfig)
 
     def __post_init__(self) -> None:
         for name in ("bridge_port", "position_port"):
@@ -132,7 +135,7 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
         except (serial.SerialException, OSError) as exc:
             raise HilError(f"cannot open a serial port: {exc}") from None
         clock = RealClock()
-        driver = AgioDriver(bridge, clock) if agio else BridgeDriver(bridge, clock)
+        driver = AgioDriver(bridge, clock, cfg.agio) if agio else BridgeDriver(bridge, clock)
         frontend = GnssFrontEnd(FrontEndConfig(origin=origin, lever_arm=cfg.lever_arm), sources=sources,
                                 clock=clock.now)
         if agio:   # the module takes the ground speed in PGN 254 and reports its angle in 0.01 degree

@@ -27,7 +27,7 @@ from hil.truth import disturbances, dynamics as vehicle, gps_errors as gps
 from hil.truth.conditions import Condition
 from hil.errors import SimulatorConfigError
 from hil.truth.params import SimParams
-from hil.truth.steering import sensor_counts, sensor_counts_float, valve_rate, valve_rate_scalar
+from hil.truth.steering import sensor_counts, sensor_counts_float, valve_rate
 from hil.truth.dynamics import DEL, N_STATE, PSI, X, Y
 
 SeedLike = int | np.random.SeedSequence
@@ -111,7 +111,7 @@ class TractorSimulator:
             self._stepper = vehicle.stepper(p)
             self._inputs = np.ascontiguousarray(
                 np.column_stack([getattr(self.exo, f)[0] for f in vehicle.STEP_INPUTS]), dtype=np.float64)
-            self._valve_rates: dict[float, float] = {}   # valve_rate_scalar by duty (a pure function of it)
+            self._valve_rates: dict[float, float] = {}   # valve_rate by duty (a pure function of it), kept
             self._x = self._state[0].tolist()
             self._disker0 = float(self._disker[0])
             self._rate0 = float(self._rate_cmd[0])
@@ -167,7 +167,7 @@ class TractorSimulator:
         self.duty[0] = d
         rate = self._valve_rates.get(d) if d != 0.0 else None   # (0.0 and -0.0 are one key: not kept)
         if rate is None:
-            rate = valve_rate_scalar(d, self.params.steering)
+            rate = float(valve_rate(d, self.params.steering))
             if d != 0.0 and len(self._valve_rates) < 1 << 16:
                 self._valve_rates[d] = rate
         self._rate0 = rate

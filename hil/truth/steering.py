@@ -38,15 +38,6 @@ def valve_rate(duty: np.ndarray, p: SteeringParams) -> np.ndarray:
     return np.sign(d) * gain * p.max_rate * opening
 
 
-def valve_rate_scalar(duty: float, p: SteeringParams) -> float:
-    """:func:`valve_rate` for one duty on floats (the same operations, so the same value)."""
-    d = min(max(duty, -1.0), 1.0)
-    base = min(max((abs(d) - p.deadband) / (1.0 - p.deadband), 0.0), 1.0)
-    opening = float(np.power(base, p.flow_exponent))   # numpy's pow, as on arrays (libm's may differ)
-    gain = 1.0 if d >= 0.0 else p.right_gain
-    return float((d > 0.0) - (d < 0.0)) * gain * p.max_rate * opening
-
-
 def nominal_duty(rate_cmd: np.ndarray, p: SteeringParams) -> np.ndarray:
     """PWM duty the bridge firmware sends for a steering-rate command.
 

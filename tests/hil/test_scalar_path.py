@@ -3,7 +3,7 @@
 The tractor's equations exist once, :func:`hil.truth.dynamics._rates`; the one-tractor path evaluates
 them compiled (:class:`hil.truth.dynamics.Stepper`, casadi) and the batch path on numpy arrays. The
 two agree to rounding; steps taken many at a time are the steps taken one at a time. The loop's,
-the valve's, the GPS epochs' and the kinematic LQR's float helpers give what their array code gives.
+the GPS epochs' and the kinematic LQR's float helpers give what their array code gives.
 """
 
 from __future__ import annotations
@@ -123,13 +123,6 @@ def test_loop_line_errors_are_bit_identical_to_ab_line_errors(b, a, east, north,
     line = ABLine(np.array(a), np.array(a) + np.array(b))
     err = line.errors(east, north, yaw)
     assert _scalar_line_errors(line)(east, north, yaw) == (float(err.cross_track), float(err.heading_error))
-
-
-@settings(max_examples=300, deadline=None)
-@given(duty=st.one_of(_f(-1.5, 1.5), st.sampled_from([0.0, -0.0, 1.0, -1.0, 0.05, -0.05])))
-def test_valve_rate_scalar_is_bit_identical_to_valve_rate(duty):
-    from hil.truth.steering import valve_rate, valve_rate_scalar
-    assert valve_rate_scalar(duty, P.steering) == float(valve_rate(np.array([duty]), P.steering)[0])
 
 
 @settings(max_examples=500, deadline=None)

@@ -29,7 +29,7 @@ from hil.vehicle.agio.protocol import HEADER_LEN, PGN_TABLE, PREAMBLE, Message, 
 
 __all__ = ["PgnCounters", "PgnStreamDecoder", "Event"]
 
-Event = tuple[int, int | None, "Message | FrameError"]
+Event = tuple[int, int | None, Message | FrameError]
 """``(end, source, message)`` for an accepted frame, ``(end, None, error)`` for a refused one;
 ``end`` is the stream index (0 = first byte ever fed) of the frame's last byte."""
 

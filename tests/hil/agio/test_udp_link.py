@@ -1,4 +1,5 @@
-"""The UDP byte link on loopback (127.0.0.1 only), and the emulated module behind it in real time."""
+"""The UDP byte link on loopback (127.0.0.1 only), and the emulated module behind it (and behind a
+pseudo-terminal, as on a USB serial port) in real time."""
 
 from __future__ import annotations
 
@@ -12,8 +13,10 @@ from agio_doubles import IntegratorPlant
 from hil.devices.steer_module import SteerModule, SteerModuleConfig
 from hil.links.clock import RealClock
 from hil.links.errors import LinkClosedError, LinkConfigError
+from hil.links.pty import PtyPair
 from hil.links.realtime import RealTimeRunner
 from hil.links.udp import UdpLink, udp_loopback_pair
+from hil.vehicle.agio.driver import AgioDriver
 from hil.vehicle.agio.framing import PgnStreamDecoder
 from hil.vehicle.agio.protocol import FromAutosteer, GuidanceStatus, SteerData, encode_frame
 
@@ -81,3 +84,25 @@ def test_the_module_answers_over_udp_loopback_in_real_time():
             time.sleep(0.05)
     assert len(replies) == 10 and all(isinstance(m, FromAutosteer) for m in replies)
     assert decoder.counters.bad_frames == 0 and module.state.frames == 10
+
+
+@pytest.mark.realtime
+def test_the_module_answers_over_a_pseudo_terminal_as_over_usb_serial():
+    plant = IntegratorPlant(frozen=True)
+    plant.counts = 140
+    clock = RealClock()
+    with PtyPair() as pty:
+        module = SteerModule(pty.device_link(), plant, SteerModuleConfig())
+        port = pty.open_serial(baudrate=115200, timeout=0)
+        try:
+            with RealTimeRunner(clock, [module], plant, wake_fds=[pty.device_link().fileno()], max_duration=20):
+                driver = AgioDriver(port, clock, speed_source=lambda: 1.0)
+                reports = []
+                for _ in range(20):
+                    reports += driver.poll()          # sends a keep-alive PGN 254 (autosteer off)
+                    time.sleep(0.05)
+        finally:
+            port.close()
+    assert len(reports) >= 15 and driver.stats().bad_frames == 0
+    # counts 140 -> position int(7472.2) = 7472 -> (7472 - 6805) / 30 = 22.23 deg (right): -0.388 rad
+    assert reports[-1].angle == pytest.approx(-math.radians(667 / 30), abs=1e-4)

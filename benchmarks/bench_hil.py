@@ -10,7 +10,8 @@
    the demo's 210-pass comparison (``hil compare`` of the paper's central LQR, the robust controller,
    the MPC, pure pursuit, Stanley, the oracle and the kinematic LQR over the 15 conditions x 2 seeds
    x 60 s, lockstep, ``--workers 2``; the demo's controller files are those of
-   ``tests/data/hil_reference/controllers``): wall time and CPU time. Floor: after <= 1.5 x before.
+   ``tests/data/hil_reference/controllers``): wall time and CPU time, best of alternating rounds
+   (before, after, before, after). Ceiling: after <= 1.5 x before.
 2. This tree's lockstep speed by layer: (a) the truth simulator alone, (b) the bridge path alone,
    (c) the full closed loop.
 3. Real time over pseudo-terminals at 20 Hz: deadline misses, loop time median/p99/max,
@@ -114,7 +115,8 @@ def _export_reference(commit: str, into: Path) -> Path:
     return into
 
 
-def before_and_after(reference: Path | None, dur: float, reps: int, compare: bool, workers: int) -> None:
+def before_and_after(reference: Path | None, dur: float, reps: int, compare: bool, workers: int,
+                     compare_reps: int = 2) -> None:
     """Section 1: the reference code and this tree's, measured one after the other in this run."""
     with tempfile.TemporaryDirectory(prefix="bench_hil_") as tmp:
         ref = reference or _export_reference(REFERENCE_COMMIT, Path(tmp) / "reference")
@@ -131,12 +133,21 @@ def before_and_after(reference: Path | None, dur: float, reps: int, compare: boo
               f"{'met' if speed >= LOCKSTEP_FLOOR else 'NOT met'} ({speed:.0f}x)")
         if not compare:
             return
-        res = {k: _compare_in(tree, Path(tmp) / f"compare_{k}", workers)
-               for k, tree in (("before", ref), ("after", ROOT))}
-        print(f"\ndemo's comparison: 7 controllers x 15 conditions x 2 seeds x 60 s, lockstep, {workers} workers")
-        print(f"{'':<10}{'wall s':>10}{'CPU s':>10}{'passes':>10}")
+        # before, after, before, after, ...: each side's best of the rounds (a neighbour's burst of work on
+        # this shared host then lands on one round of one side, not on a whole side)
+        res: dict[str, dict] = {}
+        for i in range(compare_reps):
+            for k, tree in (("before", ref), ("after", ROOT)):
+                got = _compare_in(tree, Path(tmp) / f"compare_{k}_{i}", workers)
+                best = res.setdefault(k, got)
+                res[k] = {"wall": min(best["wall"], got["wall"]), "cpu": min(best["cpu"], got["cpu"]),
+                          "runs": got["runs"], "walls": best.get("walls", []) + [got["wall"]]}
+        print(f"\ndemo's comparison: 7 controllers x 15 conditions x 2 seeds x 60 s, lockstep, {workers} workers, "
+              f"best of {compare_reps} alternating rounds")
+        print(f"{'':<10}{'wall s':>10}{'CPU s':>10}{'passes':>10}   every round's wall s")
         for k, v in res.items():
-            print(f"{k:<10}{v['wall']:>10.1f}{v['cpu']:>10.1f}{v['runs'] if v['runs'] is not None else '-':>10}")
+            print(f"{k:<10}{v['wall']:>10.1f}{v['cpu']:>10.1f}{v['runs'] if v['runs'] is not None else '-':>10}   "
+                  f"{', '.join(f'{w:.1f}' for w in v['walls'])}")
         ratio = res["after"]["wall"] / res["before"]["wall"]
         print(f"ceiling after <= {COMPARE_CEILING} x before (wall): {'met' if ratio <= COMPARE_CEILING else 'NOT met'} "
               f"({ratio:.2f}x; CPU {res['after']['cpu'] / res['before']['cpu']:.2f}x)")
@@ -164,10 +175,13 @@ def main() -> None:
                          f"(default: commit {REFERENCE_COMMIT[:7]} exported with git archive)")
     ap.add_argument("--no-compare", action="store_true", help="skip the demo's 210-pass comparison (minutes)")
     ap.add_argument("--workers", type=int, default=2, help="processes of the demo's comparison (default 2)")
+    ap.add_argument("--compare-reps", type=int, default=2,
+                    help="alternating rounds of the demo's comparison, best kept (default 2)")
     a = ap.parse_args()
     dur, rt = (15.0, 5.0) if a.quick else (a.duration, a.realtime)
     reps = 1 if a.quick else max(1, a.reps)
-    before_and_after(a.reference, dur, reps, compare=not (a.quick or a.no_compare), workers=a.workers)
+    before_and_after(a.reference, dur, reps, compare=not (a.quick or a.no_compare), workers=a.workers,
+                     compare_reps=max(1, a.compare_reps))
     print("\nthis tree, by layer")
     cond = condition_for("disker", 1.79)
 

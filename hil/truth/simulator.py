@@ -59,7 +59,7 @@ class TractorSimulator:
         Optional initial values ``{"Y": m, "PSI": rad, "DEL": rad}`` per tractor, shape ``(B,)``.
     scalar
         Integrate a one-tractor batch with the compiled stepper (:class:`hil.truth.dynamics.Stepper`)
-        and keep its state as floats (many times faster for ``B == 1``, the HIL case; agrees with the
+        and keep its state as one row of 8 values (many times faster for ``B == 1``, the HIL case; agrees with the
         array path to rounding). The GPS epochs are recorded by the same array functions either way.
     """
 
@@ -88,7 +88,7 @@ class TractorSimulator:
         self.gps_errors = gps.stack_errors(errs)
         self._sensor_noise = np.stack(sens)
         self._disker = np.array([c.implement == "disker" for c in conditions], dtype=float)
-        self._x: list[float] | None = None   # the one-tractor path's state (floats), see `state`
+        self._x: np.ndarray | None = None   # the one-tractor path's state (8 values), see `state`
         self.state = np.zeros((B, N_STATE))
         for name, values in (initial or {}).items():
             if name not in vehicle.STATE_NAMES:
@@ -107,18 +107,19 @@ class TractorSimulator:
         # the one-tractor path reads speed and roll per step as floats (truth, GPS epochs)
         self._scalar_exo = {f: _doubles(getattr(self.exo, f)[0]) for f in ("speed", "roll")} if scalar else None
         if scalar:
-            # the one-tractor path: the compiled stepper over the run's table of inputs, the state as floats
+            # the one-tractor path: the compiled stepper over the run's table of inputs, the state as one row
             self._stepper = vehicle.stepper(p)
             self._inputs = np.ascontiguousarray(
                 np.column_stack([getattr(self.exo, f)[0] for f in vehicle.STEP_INPUTS]), dtype=np.float64)
             self._valve_rates: dict[float, float] = {}   # valve_rate by duty (a pure function of it), kept
-            self._x = self._state[0].tolist()
+            self._x = self._state[0].copy()
             self._disker0 = float(self._disker[0])
             self._rate0 = float(self._rate_cmd[0])
             self._noise0 = _doubles(self._sensor_noise[0])
         g = p.gps
         self._pos_every = int(round(1.0 / (g.position_rate * p.dt)))
         self._att_every = int(round(1.0 / (g.attitude_rate * p.dt)))
+        self._next_epoch = min(self._pos_every, self._att_every)   # the one-tractor path's next epoch step
         n_pos = self.gps_errors.pos_lost.shape[1]
         n_att = self.gps_errors.att_lost.shape[1]
         self.pos = {k: np.zeros((B, n_pos)) for k in ("x", "y", "fix", "t_arrival", "speed")}
@@ -131,7 +132,7 @@ class TractorSimulator:
     @property
     def state(self) -> np.ndarray:
         """State of every tractor, shape ``(B, 8)`` (columns :data:`hil.truth.dynamics.STATE_NAMES`); a copy
-        on the one-tractor path, which keeps the state as floats."""
+        on the one-tractor path, which keeps the state as one row of its own."""
         return self._state if self._x is None else np.array([self._x])
 
     @state.setter
@@ -187,17 +188,15 @@ class TractorSimulator:
                 self._batch_step()
             return
         k0 = self.k
-        states = self._stepper.steps(self._x, self._rate0, self._disker0, self._inputs[k0:k0 + n])
-        pos_every, att_every = self._pos_every, self._att_every
-        k = k0
         end = k0 + n
-        while True:   # the steps that record an epoch, in step order, from the states at those steps
-            k = min((k // pos_every + 1) * pos_every, (k // att_every + 1) * att_every)
-            if k > end:
-                break
-            self._x, self.k = states[k - k0 - 1].tolist(), k
+        states = self._stepper.steps(self._x, self._rate0, self._disker0, self._inputs[k0:end])
+        while self._next_epoch <= end:   # the steps that record an epoch, from the states at those steps
+            k = self._next_epoch
+            self._x, self.k = states[k - k0 - 1], k
             self._record_epochs()
-        self._x, self.k = states[-1].tolist(), end
+            self._next_epoch = min((k // self._pos_every + 1) * self._pos_every,
+                                   (k // self._att_every + 1) * self._att_every)
+        self._x, self.k = states[-1], end
 
     def _batch_step(self) -> None:
         k, e = self.k, self.exo
@@ -220,14 +219,14 @@ class TractorSimulator:
         if self._scalar_exo is None:
             return int(self.wheel_angle_counts()[0])
         p = self.params
-        counts = sensor_counts_float(self._x[DEL], p.sensor, p.steering) + self._noise0[self.k]
+        counts = sensor_counts_float(float(self._x[DEL]), p.sensor, p.steering) + self._noise0[self.k]
         return int(min(max(round(counts), 0), 255))   # sensor_counts's rint and clip, on a float
 
     def truth_scalar(self) -> dict[str, float]:
         """:meth:`truth` of a one-tractor batch, as floats."""
         if self._scalar_exo is None:
             return {k: float(v[0]) for k, v in self.truth().items()}
-        x, k, e = self._x, self.k, self._scalar_exo
+        x, k, e = self._x.tolist(), self.k, self._scalar_exo
         return {"cross_track": x[Y], "heading_error": x[PSI], "wheel_angle": x[DEL], "speed": e["speed"][k],
                 "roll": e["roll"][k], "along_track": x[X], "hitch_angle": x[vehicle.PHI]}
 

@@ -82,6 +82,9 @@ class CommissionOptions:
         ``"refuse"`` (a model that does not predict stops the recipe) or ``"warn"``.
     integral
         Integral action in the robust design.
+    robust_past
+        Longer measured windows (``design robust/mpc --past``) tried, in order, when the design with
+        the window chosen from observability fails.
     """
 
     speeds: tuple[float, ...] = tuple(GEAR_SPEEDS.values())
@@ -97,6 +100,7 @@ class CommissionOptions:
     markov: int | str = "auto"
     acceptance: str = "refuse"
     integral: bool = True
+    robust_past: tuple[int, ...] = (6,)
 
     def __post_init__(self) -> None:
         SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
@@ -106,6 +110,8 @@ class CommissionOptions:
         RunSpec(duration=self.hil_duration)
         if self.weights not in WEIGHTS:
             raise SimulatorConfigError(f"weights must be one of {list(WEIGHTS)}, got {self.weights!r}")
+        if not all(isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= 20 for k in self.robust_past):
+            raise SimulatorConfigError(f"robust_past must be window lengths 1..20, got {self.robust_past!r}")
         if self.acceptance not in ("refuse", "warn"):
             raise SimulatorConfigError(f"acceptance must be 'refuse' or 'warn', got {self.acceptance!r}")
 
@@ -250,32 +256,45 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             weights += ["--actuator-rate", limit]                    # the valve's measured rate
         res["weights"] = "auto (from specifications)" if auto else "the design commands' defaults"
 
-        def argv_for(name: str, w: list[str]) -> list[str]:
+        def argv_for(name: str, w: list[str], past: str) -> list[str]:
+            window = [] if past == "auto" else ["--past", past]
             return {
                 # the paper's method: one LQR on the central model, certified on that model only (as in the
                 # paper; a certificate failed on the local models would make the loader refuse the reference)
                 "central-lqr": ["lqr", "--model", str(models_dir / "central.npz"), "--command-limit", limit,
                                 "--out", str(ctrl / "central-lqr.json")],
-                "robust": ["robust", "--models", *local, *(["--integral"] if opts.integral else []), *w,
+                "robust": ["robust", "--models", *local, *(["--integral"] if opts.integral else []), *w, *window,
                            "--command-limit", limit, "--out", str(ctrl / "robust.json")],
-                "mpc": ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *w,
+                "mpc": ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *w, *window,
                         "--rate-limit", limit, "--out", str(ctrl / "mpc.json")],
             }[name]
-        plan = {name: argv_for(name, weights) for name in ("central-lqr", "robust", "mpc")}
-        for name, argv in plan.items():
-            if name == "mpc" and "robust" not in designs:
+
+        # what to try, in order: the weights asked for, then (auto-if-available) the defaults; each with the
+        # window from observability, then with the longer windows of ``robust_past`` (the robust LMIs over
+        # models of mixed orders were infeasible with the shortest window on the heavy tractor, feasible with 6)
+        tries = [(weights, "auto")] + [(weights, str(k)) for k in opts.robust_past]
+        if auto and opts.weights == "auto-if-available":
+            tries += [([], "auto")] + [([], str(k)) for k in opts.robust_past]
+        r = steps.run("design central-lqr", "design lqr (the paper's method)",
+                      lambda: _design(argv_for("central-lqr", [], "auto")))
+        if r is not None:
+            argv = argv_for("central-lqr", [], "auto")
+            designs["central-lqr"] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": "default",
+                                      "command": "design " + " ".join(argv)}
+        for w, past in tries:
+            argv = argv_for("robust", w, past)
+            label = f"weights {'auto' if w else 'default'}, past {past}"
+            r = steps.run(f"design robust ({label})", f"design robust ({label})", lambda argv=argv: _design(argv))
+            if r is None:
                 continue
-            r = steps.run(f"design {name}", f"design {argv[0]} ({name})", lambda argv=argv: _design(argv))
-            used = "auto" if auto and name != "central-lqr" else "default"
-            if r is None and used == "auto" and opts.weights == "auto-if-available":
-                # no weights met the specifications: say so, and design with the defaults as the recipe did before
-                argv = argv_for(name, [])
-                r = steps.run(f"design {name} (default weights)", f"design {argv[0]} ({name}) with the design's "
-                              "default weights, the automatic ones having failed", lambda argv=argv: _design(argv))
-                used = "default (the automatic weights failed)"
-            if r is not None:
-                designs[name] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": used,
+            designs["robust"] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": label,
                                  "command": "design " + " ".join(argv)}
+            argv = argv_for("mpc", w, past)
+            r = steps.run(f"design mpc ({label})", f"design mpc ({label})", lambda argv=argv: _design(argv))
+            if r is not None:
+                designs["mpc"] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": label,
+                                  "command": "design " + " ".join(argv)}
+            break
     res["designs"] = designs
 
     def hil() -> list[dict]:

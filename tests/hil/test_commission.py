@@ -28,9 +28,9 @@ def test_commission_runs_end_to_end_and_writes_everything_under_out(tmp_path: Pa
                              hil_duration=20.0, acceptance="warn", weights="default")
     lines: list[str] = []
     res = commission(resolve_tractor("worn-valve"), out, opts, say=lines.append)
-    steps = {s["step"]: s for s in res["steps"]}
     for name in ("valve", "passes", "identification", "design central-lqr", "design robust", "design mpc", "hil"):
-        assert steps[name]["ok"], steps[name]
+        assert any(s["ok"] for s in res["steps"] if s["step"].startswith(name)), res["steps"]
+    assert set(res["designs"]) == {"central-lqr", "robust", "mpc"}
     assert any(line.startswith("[1] valve") for line in lines)       # progress, one line per step
     # the measured valve is the worn one, and the file says so
     com = json.loads((out / "commissioning.json").read_text())

@@ -19,7 +19,8 @@ from identification.model import Model
 
 from .autotune import SearchOptions, SearchResult, search_weights
 from .iostate import feedback_compensator, observable_past
-from .mpc.design import MPCDesign, MPCSpec, design_mpc, fallback_from_file, unconstrained_gain
+from .mpc.law import unconstrained_gain
+from .mpc_design import MPCDesign, MPCSpec, design_mpc, fallback_from_file
 from .mpc.problem import mpc_problem
 from .robust import RobustResult, RobustSpec, _model_names, design_robust
 from .specs import Specifications, resolve_latency

@@ -1,4 +1,4 @@
-"""Sub-command ``design mpc`` (thin layer over :mod:`design.mpc.design`).
+"""Sub-command ``design mpc`` (thin layer over :mod:`design.mpc_design`).
 
     design mpc --models models/*.npz --horizon N [--backend casadi|osqp] [--solver daqp|qpoases|...]
                [--fallback controllers/robust.json] --out controllers/mpc.json [--json]
@@ -21,7 +21,7 @@ from .iostate import feedback_compensator, observable_past
 from .specs import check_specs
 from .errors import DesignInputError
 from .mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
-from .mpc.design import MPCSpec, design_mpc, fallback_from_file, read_controller_file
+from .mpc_design import MPCSpec, design_mpc, fallback_from_file, read_controller_file
 from .mpc.problem import TERMINALS, MPCLimits, MPCWeights, mpc_problem
 
 

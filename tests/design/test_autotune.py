@@ -14,7 +14,7 @@ import pytest
 from design.auto_designs import auto_mpc, auto_robust
 from design.autotune import SearchOptions, scaled_weights
 from design.errors import DesignInputError, SpecificationError
-from design.mpc.design import MPCSpec
+from design.mpc_design import MPCSpec
 from design.robust import RobustSpec
 from design.specs import Specifications, delayed_model, latency_from_models
 

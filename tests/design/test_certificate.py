@@ -17,7 +17,7 @@ from design.compensator import Compensator
 from design.errors import ControllerFileError
 from design.export import export_controller
 from design.files.load import load_controller
-from design.mpc.design import MPCSpec, design_mpc
+from design.mpc_design import MPCSpec, design_mpc
 from design.robust import RobustSpec, design_lqr, design_robust
 from design.verify import compensator_hash
 

@@ -18,7 +18,7 @@ from design.export import export_controller
 from design.export_c import C_SOURCES, DATA_HEADER, VECTORS, read_vectors
 from design.files.linear import read_controller_file
 from design.files.load import load_controller
-from design.mpc.design import MPCSpec, design_mpc
+from design.mpc_design import MPCSpec, design_mpc
 from design.robust import RobustSpec, design_robust
 
 from design_family import family, rewrite, tractor_model

@@ -11,7 +11,7 @@ from design.cli import main as design_main
 from design.errors import ControllerFileError, DesignInputError
 from design.files.load import load_controller
 from design.limits import MAX_FILE_BYTES, MAX_HORIZON, MAX_MODEL_ORDER, MAX_NESTING
-from design.mpc.design import MPCSpec, design_mpc
+from design.mpc_design import MPCSpec, design_mpc
 from design.mpc.problem import MPCLimits
 from design.robust import RobustSpec, design_lqr, design_robust
 from identification.model import Model

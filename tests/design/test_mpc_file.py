@@ -12,7 +12,7 @@ from design.controller import Measurement
 from design.files.load import load_controller
 from design.errors import ControllerFileError, DesignInputError, VerificationError
 from design.mpc import MPCController, MPCLimits, SolverSettings
-from design.mpc.design import MPCSpec, design_mpc, fallback_from_file
+from design.mpc_design import MPCSpec, design_mpc, fallback_from_file
 from design.files.mpc import read_mpc_file
 from design.robust import RobustSpec, design_robust
 

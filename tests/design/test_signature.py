@@ -129,7 +129,7 @@ def test_public_key_files_are_checked(tmp_path):
 
 
 def test_an_mpc_file_signs_and_loads_with_its_key(keys, tmp_path):
-    from design.mpc.design import MPCSpec, design_mpc
+    from design.mpc_design import MPCSpec, design_mpc
     from design_family import tractor_model
 
     (priv, pub), (_, other_pub) = keys

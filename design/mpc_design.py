@@ -18,16 +18,16 @@ import numpy as np
 
 from identification.model import Model
 
-from ..errors import DesignInputError, SynthesisError
-from ..files.linear import read_controller_file
-from ..files.mpc import MPCFile
-from ..iostate import feedback_compensator
-from ..limits import check_model_order
-from ..verify import Certificate, certify, model_hash, require_stable
-from .backends import SolverSettings
-from .controller import MPCController
-from .law import unconstrained_gain
-from .problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
+from .errors import DesignInputError, SynthesisError
+from .files.linear import read_controller_file
+from .files.mpc import MPCFile
+from .iostate import feedback_compensator
+from .limits import check_model_order
+from .verify import Certificate, certify, model_hash, require_stable
+from .mpc.backends import SolverSettings
+from .mpc.controller import MPCController
+from .mpc.law import unconstrained_gain
+from .mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 
 
 @dataclass(frozen=True)

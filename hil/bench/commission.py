@@ -85,6 +85,10 @@ class CommissionOptions:
     robust_past
         Longer measured windows (``design robust/mpc --past``) tried, in order, when the design with
         the window chosen from observability fails.
+    fallback_order
+        When no robust design is found on the identified models, identify again at this order
+        (``models_order4/``, acceptance ``warn``) and design the robust controller and the MPC on
+        those (``None``: do not).
     """
 
     speeds: tuple[float, ...] = tuple(GEAR_SPEEDS.values())
@@ -101,6 +105,7 @@ class CommissionOptions:
     acceptance: str = "refuse"
     integral: bool = True
     robust_past: tuple[int, ...] = (6,)
+    fallback_order: int | None = 4
 
     def __post_init__(self) -> None:
         SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
@@ -112,6 +117,9 @@ class CommissionOptions:
             raise SimulatorConfigError(f"weights must be one of {list(WEIGHTS)}, got {self.weights!r}")
         if not all(isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= 20 for k in self.robust_past):
             raise SimulatorConfigError(f"robust_past must be window lengths 1..20, got {self.robust_past!r}")
+        if self.fallback_order is not None and (isinstance(self.fallback_order, bool)
+                                                or not isinstance(self.fallback_order, int) or self.fallback_order < 1):
+            raise SimulatorConfigError(f"fallback_order must be None or an order >= 1, got {self.fallback_order!r}")
         if self.acceptance not in ("refuse", "warn"):
             raise SimulatorConfigError(f"acceptance must be 'refuse' or 'warn', got {self.acceptance!r}")
 
@@ -243,8 +251,8 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
     if ident is not None:
         res["identification"] = ident
 
-    designs: dict[str, dict] = {}
-    if ident is not None and com is not None:
+    def design_all(models_dir: Path, with_lqr: bool) -> dict[str, dict]:
+        designs: dict[str, dict] = {}
         ctrl = out / "controllers"
         local = sorted(str(p) for p in models_dir.glob("local_*.npz"))
         limit = f"{com.valve.max_rate:.6g}"
@@ -276,7 +284,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         if auto and opts.weights == "auto-if-available":
             tries += [([], "auto")] + [([], str(k)) for k in opts.robust_past]
         r = steps.run("design central-lqr", "design lqr (the paper's method)",
-                      lambda: _design(argv_for("central-lqr", [], "auto")))
+                      lambda: _design(argv_for("central-lqr", [], "auto"))) if with_lqr else None
         if r is not None:
             argv = argv_for("central-lqr", [], "auto")
             designs["central-lqr"] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": "default",
@@ -295,6 +303,25 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
                 designs["mpc"] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": label,
                                   "command": "design " + " ".join(argv)}
             break
+        return designs
+
+    designs: dict[str, dict] = {}
+    if ident is not None and com is not None:
+        designs = design_all(models_dir, True)
+        if "robust" not in designs and opts.fallback_order is not None:
+            # the robust LMIs over models of mixed orders (chosen by validation) were infeasible on the heavy
+            # and worn tractors, feasible over order-4 models: identify again at that order and design on those
+            fallback_dir = out / f"models_order{opts.fallback_order}"
+
+            def identify_again() -> dict:
+                r = identify_logs([str(out / "logs")], fallback_dir, order=opts.fallback_order, markov=opts.markov,
+                                  latency="auto", acceptance="warn", progress=lambda d, n: tick("identification", d, n))
+                return {k: v for k, v in r.items() if k != "_text"}
+            again = steps.run(f"identification (order {opts.fallback_order})", f"identification again at order "
+                              f"{opts.fallback_order}, no robust design having been found", identify_again)
+            if again is not None:
+                res["identification_fallback"] = again
+                designs.update(design_all(fallback_dir, False))
     res["designs"] = designs
 
     def hil() -> list[dict]:

@@ -126,6 +126,10 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
             lines.append(f"\nwarning: {w}")
     if res.get("designs"):
         lines += ["", "## Designs", "", f"Weights: {res.get('weights', '')}.", ""]
+        if res.get("identification_fallback"):
+            orders = sorted({m["order"] for m in res["identification_fallback"]["models"]})
+            lines += [f"No robust design was found on the identified models; the robust controller and the MPC "
+                      f"below are designed on models identified again at order {orders} (`models_order*/`).", ""]
         for name, d in res["designs"].items():
             lines.append(f"- `{name}` (weights: {d.get('weights', '')}): `{d['command']}`")
     cells = hil_ratios(res.get("hil", []))

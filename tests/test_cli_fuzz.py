@@ -4,7 +4,7 @@ For each CLI (`hil`, `design`, `gnss`, `identification`) the sub-commands and th
 from the CLI's own argparse parser, so a new option is fuzzed without editing this file. An argv is a
 sub-command, some of its options (required ones usually present) and values drawn for each option:
 hostile numbers (nan, inf, 1e308, -1, 0), paths that do not exist or escape, garbage text, and the
-option's own choices. Commands run in-process with every output under a temporary folder. A command
+option's own choices. Commands run in-process in a temporary folder, so every output, relative or not, stays there. A command
 whose random options happen to be valid may start real work: it is given a few seconds and then
 stopped from outside (an alarm), which counts as "ran" - the property is about errors.
 """
@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import os
 import signal
 from pathlib import Path
 
@@ -94,6 +95,8 @@ def _run(cli: str, argv: list[str], out: Path) -> tuple[int | None, str]:
         raise _Budget
 
     old = signal.signal(signal.SIGALRM, alarm)
+    cwd = os.getcwd()
+    os.chdir(out)            # a relative path among the random values lands in the example's folder
     signal.alarm(BUDGET_S)
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
@@ -106,6 +109,7 @@ def _run(cli: str, argv: list[str], out: Path) -> tuple[int | None, str]:
     finally:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
+        os.chdir(cwd)
     return rc, err.getvalue()
 
 

@@ -126,6 +126,12 @@ def main(argv: list[str] | None = None) -> int:
     except (DesignError, ValueError) as exc:
         print(f"design {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except OSError as exc:           # a name too long, a full disk, a folder that vanished
+        print(f"design {args.command}: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"design {args.command}: interrupted (Ctrl-C); no file was left half-written", file=sys.stderr)
+        return 130
     if args.json:
         print(json.dumps(result, indent=2))
     elif args.command in ("robust", "lqr", "verify", "export"):

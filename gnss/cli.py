@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -75,6 +76,33 @@ def _print_summary(s: CaptureSummary, path: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 1 bad input, 2 usage error from argparse)."""
     args = _parser().parse_args(argv)
+    try:
+        return _main(args)
+    except KeyboardInterrupt:
+        print(f"gnss {args.command}: interrupted (Ctrl-C)", file=sys.stderr)
+        return 130
+    except OSError as exc:           # writing the plot: a folder that is not there or not writable
+        print(f"gnss: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
+        return 1
+
+
+def _plot_target(path: Path) -> str | None:
+    """Why a --plot file cannot be written (checked before decoding), or None."""
+    if path.suffix.lower() not in (".png", ".pdf", ".svg"):
+        return f"--plot {str(path)!r}: expected a file ending in .png, .pdf or .svg"
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        return f"--plot {str(path)!r}: the folder {str(folder)!r} does not exist"
+    if not os.access(folder, os.W_OK):
+        return f"--plot {str(path)!r}: the folder {str(folder)!r} is not writable"
+    return None
+
+
+def _main(args: argparse.Namespace) -> int:
+    plot = getattr(args, "plot", None)
+    if plot is not None and (why := _plot_target(Path(plot))):
+        print(f"gnss: error: {why}", file=sys.stderr)
+        return 1
     try:
         data = args.file.read_bytes()
     except OSError as exc:

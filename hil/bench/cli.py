@@ -513,6 +513,9 @@ def main(argv: list[str] | None = None) -> int:
     except (HilError, PassLogError, ValueError) as exc:
         print(f"hil {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except OSError as exc:           # a name too long, a full disk, a folder that vanished
+        print(f"hil {args.command}: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
+        return 1
     try:
         if args.json:
             print(json.dumps(result, indent=2))

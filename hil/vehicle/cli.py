@@ -142,6 +142,9 @@ def main(argv: list[str] | None = None) -> int:
     except (HilError, PassLogError, ValueError) as exc:
         print(f"hil drive: error: {exc}", file=sys.stderr)
         return 1
+    except OSError as exc:
+        print(f"hil drive: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
+        return 1
     try:
         print(json.dumps(result, indent=2)) if args.json else print_run_result(result)
         sys.stdout.flush()

@@ -88,6 +88,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _plot_target(path: Path) -> str | None:
     """Why a --plot file cannot be written (checked before decoding), or None."""
+    if "\x00" in str(path):
+        return f"--plot {str(path)!r}: a file name cannot contain a NUL byte"
     if path.suffix.lower() not in (".png", ".pdf", ".svg"):
         return f"--plot {str(path)!r}: expected a file ending in .png, .pdf or .svg"
     folder = path.parent if str(path.parent) else Path(".")
@@ -105,8 +107,8 @@ def _main(args: argparse.Namespace) -> int:
         return 1
     try:
         data = args.file.read_bytes()
-    except OSError as exc:
-        print(f"gnss: error: cannot read {args.file}: {exc.strerror or exc}", file=sys.stderr)
+    except (OSError, ValueError) as exc:      # ValueError: a NUL byte in the name
+        print(f"gnss: error: cannot read {str(args.file)!r}: {getattr(exc, 'strerror', None) or exc}", file=sys.stderr)
         return 1
     try:
         if args.command in ("decode", "replay"):

@@ -117,7 +117,7 @@ def _run(cli: str, argv: list[str], out: Path) -> tuple[int | None, str]:
 @pytest.mark.timeout(600)
 @pytest.mark.parametrize("cli", sorted(CLIS))
 def test_random_options_exit_0_1_or_2_with_one_line_and_no_traceback(cli, tmp_path_factory):
-    @settings(max_examples=60, deadline=None, database=None,
+    @settings(max_examples=150, deadline=None, database=None, derandomize=True,
               suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
     @given(argv=argv_for(cli))
     def check(argv: list[str]) -> None:

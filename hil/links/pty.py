@@ -160,12 +160,7 @@ class PtyPair:
 
     def close(self) -> None:
         """Close the pyserial ports, the slave and the master (idempotent)."""
-        for port in self._serials:
-            port.close()
-        self._serials.clear()
-        if self._slave >= 0:
-            os.close(self._slave)
-            self._slave = -1
+        self.hang_up_host_side()
         if self._device is not None:
             self._device.close()
         elif self._master >= 0:

@@ -31,7 +31,7 @@ def _latlon(text: str) -> tuple[float, float]:
     return math.radians(lat), math.radians(lon)
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gnss", description="GNSS receiver captures: decode, summarise, cross-track.")
     sub = p.add_subparsers(dest="command", required=True)
     for name in ("decode", "replay"):
@@ -75,7 +75,7 @@ def _print_summary(s: CaptureSummary, path: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit status (0 ok, 1 bad input, 2 usage error from argparse)."""
-    args = _parser().parse_args(argv)
+    args = build_parser().parse_args(argv)
     try:
         return _main(args)
     except KeyboardInterrupt:

@@ -31,7 +31,7 @@ import identification.cli
 CLIS = {
     "hil": (hil.cli.main, hil.bench.cli.build_parser),
     "design": (design.cli.main, design.cli.build_parser),
-    "gnss": (gnss.cli.main, gnss.cli._parser),
+    "gnss": (gnss.cli.main, gnss.cli.build_parser),
     "identification": (identification.cli.main, identification.cli.build_parser),
 }
 #: Sub-commands left out: they start servers or devices by design and run until stopped.

@@ -79,7 +79,7 @@ def test_uart_timing_is_the_max_formula_to_the_bit(busy, now, n):
     held = UartTx(line, object())   # no write_paced: the UART holds the bytes
     held.busy_until = busy
     assert repr(held.send(b"x" * n, now)) == repr(want_busy)
-    assert held._pending[0][:2] == (want_first, bt)
+    assert repr(held.next_due()) == repr(want_first)
 
 
 def test_a_host_on_the_report_grid_costs_one_firmware_step_per_command_plus_its_arrival():

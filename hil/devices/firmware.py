@@ -242,7 +242,7 @@ class BridgeFirmware:
                 break
             t, seq, item = inbox.popleft()
             self._check_watchdog(t)
-            self._apply(t, seq, item, now)
+            self.apply_message(t, seq, item, now)
         self._check_watchdog(now)
         if now >= self._next_report - _TIME_EPS:
             self._report(now)
@@ -306,8 +306,23 @@ class BridgeFirmware:
             self._tripped = True
             self._cut()
 
-    def _apply(self, t: float, seq: int | None, message: Message | FrameError, now: float) -> None:
-        """Act on one inbox entry (``seq`` None: a refused frame, ``message`` its error)."""
+    def apply_message(self, t: float, seq: int | None, message: Message | FrameError, now: float) -> None:
+        """Act on one decoded inbox entry, as :meth:`step` does for each frame it reads.
+
+        Parameters
+        ----------
+        t
+            Time the frame's last byte arrived, s (board clock).
+        seq
+            The frame's sequence number; ``None`` for a refused frame (``message`` is then its error).
+        message
+            The decoded host message, or the :class:`FrameError` of a refused frame.
+        now
+            The board's time now, s (replies are sent at it).
+
+        A rate that is not finite (no decoder yields one; defence in depth) is counted as a bad frame
+        and cuts the valve: never full duty.
+        """
         if seq is None:
             self._bad += 1
             return

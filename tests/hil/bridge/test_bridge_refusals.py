@@ -19,3 +19,21 @@ def test_unencodable_rates_raise_encode_error_never_overflow(rate):
 def test_the_largest_encodable_rates_still_encode():
     for rate in (3.2767, -3.2768, 0.0):
         assert len(encode_frame(SteerRateCommand(rate), 0)) == 9
+
+
+def test_the_firmware_refuses_a_non_finite_rate_at_its_apply_step(bench, plant):
+    """No byte stream carries a NaN rate; if one reached the firmware anyway it cuts the valve (never -1)."""
+    fw, drv, clock = bench.firmware, bench.driver, bench.clock
+    drv.engage()
+    for k in range(1, 6):
+        clock.sleep_until(0.05 * k)
+        drv.poll()
+        drv.send_rate(0.2)
+    clock.sleep_until(0.35)
+    assert fw.state.engaged and plant.duty_log[-1][1] > 0
+    bad_before = fw.state.bad_frames
+    for rate in (math.nan, math.inf, -math.inf):
+        fw.apply_message(clock.now(), 7, SteerRateCommand(rate), clock.now())
+        assert not fw.state.engaged
+        assert plant.duty_log[-1][1] == 0.0
+    assert fw.state.bad_frames == bad_before + 3

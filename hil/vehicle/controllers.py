@@ -2,7 +2,9 @@
 
 A spec is ``kinematic``, ``pure-pursuit`` or ``stanley``, the latter two optionally with gains
 (``pure-pursuit?lookahead_time=1.2&servo=4``, names of :class:`~design.baselines.PurePursuitGains`
-/ :class:`~design.baselines.StanleyGains`), or a controller file (``*.json``, see
+/ :class:`~design.baselines.StanleyGains`), ``aog-pure-pursuit`` or ``aog-stanley`` (AgOpenGPS's
+own laws and default settings, :mod:`design.agopengps_baselines`, same ``?name=value`` form), or a
+controller file (``*.json``, see
 :mod:`design.files`). The bench adds the oracle (:mod:`hil.bench.campaign`), which is
 designed on the simulator's truth and cannot steer a real vehicle.
 """
@@ -11,6 +13,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from design.agopengps_baselines import (AogPurePursuitController, AogPurePursuitSettings, AogStanleyController,
+                                       AogStanleySettings)
 from design.baselines import PurePursuitController, PurePursuitGains, StanleyController, StanleyGains
 from design.controller import Controller, KinematicLQRController
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
@@ -21,7 +25,7 @@ from design.files.load import load_controller
 from hil.vehicle.errors import VehicleConfigError
 
 #: Named laws a vehicle can run without a file.
-VEHICLE_CONTROLLERS = ("kinematic", "pure-pursuit", "stanley")
+VEHICLE_CONTROLLERS = ("kinematic", "pure-pursuit", "stanley", "aog-pure-pursuit", "aog-stanley")
 
 
 def split_spec(spec: str) -> tuple[str, dict[str, float]]:
@@ -71,7 +75,9 @@ def vehicle_controller(spec: str, public_key: Ed25519PublicKey | None = None,
     if public_key is not None:
         raise ControllerFileError(f"a signed controller file is required, got the built-in law {spec!r}")
     name, opts = split_spec(spec)
-    gains = {"pure-pursuit": (PurePursuitController, PurePursuitGains), "stanley": (StanleyController, StanleyGains)}
+    gains = {"pure-pursuit": (PurePursuitController, PurePursuitGains), "stanley": (StanleyController, StanleyGains),
+             "aog-pure-pursuit": (AogPurePursuitController, AogPurePursuitSettings),
+             "aog-stanley": (AogStanleyController, AogStanleySettings)}
     if name in gains:
         cls, gcls = gains[name]
         known = set(gcls.__dataclass_fields__)
@@ -81,7 +87,7 @@ def vehicle_controller(spec: str, public_key: Ed25519PublicKey | None = None,
     if name == "kinematic" and not opts:
         return KinematicLQRController()
     raise VehicleConfigError(f"unknown controller {spec!r}; give one of {list(VEHICLE_CONTROLLERS)} "
-                             "(pure-pursuit and stanley take ?gain=value&...) or a controller file (.json)")
+                             "(pure-pursuit, stanley and the aog- laws take ?gain=value&...) or a controller file (.json)")
 
 
 def controller_label(spec: str) -> str:

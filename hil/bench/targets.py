@@ -45,8 +45,10 @@ class Roles:
 
     @classmethod
     def detect(cls, labels: Sequence[str], paper_method: str = "central-lqr", oracle: str = "oracle") -> "Roles":
-        """Roles from a campaign's labels: baselines are those starting with ``pure-pursuit`` or ``stanley``."""
-        base = tuple(sorted({lbl for lbl in labels if lbl.startswith(("pure-pursuit", "stanley"))}))
+        """Roles from a campaign's labels: baselines are those starting with ``pure-pursuit`` or ``stanley``
+        (the project's tuned laws) or ``aog-pure-pursuit`` or ``aog-stanley`` (AgOpenGPS's own)."""
+        base = tuple(sorted({lbl for lbl in labels
+                             if lbl.startswith(("pure-pursuit", "stanley", "aog-pure-pursuit", "aog-stanley"))}))
         return cls(paper_method, oracle, base)
 
     def candidates(self, labels: Sequence[str]) -> list[str]:

@@ -11,6 +11,7 @@ from design.agopengps_baselines import (AogPurePursuitController, AogPurePursuit
 from design.controller import Controller, Measurement
 from design.errors import DesignInputError
 from hil.bench.run import RunSpec, simulated_run
+from hil.bench.targets import Roles
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, vehicle_controller
 from hil.vehicle.errors import VehicleConfigError
 from hil.vehicle.summary import summarize
@@ -115,6 +116,13 @@ def test_named_in_the_vehicle_controllers():
     assert isinstance(vehicle_controller("aog-pure-pursuit"), AogPurePursuitController)
     with pytest.raises(VehicleConfigError, match="unknown aog-pure-pursuit gain"):
         vehicle_controller("aog-pure-pursuit?k=1")
+
+
+def test_the_comparison_counts_them_as_baselines():
+    labels = ["robust", "mpc", "aog-pure-pursuit", "aog-stanley[distance_gain=0.5]", "stanley"]
+    roles = Roles.detect(labels)
+    assert roles.baselines == ("aog-pure-pursuit", "aog-stanley[distance_gain=0.5]", "stanley")
+    assert roles.candidates(labels) == ["mpc", "robust"]
 
 
 @pytest.mark.parametrize("name", ["aog-pure-pursuit", "aog-stanley"])

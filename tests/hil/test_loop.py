@@ -142,7 +142,7 @@ def test_cli_run_writes_log_figure_and_summary(tmp_path, capsys):
     (["--fault", "link-drop:1-2@1.5"], "probability"),
     (["--fault", "override:1-2@0.5"], "@RATE applies to link faults only"),
     (["--fault", "override:5-2"], "0 <= START < END"),
-    (["--controller", "pid"], "expected one of ['kinematic', 'pure-pursuit', 'stanley', 'oracle'] or a controller"),
+    (["--controller", "pid"], "expected one of ['kinematic', 'pure-pursuit', 'stanley', 'aog-pure-pursuit', 'aog-stanley', 'oracle'] or a controller"),
     (["--controller", "missing.json"], "controller file 'missing.json' does not exist"),
 ])
 def test_cli_run_rejects_bad_options(tmp_path, capsys, argv, message):

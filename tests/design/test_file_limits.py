@@ -72,6 +72,7 @@ def test_a_file_over_the_size_limit_is_refused_before_it_is_read(tmp_path):
         load_controller(p)
 
 
+@pytest.mark.realtime
 def test_a_stable_1200_state_model_is_refused_at_once():
     big = big_stable_model(1200)
     t0 = time.perf_counter()

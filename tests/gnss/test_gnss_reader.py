@@ -250,6 +250,7 @@ def _fill(unit: bytes, n: int) -> bytes:
     return (unit * (n // len(unit) + 1))[:n]
 
 
+@pytest.mark.realtime
 @pytest.mark.parametrize("unit", list(_HOSTILE.values()), ids=list(_HOSTILE))
 def test_hostile_input_time_grows_linearly(unit):
     """8 times the input takes about 8 times as long (quadratic: 64): asserted below 32, a wide margin for a
@@ -260,6 +261,7 @@ def test_hostile_input_time_grows_linearly(unit):
     assert large / max(small, 1e-4) < 32.0, (small, large)
 
 
+@pytest.mark.realtime
 @pytest.mark.parametrize("unit", list(_HOSTILE.values()), ids=list(_HOSTILE))
 def test_hostile_input_costs_no_more_than_a_clean_capture_of_its_size(unit):
     """A stream of hostile bytes decodes at most 20 times slower than a real receiver capture of the same size

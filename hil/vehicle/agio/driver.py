@@ -405,7 +405,8 @@ class AgioDriver:
                                field_errors=c.field_errors, resyncs=c.resyncs, bytes_discarded=c.bytes_discarded)
 
 
-assert {f.name for f in fields(AgioDriverStats)} >= set(_OWN)
+if not {f.name for f in fields(AgioDriverStats)} >= set(_OWN):     # the counters the driver keeps itself
+    raise TypeError(f"AgioDriverStats lacks the driver's own counters {sorted(set(_OWN))}")
 
 
 def module_loop_config(base: LoopConfig | None = None, max_rate: float = 0.35, lag: float = MODULE_LAG,

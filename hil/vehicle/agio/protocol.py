@@ -421,7 +421,8 @@ PGN_TABLE: dict[int, Layout] = {
 
 _BY_CLASS: dict[type, Layout] = {layout.cls: layout for layout in PGN_TABLE.values()}
 for _layout in PGN_TABLE.values():   # every attribute of a message has exactly one field
-    assert {f.name for f in _layout.fields if f.name} == {f.name for f in fields(_layout.cls)}, _layout.pgn
+    if {f.name for f in _layout.fields if f.name} != {f.name for f in fields(_layout.cls)}:
+        raise TypeError(f"PGN {_layout.pgn}: the layout's fields are not the attributes of {_layout.cls.__name__}")
 
 
 def layout_of(message: Message) -> Layout:
@@ -465,7 +466,8 @@ def _to_wire(f: Field, value: object, where: str) -> list[int]:
             raise EncodeError(f"{where} must be a tuple of {f.count} octets, got {value!r}")
         return [_int(v, 0, 255, where) for v in value]
     if f.kind == "flags":
-        assert f.flags is not None
+        if f.flags is None:
+            raise TypeError(f"{where}: a 'flags' field without its flag type")
         if not isinstance(value, f.flags):
             raise EncodeError(f"{where} must be a {f.flags.__name__}, got {value!r}")
         return [int(value)]
@@ -552,7 +554,8 @@ def decode_data(pgn: int, data: bytes, source: int | None = None) -> Message:
             if raw != f.offset:
                 raise FieldError(f"PGN {pgn} ({name}): a constant byte must be {f.offset}, got {raw}")
         elif f.kind == "flags":
-            assert f.flags is not None
+            if f.flags is None:
+                raise TypeError(f"PGN {pgn} ({name}).{f.name}: a 'flags' field without its flag type")
             mask = sum(int(m) for m in f.flags)
             if raw & ~mask:
                 raise FieldError(f"{name}.{f.name}=0x{raw:02x} sets reserved bits (allowed mask 0x{mask:02x})")

@@ -37,6 +37,15 @@ class Measurement:
         Calibrated wheel angle, rad, + = left.
     speed
         Ground speed, m/s.
+    curvature
+        Curvature of the guidance path at the control point's nearest point, 1/m,
+        + = turning left (counter-clockwise); 0 on a straight line.
+    preview
+        Mean path curvature ahead, 1/m: element ``k`` over the stretch between
+        ``k * step`` and ``(k + 1) * step`` m ahead of the nearest point, with
+        ``step = speed * dt`` of the controller's :data:`PREVIEW_ATTRIBUTE` request
+        ``(n, dt)``. Empty when the controller asked for none (or on an AB line,
+        where the loop may give zeros).
     """
 
     t: float
@@ -44,6 +53,14 @@ class Measurement:
     heading_error: float
     wheel_angle: float
     speed: float
+    curvature: float = 0.0
+    preview: tuple[float, ...] = ()
+
+
+#: Name of the optional controller attribute ``(n, dt)`` (count, s): the curvature preview a
+#: controller wants in :attr:`Measurement.preview` (``n`` stretches of ``speed * dt`` m each).
+#: A controller without it gets an empty preview.
+PREVIEW_ATTRIBUTE = "preview_request"
 
 
 @runtime_checkable

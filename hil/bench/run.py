@@ -25,6 +25,7 @@ from hil.truth.conditions import condition_for
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.errors import SimulatorConfigError
 from hil.devices.faults import FaultyLink, LinkFault
+from hil.devices.firmware import config_for_tractor
 from hil.links.memory import memory_link_pair
 from hil.links.pty import PtyPair
 from hil.vehicle.commissioning import Commissioning, MappedBridge
@@ -134,7 +135,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             receivers = [PositionReceiver(plant, pos_pty.device_link(), geo),
                          AttitudeReceiver(plant, att_pty.device_link(), geo)]
             bench = stack.enter_context(AgioUdpBench(valve, cal, p.steering, extra_devices=receivers) if agio
-                                        else PtyBridge(valve, extra_devices=receivers))
+                                        else PtyBridge(valve, config_for_tractor(p.steering), extra_devices=receivers))
             sources = [pos_pty.open_serial(baudrate=38400, timeout=0),
                        att_pty.open_serial(baudrate=38400, timeout=0)]
             for s in sources:
@@ -143,7 +144,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             # The simulator integrates on its own dt grid whatever the advance; the scheduler need not
             # stop between device wake-ups for it (at most every loop period).
             bench = stack.enter_context(AgioLockstepBench(valve, cal, p.steering, max_step=0.05) if agio
-                                        else LockstepBridge(valve, max_step=0.05))
+                                        else LockstepBridge(valve, config_for_tractor(p.steering), max_step=0.05))
             # the firmware and the receivers share only the plant; each has its own link to the host
             bench.scheduler.independent = True
             receivers, sources = [], []

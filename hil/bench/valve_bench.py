@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Callable
 
 from hil.bench.bridge_bench import LockstepBridge
+from hil.devices.firmware import config_for_tractor
 from hil.devices.plant import SimulatedTractor
 from hil.devices.technician import two_point_calibration
 from hil.truth.conditions import condition_for
@@ -51,7 +52,7 @@ def characterise_on_bench(params: SimParams | None = None, seed: int = 0, plan: 
                              initial={"Y": 0.0})
     p = plant.params
     cal = two_point_calibration(p.sensor, p.steering)
-    with LockstepBridge(plant, max_step=0.01) as bench:
+    with LockstepBridge(plant, config_for_tractor(p.steering), max_step=0.01) as bench:
         return characterise_valve(bench.driver, bench.clock, cal, bench.firmware.config.max_rate, plan, progress)
 
 
@@ -62,5 +63,5 @@ def linearity_on_bench(curve: ValveCurve, params: SimParams | None = None, seed:
     plant = SimulatedTractor(condition_for("none", speed), _duration(14, plan), seed, params, initial={"Y": 0.0})
     p = plant.params
     cal = two_point_calibration(p.sensor, p.steering)
-    with LockstepBridge(plant, max_step=0.01) as bench:
+    with LockstepBridge(plant, config_for_tractor(p.steering), max_step=0.01) as bench:
         return linearity_check(bench.driver, bench.clock, cal, curve, plan=plan)

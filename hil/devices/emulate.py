@@ -16,7 +16,7 @@ from types import TracebackType
 
 import numpy as np
 
-from hil.devices.firmware import BridgeFirmware
+from hil.devices.firmware import BridgeFirmware, config_for_tractor
 from hil.errors import SimulatorConfigError
 from hil.devices.steer_module import SteerModule, SteerModuleConfig, module_settings
 from hil.links.udp import UdpLink
@@ -113,7 +113,8 @@ class EmulatedTractor:
                 wake = [link.fileno()]
             else:
                 bridge = self._stack.enter_context(PtyPair())
-                steering, bridge_name = BridgeFirmware(bridge.device_link(), self.plant), bridge.slave_name
+                steering, bridge_name = BridgeFirmware(bridge.device_link(), self.plant,
+                                                           config_for_tractor(p.steering)), bridge.slave_name
             devices = [steering,
                        PositionReceiver(self.plant, pos.device_link(), self.geometry),
                        AttitudeReceiver(self.plant, att.device_link(), self.geometry)]

@@ -59,11 +59,35 @@ from hil.vehicle.bridge.protocol import (
 )
 from hil.links.link import ByteLink
 from hil.links.uart import UartRx, UartTx
+from hil.truth.params import SteeringParams
 
-__all__ = ["SteeringPlant", "FirmwareState", "BridgeFirmware"]
+__all__ = ["SteeringPlant", "FirmwareState", "BridgeFirmware", "config_for_tractor"]
 
 _READ_MAX = 4096  # bytes read from the link per step at most
 _TIME_EPS = 1e-9  # s; float slack on the report grid
+
+
+def config_for_tractor(steering: SteeringParams, **options: object) -> FirmwareConfig:
+    """The bridge as installed on a tractor: full duty is that tractor's nominal valve rate.
+
+    The installer sets the firmware's full scale (``FirmwareConfig.max_rate``) to the valve's
+    nominal rate at full duty, ``steering.max_rate`` (rad/s): the scale that the truth's
+    :func:`hil.truth.steering.nominal_duty`, the identification passes and the oracle assume. With
+    the 0.35 rad/s default on every tractor, a tractor whose valve is slower or faster would see one
+    valve gain in its passes and another through the bridge.
+
+    Parameters
+    ----------
+    steering
+        The tractor's valve parameters (rates in rad/s).
+    **options
+        Any other :class:`FirmwareConfig` field.
+
+    Returns
+    -------
+    FirmwareConfig
+    """
+    return FirmwareConfig(max_rate=steering.max_rate, **options)  # type: ignore[arg-type]
 
 
 @runtime_checkable

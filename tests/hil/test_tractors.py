@@ -162,3 +162,37 @@ def test_the_bench_commands_read_a_tractor_with_set_on_top(tmp_path: Path, capsy
     assert log.meta["simulator"] == random_tractor(5).params().to_dict()
     assert main(["run", "--tractor", "no-such", "--controller", "kinematic", "--out", str(tmp_path / "r")]) == 1
     assert "unknown tractor 'no-such'" in capsys.readouterr().err
+
+
+class _ConstantRate:
+    """A controller that asks for one steering rate every cycle (rad/s)."""
+
+    name = "constant"
+    dt = 0.05
+
+    def __init__(self, rate: float) -> None:
+        self.rate = rate
+
+    def reset(self) -> None:
+        pass
+
+    def step(self, m) -> float:
+        return self.rate
+
+    def estimate(self) -> tuple[float, ...]:
+        return ()
+
+
+@pytest.mark.parametrize("name", ["default", "heavy-11t", "compact-4t", "random-13"])
+def test_the_bridge_gives_the_duty_the_passes_and_the_oracle_assume(name: str) -> None:
+    # The identification passes (hil.bench.sysid) and the oracle turn a rate into a duty with
+    # nominal_duty (full duty = the tractor's max_rate); the HC11 firmware of the HIL runs must do the
+    # same, or the two see different valves (its full scale was 0.35 rad/s on every tractor).
+    from hil.bench.run import RunSpec, simulated_run
+    from hil.truth.steering import nominal_duty
+    st = resolve_tractor(name).params().steering
+    log = simulated_run(RunSpec(implement="none", speed=1.0, duration=2.0, seed=0), _ConstantRate(0.02),
+                        resolve_tractor(name).params())
+    fw = log.meta["firmware"]
+    assert fw["engaged"] and fw["commands_applied"] > 10
+    assert fw["duty"] == pytest.approx(float(nominal_duty(0.02, st)), abs=2e-4)   # 1e-4 rad/s command steps

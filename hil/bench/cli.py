@@ -111,13 +111,13 @@ def _cmd_sysid(args: argparse.Namespace) -> dict:
         bar.n = done
         bar.refresh()
 
-    made = make_passes(plan, params, progress=progress)
+    made = make_passes(plan, params, progress=progress, bridge=args.bridge)
     bar.close()
     files = []
     for name, log in made:
         files.append(str(log.save(out / f"{name}.npz")))
     return {"out": str(out), "passes": len(files), "duration_s": plan.duration, "seed": plan.seed,
-            "files": files}
+            "bridge": args.bridge, "files": files}
 
 
 def _cmd_plot(args: argparse.Namespace) -> dict:
@@ -336,6 +336,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--passes", type=int, default=3, help="passes per condition (default 3)")
     s.add_argument("--duration", type=_float, default=120.0, help="seconds per pass (default 120)")
     s.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
+    s.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
+                   help="hc11: the rate command drives the valve open loop, as the HC11 board does; agopengps: "
+                        "through an emulated AgOpenGPS steer module (the driver integrates the rate into its setpoint)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=_cmd_sysid)
 

@@ -34,6 +34,13 @@ from hil.truth.simulator import TractorSimulator
 from hil.vehicle.valve_map import ValveCurve
 from hil.truth.steering import nominal_duty
 from hil.devices.technician import two_point_calibration
+from hil.devices.plant import SimulatedTractor
+from hil.bench.agio_bench import AgioLockstepBench
+from hil.vehicle.agio.driver import AgioDriverConfig
+from hil.devices.steer_module import SteerModuleConfig
+
+#: Bridges an identification pass can steer through.
+BRIDGES = ("hc11", "agopengps")
 
 
 @dataclass(frozen=True)
@@ -129,7 +136,8 @@ def pass_name(cond: Condition, index: int) -> str:
 def make_passes(plan: SysidPlan, params: SimParams | None = None,
                 driver: DriverExcitation | None = None,
                 progress: Callable[[int, int], None] | None = None,
-                valve: ValveCurve | None = None) -> list[tuple[str, PassLog]]:
+                valve: ValveCurve | None = None, bridge: str = "hc11",
+                module_driver: AgioDriverConfig | None = None) -> list[tuple[str, PassLog]]:
     """Simulate every pass of ``plan`` (as one batch) and return ``(name, log)`` pairs.
 
     Parameters
@@ -146,23 +154,115 @@ def make_passes(plan: SysidPlan, params: SimParams | None = None,
         A commissioned tractor's measured valve: the driver slews at its ``max_rate`` and the
         duty is that of its inverse map for the bridge's full scale (as the commissioned loop
         drives it; ``meta["valve_map"]``). ``None``: the nominal duty of :func:`nominal_duty`.
+    bridge
+        ``hc11`` (default): the rate command sets the simulator's valve duty, as the HC11 board
+        drives the valve open loop (all passes as one batch). ``agopengps``: every pass steers through an emulated
+        AgOpenGPS steer module on the lockstep bench (:class:`~hil.bench.agio_bench.AgioLockstepBench`):
+        the rate command goes to the host driver, which integrates it into the module's setpoint as
+        the vehicle loop's driver does (bumpless engage, limits, lead), and the logged wheel angle is
+        the module's PGN 253 angle, so the models include the module's own angle loop.
+    module_driver
+        The host driver's settings for ``bridge="agopengps"`` (default :class:`AgioDriverConfig`); the
+        rate commanded is ``min(steering.max_rate, module_driver.max_rate)``.
     """
     params = params or SimParams()
     driver = driver or DriverExcitation()
+    if bridge not in BRIDGES:
+        raise SimulatorConfigError(f"bridge must be one of {list(BRIDGES)}, got {bridge!r}")
+    if bridge == "agopengps" and valve is not None:
+        raise SimulatorConfigError("a valve map applies to the direct valve drive; a steer module closes its own "
+                                   "angle loop (pass valve=None with bridge='agopengps')")
+    if module_driver is not None and bridge != "agopengps":
+        raise SimulatorConfigError("module_driver applies only to bridge='agopengps'")
     jobs = [(c, i) for c in plan.conditions() for i in range(plan.passes)]
     conds = [c for c, _ in jobs]
     seeds = [pass_seed(plan.seed, c, i) for c, i in jobs]
     # the driver's own random draws come from a stream separate from the simulator's
     sim_seeds, drv_seeds = zip(*(s.spawn(2) for s in seeds))
-    sim = TractorSimulator(conds, plan.duration, list(sim_seeds), params)
-    logs = _run_driver(sim, driver, [np.random.default_rng(s) for s in drv_seeds], progress, valve)
+    if bridge == "agopengps":
+        cfg = module_driver if module_driver is not None else AgioDriverConfig()
+        logs, module_meta = [], []
+        total = len(jobs) * plan.duration
+        for n, (cond, sim_seed, drv_seed) in enumerate(zip(conds, sim_seeds, drv_seeds)):
+            tick = None if progress is None else (
+                lambda done, _all, n=n: progress(int(n * plan.duration + done), int(total)))
+            channels, info = _run_module_pass(cond, plan.duration, sim_seed, np.random.default_rng(drv_seed),
+                                              params, driver, cfg, tick)
+            logs.append(channels)
+            module_meta.append(info)
+    else:
+        sim = TractorSimulator(conds, plan.duration, list(sim_seeds), params)
+        logs = _run_driver(sim, driver, [np.random.default_rng(s) for s in drv_seeds], progress, valve)
     out = []
-    for (cond, i), seed_seq, channels in zip(jobs, seeds, logs):
+    for n, ((cond, i), seed_seq, channels) in enumerate(zip(jobs, seeds, logs)):
         meta = _meta(cond, i, plan, params, driver)
         if valve is not None:
             meta["valve_map"] = valve.to_dict()
+        if bridge == "agopengps":
+            meta.update(module_meta[n])
+            meta["extra_channels"] = {**_EXTRA, **_ENGAGED}
         out.append((pass_name(cond, i), PassLog(times=channels[0], channels=channels[1], meta=meta)))
     return out
+
+
+class _Excitation:
+    """The identification driver's rule for a batch of passes: ternary slews chosen from what was measured.
+
+    One copy for both paths (the simulator's valve driven directly and a steer module in the loop).
+    """
+
+    def __init__(self, drv: DriverExcitation, rngs: Sequence[np.random.Generator], nominal: np.ndarray,
+                 duration: float, wheelbase: float, max_rate: float) -> None:
+        self.drv, self.wheelbase, self.max_rate = drv, wheelbase, max_rate
+        B = len(rngs)
+        n_dec = int(duration / min(drv.slew_min, drv.hold_min, 0.05) + 16)
+        self.n_dec = n_dec
+        self.u_len = np.stack([r.random(n_dec) for r in rngs])
+        self.u_dir = np.stack([r.standard_normal(n_dec) for r in rngs])
+        self.lookahead = np.maximum(4.0, 3.0 * nominal)          # the driver looks further ahead when faster
+        self.mode = np.zeros(B)
+        self.t_end = np.full(B, drv.settle)
+        self.n_made = np.zeros(B, dtype=int)
+        self.rows = np.arange(B)
+
+    def rate(self, now: float, delta_m: np.ndarray, y_m: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+        """Steering-rate command now, rad/s, + = left, from the measured wheel angle ``delta_m`` [rad],
+        the control point's cross-track ``y_m`` [m, + left] and heading ``yaw`` [rad] from the line."""
+        drv, mode = self.drv, self.mode
+        # end a slew early at the soft limit; then choose the next stretch when one ends
+        mode = np.where((mode > 0) & (delta_m >= drv.soft_limit), 0.0, mode)
+        mode = np.where((mode < 0) & (delta_m <= -drv.soft_limit), 0.0, mode)
+        due = now >= self.t_end
+        if np.any(due):
+            idx = np.minimum(self.n_made, self.n_dec - 1)
+            ul, ud = self.u_len[self.rows, idx], self.u_dir[self.rows, idx]
+            look = self.lookahead
+            want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m + look * yaw), -drv.soft_limit, drv.soft_limit)
+            direction = np.sign(want - delta_m + drv.direction_noise * ud)
+            slew_len = drv.slew_min + ul * (drv.slew_max - drv.slew_min)
+            hold_len = drv.hold_min + ul * (drv.hold_max - drv.hold_min)
+            start_slew = due & (mode == 0)
+            new_mode = np.where(start_slew, direction, 0.0)
+            mode = np.where(due, new_mode, mode)
+            self.t_end = np.where(due, now + np.where(start_slew, slew_len, hold_len), self.t_end)
+            self.n_made = self.n_made + due
+        self.mode = mode
+        return mode * self.max_rate
+
+
+def _measured_gps(sim: TractorSimulator, now: float) -> tuple[np.ndarray, np.ndarray]:
+    """The control point's measured cross-track [m] and heading [rad] from the newest epochs that
+    arrived by ``now`` (0 where none did)."""
+    rows = np.arange(sim.B)
+    ip, ia = sim.latest_position(now), sim.latest_attitude(now)
+    yaw = np.where(ia >= 0, sim.att["yaw"][rows, ia], 0.0)
+    roll = np.where(ia >= 0, sim.att["roll"][rows, ia], 0.0)
+    y_ant = np.where(ip >= 0, sim.pos["y"][rows, ip], 0.0)
+    return control_point_from_antenna(y_ant, yaw, roll, sim.params.vehicle), yaw
+
+
+_REC = ("t", "wheel_angle", "steer_rate_cmd", "truth_cross_track", "truth_heading_error", "truth_wheel_angle",
+        "truth_speed")
 
 
 def _run_driver(sim: TractorSimulator, drv: DriverExcitation, rngs: Sequence[np.random.Generator],
@@ -174,18 +274,9 @@ def _run_driver(sim: TractorSimulator, drv: DriverExcitation, rngs: Sequence[np.
     n_ticks = (sim.n_steps - lag) // sub
     cal = two_point_calibration(p.sensor, p.steering)
     max_rate = p.steering.max_rate if valve is None else valve.max_rate
-    wheelbase = p.vehicle.wheelbase
-    n_dec = int(sim.duration / min(drv.slew_min, drv.hold_min, 0.05) + 16)
-    u_len = np.stack([r.random(n_dec) for r in rngs])
-    u_dir = np.stack([r.standard_normal(n_dec) for r in rngs])
     nominal = np.array([c.speed for c in sim.conditions])
-    lookahead = np.maximum(4.0, 3.0 * nominal)               # the driver looks further ahead when faster
-    mode = np.zeros(B)
-    t_end = np.full(B, drv.settle)
-    n_made = np.zeros(B, dtype=int)
-    rows = np.arange(B)
-    rec = {k: np.zeros((B, n_ticks)) for k in ("t", "wheel_angle", "steer_rate_cmd", "truth_cross_track",
-                                               "truth_heading_error", "truth_wheel_angle", "truth_speed")}
+    rule = _Excitation(drv, rngs, nominal, sim.duration, p.vehicle.wheelbase, max_rate)
+    rec = {k: np.zeros((B, n_ticks)) for k in _REC}
     for j in range(n_ticks):
         while sim.k < j * sub:
             sim.step()
@@ -194,43 +285,89 @@ def _run_driver(sim: TractorSimulator, drv: DriverExcitation, rngs: Sequence[np.
             sim.step()
         now = sim.time
         delta_m = cal.to_angle(counts)
-        ip, ia = sim.latest_position(now), sim.latest_attitude(now)
-        yaw = np.where(ia >= 0, sim.att["yaw"][rows, ia], 0.0)
-        roll = np.where(ia >= 0, sim.att["roll"][rows, ia], 0.0)
-        y_ant = np.where(ip >= 0, sim.pos["y"][rows, ip], 0.0)
-        y_m = control_point_from_antenna(y_ant, yaw, roll, p.vehicle)
-        # end a slew early at the soft limit; then choose the next stretch when one ends
-        mode = np.where((mode > 0) & (delta_m >= drv.soft_limit), 0.0, mode)
-        mode = np.where((mode < 0) & (delta_m <= -drv.soft_limit), 0.0, mode)
-        due = now >= t_end
-        if np.any(due):
-            idx = np.minimum(n_made, n_dec - 1)
-            ul, ud = u_len[rows, idx], u_dir[rows, idx]
-            want = np.clip(-(2.0 * wheelbase / lookahead ** 2) * (y_m + lookahead * yaw),
-                           -drv.soft_limit, drv.soft_limit)
-            direction = np.sign(want - delta_m + drv.direction_noise * ud)
-            slew_len = drv.slew_min + ul * (drv.slew_max - drv.slew_min)
-            hold_len = drv.hold_min + ul * (drv.hold_max - drv.hold_min)
-            start_slew = due & (mode == 0)
-            new_mode = np.where(start_slew, direction, 0.0)
-            mode = np.where(due, new_mode, mode)
-            t_end = np.where(due, now + np.where(start_slew, slew_len, hold_len), t_end)
-            n_made = n_made + due
-        rate_cmd = mode * max_rate
+        y_m, yaw = _measured_gps(sim, now)
+        rate_cmd = rule.rate(now, delta_m, y_m, yaw)
         if valve is None:
             sim.set_duty(nominal_duty(rate_cmd, p.steering))
         else:
             sim.set_duty(np.array([valve.command_for(float(r)) for r in rate_cmd]) / valve.full_scale)
         tr = sim.truth()
-        for key, val in (("t", now), ("wheel_angle", delta_m), ("steer_rate_cmd", rate_cmd),
-                         ("truth_cross_track", tr["cross_track"]), ("truth_heading_error", tr["heading_error"]),
-                         ("truth_wheel_angle", tr["wheel_angle"]), ("truth_speed", tr["speed"])):
+        for key, val in zip(_REC, (now, delta_m, rate_cmd, tr["cross_track"], tr["heading_error"],
+                                   tr["wheel_angle"], tr["speed"])):
             rec[key][:, j] = val
         if progress is not None and j % 100 == 0:
             progress(sim.k, sim.n_steps)
     if progress is not None:
         progress(sim.n_steps, sim.n_steps)
     return [_channels(sim, b, rec) for b in range(B)]
+
+
+def _run_module_pass(cond: Condition, duration: float, sim_seed: np.random.SeedSequence, rng: np.random.Generator,
+                     params: SimParams, drv: DriverExcitation, config: AgioDriverConfig,
+                     progress: Callable[[float, float], None] | None):
+    """One identification pass through an emulated steer module, in lockstep: the loop's timing (every
+    cycle: read the module's reports, then command), the excitation rule of :class:`_Excitation`.
+
+    Returns the pass's channels (as :func:`_channels`) and what its metadata adds about the module.
+    """
+    plant = SimulatedTractor(cond, duration + 1.0, sim_seed, params)
+    sim, p = plant.sim, plant.params
+    cal = two_point_calibration(p.sensor, p.steering)
+    period = 1.0 / p.sensor.rate
+    n_ticks = int(math.floor(duration * p.sensor.rate + 1e-9))
+    max_rate = min(p.steering.max_rate, config.max_rate)
+    rule = _Excitation(drv, [rng], np.array([cond.speed]), duration, p.vehicle.wheelbase, max_rate)
+    rec = {k: np.zeros((1, n_ticks)) for k in _REC}
+    engaged = np.zeros(n_ticks)
+    engages = 0
+    speed = [0.0]
+    with AgioLockstepBench(plant, cal, p.steering, driver_config=config, max_step=0.05) as bench:
+        bench.scheduler.independent = True
+        driver = bench.driver
+        driver.set_speed_source(lambda: speed[0])      # the measured ground speed goes into PGN 254
+        for j in range(n_ticks):
+            now = (j + 1) * period
+            bench.clock.sleep_until(now)
+            driver.poll()
+            rep = driver.latest
+            ready = rep is not None and driver.is_alive() and not rep.manual_override
+            ip = int(sim.latest_position(now)[0])
+            speed[0] = float(sim.pos["speed"][0, ip]) if ip >= 0 else 0.0
+            if driver.engaged and not ready:
+                driver.disengage()
+            elif not driver.engaged and ready:
+                driver.engage()
+                engages += 1
+            delta = rep.angle if rep is not None else 0.0
+            rate = 0.0
+            if driver.engaged:
+                y_m, yaw = _measured_gps(sim, now)
+                rate = float(rule.rate(now, np.array([delta]), y_m, yaw)[0])
+                driver.send_rate(rate)
+                engaged[j] = 1.0
+            tr = plant.truth()
+            for key, val in zip(_REC, (now, delta, rate, tr["cross_track"], tr["heading_error"],
+                                       tr["wheel_angle"], tr["speed"])):
+                rec[key][0, j] = val
+            if progress is not None and j % 100 == 0:
+                progress(now, duration)
+        if driver.engaged:
+            driver.disengage()
+        stats, module = driver.stats(), bench.firmware.state
+    times, chans = _channels(sim, 0, rec)
+    chans["engaged"] = engaged
+    info = {"bridge": "agopengps",
+            "agopengps": {"driver": dict(config.__dict__), "module_settings": dict(module.settings.__dict__),
+                          "engages": engages, "engaged_fraction": float(engaged.mean()),
+                          "setpoints_limited": stats.setpoints_limited, "bad_frames": stats.bad_frames,
+                          "module_loops": module.loops},
+            # the PGN 253 angle is the module's last 40 Hz loop before it answered the previous cycle's PGN 254
+            "latency_s": {"wheel_angle": period + 0.5 * SteerModuleConfig().loop_period, "steer_rate_cmd": 0.0,
+                          "cross_track": p.gps.position_latency, "speed": p.gps.position_latency,
+                          "heading_error": p.gps.attitude_latency},
+            "source": "hil.bench.sysid (simulated open-loop identification pass through an emulated AgOpenGPS "
+                      "steer module)"}
+    return (times, chans), info
 
 
 def _channels(sim: TractorSimulator, b: int, rec: dict[str, np.ndarray]):
@@ -265,6 +402,7 @@ _EXTRA = {"fix_quality": {"time": "t_cross_track", "unit": "1", "doc": "GGA fix 
           "truth_heading_error": {"time": "t", "unit": "rad", "doc": "true heading error"},
           "truth_wheel_angle": {"time": "t", "unit": "rad", "doc": "true wheel angle"},
           "truth_speed": {"time": "t", "unit": "m/s", "doc": "true longitudinal speed"}}
+_ENGAGED = {"engaged": {"time": "t", "unit": "1", "doc": "the steer module was commanded with autosteer on"}}
 
 
 def _meta(cond: Condition, index: int, plan: SysidPlan, params: SimParams, drv: DriverExcitation) -> dict:

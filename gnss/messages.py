@@ -190,7 +190,8 @@ class Ths:
     heading : float or None
         rad, 0 = north, clockwise.
     mode : str
-        ``A`` autonomous, ``E`` estimated (dead reckoning), ``M`` manual, ``S`` simulator, ``V`` not valid.
+        ``A`` autonomous, ``E`` estimated (dead reckoning), ``M`` manual, ``S`` simulator, ``V`` not valid,
+        ``""`` not given (the front-end uses the heading of ``A`` only).
     """
 
     talker: str
@@ -247,7 +248,7 @@ class Hpr:
     roll : float or None
         rad, positive = right side down.
     source : str
-        ``N`` GNSS-derived, ``G`` gyro (aided).
+        ``N`` GNSS-derived, ``G`` gyro (aided), ``""`` not given.
     """
 
     time: float | None

@@ -209,9 +209,10 @@ def _avr(fields: list[str]) -> Avr:
 
 
 def _hpr(fields: list[str]) -> Hpr:
-    # HPR,time,heading,pitch,roll,type
-    if len(fields) < 5 or fields[4] not in ("N", "G"):
-        raise NMEAParseError(f"expected $PSAT,HPR,time,heading,pitch,roll,N|G, got fields {fields!r}")
+    # HPR,time,heading,pitch,roll,type (Hemisphere: type N = GNSS heading, G = gyro); any of them may be empty,
+    # as a receiver without a heading solution sends them (an empty heading is no heading, not an error)
+    if len(fields) < 5 or fields[4] not in ("N", "G", ""):
+        raise NMEAParseError(f"expected $PSAT,HPR,time,heading,pitch,roll,N|G (or empty), got fields {fields!r}")
     return Hpr(
         time=_time_field(fields[0]),
         heading=_heading(fields[1]),
@@ -289,10 +290,11 @@ def _from_pynmeagps(kind: str, talker: str, m: object, fields: list[str]) -> Nme
         )
     if kind == "HDT":
         return Hdt(talker=talker, heading=_heading(g("headingT")))
-    # THS
+    # THS; an empty mode indicator (which IEC 61162-1 says should not be null, but receivers without a
+    # heading send) is kept as "" and, like V, means no heading
     mode = g("mi") or ""
-    if mode not in ("A", "E", "M", "S", "V"):
-        raise NMEAParseError(f"expected THS mode indicator A, E, M, S or V, got {mode!r}")
+    if mode not in ("A", "E", "M", "S", "V", ""):
+        raise NMEAParseError(f"expected THS mode indicator A, E, M, S, V or empty, got {mode!r}")
     return Ths(talker=talker, heading=_heading(g("headt")), mode=mode)
 
 

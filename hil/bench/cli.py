@@ -45,7 +45,7 @@ from hil.bench.cli_commission import add_commission_parser
 from hil.vehicle.outputs import prepare_out_dir, prepare_out_file, write_text_atomic
 
 #: Sub-commands whose --out is a directory, and those whose --out is a file (checked before any work).
-OUT_DIRS = ("sysid", "run", "compare", "tune", "calibrate", "tractors", "commission")
+OUT_DIRS = ("sysid", "run", "compare", "tune", "calibrate", "tractors", "commission", "commission-campaign")
 OUT_FILES = {"plot": (".png", ".pdf", ".svg")}
 
 

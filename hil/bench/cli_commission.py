@@ -1,10 +1,12 @@
-"""``hil commission``: the commissioning recipe end to end on a bench tractor (a thin layer over
-:func:`hil.bench.commission.commission`).
+"""``hil commission`` and ``hil commission-campaign``: the commissioning recipe end to end on a bench
+tractor, and on many (thin layers over :func:`hil.bench.commission.commission` and
+:func:`hil.bench.campaign_tractors.commission_campaign`).
 
     hil commission --tractor NAME|FILE --out DIR [--speeds ...] [--implements ...] [--passes N]
         [--duration S] [--seed S] [--hil-seeds N] [--hil-duration S] [--hil-conditions IMPLEMENT:SPEED,...]
         [--weights auto-if-available|auto|default] [--order N|auto|validate] [--markov N|auto|validate]
         [--acceptance refuse|warn] [--set group.name=value ...] [--quiet] [--json]
+    hil commission-campaign [--random 0-19 ...] [--tractor NAME|FILE ...] --out DIR [the recipe's options]
 """
 
 from __future__ import annotations
@@ -14,11 +16,13 @@ import sys
 
 from tqdm import tqdm
 
+from hil.bench.campaign_tractors import commission_campaign
 from hil.bench.commission import WEIGHTS, CommissionOptions, commission
+from hil.errors import SimulatorConfigError
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for
-from hil.truth.tractors import Tractor, resolve_tractor
+from hil.truth.tractors import Tractor, random_tractor, resolve_tractor
 
-__all__ = ["add_commission_parser"]
+__all__ = ["add_commission_parser", "run_commission", "run_commission_campaign"]
 
 
 def _int_or(words: tuple[str, ...]):
@@ -50,16 +54,8 @@ def _hil_conditions(number):
     return parse
 
 
-def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> None:
-    """Add ``commission`` to the bench's sub-commands (``number``/``override``: the CLI's value parsers)."""
-    c = sub.add_parser("commission", help="commission a bench tractor end to end: valve, passes, identification, "
-                       "designs, certificate, HIL comparison and a report, all under --out")
-    c.add_argument("--tractor", required=True, metavar="NAME|FILE.json",
-                   help="the tractor (a tractor file, a name of the family or random-SEED; see `hil tractors`)")
-    c.add_argument("--set", action="append", type=override, metavar="GROUP.NAME=VALUE",
-                   help="override a parameter of that tractor; repeatable")
-    c.add_argument("--out", required=True, help="directory for every output (commissioning.json, logs/, models/, "
-                   "controllers/, report.md, figures, result.json)")
+def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
+    """The recipe's options, shared by ``commission`` and ``commission-campaign``."""
     c.add_argument("--speeds", nargs="+", type=number, default=list(GEAR_SPEEDS.values()), metavar="M_PER_S")
     c.add_argument("--implements", nargs="+", choices=IMPLEMENTS, default=list(IMPLEMENTS))
     c.add_argument("--passes", type=int, default=3, help="identification passes per condition (default 3)")
@@ -80,7 +76,83 @@ def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> 
                    help="a model that does not predict: stop (refuse) or go on with a warning")
     c.add_argument("--quiet", action="store_true", help="no progress")
     c.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+
+
+def _seed_ranges(text: str) -> list[int]:
+    """``0-19``, ``3`` or ``0-4,7``: random tractors' seeds."""
+    seeds: list[int] = []
+    for part in text.split(","):
+        lo, sep, hi = part.partition("-")
+        try:
+            a, b = int(lo), int(hi) if sep else int(lo)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected seeds like 0-19 or 3 or 0-4,7, got {text!r}") from None
+        if not 0 <= a <= b <= 2 ** 31:
+            raise argparse.ArgumentTypeError(f"expected seeds 0 <= FIRST <= LAST, got {part!r}")
+        if b - a >= 1000:
+            raise argparse.ArgumentTypeError(f"at most 1000 seeds in a range, got {part!r}")
+        seeds.extend(range(a, b + 1))
+    return seeds
+
+
+def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> None:
+    """Add ``commission`` and ``commission-campaign`` to the bench's sub-commands (``number``/``override``: the
+    CLI's value parsers)."""
+    c = sub.add_parser("commission", help="commission a bench tractor end to end: valve, passes, identification, "
+                       "designs, certificate, HIL comparison and a report, all under --out")
+    c.add_argument("--tractor", required=True, metavar="NAME|FILE.json",
+                   help="the tractor (a tractor file, a name of the family or random-SEED; see `hil tractors`)")
+    c.add_argument("--set", action="append", type=override, metavar="GROUP.NAME=VALUE",
+                   help="override a parameter of that tractor; repeatable")
+    c.add_argument("--out", required=True, help="directory for every output (commissioning.json, logs/, models/, "
+                   "controllers/, report.md, figures, result.json)")
+    _add_recipe_options(c, number)
     c.set_defaults(func=run_commission)
+
+    m = sub.add_parser("commission-campaign", help="commission many tractors (OUT/<tractor>/, resumable) and "
+                       "write their table and figure (campaign.md, campaign_ratios.png)")
+    m.add_argument("--random", type=_seed_ranges, action="append", metavar="SEEDS",
+                   help="random tractors random-SEED for SEEDS like 0-19 or 0-4,7; repeatable")
+    m.add_argument("--tractor", action="append", metavar="NAME|FILE.json",
+                   help="a tractor of the family, random-SEED or a tractor file; repeatable")
+    m.add_argument("--out", required=True, help="directory of the campaign (one folder per tractor, campaign.md, "
+                   "campaign.json, campaign_ratios.png)")
+    _add_recipe_options(m, number)
+    m.set_defaults(func=run_commission_campaign)
+
+
+def _options(args: argparse.Namespace) -> CommissionOptions:
+    return CommissionOptions(speeds=tuple(args.speeds), implements=tuple(args.implements), passes=args.passes,
+                             pass_duration=args.duration, seed=args.seed,
+                             hil_seeds=tuple(range(args.hil_seeds)) if args.hil_seeds >= 1 else (),
+                             hil_duration=args.hil_duration, hil_conditions=args.hil_conditions,
+                             weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance)
+
+
+def _reporters(quiet: bool):
+    """``say`` (one line per step) and ``progress`` (a tqdm bar per long step) on stderr, and ``close``."""
+    bars: dict[str, tqdm] = {}
+
+    def progress(step: str, done: int, total: int) -> None:
+        if quiet:
+            return
+        bar = bars.get(step)
+        if bar is None:
+            bar = bars[step] = tqdm(total=total, desc=f"    {step}", file=sys.stderr, leave=False)
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    def close() -> None:
+        for bar in bars.values():
+            bar.close()
+        bars.clear()
+
+    def say(line: str) -> None:
+        close()
+        if not quiet:
+            print(line, file=sys.stderr, flush=True)
+    return say, progress, close
 
 
 def run_commission(args: argparse.Namespace) -> dict:
@@ -94,32 +166,24 @@ def run_commission(args: argparse.Namespace) -> dict:
             merged.setdefault(group, {})[name] = value
         tractor = Tractor(name=f"{base.name}-modified", description=f"{base.description} With --set "
                           f"{', '.join(f'{k}={v:g}' for k, v in args.set)}.", parameters=merged, source=base.source)
-    opts = CommissionOptions(speeds=tuple(args.speeds), implements=tuple(args.implements), passes=args.passes,
-                             pass_duration=args.duration, seed=args.seed,
-                             hil_seeds=tuple(range(args.hil_seeds)) if args.hil_seeds >= 1 else (),
-                             hil_duration=args.hil_duration, hil_conditions=args.hil_conditions,
-                             weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance)
-    bars: dict[str, tqdm] = {}
-
-    def progress(step: str, done: int, total: int) -> None:
-        if args.quiet:
-            return
-        bar = bars.get(step)
-        if bar is None:
-            bar = bars[step] = tqdm(total=total, desc=f"    {step}", file=sys.stderr, leave=False)
-        bar.total = total
-        bar.n = done
-        bar.refresh()
-
-    def say(line: str) -> None:
-        for bar in bars.values():
-            bar.close()
-        bars.clear()
-        if not args.quiet:
-            print(line, file=sys.stderr, flush=True)
-
+    opts = _options(args)
+    say, progress, close = _reporters(args.quiet)
     res = commission(tractor, args.out, opts, say=say, progress=progress)
-    for bar in bars.values():
-        bar.close()
+    close()
     return {"out": args.out, "tractor": tractor.name, "steps": res["steps"], "files": res["files"],
             "valve": res.get("valve"), "hil": res["hil"]}
+
+
+def run_commission_campaign(args: argparse.Namespace) -> dict:
+    """The command: the tractors (random ones first, then ``--tractor`` ones, in the order given), the
+    campaign with progress on stderr, and its overall line."""
+    tractors = [random_tractor(s) for seeds in (args.random or []) for s in seeds]
+    tractors += [resolve_tractor(t) for t in (args.tractor or [])]
+    if not tractors:
+        raise SimulatorConfigError("no tractor given: expected --random SEEDS and/or --tractor NAME|FILE.json")
+    opts = _options(args)
+    say, progress, close = _reporters(args.quiet)
+    agg = commission_campaign(tractors, args.out, opts, say=say, progress=progress)
+    close()
+    return {"out": args.out, "tractors": [r["tractor"] for r in agg["rows"]], "overall": agg["overall_line"],
+            "files": agg["files"]}

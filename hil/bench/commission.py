@@ -31,11 +31,14 @@ import contextlib
 import io
 import json
 import math
+import os
 import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
+
+import numpy as np
 
 from hil.bench.oracle import OracleOptions, oracle_for
 from hil.bench.run import RunSpec, simulated_run
@@ -47,10 +50,13 @@ from hil.truth.tractors import Tractor
 from hil.vehicle.commissioning import Commissioning, save_commissioning
 from hil.vehicle.summary import summarize
 
-__all__ = ["CommissionOptions", "commission", "CONTROLLERS"]
+__all__ = ["CommissionOptions", "commission", "options_dict", "hil_ratios", "CONTROLLERS", "DIVERGED_M"]
 
 #: Controllers of the HIL comparison, in the report's order: file stem (or ``oracle``) -> label.
 CONTROLLERS = {"central-lqr": "paper's method", "robust": "robust", "mpc": "MPC", "oracle": "oracle"}
+#: A HIL pass *diverges* when the true cross-track goes beyond this, m, at any moment of the pass (it
+#: starts 0.3 m off the line), or when the pass does not run to its end (an error).
+DIVERGED_M = 2.0
 WEIGHTS = ("auto-if-available", "auto", "default")
 
 
@@ -215,7 +221,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
     tick = progress or (lambda step, done, total: None)
     params = tractor.params()
     steps = _Steps(say)
-    res: dict = {"tractor": tractor.to_dict(), "options": _options_dict(opts)}
+    res: dict = {"tractor": tractor.to_dict(), "options": options_dict(opts)}
 
     def valve() -> Commissioning:
         curve, rate_steps = characterise_on_bench(params, seed=opts.seed,
@@ -332,7 +338,9 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
     res["hil"] = table or []
     res["steps"] = steps.record
     res["files"] = write_commission_report(res, out)
-    (out / "result.json").write_text(json.dumps(res, indent=2, default=_jsonable) + "\n")
+    tmp = out / "result.json.tmp"      # whole or not at all: a campaign takes a result.json as complete
+    tmp.write_text(json.dumps(res, indent=2, default=_jsonable) + "\n")
+    os.replace(tmp, out / "result.json")
     return res
 
 
@@ -344,7 +352,8 @@ def _jsonable(o: object) -> object:
     return str(o)
 
 
-def _options_dict(o: CommissionOptions) -> dict:
+def options_dict(o: CommissionOptions) -> dict:
+    """The options as ``result.json`` records them (conditions by name)."""
     d = asdict(o)
     d["hil_conditions"] = None if o.hil_conditions is None else [c.name for c in o.hil_conditions]
     return d
@@ -360,7 +369,7 @@ def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: Commi
     rows = []
     for cond in conds:
         for name in names:
-            sigmas, biases, dis, errors = [], [], 0, []
+            sigmas, biases, dis, errors, worst, diverging = [], [], 0, [], 0.0, 0
             for seed in opts.hil_seeds:
                 try:
                     if name == "oracle":
@@ -373,17 +382,22 @@ def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: Commi
                                         commissioning=com)
                     s = summarize(log)
                     dis += s["disengagements"]
+                    far = float(np.max(np.abs(log.channels["truth_cross_track"]), initial=0.0))
+                    worst = max(worst, far)
+                    diverging += int(not far <= DIVERGED_M)   # also a NaN cross-track
                     if "measured_sigma_m" in s:
                         sigmas.append(s["measured_sigma_m"])
                         biases.append(s["measured_bias_m"])
                 except Exception as exc:  # noqa: BLE001 - one failing pass is a cell's result, not the end
                     errors.append(f"{type(exc).__name__}: {exc}")
+                    diverging += 1            # a pass that did not run to its end counts as diverging
                 done += 1
                 progress(done, total)
             rows.append({"implement": cond.implement, "speed": cond.speed, "controller": name,
                          "sigma_m": sum(sigmas) / len(sigmas) if sigmas else math.nan,
                          "bias_m": sum(biases) / len(biases) if biases else math.nan,
-                         "disengagements": dis, "passes": len(opts.hil_seeds), "errors": errors})
+                         "disengagements": dis, "passes": len(opts.hil_seeds), "errors": errors,
+                         "max_abs_cross_track_m": worst, "diverging": diverging})
     return rows
 
 
@@ -397,6 +411,7 @@ def hil_ratios(rows: Sequence[dict]) -> list[dict]:
             r = by.get((imp, speed, c))
             cell[c] = r["sigma_m"] if r else math.nan
             cell[f"{c}_disengagements"] = r["disengagements"] if r else None
+            cell[f"{c}_diverging"] = r.get("diverging") if r else None
         for c in ("robust", "mpc"):
             cell[f"{c}_over_oracle"] = cell[c] / cell["oracle"] if cell["oracle"] > 0 else math.nan
             cell[f"{c}_over_paper"] = cell[c] / cell["central-lqr"] if cell["central-lqr"] > 0 else math.nan

@@ -13,6 +13,17 @@ and records why. While disengaged it never sends a steering command. A control
 law that raises or returns a non-finite command is latched off for the rest of
 the run (a person has to look at it before it steers again).
 
+Guidance: an :class:`~gnss.guidance.ABLine` (the straight-line fast path, on floats) or a
+path followed by a tracker (any object with the :class:`PathFollower` methods, e.g. the
+local nearest-point tracker of a field's route). On a path the loop fills
+:attr:`~design.controller.Measurement.curvature` and, when the controller has a
+``preview_request = (n, dt)`` attribute, :attr:`~design.controller.Measurement.preview`,
+and logs the station, the curvature and the active part of the route (pass index and
+kind: straight, curve or headland turn) every cycle. The loop stays engaged through a
+headland turn, as AgOpenGPS keeps autosteer on through its U-turn: the turn is part of
+the one route, the controller sees its curvature like any curve's, and the same
+health checks apply (there is no separate turn mode to hand over to and back from).
+
 Every cycle is recorded; :meth:`VehicleLoop.run_log` turns the record into a
 pass log (all channels on the cycle time base, so a closed-loop run can feed
 identification too).
@@ -24,12 +35,13 @@ import math
 import time
 from collections import deque
 from dataclasses import asdict, dataclass
+from bisect import bisect_right
 from itertools import islice
-from typing import Callable
+from typing import Callable, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
-from design.controller import Controller, Measurement
+from design.controller import PREVIEW_ATTRIBUTE, Controller, Measurement
 from gnss.frontend import GnssFrontEnd
 from gnss.guidance import ABLine, TrackErrors
 from gnss.integrity import IntegrityState
@@ -90,6 +102,30 @@ class LoopConfig:
             raise VehicleConfigError("LoopConfig: need rate > 0, max_rate > 0 and speed_max > speed_min")
 
 
+#: Codes of the route's part kinds in the ``part_kind`` channel (-1: outside every tagged part).
+PART_KINDS = {"straight": 0, "curve": 1, "turn": 2}
+#: Longest curvature preview a controller may ask for (stretches).
+MAX_PREVIEW = 1000
+
+
+@runtime_checkable
+class PathFollower(Protocol):
+    """What the loop needs of a path's tracker (scalar floats, called once per cycle).
+
+    ``update(east, north, yaw, elapsed)`` takes the control point (ENU, m), the vehicle yaw
+    (rad, 0 = north, clockwise) and the time since the previous call (s) and returns
+    ``(cross_track [m, + left], heading_error [rad, + CCW], station [m], curvature [1/m, + left])``
+    at the nearest point, searched locally around the last station (as
+    :class:`gnss.track.PathTracker` does); ``preview(n, step)`` gives the mean curvature over the
+    next ``n`` stretches of ``step`` m from the current station (1/m).
+    """
+
+    def update(self, east: float, north: float, yaw: float,
+               elapsed: float | None = None) -> tuple[float, float, float, float]: ...
+
+    def preview(self, n: int, step: float) -> Sequence[float]: ...
+
+
 _COLUMNS = ("t", "cross_track", "heading_error", "wheel_angle", "speed", "steer_rate_cmd", "engaged",
             "healthy", "gps_valid", "bridge_valid", "integrity", "fix_quality", "compute_time", "lateness",
             "deadline_miss", "adc_counts")
@@ -107,7 +143,7 @@ class VehicleLoop:
     frontend
         GPS front-end (its sources are the receivers' links).
     line
-        Guidance line.
+        Guidance: an AB line, or a path's tracker (:class:`PathFollower`).
     controller
         Control law (see :class:`design.controller.Controller`).
     calibration
@@ -116,13 +152,34 @@ class VehicleLoop:
         Loop settings.
     truth
         Optional callable giving the simulator's truth now, logged as ``truth_*`` channels.
+    parts
+        With a path: its tagged station intervals (objects with ``start``, ``end`` [m],
+        ``pass_index`` and ``kind`` in :data:`PART_KINDS`, as :class:`gnss.field.RoutePart`),
+        sorted by start; logged as ``part_pass`` and ``part_kind`` every cycle.
     """
 
-    def __init__(self, clock: Clock, driver: BridgeDriver, frontend: GnssFrontEnd, line: ABLine,
+    def __init__(self, clock: Clock, driver: BridgeDriver, frontend: GnssFrontEnd, line: ABLine | PathFollower,
                  controller: Controller, calibration: WheelAngleCalibration, config: LoopConfig | None = None,
-                 truth: Callable[[], dict[str, float]] | None = None) -> None:
+                 truth: Callable[[], dict[str, float]] | None = None,
+                 parts: Sequence = ()) -> None:
         if not isinstance(controller, Controller):
             raise VehicleConfigError(f"{type(controller).__name__} does not implement the Controller interface")
+        # a tracker follows a path; any other line (an AB line: the fast path) gives its errors itself
+        self._path: PathFollower | None = line if isinstance(line, PathFollower) else None
+        if self._path is None and not callable(getattr(line, "errors", None)):
+            raise VehicleConfigError(f"line: expected an ABLine (or a line with errors()) or a path tracker with "
+                                     f"update() and preview(), got {type(line).__name__}")
+        self._preview_n, self._preview_dt = _preview_request(controller)
+        self._parts = _checked_parts(parts)
+        if self._parts and self._path is None:
+            raise VehicleConfigError("parts: route parts need a path tracker, not an AB line")
+        self._part_starts = [p[0] for p in self._parts]
+        self._part_names = [str(p.kind) for p in parts]
+        self._path_rows: list[tuple[float, float, float, float]] = []   # station, curvature, pass, kind
+        # station held until the first fix: the tracker's starting station if it has one (see gps_valid)
+        hint = getattr(line, "station", None) if self._path is not None else None
+        self._station = float(hint) if isinstance(hint, (int, float)) and math.isfinite(hint) else 0.0
+        self._kappa, self._tracked_at = 0.0, math.nan
         self.clock, self.driver, self.frontend, self.line = clock, driver, frontend, line
         self.controller, self.calibration = controller, calibration
         self.config = config or LoopConfig()
@@ -131,7 +188,7 @@ class VehicleLoop:
         self.engaged = False
         self.events: list[dict] = []
         self._rows: list[tuple[float, ...]] = []   # one tuple per cycle, fields in _COLUMNS order
-        self._line_errors = _scalar_line_errors(line)
+        self._line_errors = _scalar_line_errors(line) if self._path is None else None
         self._center, self._rad_per_count = float(calibration.center_counts), float(calibration.rad_per_count)
         self._truths: list[dict[str, float]] = []   # the truth of every cycle
         self._estimates: list[tuple[float, ...]] = []
@@ -169,8 +226,16 @@ class VehicleLoop:
         nav = self.frontend.step(now)
         east, north, yaw = nav.east, nav.north, nav.yaw
         gps_valid = math.isfinite(east) and math.isfinite(north) and math.isfinite(yaw)
-        if gps_valid:
-            xte, he = self._line_errors(east, north, yaw)
+        path = self._path
+        if path is None:
+            if gps_valid:
+                xte, he = self._line_errors(east, north, yaw)
+            else:
+                xte, he = last_xte, last_he
+        elif gps_valid:
+            elapsed = now - self._tracked_at if self._tracked_at == self._tracked_at else 1.0 / cfg.rate
+            xte, he, self._station, self._kappa = (float(v) for v in path.update(east, north, yaw, elapsed))
+            self._tracked_at = now
         else:
             xte, he = last_xte, last_he
         speed = nav.speed if math.isfinite(nav.speed) else last_speed
@@ -209,7 +274,13 @@ class VehicleLoop:
                 if near and now - self._healthy_since >= cfg.engage_after - 1e-9:
                     self._engage(now, link_ok)
         if self.engaged:
-            m = Measurement(now, xte, he, delta, speed)
+            if path is None:
+                m = (Measurement(now, xte, he, delta, speed) if not self._preview_n else
+                     Measurement(now, xte, he, delta, speed, 0.0, (0.0,) * self._preview_n))
+            else:
+                preview = () if not self._preview_n else tuple(
+                    float(v) for v in path.preview(self._preview_n, max(speed, cfg.speed_min) * self._preview_dt))
+                m = Measurement(now, xte, he, delta, speed, self._kappa, preview)
             why = None
             try:
                 raw = float(self.controller.step(m))
@@ -237,8 +308,17 @@ class VehicleLoop:
                            _INTEGRITY_BY_ID.get(id(integrity.state), 9.0), int(nav.fix), compute, late,
                            done - t_due > 1.0 / cfg.rate, rep.adc_counts if rep else -1.0))
         self._estimates.append(tuple(self.controller.estimate()))
+        if path is not None:
+            self._path_rows.append((self._station, self._kappa, *self._part_at(self._station)))
         if self.truth is not None:
             self._truths.append(self.truth())
+
+    def _part_at(self, station: float) -> tuple[float, float]:
+        """``(pass index, kind code)`` of the route part holding ``station``; ``(-1, -1)`` outside all."""
+        i = bisect_right(self._part_starts, station) - 1
+        if i < 0 or not station < self._parts[i][1]:
+            return -1.0, -1.0
+        return self._parts[i][2], self._parts[i][3]
 
     def _steering_response(self, delta: float) -> str | None:
         """Reason if the wheel has not followed the commands over the monitor's window."""
@@ -318,6 +398,12 @@ class VehicleLoop:
         for i in range(est.shape[1] if est.ndim == 2 else 0):
             chans[f"estimate_{i}"] = est[:, i]
             extra[f"estimate_{i}"] = {"time": "t", "unit": "controller state"}
+        if self._path is not None:
+            path_table = np.array(self._path_rows, dtype=float).reshape(-1, 4)
+            for i, (k, unit) in enumerate((("station", "m"), ("path_curvature", "1/m"), ("part_pass", "1"),
+                                           ("part_kind", "code"))):
+                chans[k] = path_table[:, i].copy()
+                extra[k] = {"time": "t", "unit": unit}
         truths = self._truths
         keys = list(truths[0]) if truths else []
         if truths and all(list(d) == keys for d in truths):   # the usual case: the same keys every cycle
@@ -332,6 +418,10 @@ class VehicleLoop:
         for k, v in truth_columns.items():
             chans[f"truth_{k}"] = v
             extra[f"truth_{k}"] = {"time": "t", "unit": "SI"}
+        if self._path is not None:
+            meta = {**meta, "part_kinds": PART_KINDS,
+                    "parts": [{"start": a, "end": b, "pass_index": int(n), "kind": kind}
+                              for (a, b, n, _), kind in zip(self._parts, self._part_names)]}
         full_meta = {**meta, "extra_channels": extra, "events": self.events,
                      "integrity_codes": INTEGRITY_CODES, "loop": asdict(self.config),
                      "controller": getattr(self.controller, "name", type(self.controller).__name__),
@@ -339,6 +429,44 @@ class VehicleLoop:
                      "time_stamps": "loop cycle time; missing GPS/bridge values hold the last one (see *_valid)"}
         return PassLog(times={"t": t, "t_cross_track": t, "t_heading_error": t, "t_speed": t},
                        channels=chans, meta=full_meta)
+
+
+def _checked_parts(parts: Sequence) -> tuple[tuple[float, float, float, float], ...]:
+    """Route parts as ``(start, end, pass index, kind code)`` floats, checked: finite, ``end > start``,
+    sorted and not overlapping, a known kind."""
+    out = []
+    for p in parts:
+        try:
+            a, b, n, kind = float(p.start), float(p.end), p.pass_index, p.kind
+        except (AttributeError, TypeError, ValueError):
+            raise VehicleConfigError(f"parts: expected objects with start, end, pass_index and kind, got {p!r}") from None
+        if not (math.isfinite(a) and math.isfinite(b) and b > a):
+            raise VehicleConfigError(f"parts: expected finite stations with end > start, got {a!r}, {b!r}")
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+            raise VehicleConfigError(f"parts: pass_index must be an integer >= 0, got {n!r}")
+        if kind not in PART_KINDS:
+            raise VehicleConfigError(f"parts: kind must be one of {sorted(PART_KINDS)}, got {kind!r}")
+        if out and a < out[-1][1] - 1e-9:
+            raise VehicleConfigError(f"parts: expected parts sorted by station without overlap; one starts at "
+                                     f"{a:.3f} m before the previous one ends ({out[-1][1]:.3f} m)")
+        out.append((a, b, float(n), float(PART_KINDS[kind])))
+    return tuple(out)
+
+
+def _preview_request(controller: Controller) -> tuple[int, float]:
+    """The controller's ``preview_request`` ``(n, dt)``, checked; ``(0, 0.0)`` when it asks for none."""
+    req = getattr(controller, PREVIEW_ATTRIBUTE, None)
+    if req is None:
+        return 0, 0.0
+    try:
+        n, dt = req
+    except (TypeError, ValueError):
+        raise VehicleConfigError(f"{PREVIEW_ATTRIBUTE}: expected (n, dt), got {req!r}") from None
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 0 <= n <= MAX_PREVIEW:
+        raise VehicleConfigError(f"{PREVIEW_ATTRIBUTE}: n must be an integer 0-{MAX_PREVIEW} stretches, got {n!r}")
+    if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not (math.isfinite(dt) and dt > 0):
+        raise VehicleConfigError(f"{PREVIEW_ATTRIBUTE}: dt must be a finite number of seconds > 0, got {dt!r}")
+    return int(n), float(dt)
 
 
 def _scalar_line_errors(line: ABLine) -> Callable[[float, float, float], tuple[float, float]]:

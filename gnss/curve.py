@@ -14,6 +14,23 @@ error is vehicle heading minus path heading, rad in [-pi, pi), + = counter-clock
 station is arc length from the start, m. The first and last segments are extended by
 straight lines along their end tangents, so a point before the start gets a negative
 station and one past the end a station beyond :attr:`ArcPath.length`.
+
+Building paths (the field API, issue 16; :mod:`gnss.field` and :mod:`gnss.uturn` use it):
+
+* :meth:`ArcPath.offset` ``(d)``: the exact parallel path ``d`` m to the left (right if < 0);
+  each arc's curvature ``k`` becomes ``k / (1 - k d)`` and its length ``length (1 - k d)``. An
+  arc whose radius is not larger than the offset on its inner side is **refused** (no
+  trimming of loops as AgOpenGPS does): use fewer passes or a larger radius.
+* :meth:`ArcPath.reversed`: the same curve travelled the other way.
+* :meth:`ArcPath.chain` ``(paths)``: one path from pieces that each start where the last
+  ended, with its direction (checked).
+* :meth:`ArcPath.fit` ``(points, tolerance=0.02)``: arcs fitted to a recorded contour or
+  sampled spline (:mod:`gnss.arcfit`), within ``tolerance`` m of every point.
+* :meth:`ArcPath.sample` ``(step)``: points every ``step`` m, for plots.
+
+The nearest point is found here for every point against the **whole** path; a vehicle that
+follows a path uses :class:`gnss.track.PathTracker`, which searches only near its last
+station (the same projection, :func:`foot_on_segment`, on plain floats).
 """
 
 from __future__ import annotations
@@ -28,10 +45,95 @@ from numpy.typing import ArrayLike, NDArray
 from .errors import GeometryError
 from .guidance import TrackErrors, _heading_error, _point2, _points
 
-__all__ = ["Segment", "ArcPath"]
+__all__ = ["Segment", "ArcPath", "foot_on_segment", "pose_on_segment", "chain_starts"]
 
 #: Longest turn of one segment, rad (just under a full circle, so projection is unambiguous).
 MAX_TURN = 1.9 * math.pi
+
+
+class _ArrayOps:
+    """Element-wise operations on arrays (many points at once: :meth:`ArcPath.errors`)."""
+
+    sin, cos, atan2, where, clip, mod = np.sin, np.cos, np.arctan2, np.where, np.clip, np.mod
+
+    @staticmethod
+    def sinc(half):
+        return np.sinc(half / np.pi)
+
+
+class _ScalarOps:
+    """The same operations on Python floats (one point per call: :class:`gnss.track.PathTracker`)."""
+
+    sin, cos, atan2 = math.sin, math.cos, math.atan2
+
+    @staticmethod
+    def where(c, a, b):
+        return a if c else b
+
+    @staticmethod
+    def clip(x, lo, hi):
+        return lo if x < lo else (hi if x > hi else x)
+
+    @staticmethod
+    def mod(a, b):
+        return a % b
+
+    @staticmethod
+    def sinc(half):
+        return math.sin(half) / half if abs(half) > 1e-8 else 1.0 - half * half / 6.0
+
+
+ARRAY_OPS, SCALAR_OPS = _ArrayOps, _ScalarOps
+
+
+def pose_on_segment(ops, e0, n0, th0, k, s):
+    """Pose at local arc length ``s`` (m, any value: the circle/line continues) of the segment that
+    starts at ``(e0, n0)`` (m, ENU) with direction ``th0`` (rad, ENU) and curvature ``k`` (1/m):
+    ``(east, north, angle)``. ``ops`` is :data:`ARRAY_OPS` (arrays) or :data:`SCALAR_OPS` (floats)."""
+    half = 0.5 * k * s
+    chord = s * ops.sinc(half)           # |chord| of the arc, exact and stable as k -> 0
+    mid = th0 + half
+    return e0 + chord * ops.cos(mid), n0 + chord * ops.sin(mid), th0 + k * s
+
+
+def foot_on_segment(ops, e0, n0, th0, k, length, lo, hi, pe, pn):
+    """Local arc length in ``[lo, hi]`` (m) of the nearest point to ``(pe, pn)`` on a segment.
+
+    The segment is as in :func:`pose_on_segment`, ``length`` m long (``inf`` for a straight
+    extension); ``0 <= lo <= hi <= length`` for an arc, any ``lo <= hi`` for a straight. This is
+    the one copy of the projection, for arrays of points and for one point as floats.
+    """
+    if k == 0.0 or abs(k) * length < 1e-6:
+        # (nearly) straight: project on the chord, then Newton on (p - q(t)) . T(t) = 0
+        t = (pe - e0) * math.cos(th0) + (pn - n0) * math.sin(th0)
+        if k != 0.0:
+            for _ in range(2):
+                qe, qn, qth = pose_on_segment(ops, e0, n0, th0, k, t)
+                de, dn = pe - qe, pn - qn
+                along = de * ops.cos(qth) + dn * ops.sin(qth)
+                across = dn * ops.cos(qth) - de * ops.sin(qth)
+                t = t + along / (1.0 - k * across)
+        return ops.clip(t, lo, hi)
+    r = 1.0 / k
+    ce, cn = e0 - r * math.sin(th0), n0 + r * math.cos(th0)
+    tang = ops.atan2(pn - cn, pe - ce) + math.copysign(math.pi / 2, k)   # direction at the circle point
+    turn = ops.mod((tang - th0 - k * lo) * math.copysign(1.0, k), 2 * math.pi)  # 0..2pi from lo
+    past = turn - abs(k) * (hi - lo)                                       # > 0: beyond hi
+    return ops.where(past <= 0, lo + turn / abs(k), ops.where(past < 2 * math.pi - turn, hi, lo))
+
+
+def chain_starts(start: ArrayLike, angle: float, lengths: NDArray[np.float64],
+                 curvatures: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Start point ``(n + 1, 2)`` (m, ENU) and direction ``(n + 1,)`` (rad, ENU) of each of ``n`` chained
+    segments (``lengths`` m, ``curvatures`` 1/m) from ``start`` along ``angle``; the last row is the end."""
+    de, dn, turn = pose_on_segment(ARRAY_OPS, 0.0, 0.0, 0.0, curvatures, lengths)   # each in its own frame
+    th = float(angle) + np.concatenate([[0.0], np.cumsum(turn)])
+    c, s = np.cos(th[:-1]), np.sin(th[:-1])
+    p = np.empty((len(lengths) + 1, 2))
+    p[0] = start
+    p[1:, 0] = start[0] + np.cumsum(c * de - s * dn)
+    p[1:, 1] = start[1] + np.cumsum(s * de + c * dn)
+    return p, th
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,16 +200,10 @@ class ArcPath:
         if not segs:
             raise GeometryError("ArcPath: expected at least one segment, got none")
         self.segments: tuple[Segment, ...] = tuple(segs)
-        n = len(segs)
         self._len = np.array([s.length for s in segs])
         self._kappa = np.array([s.curvature for s in segs])
         self._s0 = np.concatenate([[0.0], np.cumsum(self._len)])   # station at each segment start, + the end
-        self._p0 = np.empty((n + 1, 2))
-        self._th0 = np.empty(n + 1)
-        self._p0[0], self._th0[0] = self.start, float(angle)
-        for i in range(n):
-            e, nn, th = self._local_pose(i, np.array(self._len[i]))
-            self._p0[i + 1], self._th0[i + 1] = (float(e), float(nn)), float(th)
+        self._p0, self._th0 = chain_starts(self.start, float(angle), self._len, self._kappa)
         for a in (self._len, self._kappa, self._s0, self._p0, self._th0):
             a.setflags(write=False)
 
@@ -120,6 +216,75 @@ class ArcPath:
             raise GeometryError(f"straight: A and B must be at least 0.1 m apart, got A={pa}, B={pb}")
         return cls(pa, float(np.arctan2(d[1], d[0])), [Segment(float(np.hypot(*d)), 0.0)])
 
+    @classmethod
+    def chain(cls, paths: Iterable["ArcPath"], tolerance: float = 1e-6) -> "ArcPath":
+        """One path from pieces travelled in order, each starting where the previous one ends.
+
+        Parameters
+        ----------
+        paths
+            The pieces, at least one.
+        tolerance
+            Largest gap allowed between an end and the next start, m, and between their
+            directions, rad. A larger one is refused (the result would not be tangent-continuous).
+        """
+        pieces = list(paths)
+        if not pieces or not all(isinstance(p, ArcPath) for p in pieces):
+            raise GeometryError(f"chain: expected one or more ArcPath, got {pieces!r:.80}")
+        for i in range(1, len(pieces)):
+            a, b = pieces[i - 1], pieces[i]
+            gap = float(np.hypot(*(b.start - a.end)))
+            turn = abs((b.start_angle - a.end_angle + math.pi) % (2 * math.pi) - math.pi)
+            if gap > tolerance or turn > tolerance:
+                raise GeometryError(f"chain: piece {i} starts {gap:.3g} m and {turn:.3g} rad away from the end of "
+                                    f"piece {i - 1} (at most {tolerance:g} allowed); plan a connecting path")
+        return cls(pieces[0].start, pieces[0].start_angle, [s for p in pieces for s in p.segments])
+
+    @classmethod
+    def fit(cls, points: ArrayLike, tolerance: float = 0.02, **options: float) -> "ArcPath":
+        """Arcs fitted to a polyline (a recorded contour, a sampled spline); see :func:`gnss.arcfit.fit_arcs`.
+
+        Every point ends up within ``tolerance`` m of the path (checked), or the fit is refused.
+        """
+        from .arcfit import fit_arcs   # arcfit builds ArcPaths
+
+        return fit_arcs(points, tolerance, **options)
+
+    def offset(self, distance: float) -> "ArcPath":
+        """The parallel path ``distance`` m to the left (negative: to the right), exact.
+
+        Each segment keeps its turn; an arc of curvature ``k`` becomes ``k / (1 - k d)`` long
+        ``length (1 - k d)``, so every point of the result is ``|d|`` m from this path, along its
+        normal. Refused (not trimmed) when an arc's radius is within 1 mm of the offset on its
+        inner side or smaller: the offset curve would have a cusp there.
+        """
+        if isinstance(distance, bool) or not isinstance(distance, (int, float, np.floating)) \
+                or not math.isfinite(distance):
+            raise GeometryError(f"offset: expected a finite distance in m, got {distance!r}")
+        d = float(distance)
+        segs = []
+        for i, seg in enumerate(self.segments):
+            scale = 1.0 - seg.curvature * d
+            if scale * (1.0 / abs(seg.curvature) if seg.curvature else math.inf) < 1e-3:
+                raise GeometryError(
+                    f"offset: segment {i} has radius {1 / abs(seg.curvature):.3f} m, not more than the offset of "
+                    f"{abs(d):.3f} m on its inner side; use a smaller offset (fewer passes) or a larger radius")
+            segs.append(Segment(seg.length * scale, seg.curvature / scale))
+        th = self.start_angle
+        return ArcPath(self.start + d * np.array([-math.sin(th), math.cos(th)]), th, segs)
+
+    def reversed(self) -> "ArcPath":
+        """The same curve travelled from its end to its start (curvatures change sign)."""
+        return ArcPath(self.end, self.end_angle + math.pi,
+                       [Segment(s.length, -s.curvature) for s in reversed(self.segments)])
+
+    def sample(self, step: float = 1.0) -> NDArray[np.float64]:
+        """Points of the path every ``step`` m or less, both ends included: ``(M, 2)`` east, north, m."""
+        if not (isinstance(step, (int, float, np.floating)) and math.isfinite(step) and step > 0):
+            raise GeometryError(f"sample: expected a step > 0 m, got {step!r}")
+        e, n, _ = self.pose(np.linspace(0.0, self.length, max(int(math.ceil(self.length / step)) + 1, 2)))
+        return np.column_stack([e, n])
+
     # -- geometry ------------------------------------------------------------------
     @property
     def length(self) -> float:
@@ -127,17 +292,29 @@ class ArcPath:
         return float(self._s0[-1])
 
     @property
+    def start_angle(self) -> float:
+        """Direction at the start, ENU angle, rad."""
+        return float(self._th0[0])
+
+    @property
+    def end(self) -> NDArray[np.float64]:
+        """(east, north) of the end, m."""
+        return self._p0[-1].copy()
+
+    @property
     def end_angle(self) -> float:
         """Direction at the end, ENU angle, rad (not wrapped)."""
         return float(self._th0[-1])
 
+    def table(self) -> list[tuple[float, float, float, float, float, float]]:
+        """Each segment as plain floats: ``(station, east, north, angle, curvature, length)`` at its
+        start (m, m, m, rad ENU, 1/m, m), for code that works one point at a time."""
+        return [(float(self._s0[i]), float(self._p0[i, 0]), float(self._p0[i, 1]), float(self._th0[i]),
+                 float(self._kappa[i]), float(self._len[i])) for i in range(len(self.segments))]
+
     def _local_pose(self, i: int, s: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
         """Pose at local arc length ``s`` along segment ``i`` (any ``s``, extended as the circle/line)."""
-        p, th, k = self._p0[i], self._th0[i], self._kappa[i]
-        half = 0.5 * k * s
-        chord = s * np.sinc(half / np.pi)          # |chord| of the arc, exact and stable as k -> 0
-        mid = th + half
-        return p[0] + chord * np.cos(mid), p[1] + chord * np.sin(mid), th + k * s
+        return pose_on_segment(ARRAY_OPS, self._p0[i, 0], self._p0[i, 1], self._th0[i], self._kappa[i], s)
 
     def _segment_of(self, station: NDArray[np.float64]) -> NDArray[np.int64]:
         return np.clip(np.searchsorted(self._s0, station, side="right") - 1, 0, len(self.segments) - 1)
@@ -226,24 +403,8 @@ class ArcPath:
             take((0.0 if end == 0 else self.length) + t, p[0] + t * c, p[1] + t * s, np.full(pe.shape, th),
                  (t < 0.0) if end == 0 else (t > 0.0))
         for i in range(len(self.segments)):
-            p, th, k, length = self._p0[i], self._th0[i], self._kappa[i], self._len[i]
-            if abs(k) * length < 1e-6:
-                # (nearly) straight: project on the chord, then Newton on (p - q(t)) . T(t) = 0
-                t = (pe - p[0]) * math.cos(th) + (pn - p[1]) * math.sin(th)
-                for _ in range(2):
-                    qe, qn, qth = self._local_pose(i, t)
-                    de, dn = pe - qe, pn - qn
-                    along = de * np.cos(qth) + dn * np.sin(qth)
-                    across = dn * np.cos(qth) - de * np.sin(qth)
-                    t = t + along / (1.0 - k * across)
-                t = np.clip(t, 0.0, length)
-            else:
-                r = 1.0 / k
-                ce, cn = p[0] - r * math.sin(th), p[1] + r * math.cos(th)
-                tang = np.arctan2(pn - cn, pe - ce) + math.copysign(math.pi / 2, k)  # direction at the circle point
-                turn = np.mod((tang - th) * math.copysign(1.0, k), 2 * math.pi)      # 0..2pi from the start
-                past = turn - abs(k) * length                                          # > 0: beyond the arc
-                t = np.where(past <= 0, turn / abs(k), np.where(past < 2 * math.pi - turn, length, 0.0))
+            p, th, k, length = self._p0[i], float(self._th0[i]), float(self._kappa[i]), float(self._len[i])
+            t = foot_on_segment(ARRAY_OPS, p[0], p[1], th, k, length, 0.0, length, pe, pn)
             qe, qn, qth = self._local_pose(i, t)
             take(self._s0[i] + t, qe, qn, qth)
         return xte, sta, ang

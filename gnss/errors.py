@@ -17,6 +17,7 @@ __all__ = [
     "EncodeError",
     "GeometryError",
     "ConfigError",
+    "FieldFileError",
 ]
 
 
@@ -58,3 +59,7 @@ class GeometryError(GNSSError, ValueError):
 
 class ConfigError(GNSSError, ValueError):
     """A configuration object has an invalid or unknown setting."""
+
+
+class FieldFileError(GeometryError):
+    """A field file (:mod:`gnss.field_io`) is unreadable, malformed, or describes an impossible field."""

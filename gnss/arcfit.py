@@ -1,0 +1,144 @@
+"""Arcs fitted to a polyline: a recorded contour or a sampled spline becomes an :class:`ArcPath`.
+
+:func:`fit_arcs` finds a tangent-continuous chain of constant-curvature segments within
+``tolerance`` m of every point (default 2 cm), so that a contour recorded by the tractor
+and a :class:`~gnss.guidance.CurvedLine` get exact curvature (and a curvature preview).
+
+Method (least squares on the curvature profile): the points get stations from their chord
+lengths; the path is ``N`` segments of equal length spanning them, unknowns the start
+point, the start direction and the ``N`` curvatures; the residual of each point is its
+offset from the path's point at its station, across the path (weight 1) and along it
+(weight ``along_weight``, small: a noisy contour's chord length is slightly too long).
+scipy's Levenberg-Marquardt solves it; the distance of every point to the result is then
+measured with :class:`gnss.track.PathTracker` (locally, so a contour that comes back near
+itself is measured against the right part), segments holding a point beyond the tolerance
+are split in two, and the fit is repeated, at most ``rounds`` times.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.optimize import least_squares
+
+from .curve import ARRAY_OPS, ArcPath, Segment, chain_starts, pose_on_segment
+from .errors import GeometryError
+
+__all__ = ["fit_arcs", "max_deviation"]
+
+
+def max_deviation(path: ArcPath, points: ArrayLike) -> float:
+    """Largest distance (m) of ``points`` (in order along the path, ``(M, 2)``) from ``path``, searched locally."""
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2 or p.shape[0] < 2 or not np.all(np.isfinite(p)):
+        raise GeometryError(f"max_deviation: expected finite points of shape (M >= 2, 2), got {p.shape}")
+    return float(np.max(_deviations(path, p)))
+
+
+def _residual(x, lengths, seg_of, local, pts, along_weight):
+    k = x[3:]
+    p0, th0 = chain_starts(x[:2], x[2], lengths, k)
+    kk = k[seg_of]
+    qe, qn, qth = pose_on_segment(ARRAY_OPS, p0[seg_of, 0], p0[seg_of, 1], th0[seg_of], kk, local)
+    de, dn = pts[:, 0] - qe, pts[:, 1] - qn
+    c, s = np.cos(qth), np.sin(qth)
+    return np.concatenate([dn * c - de * s, along_weight * (de * c + dn * s)])
+
+
+def fit_arcs(points: ArrayLike, tolerance: float = 0.02, *, segment_length: float = 10.0, rounds: int = 8,
+             along_weight: float = 0.05, max_segments: int = 2000) -> ArcPath:
+    """A tangent-continuous :class:`ArcPath` within ``tolerance`` m of every point.
+
+    Parameters
+    ----------
+    points
+        ``(M, 2)`` east, north, m, in order along the path, M >= 3, consecutive points at
+        least 1 mm and at most 50 m apart.
+    tolerance
+        Largest allowed distance of a point from the path, m (> 0).
+    segment_length
+        Length of the segments of the first round, m (they are split where needed).
+    rounds
+        Rounds of splitting at most.
+    along_weight
+        Weight of the along-path residual relative to the across one.
+    max_segments
+        Refuse rather than use more segments.
+
+    Raises
+    ------
+    GeometryError
+        Bad points, or no fit within ``tolerance`` after ``rounds`` (the message gives the
+        deviation reached: raise the tolerance or smooth the points).
+    """
+    pts = np.array(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < 3 or not np.all(np.isfinite(pts)):
+        raise GeometryError(f"fit_arcs: expected finite points of shape (M >= 3, 2), got {pts.shape}")
+    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
+        raise GeometryError(f"fit_arcs: tolerance must be > 0 m, got {tolerance!r}")
+    gaps = np.hypot(*np.diff(pts, axis=0).T)
+    if np.min(gaps) < 1e-3 or np.max(gaps) > 50.0:
+        raise GeometryError(f"fit_arcs: consecutive points must be 1 mm to 50 m apart, got {np.min(gaps):.4g} to "
+                            f"{np.max(gaps):.4g} m; remove duplicates or resample")
+    station = np.concatenate([[0.0], np.cumsum(gaps)])
+    total = float(station[-1])
+    # segment edges (stations), equal lengths to start with
+    n0 = max(1, int(math.ceil(total / segment_length)))
+    edges = np.linspace(0.0, total, n0 + 1)
+    # first guess: directions of the chords, curvature from their change over each segment
+    chord_angle = np.unwrap(np.arctan2(*np.diff(pts, axis=0).T[::-1]))
+    mid = 0.5 * (station[1:] + station[:-1])
+    x = None
+    best = (math.inf, None)
+    for _ in range(rounds + 1):
+        lengths = np.diff(edges)
+        seg_of = np.clip(np.searchsorted(edges, station, side="right") - 1, 0, len(lengths) - 1)
+        local = station - edges[seg_of]
+        heading_at_edges = np.interp(edges, mid, chord_angle)
+        if x is None:
+            x = np.concatenate([pts[0], [heading_at_edges[0]], np.diff(heading_at_edges) / lengths])
+        sol = least_squares(_residual, x, method="lm", args=(lengths, seg_of, local, pts, along_weight),
+                            x_scale=np.concatenate([[1.0, 1.0, 0.01], np.full(len(lengths), 0.001)]))
+        x = sol.x
+        try:
+            path = ArcPath(x[:2], float(x[2]), [Segment(float(a), float(k)) for a, k in zip(lengths, x[3:])])
+        except GeometryError:
+            path = None
+        if path is not None:
+            dev = _deviations(path, pts)
+            worst = float(np.max(dev))
+            if worst < best[0]:
+                best = (worst, path)
+            if worst <= tolerance:
+                return path
+            bad = np.unique(seg_of[dev > tolerance])
+        else:
+            bad = np.arange(len(lengths))
+        if len(lengths) + len(bad) > max_segments:
+            break
+        # split each bad segment in two; the curvature guess is kept on both halves
+        new_edges, new_k = [edges[0]], []
+        for j in range(len(lengths)):
+            if j in set(bad.tolist()) and lengths[j] > 0.2:
+                new_edges += [0.5 * (edges[j] + edges[j + 1]), edges[j + 1]]
+                new_k += [x[3 + j], x[3 + j]]
+            else:
+                new_edges.append(edges[j + 1])
+                new_k.append(x[3 + j])
+        if len(new_k) == len(lengths):
+            break
+        edges = np.array(new_edges)
+        x = np.concatenate([x[:3], new_k])
+    raise GeometryError(f"fit_arcs: no arc fit within {tolerance:g} m of every point (best {best[0]:.4g} m after "
+                        f"{rounds} rounds); raise the tolerance, smooth the points or record the contour again")
+
+
+def _deviations(path: ArcPath, pts: np.ndarray) -> np.ndarray:
+    """Distance of each point from ``path`` (m), tracked from the first point (locally)."""
+    from .track import PathTracker   # track imports curve, which imports this module lazily
+
+    step = float(np.max(np.hypot(*np.diff(pts, axis=0).T)))
+    tracker = PathTracker(path, station=None, max_speed=1.0, cycle=2.0 * step + 1.0, margin=1.0)
+    return np.array([abs(tracker.update(float(e), float(n)).cross_track) for e, n in pts])

@@ -1,0 +1,184 @@
+"""A field: parallel passes one implement width apart, joined by headland U-turns, as one route.
+
+A :class:`Field` is a reference pass (an :class:`~gnss.curve.ArcPath`: straight, curved, an
+S-curve or an arc fit of a recorded contour), an implement width and a number of passes.
+Pass ``i`` is the reference offset by ``(i - reference_pass) * width`` m to the **left**
+(:meth:`ArcPath.offset`, exact), so the passes are numbered from right to left::
+
+    field = load_field("gentle-curves")                  # gnss.field_io; or Field(...)
+    route = field.route(TurnLimits(speed=1.5))           # all passes, alternately both ways
+    route.path                                           # ONE tangent-continuous ArcPath
+    for part in route.parts:                             # station intervals of route.path
+        part.start, part.end, part.pass_index, part.kind # kind: "straight" | "curve" | "turn"
+
+Pass ``first`` is driven along the reference direction, the next one back the other way,
+and so on; a turn's ``pass_index`` is that of the pass it leaves. A pass's stretches with
+``|curvature| < STRAIGHT_CURVATURE`` are ``"straight"``, the others ``"curve"``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .curve import ArcPath
+from .errors import GeometryError
+from .uturn import TurnLimits, plan_uturn
+
+__all__ = ["STRAIGHT_CURVATURE", "KINDS", "RoutePart", "Route", "Field"]
+
+#: Below this |curvature| (1/m; radius 1 km) a stretch of a pass counts as straight.
+STRAIGHT_CURVATURE = 1e-3
+KINDS = ("straight", "curve", "turn")
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}\Z")
+
+
+@dataclass(frozen=True, slots=True)
+class RoutePart:
+    """One stretch of a route.
+
+    Attributes
+    ----------
+    start, end
+        Stations on :attr:`Route.path`, m (``start < end``).
+    pass_index
+        The field's pass (for a turn: the pass it leaves).
+    kind
+        ``"straight"``, ``"curve"`` or ``"turn"``.
+    """
+
+    start: float
+    end: float
+    pass_index: int
+    kind: str
+
+
+@dataclass(frozen=True)
+class Route:
+    """Passes and turns of a field as one path, with the table of its parts.
+
+    Attributes
+    ----------
+    path
+        The whole route, one tangent-continuous :class:`ArcPath` (station 0 = start of the first pass).
+    parts
+        :class:`RoutePart` in order, covering ``[0, path.length]`` without gaps.
+    pass_indices
+        The field's passes in the order driven.
+    pass_spans
+        ``(start, end)`` stations of each driven pass on :attr:`path`, m, in the same order.
+    passes
+        Each pass as driven (its own :class:`ArcPath`, station 0 at its start).
+    """
+
+    path: ArcPath
+    parts: tuple[RoutePart, ...]
+    pass_indices: tuple[int, ...]
+    pass_spans: tuple[tuple[float, float], ...]
+    passes: tuple[ArcPath, ...]
+
+    def part_at(self, station: float) -> RoutePart:
+        """The part that holds ``station`` m (the first before the start, the last past the end)."""
+        starts = [p.start for p in self.parts]
+        i = int(np.searchsorted(starts, station, side="right")) - 1
+        return self.parts[min(max(i, 0), len(self.parts) - 1)]
+
+
+@dataclass(frozen=True)
+class Field:
+    """Parallel passes one implement width apart.
+
+    Attributes
+    ----------
+    name
+        ``[A-Za-z0-9][A-Za-z0-9_-]{0,63}``.
+    reference
+        The reference pass.
+    width
+        Implement width = pass-to-pass spacing, m (0.5-60).
+    passes
+        Number of passes (1-500).
+    reference_pass
+        Index of the pass that is the reference itself (0 = the rightmost).
+    """
+
+    name: str
+    reference: ArcPath
+    width: float
+    passes: int
+    reference_pass: int = 0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not _NAME.match(self.name):
+            raise GeometryError(f"Field.name: expected [A-Za-z0-9][A-Za-z0-9_-]{{0,63}}, got {self.name!r}")
+        if not isinstance(self.reference, ArcPath):
+            raise GeometryError(f"Field.reference: expected an ArcPath, got {type(self.reference).__name__}")
+        w = self.width
+        if isinstance(w, bool) or not isinstance(w, (int, float, np.floating)) or not 0.5 <= w <= 60.0:
+            raise GeometryError(f"Field.width: expected an implement width of 0.5-60 m, got {w!r}")
+        for name, hi in (("passes", 500), ("reference_pass", self.passes - 1)):
+            v = getattr(self, name)
+            lo = 1 if name == "passes" else 0
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
+                raise GeometryError(f"Field.{name}: expected an integer in [{lo}, {hi}], got {v!r}")
+        for i in range(self.passes):       # every pass must exist (offset refuses a cusp)
+            self.pass_path(i)
+
+    def offset_of(self, index: int) -> float:
+        """Offset of pass ``index`` from the reference, m, + = left."""
+        return (index - self.reference_pass) * float(self.width)
+
+    def pass_path(self, index: int) -> ArcPath:
+        """Pass ``index`` along the reference direction."""
+        if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < self.passes:
+            raise GeometryError(f"Field.pass_path: expected a pass index in [0, {self.passes - 1}], got {index!r}")
+        d = self.offset_of(int(index))
+        return self.reference if d == 0 else self.reference.offset(d)
+
+    def route(self, limits: TurnLimits = TurnLimits(), first: int = 0, count: int | None = None) -> Route:
+        """Passes ``first .. first + count - 1`` (default: to the last), alternately both ways, with U-turns.
+
+        Each U-turn is :func:`gnss.uturn.plan_uturn` within ``limits``; the route is checked to
+        be tangent-continuous (:meth:`ArcPath.chain`).
+        """
+        if isinstance(first, bool) or not isinstance(first, (int, np.integer)) or not 0 <= first < self.passes:
+            raise GeometryError(f"Field.route: first must be a pass index in [0, {self.passes - 1}], got {first!r}")
+        last = self.passes - first if count is None else count
+        if isinstance(last, bool) or not isinstance(last, (int, np.integer)) or not 1 <= last <= self.passes - first:
+            raise GeometryError(f"Field.route: count must be in [1, {self.passes - first}], got {count!r}")
+        indices = tuple(range(first, first + last))
+        driven = [self.pass_path(i) if k % 2 == 0 else self.pass_path(i).reversed() for k, i in enumerate(indices)]
+        pieces: list[ArcPath] = []
+        kinds: list[tuple[float, int, str]] = []       # (length, pass, kind) in order
+        for k, (i, p) in enumerate(zip(indices, driven)):
+            for seg in p.segments:
+                kinds.append((seg.length, i, "straight" if abs(seg.curvature) < STRAIGHT_CURVATURE else "curve"))
+            pieces.append(p)
+            if k + 1 < len(driven):
+                nxt = driven[k + 1]
+                turn = plan_uturn(p.end, p.end_angle, nxt.start, nxt.start_angle, limits)
+                pieces.append(turn)
+                kinds.append((turn.length, i, "turn"))
+        path = ArcPath.chain(pieces, tolerance=1e-6)
+        parts: list[RoutePart] = []
+        s = 0.0
+        for length, i, kind in kinds:
+            if parts and parts[-1].pass_index == i and parts[-1].kind == kind:
+                parts[-1] = RoutePart(parts[-1].start, s + length, i, kind)
+            else:
+                parts.append(RoutePart(s, s + length, i, kind))
+            s += length
+        parts[-1] = RoutePart(parts[-1].start, path.length, parts[-1].pass_index, parts[-1].kind)
+        spans, s = [], 0.0
+        for k, p in enumerate(driven):
+            spans.append((s, s + p.length))
+            s += p.length + (pieces[2 * k + 1].length if k + 1 < len(driven) else 0.0)
+        return Route(path, tuple(parts), indices, tuple(spans), tuple(driven))
+
+    @property
+    def rows_length(self) -> float:
+        """Sum of the passes' lengths, m."""
+        return float(sum(self.pass_path(i).length for i in range(self.passes)))
+

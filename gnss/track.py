@@ -1,0 +1,182 @@
+"""Errors of a vehicle that follows an :class:`~gnss.curve.ArcPath`: nearest point searched locally.
+
+A global nearest-point search (:meth:`ArcPath.errors`) picks the wrong part of a path that
+comes back near itself: the other leg of a headland U-turn, the next pass, the far side of a
+hairpin. :class:`PathTracker` remembers the station of its last answer and searches only a
+window of the path around it, forward-biased and bounded by how far the vehicle can travel
+in one call plus a margin::
+
+    tracker = PathTracker(route.path, station=0.0)        # or station=None: global search once
+    xte, heading_error, station, curvature = tracker.update(east, north, yaw)   # every cycle
+    kappa_ahead = tracker.preview(n=30, step=speed * dt)  # mean curvature of the next stretches
+    tracker.reset(station_hint)                            # after a jump of the vehicle (or None)
+
+:meth:`PathTracker.update` takes and returns plain floats (no numpy on the way): cross-track
+(m, + left), heading error (rad in [-pi, pi), + counter-clockwise of the path direction),
+station (m along the path) and the path's curvature there (1/m, + left, 0 on the straight
+extensions before the start and past the end). Positions are ENU (m) and ``yaw`` is the
+receiver's heading (rad, 0 = north, clockwise). The projection is the path's own
+(:func:`gnss.curve.foot_on_segment`, on floats).
+
+The window is ``[s - margin, s + max_speed * elapsed + margin]`` about the last station
+``s``; ``elapsed`` defaults to ``cycle``. The station therefore moves at most
+``max_speed * elapsed + margin`` forward and ``margin`` back per call.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .curve import SCALAR_OPS, ArcPath, foot_on_segment, pose_on_segment
+from .errors import GeometryError
+
+__all__ = ["Tracked", "PathTracker"]
+
+_TWO_PI = 2.0 * math.pi
+
+
+class Tracked(NamedTuple):
+    """One answer of :meth:`PathTracker.update` (plain floats).
+
+    Attributes
+    ----------
+    cross_track
+        m, + = left of the path direction.
+    heading_error
+        rad in [-pi, pi), vehicle heading minus path direction, + = counter-clockwise; ``nan`` without yaw.
+    station
+        m along the path from its start (negative before it, beyond ``length`` past its end).
+    curvature
+        Path curvature at ``station``, 1/m, + = left.
+    """
+
+    cross_track: float
+    heading_error: float
+    station: float
+    curvature: float
+
+
+def _positive(value: float, name: str, allow_zero: bool = False) -> float:
+    ok = isinstance(value, (int, float, np.floating)) and not isinstance(value, bool) and math.isfinite(value)
+    if not ok or value < 0 or (value == 0 and not allow_zero):
+        raise GeometryError(f"PathTracker.{name}: expected a finite number {'>=' if allow_zero else '>'} 0, "
+                            f"got {value!r}")
+    return float(value)
+
+
+class PathTracker:
+    """Cross-track, heading error, station and curvature of a vehicle along one path, searched locally.
+
+    Parameters
+    ----------
+    path
+        The path followed (a whole field route is one path).
+    station
+        Station of the vehicle at the start, m; ``None``: the first :meth:`update` searches the
+        whole path (as :meth:`ArcPath.errors`) and tracks from there.
+    max_speed
+        Fastest the vehicle moves along the path, m/s (bounds the forward window).
+    cycle
+        Default time between calls, s.
+    margin
+        Extra window on both sides, m; also how far back the station may move per call.
+    """
+
+    def __init__(self, path: ArcPath, station: float | None = None, *, max_speed: float = 6.0,
+                 cycle: float = 0.05, margin: float = 0.5) -> None:
+        if not isinstance(path, ArcPath):
+            raise GeometryError(f"PathTracker: expected an ArcPath, got {type(path).__name__}")
+        self.path = path
+        self.max_speed = _positive(max_speed, "max_speed")
+        self.cycle = _positive(cycle, "cycle")
+        self.margin = _positive(margin, "margin", allow_zero=True)
+        self._table = path.table()
+        self._starts = [row[0] for row in self._table]
+        self._length = path.length
+        last = self._table[-1]
+        self._end = pose_on_segment(SCALAR_OPS, last[1], last[2], last[3], last[4], last[5])
+        self._station: float | None = None
+        self.reset(station)
+
+    @property
+    def station(self) -> float | None:
+        """Station of the last answer, m (``None`` before the first one after ``reset(None)``)."""
+        return self._station
+
+    def reset(self, station_hint: float | None = None) -> None:
+        """Track from ``station_hint`` m (or, with ``None``, from a whole-path search at the next update)."""
+        if station_hint is not None:
+            if isinstance(station_hint, bool) or not isinstance(station_hint, (int, float, np.floating)) \
+                    or not math.isfinite(station_hint):
+                raise GeometryError(f"PathTracker.reset: expected a finite station in m or None, got {station_hint!r}")
+            station_hint = float(station_hint)
+        self._station = station_hint
+
+    def update(self, east: float, north: float, yaw: float = math.nan, elapsed: float | None = None) -> Tracked:
+        """Errors of the control point ``(east, north)`` (m, ENU) with heading ``yaw`` (rad, 0 = north, CW).
+
+        ``elapsed`` (s, default :attr:`cycle`) is the time since the previous call; it widens
+        the forward window to ``max_speed * elapsed + margin`` m.
+        """
+        if not (math.isfinite(east) and math.isfinite(north)):
+            raise GeometryError(f"PathTracker.update: expected a finite position in m, got ({east!r}, {north!r}); "
+                                "skip epochs without a fix")
+        if self._station is None:
+            err = self.path.errors(east, north)
+            self._station = float(err.station)
+            lo = hi = self._station
+        else:
+            dt = self.cycle if elapsed is None else elapsed
+            if not (dt >= 0.0 and math.isfinite(dt)):
+                raise GeometryError(f"PathTracker.update: elapsed must be a finite time >= 0 s, got {elapsed!r}")
+            lo = self._station - self.margin
+            hi = self._station + self.max_speed * dt + self.margin
+        best_d2, best = math.inf, (0.0, 0.0, 0.0, 0.0, 0.0)
+        table, length = self._table, self._length
+        if lo < 0.0:     # the straight extension behind the start
+            s0, e0, n0, th0, _, _ = table[0]
+            t = foot_on_segment(SCALAR_OPS, e0, n0, th0, 0.0, math.inf, lo, min(hi, 0.0), east, north)
+            best_d2, best = self._candidate(best_d2, best, east, north, e0, n0, th0, 0.0, t, 0.0)
+        if hi > length:  # ... and the one past the end
+            e0, n0, th0 = self._end
+            t = foot_on_segment(SCALAR_OPS, e0, n0, th0, 0.0, math.inf, max(lo - length, 0.0), hi - length,
+                                east, north)
+            best_d2, best = self._candidate(best_d2, best, east, north, e0, n0, th0, 0.0, t, length)
+        if hi >= 0.0 and lo <= length:
+            i = max(bisect.bisect_right(self._starts, lo) - 1, 0)
+            n = len(table)
+            while i < n and table[i][0] <= hi:
+                s0, e0, n0, th0, k, seg_len = table[i]
+                a, b = max(lo - s0, 0.0), min(hi - s0, seg_len)
+                if a <= b:
+                    t = foot_on_segment(SCALAR_OPS, e0, n0, th0, k, seg_len, a, b, east, north)
+                    best_d2, best = self._candidate(best_d2, best, east, north, e0, n0, th0, k, t, s0)
+                i += 1
+        xte, qth, station, kappa = best[0], best[1], best[2], best[3]
+        self._station = station
+        if math.isfinite(yaw):
+            he = (math.pi / 2 - yaw - qth + math.pi) % _TWO_PI - math.pi
+        else:
+            he = math.nan
+        return Tracked(xte, he, station, kappa)
+
+    @staticmethod
+    def _candidate(best_d2, best, pe, pn, e0, n0, th0, k, t, s0):
+        qe, qn, qth = pose_on_segment(SCALAR_OPS, e0, n0, th0, k, t)
+        de, dn = pe - qe, pn - qn
+        d2 = de * de + dn * dn
+        if d2 < best_d2:
+            return d2, (dn * math.cos(qth) - de * math.sin(qth), qth, s0 + t, k, d2)
+        return best_d2, best
+
+    def preview(self, n: int, step: float) -> NDArray[np.float64]:
+        """Mean curvature (1/m) over the next ``n`` stretches of ``step`` m from the current station
+        (:meth:`ArcPath.preview`); with ``step = speed * dt`` the preview of a controller sampled every ``dt`` s."""
+        if self._station is None:
+            raise GeometryError("PathTracker.preview: no station yet; call update() first or reset(station)")
+        return self.path.preview(self._station, step, n)

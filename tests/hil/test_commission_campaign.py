@@ -1,0 +1,129 @@
+"""The tractor campaign (issue 14's acceptance): resume, failures, the aggregate, and a short campaign."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from hil.bench.campaign_tractors import commission_campaign, load_result
+from hil.bench.campaign_tractors_report import ORACLE_BOUND, PAPER_BOUND, summarise_tractor
+from hil.bench.cli import main as hil_main
+from hil.bench.commission import CONTROLLERS, DIVERGED_M, CommissionOptions, options_dict
+from hil.truth.conditions import condition_for
+from hil.truth.tractors import random_tractor
+
+#: Short recipe of the tests: two conditions, short passes (about 30 s of CPU a tractor).
+SHORT = CommissionOptions(speeds=(1.0, 2.91), implements=("none",), passes=2, pass_duration=40.0,
+                          hil_duration=20.0, acceptance="warn")
+SIGMA = {"central-lqr": (0.040, 0.080), "robust": (0.030, 0.090), "mpc": (0.028, 0.060), "oracle": (0.025, 0.050)}
+
+
+def _result(tractor, opts: CommissionOptions = SHORT, designs=("central-lqr", "robust", "mpc")) -> dict:
+    """A result.json of hand values: two cells, 1-sigma from SIGMA (cell 1.00 m/s, cell 2.91 m/s)."""
+    rows = [{"implement": "none", "speed": v, "controller": c, "sigma_m": SIGMA[c][i], "bias_m": 0.0,
+             "disengagements": 1 if (c == "robust" and i == 1) else 0, "passes": 1, "errors": [],
+             "max_abs_cross_track_m": 0.3, "diverging": 1 if (c == "mpc" and i == 0) else 0}
+            for i, v in enumerate((1.0, 2.91)) for c in CONTROLLERS if c in designs or c == "oracle"]
+    steps = [{"step": "design robust (weights auto, past auto)", "ok": False, "seconds": 1.0, "error": "E: infeasible"},
+             {"step": "design robust (weights auto, past 6)", "ok": True, "seconds": 1.0},
+             {"step": "hil", "ok": True, "seconds": 2.0}]
+    return {"tractor": tractor.to_dict(), "options": json.loads(json.dumps(options_dict(opts))), "steps": steps,
+            "hil": rows, "weights": "auto (from specifications)",
+            "designs": {d: {"weights": "weights auto, past 6"} for d in designs}}
+
+
+def _write(folder: Path, res: dict) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "result.json").write_text(json.dumps(res))
+    return folder / "result.json"
+
+
+def test_a_complete_result_is_taken_and_anything_else_is_redone(tmp_path: Path) -> None:
+    t = random_tractor(3)
+    good = _result(t)
+    assert load_result(_write(tmp_path / "a", good), t, SHORT)[0] == good
+    assert load_result(tmp_path / "none" / "result.json", t, SHORT) == (None, "no result.json yet")
+    bad = {
+        "another tractor": lambda r: r.update(tractor=random_tractor(4).to_dict()),
+        "other options": lambda r: r["options"].update(passes=3),
+        "a speed that is text": lambda r: r["hil"][0].update(speed="x"),
+        "an unknown controller": lambda r: r["hil"][0].update(controller="../../etc"),
+        "a negative count": lambda r: r["hil"][0].update(disengagements=-1),
+        "no diverging count (an older file)": lambda r: r["hil"][0].pop("diverging"),
+        "a step without its error": lambda r: r["steps"][0].pop("error"),
+        "no steps": lambda r: r.update(steps=[]),
+        "an unknown design": lambda r: r["designs"].update(lqg={}),
+    }
+    for i, (what, mutate) in enumerate(bad.items()):
+        r = copy.deepcopy(good)
+        mutate(r)
+        res, why = load_result(_write(tmp_path / f"b{i}", r), t, SHORT)
+        assert res is None and "redone" in why, what
+    p = tmp_path / "c" / "result.json"
+    p.parent.mkdir()
+    p.write_text('{"tractor": ')                                      # cut short
+    assert load_result(p, t, SHORT)[0] is None
+    p.write_text("[1, 2]")
+    assert load_result(p, t, SHORT)[0] is None
+
+
+def test_the_row_of_a_tractor_from_hand_values() -> None:
+    t = random_tractor(3)
+    row = summarise_tractor(t.name, _result(t), None, {"commit": "a" * 40, "dirty": False})
+    ro = [SIGMA["robust"][i] / SIGMA["oracle"][i] for i in range(2)]      # 1.2, 1.8
+    mp = [SIGMA["mpc"][i] / SIGMA["central-lqr"][i] for i in range(2)]    # 0.7, 0.75
+    assert row["robust_over_oracle"] == pytest.approx(ro)
+    assert row["robust_over_oracle_median"] == pytest.approx(sum(ro) / 2)
+    assert row["robust_over_oracle_worst"] == pytest.approx(max(ro))
+    assert row["robust_over_oracle_within"] == sum(v <= ORACLE_BOUND for v in ro) == 1
+    assert row["mpc_over_paper_within"] == sum(v <= PAPER_BOUND for v in mp) == 2
+    assert (row["robust_diverging"], row["mpc_diverging"]) == (0, 1)
+    assert (row["robust_disengagements"], row["mpc_disengagements"]) == (1, 0)
+    assert row["robust_attempts"] == 2 and row["fallbacks"] == ["past 6"] and row["reason"] == ""
+    no_mpc = summarise_tractor(t.name, _result(t, designs=("central-lqr", "robust")), None, {})
+    assert no_mpc["mpc_over_oracle"] == [] and no_mpc["reason"].startswith("no mpc")
+    failed = summarise_tractor(t.name, None, "OSError: disk full", {})
+    assert failed["status"] == "failed" and failed["reason"] == "OSError: disk full"
+
+
+def test_the_command_refuses_no_tractor_bad_seeds_and_twice_the_same(tmp_path: Path, capsys) -> None:
+    out = str(tmp_path / "c")
+    assert hil_main(["commission-campaign", "--out", out]) == 1
+    assert "no tractor given" in capsys.readouterr().err
+    for seeds in ("5-2", "x", "-3", "0-5000"):
+        with pytest.raises(SystemExit) as e:
+            hil_main(["commission-campaign", "--random", seeds, "--out", out])
+        assert e.value.code == 2
+    assert hil_main(["commission-campaign", "--random", "1", "--tractor", "random-1", "--out", out]) == 1
+    assert "more than once" in capsys.readouterr().err
+    assert not (tmp_path / "c" / "random-1").exists()
+
+
+@pytest.mark.slow
+def test_a_campaign_survives_a_failing_tractor_and_resumes(tmp_path: Path) -> None:
+    out = tmp_path / "camp"
+    out.mkdir()
+    (out / "random-1").write_text("a file where the tractor's folder goes")   # this tractor cannot be made
+    lines: list[str] = []
+    tractors = [random_tractor(0), random_tractor(1)]
+    agg = commission_campaign(tractors, out, SHORT, say=lines.append)
+    rows = {r["tractor"]: r for r in agg["rows"]}
+    assert rows["random-1"]["status"] == "failed" and "random-1" in rows["random-1"]["reason"]
+    assert rows["random-0"]["status"] == "ok" and rows["random-0"]["cells"] == 2
+    assert agg["overall"]["failed"] == ["random-1"]
+    assert "random-1 | failed" in (out / "campaign.md").read_text()
+    assert (out / "campaign_ratios.png").stat().st_size > 1000
+    first = (out / "random-0" / "result.json").read_bytes()
+    (out / "random-1").unlink()
+    lines.clear()
+    agg = commission_campaign(tractors, out, SHORT, say=lines.append)
+    assert any(ln.startswith("[1/2 random-0] complete result.json: not redone") for ln in lines)
+    assert not any(ln.startswith("[1/2 random-0] [1]") for ln in lines)           # no step of random-0 ran
+    assert (out / "random-0" / "result.json").read_bytes() == first
+    assert any(ln.startswith("[2/2 random-1] [1] valve") for ln in lines)          # the failed one is redone
+    assert [r["status"] for r in agg["rows"]] == ["ok", "ok"]
+    assert all(len(r["commit"]) == 40 or r["commit"] == "unknown" for r in agg["rows"])

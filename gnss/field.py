@@ -13,7 +13,9 @@ Pass ``i`` is the reference offset by ``(i - reference_pass) * width`` m to the 
 
 Pass ``first`` is driven along the reference direction, the next one back the other way,
 and so on; a turn's ``pass_index`` is that of the pass it leaves. A pass's stretches with
-``|curvature| < STRAIGHT_CURVATURE`` are ``"straight"``, the others ``"curve"``.
+``|curvature| < STRAIGHT_CURVATURE`` are ``"straight"``, the others ``"curve"``; in a pass
+with curves, a straight shorter than ``MIN_STRAIGHT_LENGTH`` (20 m, e.g. a contour's
+inflection) counts as curve.
 """
 
 from __future__ import annotations
@@ -27,10 +29,12 @@ from .curve import ArcPath
 from .errors import GeometryError
 from .uturn import TurnLimits, plan_uturn
 
-__all__ = ["STRAIGHT_CURVATURE", "KINDS", "RoutePart", "Route", "Field"]
+__all__ = ["STRAIGHT_CURVATURE", "MIN_STRAIGHT_LENGTH", "KINDS", "RoutePart", "Route", "Field"]
 
 #: Below this |curvature| (1/m; radius 1 km) a stretch of a pass counts as straight.
 STRAIGHT_CURVATURE = 1e-3
+#: ... if it is at least this long (m) in a pass that has curves; shorter ones count as curve.
+MIN_STRAIGHT_LENGTH = 20.0
 KINDS = ("straight", "curve", "turn")
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}\Z")
 
@@ -162,14 +166,25 @@ class Field:
                 pieces.append(turn)
                 kinds.append((turn.length, i, "turn"))
         path = ArcPath.chain(pieces, tolerance=1e-6)
-        parts: list[RoutePart] = []
+        runs: list[list] = []            # [start, end, pass, kind], merged by (pass, kind)
         s = 0.0
         for length, i, kind in kinds:
-            if parts and parts[-1].pass_index == i and parts[-1].kind == kind:
-                parts[-1] = RoutePart(parts[-1].start, s + length, i, kind)
+            if runs and runs[-1][2] == i and runs[-1][3] == kind:
+                runs[-1][1] = s + length
             else:
-                parts.append(RoutePart(s, s + length, i, kind))
+                runs.append([s, s + length, i, kind])
             s += length
+        # a short straight between curves (a contour's inflection) belongs to the curve
+        curved = {r[2] for r in runs if r[3] == "curve"}
+        for r in runs:
+            if r[3] == "straight" and r[2] in curved and r[1] - r[0] < MIN_STRAIGHT_LENGTH:
+                r[3] = "curve"
+        parts: list[RoutePart] = []
+        for start, end, i, kind in runs:
+            if parts and parts[-1].pass_index == i and parts[-1].kind == kind:
+                parts[-1] = RoutePart(parts[-1].start, end, i, kind)
+            else:
+                parts.append(RoutePart(start, end, i, kind))
         parts[-1] = RoutePart(parts[-1].start, path.length, parts[-1].pass_index, parts[-1].kind)
         spans, s = [], 0.0
         for k, p in enumerate(driven):

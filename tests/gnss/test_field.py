@@ -94,3 +94,10 @@ def test_route_subset_and_refusals():
         Field("w", REF, 0.0, 2)
     with pytest.raises(GeometryError, match="Field.reference_pass"):
         Field("w", REF, 6.0, 2, reference_pass=2)
+
+
+def test_a_short_straight_between_curves_counts_as_curve():
+    ref = ArcPath((0, 0), 0.0, [(30.0, 0.0), (20.0, 0.02), (10.0, 0.0), (20.0, -0.02), (30.0, 0.0)])
+    route = Field("wiggle", ref, 3.0, 1).route()
+    assert [(p.kind, p.end - p.start) for p in route.parts] == [("straight", 30.0), ("curve", 50.0),
+                                                                 ("straight", pytest.approx(30.0))]

@@ -195,6 +195,13 @@ class CurvedLine:
         th = np.linspace(start, stop, k)
         return cls(c + radius * np.column_stack([np.cos(th), np.sin(th)]))
 
+    def to_arc_path(self, tolerance: float = 0.02):
+        """This line as a tangent-continuous :class:`~gnss.curve.ArcPath` of arcs within ``tolerance`` m of
+        every vertex (:func:`gnss.arcfit.fit_arcs`): exact curvature and preview for a spline or a contour."""
+        from .curve import ArcPath   # curve imports this module
+
+        return ArcPath.fit(self.vertices, tolerance)
+
     @property
     def length(self) -> float:
         """Polyline length, m."""

@@ -81,3 +81,14 @@ def test_hil_sysid_takes_the_bridge(tmp_path, capsys):
     assert PassLog.load(out["files"][0]).meta["bridge"] == "agopengps"
     with pytest.raises(SystemExit):
         hil_main(["sysid", "--out", str(tmp_path / "x"), "--bridge", "can"])
+
+
+def test_the_identification_driver_leaves_the_excitation_unlimited(both):
+    """With the loop's own lead limit (0.1 rad) the setpoint is cut in most slews and the models see a
+    slower module than the loop runs (hil.bench.sysid.SYSID_MODULE_DRIVER); the identification driver's
+    limit is never reached by the excitation."""
+    assert both["agopengps"].meta["agopengps"]["driver"]["max_lead"] == 0.3
+    assert both["agopengps"].meta["agopengps"]["setpoints_limited"] == 0
+    (_, loops), = make_passes(PLAN, bridge="agopengps", module_driver=AgioDriverConfig())
+    moving = int(np.sum(loops.channels["steer_rate_cmd"] != 0))
+    assert loops.meta["agopengps"]["setpoints_limited"] > 0.5 * moving

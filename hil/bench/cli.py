@@ -195,8 +195,13 @@ def _conditions(text: str):
 
 
 def _cmd_compare(args: argparse.Namespace) -> dict:
+    if args.fields:
+        return _cmd_compare_fields(args)
+    if args.passes is not None:
+        raise SimulatorConfigError("--passes needs --fields")
     campaign = Campaign(Path(args.out) / "campaign", args.controllers, args.conditions,
-                        seeds=list(range(args.seed, args.seed + args.seeds)), duration=args.duration,
+                        seeds=list(range(args.seed, args.seed + args.seeds)),
+                        duration=60.0 if args.duration is None else args.duration,
                         params=_params(args), bridge=args.bridge)
     if (args.realtime_controllers or args.realtime_duration is not None) and not args.realtime:
         raise SimulatorConfigError("--realtime-controllers and --realtime-duration need --realtime IMPLEMENT:SPEED")
@@ -214,6 +219,24 @@ def _cmd_compare(args: argparse.Namespace) -> dict:
                                      duration=args.realtime_duration) if args.realtime else []
     rep = write_report(results, args.out, extra={"campaign": campaign.identity}, realtime=realtime)
     return {"out": args.out, "passes": len(results), "tables": rep["tables"], "files": rep["files"]}
+
+
+def _cmd_compare_fields(args: argparse.Namespace) -> dict:
+    from hil.bench.field_bench import compare_fields
+    if args.realtime or args.executor != "local" or args.bridge != "hc11" or args.duration is not None:
+        raise SimulatorConfigError("--fields runs whole routes in lockstep through the HC11 bridge on local processes: "
+                                   "drop --realtime, --executor, --bridge and --duration (a route's length sets it)")
+    bar = tqdm(total=1, unit="run", desc="fields", disable=args.quiet, file=sys.stderr)
+
+    def progress(done: int, total: int) -> None:
+        bar.total, bar.n = total, done
+        bar.refresh()
+
+    res = compare_fields(args.out, args.controllers, args.fields, args.conditions,
+                         list(range(args.seed, args.seed + args.seeds)), _params(args), args.passes, args.workers,
+                         progress)
+    bar.close()
+    return {**res, "tables": {"fields": res.pop("table")}}
 
 
 def _grid(text: str) -> tuple[str, list[float]]:
@@ -262,13 +285,16 @@ def _cmd_calibrate(args: argparse.Namespace) -> dict:
 
 
 def _cmd_run(args: argparse.Namespace) -> dict:
+    from hil.bench.field_bench import route_duration
     faults: dict[str, list] = {}
     for kind, span in args.fault or []:
         faults.setdefault(kind, []).append(span)
-    spec = RunSpec(implement=args.implement, speed=args.speed, duration=args.duration, seed=args.seed,
-                   realtime=args.realtime, initial_cross_track=args.initial_cross_track, bridge=args.bridge,
-                   **{k: tuple(v) for k, v in faults.items()})
     params = _params(args)
+    duration = args.duration if args.duration is not None else (
+        route_duration(args.field, params, args.speed, args.passes) if args.field else 60.0)
+    spec = RunSpec(implement=args.implement, speed=args.speed, duration=duration, seed=args.seed,
+                   realtime=args.realtime, initial_cross_track=args.initial_cross_track, bridge=args.bridge,
+                   field=args.field, field_passes=args.passes, **{k: tuple(v) for k, v in faults.items()})
     com = load_commissioning(args.commissioning) if args.commissioning else None
     if com is not None and args.controller == "oracle":      # behind the host's inverse map
         from hil.bench.oracle import OracleOptions, oracle_for
@@ -290,6 +316,10 @@ def _cmd_run(args: argparse.Namespace) -> dict:
     result = {"out": str(out), "controller": controller_label(args.controller), "implement": spec.implement, "speed": spec.speed,
               "mode": log.meta["mode"], "summary": summary, "events": list(log.meta["events"]),
               "files": [str(out / "run_log.npz"), str(out / "track.png"), str(out / "summary.json")]}
+    if spec.field:
+        from hil.bench.field_bench import field_result, write_field_figures
+        result["field"] = {**field_result(log)["field_metrics"], "name": log.meta["field"]["name"]}
+        result["files"] += write_field_figures(log, out)
     write_text_atomic(out / "summary.json", json.dumps(result, indent=2) + "\n")
     return result
 
@@ -354,7 +384,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "stanley, or a controller file (.json) from `design`")
     r.add_argument("--implement", choices=IMPLEMENTS, default="none")
     r.add_argument("--speed", type=_float, default=1.79, help="nominal speed, m/s (default 1.79)")
-    r.add_argument("--duration", type=_float, default=60.0, help="seconds (default 60)")
+    r.add_argument("--duration", type=_float, default=None,
+                   help="seconds (default 60; with --field, the route's length at the speed plus 5 s)")
+    r.add_argument("--field", metavar="NAME|FILE.json", default=None,
+                   help="drive a field's route (passes and headland turns) instead of the AB line: "
+                        "straight-300, gentle-curves, s-curve, contour or a field file")
+    r.add_argument("--passes", type=int, default=None, help="with --field: drive only its first N passes")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--realtime", action="store_true", help="real time over pseudo-terminals (default: lockstep)")
     r.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
@@ -380,7 +415,11 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
                     help="steering bridge of every pass: the emulated HC11 board or an AgOpenGPS steer module")
     cp.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    cp.add_argument("--duration", type=_float, default=60.0, help="seconds per pass (default 60)")
+    cp.add_argument("--duration", type=_float, default=None, help="seconds per pass (default 60)")
+    cp.add_argument("--fields", type=lambda t: [f for f in t.split(",") if f], default=None, metavar="NAME,...",
+                    help="drive whole field routes instead of AB lines (named fields or files); conditions default "
+                         "to none/disker/ripper at 1.79 and 2.91 m/s; report OUT/fields.md")
+    cp.add_argument("--passes", type=int, default=None, help="with --fields: drive only the first N passes")
     cp.add_argument("--executor", choices=EXECUTORS, default="local")
     cp.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://10.0.0.5:8786 (with --executor dask)")
     cp.add_argument("--workers", type=_workers, default=None, help="local processes (default: all cores)")
@@ -496,6 +535,9 @@ def _print_human(command: str, result: dict) -> None:
         print(f"report: {result['files'][0]}")
     elif command in ("run", "drive"):
         print_run_result(result)
+        if "field" in result:
+            from hil.bench.field_bench import field_text
+            print(field_text(result["field"]))
     elif command == "commission":
         for st in result["steps"]:
             print(f"{st['step']:<20} {'ok' if st['ok'] else 'FAILED: ' + st['error']}")

@@ -1,6 +1,6 @@
 """A closed-loop pass on the bench: simulated tractor, emulated bridge and receivers, the vehicle loop.
 
-:func:`simulated_run` assembles everything for one pass following an AB line,
+:func:`simulated_run` assembles everything for one pass following an AB line or a field's route,
 either in lockstep on a virtual clock (in-memory links, much faster than real
 time) or in real time over pseudo-terminals, runs the loop and returns the run
 log; :func:`summarize` gives the paper's Table 2 numbers for it.
@@ -17,10 +17,12 @@ import numpy as np
 
 from design.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
+from gnss.track import PathTracker
 from identification.passlog import PassLog
 
 from hil.bench.agio_bench import AgioLockstepBench, AgioUdpBench
 from hil.bench.bridge_bench import LockstepBridge, PtyBridge
+from hil.bench.field_route import RouteTruth, field_run
 from hil.truth.conditions import condition_for
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.errors import SimulatorConfigError
@@ -70,6 +72,13 @@ class RunSpec:
     bridge
         ``hc11`` (the emulated HC11 board) or ``agopengps`` (an emulated AgOpenGPS steer module:
         in-memory link in lockstep, UDP on 127.0.0.1 in real time; :mod:`hil.bench.agio_bench`).
+    geometry
+        Where the simulator's frame lies on the Earth.
+    field, field_passes
+        A named field or a field file (:func:`gnss.field_io.load_field`) instead of the AB line,
+        and how many of its passes to drive (default all): the loop follows the route of the
+        passes and the headland turns between them (:mod:`hil.bench.field_route`); the initial
+        offsets are then from the route at ``start_station`` m.
     """
 
     implement: str = "none"
@@ -86,6 +95,9 @@ class RunSpec:
     link_faults: tuple[LinkFault, ...] = ()
     bridge: str = "hc11"
     geometry: FieldGeometry = field(default_factory=FieldGeometry)
+    field: str | None = None
+    field_passes: int | None = None
+    start_station: float = 0.0
 
     def __post_init__(self) -> None:
         if not (isinstance(self.duration, (int, float)) and math.isfinite(self.duration) and 1 <= self.duration <= 3600):
@@ -105,6 +117,13 @@ class RunSpec:
         if self.bridge not in ("hc11", "agopengps"):
             raise SimulatorConfigError(f"bridge must be 'hc11' or 'agopengps', got {self.bridge!r}")
         condition_for(self.implement, self.speed)   # validates implement
+        if self.field is not None and (not isinstance(self.field, str) or not self.field):
+            raise SimulatorConfigError(f"field must be a field name or file, got {self.field!r}")
+        if self.field is None and (self.field_passes is not None or self.start_station != 0.0):
+            raise SimulatorConfigError("field_passes and start_station need a field")
+        if isinstance(self.start_station, bool) or not isinstance(self.start_station, (int, float)) \
+                or not math.isfinite(self.start_station):
+            raise SimulatorConfigError(f"start_station must be a finite station in m, got {self.start_station!r}")
 
 
 def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | None = None,
@@ -119,8 +138,10 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
     (:class:`hil.vehicle.commissioning.MappedBridge`).
     """
     cond = condition_for(spec.implement, spec.speed)
-    plant = SimulatedTractor(cond, spec.duration + 1.0, spec.seed, params,
-                             initial={"Y": spec.initial_cross_track, "PSI": spec.initial_heading})
+    fld = None if spec.field is None else field_run(spec.field, params or SimParams(), spec.speed, spec.field_passes)
+    initial = ({"Y": spec.initial_cross_track, "PSI": spec.initial_heading} if fld is None else
+               fld.start_state(spec.start_station, spec.initial_cross_track, spec.initial_heading))
+    plant = SimulatedTractor(cond, spec.duration + 1.0, spec.seed, params, initial=initial)
     valve = ValveFaults(plant, override=spec.override, stuck_valve=spec.stuck_valve)   # what the bridge drives
     p = plant.params
     cal = two_point_calibration(p.sensor, p.steering)
@@ -175,8 +196,14 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             loop_config = commissioning.loop_config(loop_config)
             if map_valve and not agio:   # the AgOpenGPS module closes its own angle loop
                 driver = MappedBridge(driver, commissioning.valve)
-        loop = VehicleLoop(clock, driver, frontend, geo.ab_line(), controller, cal, loop_config,
-                           truth=plant.truth)
+        if fld is None:
+            loop = VehicleLoop(clock, driver, frontend, geo.ab_line(), controller, cal, loop_config,
+                               truth=plant.truth)
+        else:   # the vehicle's own tracker on the route in ENU; the bench's on the simulator's frame
+            rate = (loop_config or LoopConfig()).rate
+            tracker = PathTracker(geo.place(fld.path), station=spec.start_station, cycle=1.0 / rate)
+            loop = VehicleLoop(clock, driver, frontend, tracker, controller, cal, loop_config,
+                               truth=RouteTruth(plant, fld.route, spec.start_station), parts=fld.route.parts)
         loop.run(spec.duration, start=clock.now(), progress=progress)
         stats = driver.stats()
         frontend_stats = _refused(frontend)
@@ -196,6 +223,8 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             "receivers_corrupted": {"position": receivers[0].corrupted, "attitude": receivers[1].corrupted},
             "gnss_refused": frontend_stats,
             "simulator": p.to_dict()}
+    if fld is not None:
+        meta["field"] = {**fld.describe(), "source": spec.field, "start_station_m": spec.start_station}
     return loop.run_log(meta)
 
 

@@ -12,8 +12,10 @@ in-memory link in lockstep or a pseudo-terminal in real time.
 * :class:`PositionReceiver` - ``GGA`` + ``VTG`` at 5 Hz (fix quality 4 or 5).
 * :class:`AttitudeReceiver` - Trimble ``$PTNL,AVR`` at 10 Hz (yaw, tilt, roll).
 
-The guidance line of the simulator (x along, y left) is placed in the field by
-:class:`FieldGeometry`: a field origin (WGS-84) and the line's heading.
+The simulator's frame (x along the AB line or the first pass of a field's route, y left) is
+placed on the Earth by :class:`FieldGeometry`: a field origin (WGS-84) and the heading of the
+frame's x axis. A field's route is defined in that frame; :meth:`FieldGeometry.place` gives
+the same route in the vehicle's ENU frame.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gnss.curve import ArcPath
 from gnss.geodesy import LocalFrame
 from gnss.geodesy_scalar import ScalarFrame
 from gnss.guidance import ABLine
@@ -72,6 +75,13 @@ class FieldGeometry:
     def ab_line(self, length: float = 1000.0) -> ABLine:
         """The guidance line as the vehicle computer knows it (A at the origin)."""
         return ABLine(np.zeros(2), np.array(self.line_to_enu(length, 0.0)))
+
+    def place(self, path: ArcPath) -> ArcPath:
+        """A path given in the simulator's frame (x, y in m; directions CCW from x) as the vehicle
+        computer knows it: the same segments from the start point and direction in ENU."""
+        east, north = self.line_to_enu(float(path.start[0]), float(path.start[1]))
+        # the frame's x axis points at ENU angle pi/2 - line_yaw (yaw 0 = north, clockwise)
+        return ArcPath((east, north), path.start_angle + math.pi / 2 - self.line_yaw, path.segments)
 
 
 class _Receiver:

@@ -32,6 +32,9 @@ from hil.truth.dynamics import DEL, N_STATE, PSI, X, Y
 
 SeedLike = int | np.random.SeedSequence
 
+#: Exogenous channels that come from an implement in the soil: zero while it is raised.
+SOIL_CHANNELS = ("ripper_force", "ripper_moment", "draft", "gang_pull")
+
 
 def _seed_sequence(seed: SeedLike) -> np.random.SeedSequence:
     if isinstance(seed, np.random.SeedSequence):
@@ -88,6 +91,12 @@ class TractorSimulator:
         self.gps_errors = gps.stack_errors(errs)
         self._sensor_noise = np.stack(sens)
         self._disker = np.array([c.implement == "disker" for c in conditions], dtype=float)
+        # front load with the implement raised: its static weight transfer, without the hop of the draft
+        self._raised_front_load = np.array([p.ripper.front_load_factor if c.implement == "ripper" else
+                                            p.disker.front_load_factor if c.implement == "disker" else 1.0
+                                            for c in conditions])
+        self._in_soil: dict[str, np.ndarray] | None = None   # the drawn soil channels, kept while raised
+        self.implement_raised = False
         self._x: np.ndarray | None = None   # the one-tractor path's state (8 values), see `state`
         self.state = np.zeros((B, N_STATE))
         for name, values in (initial or {}).items():
@@ -173,6 +182,32 @@ class TractorSimulator:
                 self._valve_rates[d] = rate
         self._rate0 = rate
         self._rate_cmd[0] = rate
+
+    def set_implement_raised(self, raised: bool) -> None:
+        """Raise (``True``: at a headland) or lower every tractor's implement from the current step on.
+
+        Raised, an implement is out of the soil: its soil forces (:data:`SOIL_CHANNELS`: the ripper's
+        lateral force and moment, the disker's draft and gang pull) are zero and the front load is
+        its static weight transfer without hop; a towed disker still trails on its hitch. Lowered,
+        the drawn sequences apply again from the current step.
+        """
+        raised = bool(raised)
+        if raised == self.implement_raised:
+            return
+        k = self.k
+        if self._in_soil is None:
+            self._in_soil = {f: getattr(self.exo, f).copy() for f in (*SOIL_CHANNELS, "front_load")}
+        for f, drawn in self._in_soil.items():
+            arr = getattr(self.exo, f)
+            if not raised:
+                arr[:, k:] = drawn[:, k:]
+            elif f == "front_load":
+                arr[:, k:] = self._raised_front_load[:, None]
+            else:
+                arr[:, k:] = 0.0
+            if self._scalar_exo is not None:
+                self._inputs[k:, vehicle.STEP_INPUTS.index(f)] = arr[0, k:len(self._inputs)]
+        self.implement_raised = raised
 
     def step(self) -> None:
         """Advance every tractor by one integration step ``dt``."""

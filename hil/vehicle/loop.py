@@ -19,7 +19,9 @@ local nearest-point tracker of a field's route). On a path the loop fills
 :attr:`~design.controller.Measurement.curvature` and, when the controller has a
 ``preview_request = (n, dt)`` attribute, :attr:`~design.controller.Measurement.preview`,
 and logs the station, the curvature and the active part of the route (pass index and
-kind: straight, curve or headland turn) every cycle. The loop stays engaged through a
+kind: straight, curve or headland turn) every cycle. The tracker moves only on a healthy fix
+(a stale or degraded one holds the station and the errors; the next healthy one widens the
+search by the time elapsed). The loop stays engaged through a
 headland turn, as AgOpenGPS keeps autosteer on through its U-turn: the turn is part of
 the one route, the controller sees its curvature like any curve's, and the same
 health checks apply (there is no separate turn mode to hand over to and back from).
@@ -80,6 +82,10 @@ class LoopConfig:
         commanded rates add up to at least ``response_min_command`` rad of wheel motion
         and the wheel moved less than ``response_min_ratio`` of it in that direction, the
         steering is not responding (stuck valve, hydraulics off) and the loop disengages.
+    wheel_stop
+        Wheel-angle stop, rad: a command that pushes a wheel within 0.02 rad of it further is
+        not counted by the steering-response monitor (a wheel at full lock cannot follow it;
+        on a headland turn that is no fault).
     """
 
     rate: float = 20.0
@@ -93,6 +99,7 @@ class LoopConfig:
     response_window: float = 1.0
     response_min_command: float = 0.12
     response_min_ratio: float = 0.15
+    wheel_stop: float = 0.61
 
     def __post_init__(self) -> None:
         for k, v in asdict(self).items():
@@ -183,6 +190,7 @@ class VehicleLoop:
         self.clock, self.driver, self.frontend, self.line = clock, driver, frontend, line
         self.controller, self.calibration = controller, calibration
         self.config = config or LoopConfig()
+        self._stop = self.config.wheel_stop - 0.02
         self.truth = truth
         controller.reset()
         self.engaged = False
@@ -232,7 +240,7 @@ class VehicleLoop:
                 xte, he = self._line_errors(east, north, yaw)
             else:
                 xte, he = last_xte, last_he
-        elif gps_valid:
+        elif gps_valid and nav.integrity.healthy:   # a stale or degraded fix does not move the station
             elapsed = now - self._tracked_at if self._tracked_at == self._tracked_at else 1.0 / cfg.rate
             xte, he, self._station, self._kappa = (float(v) for v in path.update(east, north, yaw, elapsed))
             self._tracked_at = now
@@ -293,7 +301,8 @@ class VehicleLoop:
             else:
                 u = min(max(raw, -cfg.max_rate), cfg.max_rate)
                 self._response.append((u, delta))
-                self._response_u.append(u)
+                # a push further into the stop is not a command the wheel could follow
+                self._response_u.append(0.0 if u * delta > 0.0 and abs(delta) >= self._stop else u)
                 try:
                     self.driver.send_rate(u)
                 except BridgeLinkError as exc:

@@ -1,0 +1,211 @@
+"""Closed-loop runs on fields (issue 16): the loop follows a route of passes and headland turns.
+
+The fields here are small files written with :func:`gnss.field_io.field_to_dict` (a hairpin
+field: passes 3 m apart, so every headland turn is a bulb turn whose legs come back within a
+few metres of each other), so the runs are short; the named fields run in ``slow`` tests.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from design.controller import KinematicLQRController
+from gnss.curve import ArcPath
+from gnss.field import Field
+from gnss.field_io import field_to_dict
+from hil.bench.field_metrics import field_metrics, jumps
+from hil.bench.field_route import field_run
+from hil.bench.run import RunSpec, simulated_run
+from hil.cli import main as hil_main
+from hil.truth.params import SimParams
+from hil.vehicle.errors import VehicleConfigError
+from hil.vehicle.loop import PART_KINDS
+
+
+def write_field(path, reference: ArcPath, width: float, passes: int, name: str) -> str:
+    path.write_text(json.dumps(field_to_dict(Field(name, reference, width, passes))))
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def hairpin(tmp_path_factory) -> str:
+    """Three straight 40 m passes 3 m apart: the U-turns between them are bulb turns (hairpins)."""
+    return write_field(tmp_path_factory.mktemp("fields") / "hairpin.json", ArcPath((0, 0), 0.0, [(40.0, 0.0)]),
+                       3.0, 3, "hairpin")
+
+
+@pytest.fixture(scope="module")
+def curved(tmp_path_factory) -> str:
+    """Two passes with a 40 m straight, a 50 m-radius bend of 45 degrees and a straight, 6 m apart."""
+    ref = ArcPath((0, 0), 0.0, [(40.0, 0.0), (50.0 * math.pi / 4, 1 / 50.0), (30.0, 0.0)])
+    return write_field(tmp_path_factory.mktemp("fields") / "bend.json", ref, 6.0, 2, "bend")
+
+
+def run_field(field: str, controller, speed: float = 1.79, implement: str = "none", seed: int = 1,
+              params: SimParams | None = None, **kw):
+    fr = field_run(field, params or SimParams(), speed)
+    spec = RunSpec(implement=implement, speed=speed, duration=fr.path.length / speed + 5.0, seed=seed, field=field,
+                   **kw)
+    return fr, simulated_run(spec, controller, params)
+
+
+#: GPS without outages: a disengagement inside a turn would be the receiver's, not the route's
+NO_DROPOUTS = SimParams().with_overrides({"gps.dropout_rate": 0.0})
+
+
+@pytest.fixture(scope="module")
+def hairpin_run(hairpin):
+    return run_field(hairpin, KinematicLQRController(), params=NO_DROPOUTS)
+
+
+def test_no_wrong_segment_jumps_through_hairpin_turns_in_closed_loop(hairpin_run):
+    fr, log = hairpin_run
+    ch = log.channels
+    kinds = {v: k for k, v in PART_KINDS.items()}
+    seen = {kinds.get(int(k)) for k in np.unique(ch["part_kind"])}
+    assert {"straight", "turn"} <= seen
+    # the route was driven to its end, the loop engaged through the turns
+    assert ch["truth_along_track"][-1] > fr.path.length - 2.0
+    m = field_metrics(log, 3.0, fr.curve_entries())
+    assert len(m["turns"]) == 2 and all(t["engaged_in_turn"] for t in m["turns"])
+    assert m["wrong_segment_jumps"] == 0 and m["truth_station_jumps"] == 0
+    # the station the loop saw stays with the truth's (the same route, placed on the Earth)
+    on = (ch["integrity"] <= 1) & (ch["engaged"] > 0.5)
+    assert np.max(np.abs(ch["station"][on] - ch["truth_along_track"][on])) < 1.0
+    # the same tracks projected globally on the route jump to the other leg of a hairpin: the
+    # counter sees that (so the zero above is not a counter that cannot count)
+    glob = fr.path.errors(ch["truth_x"], ch["truth_y"]).station
+    assert jumps(glob, ch["speed"], np.ones(glob.size, dtype=bool), 0.05) > 0
+
+
+def test_field_figures_of_the_hairpin_run(hairpin_run):
+    fr, log = hairpin_run
+    m = field_metrics(log, 3.0, fr.curve_entries())
+    for t in m["turns"]:        # out of each turn and settled on the next pass within a few seconds
+        assert t["settle_time_s"] is not None and t["settle_time_s"] < 10.0
+        assert t["overshoot_m"] < 0.3
+    sp = m["spacing"]
+    assert sp["samples"] > 500 and abs(sp["mean_m"]) < 0.05 and sp["sigma_m"] < 0.10
+    assert m["straight"]["samples"] > 1000 and abs(m["straight"]["bias_m"]) < 0.05
+    assert m["curve"]["samples"] == 0
+
+
+class PreviewRecorder(KinematicLQRController):
+    """The kinematic LQR asking for a curvature preview, keeping every measurement it is given."""
+
+    name = "preview-recorder"
+    preview_request = (8, 0.25)
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen = []
+
+    def step(self, m):
+        self.seen.append(m)
+        return super().step(m)
+
+
+def test_the_loop_feeds_curvature_and_the_preview_asked_for(curved):
+    ctrl = PreviewRecorder()
+    fr, log = run_field(curved, ctrl)
+    k = np.array([m.curvature for m in ctrl.seen])
+    # the bend's own curvature while the loop is on it, the turn's up to the planned limit
+    assert np.isclose(k, 1 / 50.0).sum() > 300 and np.isclose(k, 0.0).sum() > 300
+    assert k.max() <= fr.limits.kappa_max + 1e-9 and k.max() > 0.1
+    pv = np.array([m.preview for m in ctrl.seen])
+    assert pv.shape == (len(ctrl.seen), 8)
+    # the preview's first stretch ends 0.25 s of travel ahead: it sees the bend before the curvature does
+    first = np.argmax(pv[:, -1] > 0.0)
+    assert 0 < first < np.argmax(k > 0.0)
+    bend = np.isclose(k, 1 / 50.0)
+    assert np.allclose(pv[bend][20:-60], 1 / 50.0)      # inside the bend, 2 s of travel ahead is bend too
+    # on an AB line the same controller gets zeros
+    ab = PreviewRecorder()
+    simulated_run(RunSpec(speed=1.79, duration=3.0, seed=1), ab)
+    assert ab.seen and all(m.preview == (0.0,) * 8 and m.curvature == 0.0 for m in ab.seen)
+
+
+def test_a_bad_preview_request_is_refused(curved):
+    ctrl = PreviewRecorder()
+    for bad in ((8, 0.0), (-1, 0.1), ("8", 0.1), (8,), 8):
+        ctrl.preview_request = bad
+        with pytest.raises(VehicleConfigError, match="preview_request"):
+            run_field(curved, ctrl)
+
+
+def test_the_implement_is_raised_in_headland_turns_only(hairpin):
+    fr, log = run_field(hairpin, KinematicLQRController(), implement="disker")
+    ch = log.channels
+    turn = ch["part_kind"] == PART_KINDS["turn"]
+    raised = ch["truth_implement_raised"] > 0.5
+    on_route = ch["truth_along_track"] < fr.path.length
+    # by the truth's station (the loop's own lags by the GPS latency): raised exactly on the turns
+    in_turn = np.zeros(turn.shape, dtype=bool)
+    for p in fr.route.parts:
+        if p.kind == "turn":
+            in_turn |= (ch["truth_along_track"] >= p.start) & (ch["truth_along_track"] < p.end)
+    assert raised.any() and np.array_equal(raised[on_route], in_turn[on_route])
+    assert np.mean(turn[raised]) > 0.9
+
+
+def test_a_raised_implement_leaves_the_soil_and_comes_back():
+    from hil.truth.conditions import condition_for
+    from hil.truth.simulator import SOIL_CHANNELS, TractorSimulator
+    sim = TractorSimulator([condition_for("disker", 1.79)], 10.0, [3], scalar=True)
+    drawn = {f: getattr(sim.exo, f).copy() for f in (*SOIL_CHANNELS, "front_load")}
+    sim.steps(40)
+    sim.set_implement_raised(True)
+    assert np.all(sim.exo.draft[0, 40:] == 0.0) and np.all(sim.exo.gang_pull[0, 40:] == 0.0)
+    assert np.array_equal(sim.exo.draft[0, :40], drawn["draft"][0, :40])
+    assert np.all(sim.exo.front_load[0, 40:] == SimParams().disker.front_load_factor)
+    sim.steps(60)
+    sim.set_implement_raised(False)
+    assert np.array_equal(sim.exo.draft[0, 100:], drawn["draft"][0, 100:])
+    assert np.all(sim.exo.draft[0, 40:100] == 0.0)
+    # and the tractor feels it: the same seed with the implement kept in the soil ends elsewhere
+    other = TractorSimulator([condition_for("disker", 1.79)], 10.0, [3], scalar=True)
+    sim.steps(100)
+    other.steps(200)
+    assert sim.truth_scalar()["hitch_angle"] != other.truth_scalar()["hitch_angle"]
+
+
+def test_hil_run_on_a_field_writes_its_figures(tmp_path, hairpin):
+    out = tmp_path / "run"
+    rc = hil_main(["run", "--controller", "kinematic", "--field", hairpin, "--passes", "2", "--speed", "2.24",
+                   "--out", str(out), "--json", "--quiet"])
+    assert rc == 0
+    res = json.loads((out / "summary.json").read_text())
+    f = res["field"]
+    assert f["name"] == "hairpin" and f["wrong_segment_jumps"] == 0 and len(f["turns"]) == 1
+    assert (out / "overhead.png").stat().st_size > 0 and (out / "passes.png").stat().st_size > 0
+
+
+def test_hil_run_refuses_field_options_that_do_not_fit(tmp_path, hairpin, capsys):
+    assert hil_main(["run", "--controller", "kinematic", "--passes", "2", "--out", str(tmp_path / "a")]) == 1
+    assert "need a field" in capsys.readouterr().err
+    assert hil_main(["run", "--controller", "kinematic", "--field", hairpin, "--passes", "9",
+                     "--out", str(tmp_path / "b")]) == 1
+    assert "passes must be 1-3" in capsys.readouterr().err
+    assert hil_main(["run", "--controller", "kinematic", "--field", "no-such-field",
+                     "--out", str(tmp_path / "c")]) == 1
+
+
+@pytest.mark.slow
+def test_hil_compare_on_fields_writes_a_report(tmp_path, hairpin):
+    out = tmp_path / "cmp"
+    rc = hil_main(["compare", "kinematic", "stanley", "--fields", hairpin, "--conditions", "none:1.79",
+                   "--seeds", "1", "--passes", "2", "--workers", "1", "--out", str(out), "--quiet"])
+    assert rc == 0
+    text = (out / "fields.md").read_text()
+    assert text.count("| hairpin |") == 2
+    rows = json.loads((out / "fields.json").read_text())["rows"]
+    assert {r["controller"] for r in rows} == {"kinematic", "stanley"} and all(r["jumps"] == 0 for r in rows)
+    assert (out / "hairpin_overhead.png").exists()
+    # resumes: a second call runs nothing new and gives the same rows
+    assert hil_main(["compare", "kinematic", "stanley", "--fields", hairpin, "--conditions", "none:1.79",
+                     "--seeds", "1", "--passes", "2", "--workers", "1", "--out", str(out), "--quiet"]) == 0
+    assert json.loads((out / "fields.json").read_text())["rows"] == rows

@@ -42,9 +42,12 @@ from hil.devices.steer_module import SteerModuleConfig
 #: Bridges an identification pass can steer through.
 BRIDGES = ("hc11", "agopengps")
 
-SYSID_MODULE_DRIVER = AgioDriverConfig(max_lead=0.3)
+SYSID_MODULE_DRIVER = AgioDriverConfig(max_lead=0.3, max_windup=0.3)
 """The host driver's settings for identification passes through a steer module: the loop's
-(:class:`AgioDriverConfig`) with the setpoint allowed 0.3 rad from the measured angle instead of 0.1.
+(:class:`AgioDriverConfig`) with the setpoint and its integral allowed 0.3 rad from the measured angle
+instead of 0.1 and 0.03 (``max_lead``, ``max_windup``), so the excitation sees the module's own angle
+loop and not the loop's protective limits (with the loop's limits, 624-829 of 760-813 non-zero commands of
+a 120 s pass were limited, none with 0.3).
 A slew at full rate puts the integral about ``max_rate x`` the module's lag (0.25 s) ahead of the wheel, and
 the lead adds ``lead_time x max_rate`` more (0.0875 rad): about 0.175 rad, so with the loop's 0.1 the limit
 cut the setpoint in nearly every slew (768 of 2400 commands a pass, 15 conditions x 3 passes of 120 s,

@@ -4,8 +4,9 @@ The toolkit's controllers command a steering *rate*; the module takes an angle *
 driver integrates the rate into the setpoint: on engage the setpoint starts at the measured angle
 (a bumpless engage), every :meth:`AgioDriver.send_rate` adds ``rate x dt`` (``dt`` on the clock since
 the previous command, at most ``max_dt``), limited to the module's angle and rate limits and to
-``max_lead`` from the measured angle (so a valve that cannot follow does not wind the setpoint
-up), and sends it in a PGN 254 with autosteer on. So identification, the robust design and the MPC
+``max_windup`` from the measured angle (so a valve that cannot follow does not wind the setpoint
+up), adds the lead ``lead_time x rate`` (at most ``max_lead`` from the measured angle) and sends it
+in a PGN 254 with autosteer on. So identification, the robust design and the MPC
 see the same rate-input plant as through the HC11 bridge.
 
 The module answers every PGN 254 with a PGN 253 (measured angle, switches, PWM). While the loop is
@@ -46,7 +47,7 @@ from hil.vehicle.commissioning import loop_settings
 from hil.vehicle.loop import LoopConfig
 from hil.vehicle.valve_map import ValveCurve
 
-__all__ = ["ANGLE_CALIBRATION", "LEAD_TIME", "MODULE_LAG", "AgioDriverConfig", "AgioReport", "AgioDriverStats", "AgioDriver",
+__all__ = ["ANGLE_CALIBRATION", "LEAD_TIME", "MAX_WINDUP", "MODULE_LAG", "AgioDriverConfig", "AgioReport", "AgioDriverStats", "AgioDriver",
            "module_loop_config"]
 
 ANGLE_CALIBRATION = WheelAngleCalibration(center_counts=0.0, rad_per_count=math.radians(0.01))
@@ -64,6 +65,16 @@ MODULE_LAG = 0.25
 """Delay of the measured angle behind the setpoint ramp through a steer module, s: the module's own
 P-loop (its 40 Hz period, the valve's lag) and one report period. Measured on the bench (0.22 s for a
 0.1 rad/s ramp with the settings of :mod:`hil.bench.agio_bench`); on a tractor, measure it."""
+MAX_WINDUP = 0.03
+"""Default anti-windup of the setpoint integral, rad: how far the integral may lead the reported angle.
+With the lead cancelling the module's own lag, the integral leads the report only by the report's age
+(one loop cycle, 0.05 s, plus half the module's 25 ms loop) times the rate: 0.022 rad at 0.35 rad/s,
+plus twice the angle's noise (0.005 rad): 0.03. With the loop's 0.1 (the previous rule: one limit for
+the integral and the setpoint) the integral ran up to 0.1 rad ahead of a wheel that could not follow
+(the valve's right side is 0.85x the left, at full rate) and unwound late: the robust controller's
+approach at 2.91 m/s without an implement oscillated for 15 s (seed 1: 1-sigma 19 cm over 5-20 s, the
+rate command at its limit 54 % of the time, 10.0 cm for the pass against 5.7 through the HC11 bridge; with
+0.03: 5.2 cm; 0.05: 6.4 cm; the other cells measured within 0.2 cm)."""
 _WIRE_LIMIT = math.radians(327.0)
 _MAX_CROSS = 2.54
 
@@ -85,7 +96,11 @@ class AgioDriverConfig:
     max_rate : float
         Setpoint slew limit, rad/s (default 0.35, the valve's full rate).
     max_lead : float
-        Largest distance of the setpoint from the measured angle, rad (default 0.1).
+        Largest distance of the setpoint sent from the measured angle, rad (default 0.1).
+    max_windup : float
+        Largest distance of the integral of the rate commands from the measured angle, rad (default
+        :data:`MAX_WINDUP`): the anti-windup of the integral, so a wheel that cannot follow (the valve's
+        slower side, a saturated transient) does not leave the setpoint running ahead of it.
     max_dt : float
         Longest time step integrated at once, s (default 0.2: a stalled cycle does not jump).
     lead_time : float
@@ -104,6 +119,7 @@ class AgioDriverConfig:
     max_angle: float = 0.52
     max_rate: float = 0.35
     max_lead: float = 0.1
+    max_windup: float = MAX_WINDUP
     max_dt: float = 0.2
     lead_time: float = LEAD_TIME
     report_timeout: float = 0.15
@@ -111,8 +127,8 @@ class AgioDriverConfig:
     read_chunk: int = 4096
 
     def __post_init__(self) -> None:
-        for name, unit in (("max_angle", "rad"), ("max_rate", "rad/s"), ("max_lead", "rad"), ("max_dt", "s"),
-                           ("report_timeout", "s")):
+        for name, unit in (("max_angle", "rad"), ("max_rate", "rad/s"), ("max_lead", "rad"), ("max_windup", "rad"),
+                           ("max_dt", "s"), ("report_timeout", "s")):
             _positive(name, getattr(self, name), unit)
         if self.max_angle > _WIRE_LIMIT:
             raise AgioConfigError(f"max_angle {self.max_angle} rad exceeds what PGN 254 carries ({_WIRE_LIMIT:.3f} rad)")
@@ -317,7 +333,7 @@ class AgioDriver:
         u = min(max(float(rate), -cfg.max_rate), cfg.max_rate)
         wanted = self._setpoint + u * dt
         measured = self._measured()
-        integral = min(max(wanted, measured - cfg.max_lead), measured + cfg.max_lead)
+        integral = min(max(wanted, measured - cfg.max_windup), measured + cfg.max_windup)
         integral = min(max(integral, -cfg.max_angle), cfg.max_angle)
         self._setpoint = integral
         sent = integral + cfg.lead_time * u

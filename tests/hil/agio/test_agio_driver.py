@@ -119,20 +119,21 @@ def test_the_sent_setpoint_leads_the_integral_by_lead_time_times_the_rate():
 
 
 def test_the_setpoint_is_limited_in_rate_lead_and_angle():
-    clock, plant, module, wire, driver = bench(AgioDriverConfig(max_rate=0.2, max_lead=0.05, max_angle=0.3,
-                                                                lead_time=0.0))
+    clock, plant, module, wire, driver = bench(AgioDriverConfig(max_rate=0.2, max_lead=0.05, max_windup=0.02,
+                                                                max_angle=0.3, lead_time=0.2))
     cycles(clock, driver, 5)
     driver.engage()
     t = clock.now()
     clock.sleep_until(t + 0.05)
     driver.poll()
-    assert driver.send_rate(5.0) == pytest.approx(driver.latest.angle + 0.2 * 0.05)    # rate limit
+    assert driver.send_rate(5.0) == pytest.approx(driver.latest.angle + 0.2 * 0.05 + 0.2 * 0.2)   # rate limit
     plant.frozen = True                                                                 # a stuck valve
     for k in range(2, 40):
         clock.sleep_until(t + 0.05 * k)
         driver.poll()
         sp = driver.send_rate(0.2)
-    assert sp == pytest.approx(driver.latest.angle + 0.05)                              # lead limit
+    assert driver.setpoint == pytest.approx(driver.latest.angle + 0.02)                 # the integral's windup limit
+    assert sp == pytest.approx(driver.latest.angle + 0.05)                              # lead limit (0.02 + 0.04)
     plant.frozen = False
     for k in range(40, 200):
         clock.sleep_until(t + 0.05 * k)
@@ -205,7 +206,7 @@ def test_the_loop_monitor_follows_the_modules_delay():
 
 
 @pytest.mark.parametrize("bad", [dict(max_angle=0.0), dict(max_rate=math.inf), dict(max_angle=6.0),
-                                 dict(read_chunk=0), dict(max_lead=True)])
+                                 dict(read_chunk=0), dict(max_lead=True), dict(max_windup=0.0)])
 def test_bad_driver_settings_are_refused(bad):
     with pytest.raises(AgioConfigError):
         AgioDriverConfig(**bad)

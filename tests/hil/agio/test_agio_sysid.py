@@ -88,6 +88,7 @@ def test_the_identification_driver_leaves_the_excitation_unlimited(both):
     slower module than the loop runs (hil.bench.sysid.SYSID_MODULE_DRIVER); the identification driver's
     limit is never reached by the excitation."""
     assert both["agopengps"].meta["agopengps"]["driver"]["max_lead"] == 0.3
+    assert both["agopengps"].meta["agopengps"]["driver"]["max_windup"] == 0.3
     assert both["agopengps"].meta["agopengps"]["setpoints_limited"] == 0
     (_, loops), = make_passes(PLAN, bridge="agopengps", module_driver=AgioDriverConfig())
     moving = int(np.sum(loops.channels["steer_rate_cmd"] != 0))

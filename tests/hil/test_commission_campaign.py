@@ -127,3 +127,45 @@ def test_a_campaign_survives_a_failing_tractor_and_resumes(tmp_path: Path) -> No
     assert any(ln.startswith("[2/2 random-1] [1] valve") for ln in lines)          # the failed one is redone
     assert [r["status"] for r in agg["rows"]] == ["ok", "ok"]
     assert all(len(r["commit"]) == 40 or r["commit"] == "unknown" for r in agg["rows"])
+
+
+#: The short campaign of the acceptance test: three generated tractors, four cells, 2 x 60 s passes per
+#: condition, 30 s HIL passes, the recipe's default weights (from specifications when available).
+ACCEPTANCE = CommissionOptions(speeds=(1.0, 2.24), implements=("none", "disker"), passes=2, pass_duration=60.0,
+                               hil_duration=30.0, acceptance="warn")
+
+
+@pytest.fixture(scope="module")
+def short_campaign(tmp_path_factory) -> dict:
+    out = tmp_path_factory.mktemp("acceptance")
+    return commission_campaign([random_tractor(s) for s in (0, 1, 2)], out, ACCEPTANCE, say=lambda line: None)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1800)
+def test_a_short_campaign_on_three_generated_tractors_produces_controllers_that_hold(short_campaign) -> None:
+    # What holds today (issue 14's acceptance): a robust controller and an MPC on every tractor, no
+    # diverging pass (true cross-track beyond DIVERGED_M, or a pass that did not finish). Disengagements are
+    # not asserted: the bench's GPS (RTK float spells, 0.30 s staleness at 0.15 s latency) disengages every
+    # controller, the oracle too, now and then (one per 30 s cell in this campaign)
+    rows = short_campaign["rows"]
+    assert [r["status"] for r in rows] == ["ok"] * 3
+    for r in rows:
+        assert r["reason"] == "", r["reason"]
+        assert len(r["robust_over_oracle"]) == len(r["mpc_over_oracle"]) == r["cells"] == 4, r
+        for c in ("robust", "mpc", "central-lqr", "oracle"):
+            assert r[f"{c}_diverging"] == 0, (r["tractor"], c)
+    assert short_campaign["overall"]["diverging_robust_mpc"] == 0
+    assert DIVERGED_M == 2.0
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1800)
+@pytest.mark.xfail(strict=True, reason="issue 14's bounds are not met today in every cell: measured at dc2c1b9, robust "
+                   "worst 1.41x the oracle and 1.13x the paper's method, MPC 1.55x and 1.13x (11/12, 10/12, 11/12, "
+                   "7/12 cells within); strict, so this test fails once they are met and the mark must go")
+def test_a_short_campaign_on_three_generated_tractors_stays_within_the_acceptance_bounds(short_campaign) -> None:
+    for r in short_campaign["rows"]:
+        for c in ("robust", "mpc"):
+            assert max(r[f"{c}_over_oracle"]) <= ORACLE_BOUND, (r["tractor"], c, r[f"{c}_over_oracle"])
+            assert max(r[f"{c}_over_paper"]) <= PAPER_BOUND, (r["tractor"], c, r[f"{c}_over_paper"])

@@ -145,7 +145,9 @@ class Field:
         """Passes ``first .. first + count - 1`` (default: to the last), alternately both ways, with U-turns.
 
         Each U-turn is :func:`gnss.uturn.plan_uturn` within ``limits``; the route is checked to
-        be tangent-continuous (:meth:`ArcPath.chain`).
+        be tangent-continuous (:meth:`ArcPath.chain`). Refused: a pass tighter than the
+        tractor's minimum radius, or a curvature step from a pass into its turn (or out of it)
+        faster than ``limits.sigma``.
         """
         if isinstance(first, bool) or not isinstance(first, (int, np.integer)) or not 0 <= first < self.passes:
             raise GeometryError(f"Field.route: first must be a pass index in [0, {self.passes - 1}], got {first!r}")
@@ -157,12 +159,23 @@ class Field:
         pieces: list[ArcPath] = []
         kinds: list[tuple[float, int, str]] = []       # (length, pass, kind) in order
         for k, (i, p) in enumerate(zip(indices, driven)):
+            tightest = max(abs(seg.curvature) for seg in p.segments)
+            if tightest > limits.kappa_max:
+                raise GeometryError(f"Field.route: pass {i} has a radius of {1 / tightest:.2f} m, below the tractor's "
+                                    f"{limits.min_radius:.2f} m; use fewer passes or larger radii")
             for seg in p.segments:
                 kinds.append((seg.length, i, "straight" if abs(seg.curvature) < STRAIGHT_CURVATURE else "curve"))
             pieces.append(p)
             if k + 1 < len(driven):
                 nxt = driven[k + 1]
                 turn = plan_uturn(p.end, p.end_angle, nxt.start, nxt.start_angle, limits)
+                for a, b in ((p.segments[-1], turn.segments[0]), (turn.segments[-1], nxt.segments[0])):
+                    rate = abs(b.curvature - a.curvature) / (0.5 * (a.length + b.length))
+                    if rate > limits.sigma * (1 + 1e-9):
+                        raise GeometryError(
+                            f"Field.route: pass {i if a is p.segments[-1] else indices[k + 1]} ends on a curve "
+                            f"(curvature {a.curvature if a is p.segments[-1] else b.curvature:.4f} 1/m) too short "
+                            f"to steer out of at {limits.speed:g} m/s; end the reference pass with a straight")
                 pieces.append(turn)
                 kinds.append((turn.length, i, "turn"))
         path = ArcPath.chain(pieces, tolerance=1e-6)

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from gnss.curve import ArcPath
 from gnss.errors import GeometryError
@@ -101,3 +103,39 @@ def test_a_short_straight_between_curves_counts_as_curve():
     route = Field("wiggle", ref, 3.0, 1).route()
     assert [(p.kind, p.end - p.start) for p in route.parts] == [("straight", 30.0), ("curve", 50.0),
                                                                  ("straight", pytest.approx(30.0))]
+
+
+def test_passes_the_tractor_cannot_drive_are_refused():
+    tight = Field("tight", ArcPath((0, 0), 0.0, [(30.0, 0.0), (4.0 * math.pi / 2, 1 / 4.0), (30.0, 0.0)]), 1.0, 2,
+                  reference_pass=1)
+    with pytest.raises(GeometryError, match=r"pass 0 has a radius of 5.00 m, below the tractor.s 5.37 m"):
+        tight.route()
+    # a pass that ends on a short, sharp arc: no room to ramp the curvature into the turn
+    hook = Field("hook", ArcPath((0, 0), 0.0, [(30.0, 0.0), (0.2, 0.15)]), 3.0, 2)
+    with pytest.raises(GeometryError, match="pass 0 ends on a curve .* end the reference pass with a straight"):
+        hook.route(TurnLimits(speed=3.0))
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.floats(5.0, 60.0), st.floats(-0.012, 0.012)), min_size=1, max_size=4),
+       st.floats(0.8, 12.0), st.integers(2, 5), st.floats(1.0, 3.0), st.floats(-math.pi, math.pi))
+def test_any_gentle_field_gives_a_continuous_route_with_turns_in_the_limits(segs, width, passes, speed, th):
+    ref = ArcPath((0.0, 0.0), th, [(10.0, 0.0)] + segs + [(10.0, 0.0)])
+    lim = TurnLimits(speed=speed)
+    field = Field("any", ref, width, passes)          # radii >= 83 m, offsets <= 48 m: every pass exists
+    route = field.route(lim)
+    s = np.linspace(0.0, route.path.length, 20001)
+    e, n, _ = route.path.pose(s)
+    # chords of a sampled unit-speed curve: (kappa ds)^2 / 24 short of ds at most
+    np.testing.assert_allclose(np.hypot(np.diff(e), np.diff(n)), s[1] - s[0], rtol=(0.2 * (s[1] - s[0])) ** 2 / 20)
+    starts = np.concatenate([[0.0], np.cumsum([g.length for g in route.path.segments])])
+    for part in route.parts:
+        if part.kind == "turn":
+            i0, i1 = (int(np.argmin(np.abs(starts - x))) for x in (part.start, part.end))
+            turn = ArcPath((0, 0), 0.0, route.path.segments[i0:i1])
+            kmax, rate = check_limits(turn, lim)
+            assert kmax <= lim.kappa_max * (1 + 1e-12) and rate <= lim.sigma * (1 + 1e-9)
+    for (a, b), i in zip(route.pass_spans, route.pass_indices):
+        q = np.linspace(a, b, 50)
+        pe, pn, _ = route.path.pose(q)
+        np.testing.assert_allclose(ref.errors(pe, pn).cross_track, i * width, atol=1e-6)

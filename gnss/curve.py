@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable
+from typing import Iterable, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -86,22 +86,45 @@ class _ScalarOps:
 ARRAY_OPS, SCALAR_OPS = _ArrayOps, _ScalarOps
 
 
-def pose_on_segment(ops, e0, n0, th0, k, s):
-    """Pose at local arc length ``s`` (m, any value: the circle/line continues) of the segment that
-    starts at ``(e0, n0)`` (m, ENU) with direction ``th0`` (rad, ENU) and curvature ``k`` (1/m):
-    ``(east, north, angle)``. ``ops`` is :data:`ARRAY_OPS` (arrays) or :data:`SCALAR_OPS` (floats)."""
+#: A float or an array of floats (the equations below take either, with the matching ``ops``).
+Real = Union[float, NDArray[np.float64]]
+
+
+def pose_on_segment(ops: type, e0: Real, n0: Real, th0: Real, k: Real, s: Real) -> tuple[Real, Real, Real]:
+    """Pose at local arc length ``s`` (m, any value: the circle/line continues) of a segment.
+
+    Parameters
+    ----------
+    ops
+        :data:`ARRAY_OPS` (arrays) or :data:`SCALAR_OPS` (Python floats).
+    e0, n0
+        Start of the segment, m, ENU.
+    th0
+        Direction at its start, rad, ENU (0 = east, counter-clockwise).
+    k
+        Curvature, 1/m, + = left.
+    s
+        Local arc length, m.
+
+    Returns
+    -------
+    tuple
+        ``(east, north, angle)``: m, m, rad (ENU, unwrapped).
+    """
     half = 0.5 * k * s
     chord = s * ops.sinc(half)           # |chord| of the arc, exact and stable as k -> 0
     mid = th0 + half
     return e0 + chord * ops.cos(mid), n0 + chord * ops.sin(mid), th0 + k * s
 
 
-def foot_on_segment(ops, e0, n0, th0, k, length, lo, hi, pe, pn):
-    """Local arc length in ``[lo, hi]`` (m) of the nearest point to ``(pe, pn)`` on a segment.
+def foot_on_segment(ops: type, e0: float, n0: float, th0: float, k: float, length: float, lo: float, hi: float,
+                    pe: Real, pn: Real) -> Real:
+    """Local arc length in ``[lo, hi]`` (m) of the nearest point to ``(pe, pn)`` (m, ENU) on a segment.
 
-    The segment is as in :func:`pose_on_segment`, ``length`` m long (``inf`` for a straight
-    extension); ``0 <= lo <= hi <= length`` for an arc, any ``lo <= hi`` for a straight. This is
-    the one copy of the projection, for arrays of points and for one point as floats.
+    The segment is as in :func:`pose_on_segment` (start, direction and curvature as floats),
+    ``length`` m long (``inf`` for a straight extension); ``0 <= lo <= hi <= length`` for an
+    arc, any ``lo <= hi`` for a straight. This is the one copy of the projection, for arrays of
+    points (:data:`ARRAY_OPS`) and for one point as floats (:data:`SCALAR_OPS`).
     """
     if k == 0.0 or abs(k) * length < 1e-6:
         # (nearly) straight: project on the chord, then Newton on (p - q(t)) . T(t) = 0

@@ -59,8 +59,10 @@ behind a 0.1 rad/s ramp). Measured at 2.91 m/s, 60 s, true 1-sigma in cm, robust
 controller files), seed 0: disker lead 0 -> 11.9 / 8.3, 0.1 -> 8.1 / 4.8, 0.2 -> 4.7 / 4.8,
 0.25 -> 4.7 / 4.8 (HC11 bridge 5.7 / 5.9 in the campaign); no implement 0.1 -> 22.0 / 3.5, 0.2 ->
 12.7 / 3.6, 0.25 -> 3.5 / 3.6, 0.3 -> 3.5 / 3.5; seed 1, no implement, 0.25 -> 10.0 / 5.4,
-0.3 -> 8.0 / 5.6, 0.35 -> 16.9 / 5.5 (HC11 5.7 / 5.9): the robust controller is marginal there through
-the module whatever the lead. On a tractor, measure the module's ramp response and set it."""
+0.3 -> 8.0 / 5.6, 0.35 -> 16.9 / 5.5 (HC11 5.7 / 5.9): the robust controller looked marginal there through
+the module whatever the lead; that was the setpoint integral winding up in the approach, fixed by its own
+limit (:data:`MAX_WINDUP`; seed 1 at 0.25: 5.2 cm). On a tractor, measure the module's ramp response and
+set it."""
 MODULE_LAG = 0.25
 """Delay of the measured angle behind the setpoint ramp through a steer module, s: the module's own
 P-loop (its 40 Hz period, the valve's lag) and one report period. Measured on the bench (0.22 s for a

@@ -14,7 +14,8 @@ peer is skipped at sizes where its measured growth (time or memory, from the
 smaller sizes) projects beyond 300 s or 4 GB, and the table says so.
 
 Part 2 - every DaISy record in tests/data/sysid/ (robot_arm, CD_player_arm, dryer2,
-heating_system; provenance beside each), first half to fit, second half to validate, free-run fit
+heating_system, thermic_res_wall; provenance beside each), first half to fit, second
+half to validate, free-run fit
 from a least-squares initial state (the same metric for all). Peers are given
 their best order from 2..10 *chosen on the validation half itself* (generous to
 them); ``okid-pinned`` runs with the settings pinned in
@@ -64,7 +65,8 @@ from idtest_synth import true_system  # noqa: E402  (the tests' reference system
 DAISY = ROOT / "tests" / "data" / "sysid"
 #: Columns of every DaISy record, from its PROVENANCE.txt: (first input column, number of inputs); the
 #: columns after the inputs are the outputs, those before them (a time or sample-number column) are dropped.
-DAISY_COLUMNS = {"robot_arm": (0, 1), "CD_player_arm": (0, 2), "dryer2": (1, 3), "heating_system": (1, 1)}
+DAISY_COLUMNS = {"robot_arm": (0, 1), "CD_player_arm": (0, 2), "dryer2": (1, 3), "heating_system": (1, 1),
+                 "thermic_res_wall": (0, 2)}
 #: OKID settings pinned per record in tests/identification/test_daisy.py.
 DAISY_PINNED = {"robot_arm": dict(order=8, markov=13, method="era", hankel_rows=20, hankel_cols=20),
                 "CD_player_arm": dict(order=8, markov=6, refine="oe")}
@@ -278,7 +280,7 @@ def daisy_table() -> list[dict]:
                          "free_run_fit": None if best is None else [float(v) for v in best],
                          "time_s": t_best})
             fr = "failed" if best is None else " ".join(f"{v:7.2f}" for v in best) + f"   mean {best.mean():6.2f}"
-            print(f"{name:14s} {method:13s} n={best_order!s:>3s} {fr}   ({t_best:5.2f} s; order: {chosen})",
+            print(f"{name:16s} {method:13s} n={best_order!s:>3s} {fr}   ({t_best:5.2f} s; order: {chosen})",
                   flush=True)
     return rows
 

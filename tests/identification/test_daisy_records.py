@@ -2,9 +2,10 @@
 
 The sha256 written in every PROVENANCE.txt is recomputed (a record changed or truncated after its
 provenance was written fails here). dryer2 and heating_system were written back from the search
-index's text of the files (their PROVENANCE.txt says how); the structural checks made then are
-repeated: dryer2's sample-number column and smooth temperature outputs, heating_system's 2 s time
-base, six input levels and 0.244 output quantisation.
+index's text of the files (their PROVENANCE.txt says how), thermic_res_wall too; the structural
+checks made then are repeated: dryer2's sample-number column and smooth temperature outputs,
+heating_system's 2 s time base, six input levels and 0.244 output quantisation, thermic_res_wall's
+4-digit values.
 
 The fits below come from ``benchmarks/bench_identification.py --daisy-only`` (first half fit,
 second half validate, free-run fit from a least-squares initial state): the automatic path
@@ -55,6 +56,15 @@ def test_heating_system_layout():
     assert np.max(np.abs(k - np.round(k))) < 1e-6
 
 
+def test_thermic_res_wall_layout():
+    raw = np.loadtxt(DATA / "thermic_res_wall" / "thermic_res_wall.dat")
+    assert raw.shape == (1680, 3)
+    for j, step in ((0, 0.01), (1, 0.01), (2, 0.001)):   # 4 significant digits, as stored
+        k = raw[:, j] / step
+        assert np.max(np.abs(k - np.round(k))) < 1e-6
+    assert 5.0 < raw[:, 0].min() and raw[:, 1].max() < 30.0   # wall temperatures, degC
+
+
 def _auto_fit(name: str, first: int, m: int) -> np.ndarray:
     raw = np.loadtxt(DATA / name / f"{name}.dat")
     fit, val = IOData.from_arrays(raw[:, first:first + m], raw[:, first + m:]).split(0.5)
@@ -66,6 +76,7 @@ def _auto_fit(name: str, first: int, m: int) -> np.ndarray:
 @pytest.mark.parametrize("name, first, m, floor", [
     ("dryer2", 1, 3, 6.6),               # benchmark: 7.68 (n=7); best peer 10.99 (nfoursid, n chosen on validation)
     ("heating_system", 1, 1, 82.7),      # benchmark: 83.76 (n=7); best peer 83.64 (nfoursid)
+    ("thermic_res_wall", 0, 2, 84.5),    # benchmark: 85.51 (n=2, all refined); best peer 85.28 (nfoursid)
 ])
 def test_automatic_fit_on_the_new_records(name, first, m, floor):
     fit = _auto_fit(name, first, m)

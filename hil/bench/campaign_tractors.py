@@ -72,6 +72,10 @@ def _check_rows(rows: object) -> None:
         for key in ("sigma_m", "bias_m", "max_abs_cross_track_m"):
             if key in r and not (r[key] is None or _number(r[key])):
                 raise SimulatorConfigError(f"hil row {i}: {key} must be a number, got {r[key]!r}")
+        why = r.get("disengage_reasons", {})
+        if not (isinstance(why, dict) and all(isinstance(k, str) and isinstance(n, int) and not isinstance(n, bool)
+                                              and n >= 0 for k, n in why.items())):
+            raise SimulatorConfigError(f"hil row {i}: disengage_reasons must map reasons to counts, got {why!r}"[:300])
         if not (isinstance(r.get("diverging"), int) and not isinstance(r["diverging"], bool) and r["diverging"] >= 0):
             raise SimulatorConfigError(f"hil row {i}: diverging must be a count >= 0, got {r.get('diverging')!r} "
                                        "(a result.json older than the diverging count: redo it)")

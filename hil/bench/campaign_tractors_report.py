@@ -60,6 +60,8 @@ def summarise_tractor(name: str, res: dict | None, failure: str | None, code: di
         row[f"{c}_diverging"] = sum(x[f"{c}_diverging"] or 0 for x in cells) if c in designs or c == "oracle" else None
         row[f"{c}_disengagements"] = (sum(x[f"{c}_disengagements"] or 0 for x in cells)
                                       if c in designs or c == "oracle" else None)
+        row[f"{c}_gps_disengagements"] = (sum(x[f"{c}_gps_disengagements"] or 0 for x in cells)
+                                          if c in designs or c == "oracle" else None)
     for c in _DESIGNED:
         for ref, bound in (("oracle", ORACLE_BOUND), ("paper", PAPER_BOUND)):
             key = f"{c}_over_{ref}"
@@ -75,6 +77,15 @@ def summarise_tractor(name: str, res: dict | None, failure: str | None, code: di
 
 def _r(v: float | None) -> str:
     return "-" if v is None else f"{v:.2f}"
+
+
+def _dis(r: dict, c: str) -> str:
+    """Disengagements of a controller, those the GPS caused (RTK float, stale fix) in brackets."""
+    n = r[f"{c}_disengagements"]
+    if n is None:
+        return "-"
+    gps = r.get(f"{c}_gps_disengagements")
+    return f"{n} ({gps} gps)" if n and gps is not None else str(n)
 
 
 def _overall(rows: Sequence[dict]) -> dict:
@@ -141,7 +152,8 @@ def _markdown(rows: Sequence[dict], o: dict, opts: CommissionOptions, planned: S
              f"Per tractor, over its cells: median / worst ratio of 1-sigma to the oracle's and to the paper's "
              f"method's; cells within {ORACLE_BOUND:g}x the oracle and within {PAPER_BOUND:g}x the paper's method; "
              f"diverging passes (true cross-track beyond {DIVERGED_M:g} m, or a pass that did not run to its end); "
-             "disengagements; robust design attempts and the fallbacks the design needed.", "",
+             "disengagements (in brackets those the GPS caused: RTK float, a stale fix); robust design attempts and "
+             "the fallbacks the design needed.", "",
              "| tractor | robust / oracle | MPC / oracle | robust / paper | MPC / paper | robust cells <= 1.3x / "
              "<= 1.0x | MPC cells <= 1.3x / <= 1.0x | diverging (robust, MPC) | disengagements (robust, MPC) | "
              "robust attempts | fallbacks | note |",
@@ -162,8 +174,7 @@ def _markdown(rows: Sequence[dict], o: dict, opts: CommissionOptions, planned: S
                      f"{mw('robust_over_paper')} | {mw('mpc_over_paper')} | {within('robust')} | {within('mpc')} | "
                      f"{r['robust_diverging'] if r['robust_diverging'] is not None else '-'}, "
                      f"{r['mpc_diverging'] if r['mpc_diverging'] is not None else '-'} | "
-                     f"{r['robust_disengagements'] if r['robust_disengagements'] is not None else '-'}, "
-                     f"{r['mpc_disengagements'] if r['mpc_disengagements'] is not None else '-'} | "
+                     f"{_dis(r, 'robust')}, {_dis(r, 'mpc')} | "
                      f"{r['robust_attempts']} | {', '.join(r['fallbacks']) or '-'} | "
                      f"{r['reason'].replace('|', '/')[:200]} |")
     lines += ["", "Overall: " + overall_line(o), "", "![per-cell ratios](campaign_ratios.png)", "",

@@ -369,7 +369,7 @@ def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: Commi
     rows = []
     for cond in conds:
         for name in names:
-            sigmas, biases, dis, errors, worst, diverging = [], [], 0, [], 0.0, 0
+            sigmas, biases, dis, errors, worst, diverging, reasons = [], [], 0, [], 0.0, 0, {}
             for seed in opts.hil_seeds:
                 try:
                     if name == "oracle":
@@ -382,6 +382,10 @@ def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: Commi
                                         commissioning=com)
                     s = summarize(log)
                     dis += s["disengagements"]
+                    for e in log.meta.get("events", []):   # what disengaged the loop: "gps stale", "steering ..."
+                        if e["event"] == "disengage" and e["reason"] != "end of run":
+                            head = str(e["reason"]).split(":")[0][:40]
+                            reasons[head] = reasons.get(head, 0) + 1
                     far = float(np.max(np.abs(log.channels["truth_cross_track"]), initial=0.0))
                     worst = max(worst, far)
                     diverging += int(not far <= DIVERGED_M)   # also a NaN cross-track
@@ -397,7 +401,7 @@ def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: Commi
                          "sigma_m": sum(sigmas) / len(sigmas) if sigmas else math.nan,
                          "bias_m": sum(biases) / len(biases) if biases else math.nan,
                          "disengagements": dis, "passes": len(opts.hil_seeds), "errors": errors,
-                         "max_abs_cross_track_m": worst, "diverging": diverging})
+                         "max_abs_cross_track_m": worst, "diverging": diverging, "disengage_reasons": reasons})
     return rows
 
 
@@ -412,6 +416,8 @@ def hil_ratios(rows: Sequence[dict]) -> list[dict]:
             cell[c] = r["sigma_m"] if r else math.nan
             cell[f"{c}_disengagements"] = r["disengagements"] if r else None
             cell[f"{c}_diverging"] = r.get("diverging") if r else None
+            cell[f"{c}_gps_disengagements"] = (sum(n for k, n in r.get("disengage_reasons", {}).items()
+                                                   if k.startswith("gps")) if r and "disengage_reasons" in r else None)
         for c in ("robust", "mpc"):
             cell[f"{c}_over_oracle"] = cell[c] / cell["oracle"] if cell["oracle"] > 0 else math.nan
             cell[f"{c}_over_paper"] = cell[c] / cell["central-lqr"] if cell["central-lqr"] > 0 else math.nan

@@ -26,7 +26,8 @@ def _result(tractor, opts: CommissionOptions = SHORT, designs=("central-lqr", "r
     """A result.json of hand values: two cells, 1-sigma from SIGMA (cell 1.00 m/s, cell 2.91 m/s)."""
     rows = [{"implement": "none", "speed": v, "controller": c, "sigma_m": SIGMA[c][i], "bias_m": 0.0,
              "disengagements": 1 if (c == "robust" and i == 1) else 0, "passes": 1, "errors": [],
-             "max_abs_cross_track_m": 0.3, "diverging": 1 if (c == "mpc" and i == 0) else 0}
+             "max_abs_cross_track_m": 0.3, "diverging": 1 if (c == "mpc" and i == 0) else 0,
+             "disengage_reasons": {"gps stale": 1} if (c == "robust" and i == 1) else {}}
             for i, v in enumerate((1.0, 2.91)) for c in CONTROLLERS if c in designs or c == "oracle"]
     steps = [{"step": "design robust (weights auto, past auto)", "ok": False, "seconds": 1.0, "error": "E: infeasible"},
              {"step": "design robust (weights auto, past 6)", "ok": True, "seconds": 1.0},
@@ -57,6 +58,7 @@ def test_a_complete_result_is_taken_and_anything_else_is_redone(tmp_path: Path) 
         "a step without its error": lambda r: r["steps"][0].pop("error"),
         "no steps": lambda r: r.update(steps=[]),
         "an unknown design": lambda r: r["designs"].update(lqg={}),
+        "a reason counted as text": lambda r: r["hil"][0].update(disengage_reasons={"gps stale": "1"}),
     }
     for i, (what, mutate) in enumerate(bad.items()):
         r = copy.deepcopy(good)
@@ -83,6 +85,7 @@ def test_the_row_of_a_tractor_from_hand_values() -> None:
     assert row["mpc_over_paper_within"] == sum(v <= PAPER_BOUND for v in mp) == 2
     assert (row["robust_diverging"], row["mpc_diverging"]) == (0, 1)
     assert (row["robust_disengagements"], row["mpc_disengagements"]) == (1, 0)
+    assert (row["robust_gps_disengagements"], row["mpc_gps_disengagements"]) == (1, 0)
     assert row["robust_attempts"] == 2 and row["fallbacks"] == ["past 6"] and row["reason"] == ""
     no_mpc = summarise_tractor(t.name, _result(t, designs=("central-lqr", "robust")), None, {})
     assert no_mpc["mpc_over_oracle"] == [] and no_mpc["reason"].startswith("no mpc")

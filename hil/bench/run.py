@@ -144,6 +144,8 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
     plant = SimulatedTractor(cond, spec.duration + 1.0, spec.seed, params, initial=initial)
     valve = ValveFaults(plant, override=spec.override, stuck_valve=spec.stuck_valve)   # what the bridge drives
     p = plant.params
+    if loop_config is None:   # the steering monitor knows this tractor's wheel stop
+        loop_config = LoopConfig(wheel_stop=p.steering.max_wheel_angle)
     cal = two_point_calibration(p.sensor, p.steering)
     geo = spec.geometry
     vp = p.vehicle
@@ -200,8 +202,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             loop = VehicleLoop(clock, driver, frontend, geo.ab_line(), controller, cal, loop_config,
                                truth=plant.truth)
         else:   # the vehicle's own tracker on the route in ENU; the bench's on the simulator's frame
-            rate = (loop_config or LoopConfig()).rate
-            tracker = PathTracker(geo.place(fld.path), station=spec.start_station, cycle=1.0 / rate)
+            tracker = PathTracker(geo.place(fld.path), station=spec.start_station, cycle=1.0 / loop_config.rate)
             loop = VehicleLoop(clock, driver, frontend, tracker, controller, cal, loop_config,
                                truth=RouteTruth(plant, fld.route, spec.start_station), parts=fld.route.parts)
         loop.run(spec.duration, start=clock.now(), progress=progress)

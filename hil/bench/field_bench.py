@@ -214,7 +214,8 @@ def field_row(r: dict) -> dict:
             "unsettled_turns": sum(1 for t in turns if t["settle_time_s"] is None),
             "spacing_mean": f["spacing"]["mean_m"], "spacing_sigma": f["spacing"]["sigma_m"],
             "worst_overlap": f["spacing"]["worst_overlap_m"], "worst_skip": f["spacing"]["worst_skip_m"],
-            "jumps": f["wrong_segment_jumps"], "disengagements": r["summary"]["disengagements"]}
+            "jumps": f["wrong_segment_jumps"], "disengagements": r["summary"]["disengagements"],
+            "off_route_s": f["off_route_s"], "route_driven": f["route_driven"]}
 
 
 def write_field_report(results: list[dict], comparison: FieldComparison) -> dict:
@@ -227,8 +228,8 @@ def write_field_report(results: list[dict], comparison: FieldComparison) -> dict
              "neighbouring passes' true tracks minus the implement width (+ skip, - overlap).", "",
              "| field | controller | implement | m/s | seed | straight bias / 1-sigma | curve bias / 1-sigma | "
              "worst curve entry | turn overshoot (worst) | settle s (worst) | spacing mean / 1-sigma | "
-             "worst overlap / skip | jumps | disengagements |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "worst overlap / skip | jumps | disengagements | off the route s | route driven |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for w in rows:
         settle = "-" if w["turn_settle"] is None else f"{w['turn_settle']:.1f}"
         if w["unsettled_turns"]:
@@ -237,7 +238,8 @@ def write_field_report(results: list[dict], comparison: FieldComparison) -> dict
                      f"{_cm(w['straight_bias'])} / {_cm(w['straight_sigma'])} | {_cm(w['curve_bias'])} / "
                      f"{_cm(w['curve_sigma'])} | {_cm(w['entry_worst'])} | {_cm(w['turn_overshoot'])} | {settle} | "
                      f"{_cm(w['spacing_mean'])} / {_cm(w['spacing_sigma'])} | {_cm(w['worst_overlap'])} / "
-                     f"{_cm(w['worst_skip'])} | {w['jumps']} | {w['disengagements']} |")
+                     f"{_cm(w['worst_skip'])} | {w['jumps']} | {w['disengagements']} | {w['off_route_s']:.0f} | "
+                     f"{w['route_driven'] * 100:.0f} % |")
     files = [str(out / "fields.md"), str(out / "fields.json")]
     seen = set()
     for key in comparison.keys:
@@ -286,4 +288,5 @@ def field_text(m: dict) -> str:
         f"turns: {len(turns)}, worst overshoot {cm(_worst([t['overshoot_m'] for t in turns]))} cm, worst settle "
         f"{_worst([t['settle_time_s'] for t in turns]) or '-'} s, never settled {sum(t['settle_time_s'] is None for t in turns)}",
         f"pass-to-pass spacing error {cm(sp['mean_m'])} / 1-sigma {cm(sp['sigma_m'])} cm (worst overlap {cm(sp['worst_overlap_m'])}, "
-        f"skip {cm(sp['worst_skip_m'])} cm); wrong-segment jumps {m['wrong_segment_jumps']}"])
+        f"skip {cm(sp['worst_skip_m'])} cm); wrong-segment jumps {m['wrong_segment_jumps']}; off the route "
+        f"{m['off_route_s']:.0f} s, {m['route_driven'] * 100:.0f} % of the route driven"])

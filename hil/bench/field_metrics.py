@@ -28,6 +28,9 @@ Definitions (also in ``docs/fields.md``):
   the later pass's true track to the earlier pass's true track (the nearest point of its
   polyline, only where that point is inside it), minus the implement width: + = a skip
   (unworked strip), - = an overlap, m.
+* **Off the route.** The time spent more than :data:`OFF_ROUTE` m from the route (the loop's
+  engage limit: it cannot re-engage from there, and on the bench no driver steers it back), and
+  how much of the route was driven (the truth's last station over the route's length).
 * **Wrong-segment jumps.** Cycles where the loop's station goes back by more than
   :data:`JUMP_BACK` m or forward by more than twice a cycle's travel plus :data:`JUMP_MARGIN` m,
   between two cycles with a healthy GPS solution (RTK fixed or float; the loop's tracker holds its
@@ -57,6 +60,8 @@ REENGAGE_SETTLE = 5.0
 ENTRY_BEFORE, ENTRY_AFTER = 2.0, 15.0
 #: Wrong-segment jump thresholds: backwards, m; forwards beyond twice a cycle's travel plus, m.
 JUMP_BACK, JUMP_MARGIN = 0.10, 0.25
+#: Farther than this from the route, m, the tractor is off it (the loop's default engage limit).
+OFF_ROUTE = 2.0
 #: A change of curvature larger than this is a curve entry, 1/m.
 ENTRY_KAPPA_STEP = 1e-4
 
@@ -219,6 +224,8 @@ def field_metrics(log: PassLog, width: float, curve_entries: Sequence[float] = (
                         "sigma_m": float(allerr.std()) if allerr.size else None,
                         "worst_overlap_m": float(min(allerr.min(), 0.0)) if allerr.size else None,
                         "worst_skip_m": float(max(allerr.max(), 0.0)) if allerr.size else None},
+            "off_route_s": float(np.sum(np.abs(xte) > OFF_ROUTE) * dt),
+            "route_driven": float(min(max(sta[-1] / ends[-1], 0.0), 1.0)) if ends.size else 0.0,
             "wrong_segment_jumps": jumps(ch["station"], ch["speed"], valid, dt),
             "truth_station_jumps": jumps(sta, ch.get("truth_speed", ch["speed"]), np.ones(t.size, dtype=bool), dt),
             "definitions": "hil/bench/field_metrics.py, docs/fields.md"}

@@ -73,6 +73,7 @@ def test_no_wrong_segment_jumps_through_hairpin_turns_in_closed_loop(hairpin_run
     m = field_metrics(log, 3.0, fr.curve_entries())
     assert len(m["turns"]) == 2 and all(t["engaged_in_turn"] for t in m["turns"])
     assert m["wrong_segment_jumps"] == 0 and m["truth_station_jumps"] == 0
+    assert m["off_route_s"] == 0.0 and m["route_driven"] > 0.99
     # the station the loop saw stays with the truth's (the same route, placed on the Earth)
     on = (ch["integrity"] <= 1) & (ch["engaged"] > 0.5)
     assert np.max(np.abs(ch["station"][on] - ch["truth_along_track"][on])) < 1.0

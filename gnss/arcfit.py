@@ -47,6 +47,47 @@ def _residual(x, lengths, seg_of, local, pts, along_weight):
     return np.concatenate([dn * c - de * s, along_weight * (de * c + dn * s)])
 
 
+def _jacobian(x, lengths, seg_of, local, pts, along_weight):
+    """Exact derivatives of :func:`_residual` (up to Simpson's rule for the integrals of the path).
+
+    Bending segment ``j`` by ``dk`` turns everything after each of its points ``u`` by
+    ``dk du``, so the point at station ``s`` moves by ``dk J int_{a_j}^{min(s, b_j)} (q(s) - q(u)) du``
+    (``J``: a quarter turn left) and its direction by ``dk clip(s - a_j, 0, l_j)``.
+    """
+    k = x[3:]
+    p0, th0 = chain_starts(x[:2], x[2], lengths, k)
+    kk = k[seg_of]
+    qe, qn, qth = pose_on_segment(ARRAY_OPS, p0[seg_of, 0], p0[seg_of, 1], th0[seg_of], kk, local)
+    c, s = np.cos(qth), np.sin(qth)
+    de, dn = pts[:, 0] - qe, pts[:, 1] - qn
+    t_d, n_d = c * de + s * dn, c * dn - s * de                    # d along and across
+    # integrals of q over each whole segment and over the part of its own segment before each point
+    me, mn, _ = pose_on_segment(ARRAY_OPS, p0[:-1, 0], p0[:-1, 1], th0[:-1], k, 0.5 * lengths)
+    full_e = lengths / 6 * (p0[:-1, 0] + 4 * me + p0[1:, 0])
+    full_n = lengths / 6 * (p0[:-1, 1] + 4 * mn + p0[1:, 1])
+    he, hn, _ = pose_on_segment(ARRAY_OPS, p0[seg_of, 0], p0[seg_of, 1], th0[seg_of], kk, 0.5 * local)
+    part_e = local / 6 * (p0[seg_of, 0] + 4 * he + qe)
+    part_n = local / 6 * (p0[seg_of, 1] + 4 * hn + qn)
+    m, nseg = len(pts), len(lengths)
+    before = np.arange(nseg)[None, :] < seg_of[:, None]            # whole segments behind each point
+    dth = np.where(before, lengths[None, :], 0.0)
+    ie, in_ = np.where(before, full_e[None, :], 0.0), np.where(before, full_n[None, :], 0.0)
+    rows = np.arange(m)
+    dth[rows, seg_of] = local
+    ie[rows, seg_of], in_[rows, seg_of] = part_e, part_n
+    ve, vn = dth * qe[:, None] - ie, dth * qn[:, None] - in_      # v_ij = int (q_i - q(u)) du
+    t_v = c[:, None] * ve + s[:, None] * vn
+    n_v = c[:, None] * vn - s[:, None] * ve
+    jac = np.empty((2 * m, 3 + nseg))
+    jac[:m, 3:] = -dth * t_d[:, None] - t_v
+    jac[m:, 3:] = along_weight * (dth * n_d[:, None] + n_v)
+    le, ln = qe - x[0], qn - x[1]                                   # lever from the start, for the start angle
+    jac[:m, 0], jac[:m, 1], jac[:m, 2] = s, -c, -t_d - (c * le + s * ln)
+    jac[m:, 0], jac[m:, 1] = -along_weight * c, -along_weight * s
+    jac[m:, 2] = along_weight * (n_d + (c * ln - s * le))
+    return jac
+
+
 def fit_arcs(points: ArrayLike, tolerance: float = 0.02, *, segment_length: float = 10.0, rounds: int = 8,
              along_weight: float = 0.05, max_segments: int = 2000) -> ArcPath:
     """A tangent-continuous :class:`ArcPath` within ``tolerance`` m of every point.
@@ -99,7 +140,7 @@ def fit_arcs(points: ArrayLike, tolerance: float = 0.02, *, segment_length: floa
         heading_at_edges = np.interp(edges, mid, chord_angle)
         if x is None:
             x = np.concatenate([pts[0], [heading_at_edges[0]], np.diff(heading_at_edges) / lengths])
-        sol = least_squares(_residual, x, method="lm", args=(lengths, seg_of, local, pts, along_weight),
+        sol = least_squares(_residual, x, jac=_jacobian, method="lm", args=(lengths, seg_of, local, pts, along_weight),
                             x_scale=np.concatenate([[1.0, 1.0, 0.01], np.full(len(lengths), 0.001)]))
         x = sol.x
         try:

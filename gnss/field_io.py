@@ -18,8 +18,8 @@ default 0.02; ``start``/``direction_deg`` are then not given) or ``"control_poin
 smooth spline through them, sampled and fitted the same way).
 
 Every key is checked (unknown ones refused), with limits: file at most 4 MiB, at most 5,000
-segments, 20,000 points, coordinates within 100 km of the origin, segment lengths 0.01 m to
-10 km, |curvature| at most 2 1/m. A bad file raises one :class:`~gnss.errors.FieldFileError`
+segments and 20 km, 5,000 points and 2 km to fit, coordinates within 100 km of the origin,
+segment lengths 0.01 m to 10 km, |curvature| at most 2 1/m, passes x segments at most 100,000. A bad file raises one :class:`~gnss.errors.FieldFileError`
 that names the file and the key.
 """
 
@@ -43,7 +43,11 @@ __all__ = ["SCHEMA", "MAX_FILE_BYTES", "field_names", "load_field", "field_from_
 
 SCHEMA = "tractor-autosteer/field/1"
 MAX_FILE_BYTES = 4 * 1024 * 1024
-MAX_SEGMENTS, MAX_POINTS, MAX_COORD = 5000, 20000, 1e5
+MAX_SEGMENTS, MAX_POINTS, MAX_COORD = 5000, 5000, 1e5
+#: Longest reference pass, m; and longest recorded contour or spline to fit (about 4 s for 2 km here).
+MAX_LENGTH, MAX_FIT_LENGTH = 20000.0, 2000.0
+#: Most segments of all the passes together (passes x reference segments).
+MAX_ROUTE_SEGMENTS = 100_000
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}\Z")
 _TOP = {"schema", "name", "description", "implement_width", "passes", "reference_pass", "reference"}
 
@@ -108,6 +112,8 @@ def _reference(ref: Any, where: str) -> ArcPath:
             except GeometryError as exc:
                 raise FieldFileError(f"{where}.segments[{i}]: {exc}") from None
         path = ArcPath(start, angle, segs)
+        if path.length > MAX_LENGTH:
+            raise FieldFileError(f"{where}.segments: {path.length:.0f} m in all, more than {MAX_LENGTH:.0f} m")
         if float(np.max(np.abs(path.sample(max(path.length / 2000, 1.0))))) > MAX_COORD:
             raise FieldFileError(f"{where}: the path leaves the {MAX_COORD:g} m square about the origin")
         return path
@@ -115,6 +121,10 @@ def _reference(ref: Any, where: str) -> ArcPath:
     pts = np.array([(_number(a, f"{where}.{kind}[{i}] east", -MAX_COORD, MAX_COORD),
                      _number(b, f"{where}.{kind}[{i}] north", -MAX_COORD, MAX_COORD))
                     for i, (a, b) in enumerate(_pairs(ref[kind], f"{where}.{kind}", MAX_POINTS, 3))])
+    chord = float(np.sum(np.hypot(*np.diff(pts, axis=0).T)))
+    if chord > MAX_FIT_LENGTH:
+        raise FieldFileError(f"{where}.{kind}: {chord:.0f} m long, more than the {MAX_FIT_LENGTH:.0f} m a fit takes "
+                             "in a few seconds; split the field")
     try:
         if kind == "control_points":
             pts = CurvedLine.from_spline(pts, spacing=0.5).vertices
@@ -145,6 +155,9 @@ def field_from_dict(doc: Any, where: str = "field") -> Field:
     passes = _integer(doc["passes"], f"{where}.passes", 1, 500)
     ref_pass = _integer(doc.get("reference_pass", 0), f"{where}.reference_pass", 0, passes - 1)
     reference = _reference(doc["reference"], f"{where}.reference")
+    if passes * len(reference.segments) > MAX_ROUTE_SEGMENTS:
+        raise FieldFileError(f"{where}: {passes} passes of {len(reference.segments)} segments each, more than "
+                             f"{MAX_ROUTE_SEGMENTS} segments in all; use fewer passes or a simpler reference")
     try:
         return Field(name, reference, width, passes, ref_pass)
     except GeometryError as exc:

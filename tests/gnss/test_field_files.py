@@ -90,7 +90,9 @@ def bad(path, value):
     (("reference",), [1, 2], "reference: expected an object"),
     (("reference",), {"points": [[0, 0], [0, 1e-4], [0, 2]]}, "1 mm to 50 m apart"),
     (("reference",), {"points": [[0, 0], [0, 1], [0, "x"]]}, r"points\[2\] north"),
-    (("reference",), {"points": [[0, 0]] * 20001}, "points: expected a list of 3 to 20000"),
+    (("reference",), {"points": [[0, 0]] * 5001}, "points: expected a list of 3 to 5000"),
+    (("reference",), {"points": [[0, 0], [0, 40], [0, 2040]]}, "2040 m long, more than the 2000 m"),
+    (("reference", "segments"), [[9000, 0]] * 3, "27000 m in all, more than 20000 m"),
     (("reference",), {"points": [[0, 0], [0, 1], [0, 2]], "tolerance": 0}, "tolerance"),
     (("passes",), 40, "radius"),                       # pass 39 would cut a 40 m bend
 ])
@@ -101,6 +103,15 @@ def test_bad_field_files_are_refused_with_one_clear_error(path, value, match, tm
         load_field(f)
     assert str(f) in str(info.value)
     assert isinstance(info.value, GeometryError) and isinstance(info.value, ValueError)
+
+
+def test_too_many_segments_in_all_are_refused_before_the_passes_are_built(tmp_path):
+    doc = bad(("reference", "segments"), [[1.0, 0.0]] * 5000)
+    doc["passes"] = 21
+    f = tmp_path / "many.json"
+    f.write_text(json.dumps(doc))
+    with pytest.raises(FieldFileError, match="21 passes of 5000 segments each, more than 100000"):
+        load_field(f)
 
 
 @pytest.mark.parametrize("content, match", [

@@ -12,7 +12,10 @@ offset from the path's point at its station, across the path (weight 1) and alon
 scipy's Levenberg-Marquardt solves it; the distance of every point to the result is then
 measured with :class:`gnss.track.PathTracker` (locally, so a contour that comes back near
 itself is measured against the right part), segments holding a point beyond the tolerance
-are split in two, and the fit is repeated, at most ``rounds`` times.
+are split in two, and the fit is repeated, at most ``rounds`` times. The Jacobian is
+analytic (:func:`_jacobian`). Every point counts, so the tolerance must exceed the points'
+noise (about 4 sigma). Cost grows like length^3 (dense least squares): about 0.5 s for a
+1 km contour, 4 s for 2 km.
 """
 
 from __future__ import annotations

@@ -45,7 +45,8 @@ from numpy.typing import ArrayLike, NDArray
 from .errors import GeometryError
 from .guidance import TrackErrors, _heading_error, _point2, _points
 
-__all__ = ["Segment", "ArcPath", "foot_on_segment", "pose_on_segment", "chain_starts"]
+__all__ = ["Segment", "ArcPath", "foot_on_segment", "foot_on_straight", "foot_on_arc", "pose_on_segment",
+           "chain_starts"]
 
 #: Longest turn of one segment, rad (just under a full circle, so projection is unambiguous).
 MAX_TURN = 1.9 * math.pi
@@ -55,6 +56,7 @@ class _ArrayOps:
     """Element-wise operations on arrays (many points at once: :meth:`ArcPath.errors`)."""
 
     sin, cos, atan2, where, clip, mod = np.sin, np.cos, np.arctan2, np.where, np.clip, np.mod
+    copysign, abs = np.copysign, np.abs
 
     @staticmethod
     def sinc(half):
@@ -64,7 +66,7 @@ class _ArrayOps:
 class _ScalarOps:
     """The same operations on Python floats (one point per call: :class:`gnss.track.PathTracker`)."""
 
-    sin, cos, atan2 = math.sin, math.cos, math.atan2
+    sin, cos, atan2, copysign, abs = math.sin, math.cos, math.atan2, math.copysign, abs
 
     @staticmethod
     def where(c, a, b):
@@ -123,26 +125,39 @@ def foot_on_segment(ops: type, e0: float, n0: float, th0: float, k: float, lengt
 
     The segment is as in :func:`pose_on_segment` (start, direction and curvature as floats),
     ``length`` m long (``inf`` for a straight extension); ``0 <= lo <= hi <= length`` for an
-    arc, any ``lo <= hi`` for a straight. This is the one copy of the projection, for arrays of
-    points (:data:`ARRAY_OPS`) and for one point as floats (:data:`SCALAR_OPS`).
+    arc, any ``lo <= hi`` for a straight. The projection is written once (:func:`foot_on_straight`,
+    :func:`foot_on_arc`) for arrays (:data:`ARRAY_OPS`, also many segments at once) and for floats
+    (:data:`SCALAR_OPS`).
     """
     if k == 0.0 or abs(k) * length < 1e-6:
-        # (nearly) straight: project on the chord, then Newton on (p - q(t)) . T(t) = 0
-        t = (pe - e0) * math.cos(th0) + (pn - n0) * math.sin(th0)
-        if k != 0.0:
-            for _ in range(2):
-                qe, qn, qth = pose_on_segment(ops, e0, n0, th0, k, t)
-                de, dn = pe - qe, pn - qn
-                along = de * ops.cos(qth) + dn * ops.sin(qth)
-                across = dn * ops.cos(qth) - de * ops.sin(qth)
-                t = t + along / (1.0 - k * across)
-        return ops.clip(t, lo, hi)
+        return foot_on_straight(ops, e0, n0, th0, k, lo, hi, pe, pn, newton=k != 0.0)
+    return foot_on_arc(ops, e0, n0, th0, k, lo, hi, pe, pn)
+
+
+def foot_on_straight(ops: type, e0: Real, n0: Real, th0: Real, k: Real, lo: Real, hi: Real, pe: Real, pn: Real,
+                     newton: bool = True) -> Real:
+    """:func:`foot_on_segment` of a (nearly, ``|k| length < 1e-6``) straight segment: the projection on
+    its chord, then (``newton``) two Newton steps on ``(p - q(t)) . T(t) = 0``; m, clipped to ``[lo, hi]``."""
+    t = (pe - e0) * ops.cos(th0) + (pn - n0) * ops.sin(th0)
+    if newton:
+        for _ in range(2):
+            qe, qn, qth = pose_on_segment(ops, e0, n0, th0, k, t)
+            de, dn = pe - qe, pn - qn
+            along = de * ops.cos(qth) + dn * ops.sin(qth)
+            across = dn * ops.cos(qth) - de * ops.sin(qth)
+            t = t + along / (1.0 - k * across)
+    return ops.clip(t, lo, hi)
+
+
+def foot_on_arc(ops: type, e0: Real, n0: Real, th0: Real, k: Real, lo: Real, hi: Real, pe: Real, pn: Real) -> Real:
+    """:func:`foot_on_segment` of a circular arc (``k != 0``, turn below 2 pi): the circle's nearest
+    point if it lies in ``[lo, hi]``, else the nearer end; m."""
     r = 1.0 / k
-    ce, cn = e0 - r * math.sin(th0), n0 + r * math.cos(th0)
-    tang = ops.atan2(pn - cn, pe - ce) + math.copysign(math.pi / 2, k)   # direction at the circle point
-    turn = ops.mod((tang - th0 - k * lo) * math.copysign(1.0, k), 2 * math.pi)  # 0..2pi from lo
-    past = turn - abs(k) * (hi - lo)                                       # > 0: beyond hi
-    return ops.where(past <= 0, lo + turn / abs(k), ops.where(past < 2 * math.pi - turn, hi, lo))
+    ce, cn = e0 - r * ops.sin(th0), n0 + r * ops.cos(th0)
+    tang = ops.atan2(pn - cn, pe - ce) + ops.copysign(math.pi / 2, k)   # direction at the circle point
+    turn = ops.mod((tang - th0 - k * lo) * ops.copysign(1.0, k), 2 * math.pi)  # 0..2pi from lo
+    past = turn - ops.abs(k) * (hi - lo)                                  # > 0: beyond hi
+    return ops.where(past <= 0, lo + turn / ops.abs(k), ops.where(past < 2 * math.pi - turn, hi, lo))
 
 
 def chain_starts(start: ArrayLike, angle: float, lengths: NDArray[np.float64],
@@ -400,36 +415,45 @@ class ArcPath:
         return np.diff(edges) / step
 
     # -- errors of a vehicle -------------------------------------------------------
-    def _project(self, pe: NDArray, pn: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    def _project(self, pe: NDArray, pn: NDArray, chunk: int = 1 << 14) -> tuple[NDArray, NDArray, NDArray]:
         """Nearest point of each point: (cross-track, station, path angle), flat arrays.
 
-        Candidates: the two straight extensions (the ray behind the start and the ray past
-        the end) and every segment (clipped to its ends); the nearest wins.
+        Candidates: the straight extension behind the start (for points whose foot lies before
+        it), the one past the end (likewise) and every segment (clipped to its ends); the
+        nearest wins, the first of equals. Points x segments are evaluated together, in chunks
+        of about ``chunk`` pairs.
         """
-        best_d2 = np.full(pe.shape, np.inf)
-        xte, sta, ang = np.zeros(pe.shape), np.zeros(pe.shape), np.zeros(pe.shape)
-
-        def take(station, qe, qn, qth, eligible=True):
-            nonlocal best_d2, xte, sta, ang
-            de, dn = pe - qe, pn - qn
-            d2 = de * de + dn * dn
-            better = (d2 < best_d2) & eligible
-            best_d2 = np.where(better, d2, best_d2)
-            xte = np.where(better, dn * np.cos(qth) - de * np.sin(qth), xte)
-            sta = np.where(better, station, sta)
-            ang = np.where(better, qth, ang)
-
-        for end, (p, th) in enumerate(((self._p0[0], self._th0[0]), (self._p0[-1], self._th0[-1]))):
-            c, s = math.cos(th), math.sin(th)
-            t = (pe - p[0]) * c + (pn - p[1]) * s
+        n = len(self.segments)
+        p0, th0, k, length, s0 = self._p0, self._th0, self._kappa, self._len, self._s0
+        straight = (k == 0.0) | (np.abs(k) * length < 1e-6)
+        groups = [(np.flatnonzero(straight), foot_on_straight), (np.flatnonzero(~straight), foot_on_arc)]
+        xte, sta, ang = np.empty(pe.shape), np.empty(pe.shape), np.empty(pe.shape)
+        step = max(1, chunk // (n + 2))
+        for a in range(0, pe.size, step):
+            e, nn = pe[a:a + step, None], pn[a:a + step, None]
+            t = np.empty((e.shape[0], n + 2))
+            for idx, foot in groups:
+                if idx.size:
+                    t[:, 2 + idx] = foot(ARRAY_OPS, p0[idx, 0], p0[idx, 1], th0[idx], k[idx], 0.0, length[idx], e, nn)
+            # the extensions: straight rays from the first start and from the end
+            t[:, :1] = foot_on_straight(ARRAY_OPS, p0[0, 0], p0[0, 1], th0[0], 0.0, -np.inf, np.inf, e, nn, False)
+            t[:, 1:2] = foot_on_straight(ARRAY_OPS, p0[n, 0], p0[n, 1], th0[n], 0.0, -np.inf, np.inf, e, nn, False)
+            ce = np.concatenate([p0[[0, n], 0], p0[:n, 0]])[None, :]
+            cn = np.concatenate([p0[[0, n], 1], p0[:n, 1]])[None, :]
+            cth = np.concatenate([th0[[0, n]], th0[:n]])[None, :]
+            ck = np.concatenate([[0.0, 0.0], k])[None, :]
+            qe, qn, qth = pose_on_segment(ARRAY_OPS, ce, cn, cth, ck, t)
+            d2 = (e - qe) ** 2 + (nn - qn) ** 2
             # a ray counts only for points whose foot lies strictly on it (ties go to the ray, first)
-            take((0.0 if end == 0 else self.length) + t, p[0] + t * c, p[1] + t * s, np.full(pe.shape, th),
-                 (t < 0.0) if end == 0 else (t > 0.0))
-        for i in range(len(self.segments)):
-            p, th, k, length = self._p0[i], float(self._th0[i]), float(self._kappa[i]), float(self._len[i])
-            t = foot_on_segment(ARRAY_OPS, p[0], p[1], th, k, length, 0.0, length, pe, pn)
-            qe, qn, qth = self._local_pose(i, t)
-            take(self._s0[i] + t, qe, qn, qth)
+            d2[:, 0] = np.where(t[:, 0] < 0.0, d2[:, 0], np.inf)
+            d2[:, 1] = np.where(t[:, 1] > 0.0, d2[:, 1], np.inf)
+            best = np.argmin(d2, axis=1)
+            rows = np.arange(best.size)
+            be, bn, bth, bt = qe[rows, best], qn[rows, best], qth[rows, best], t[rows, best]
+            de, dn = e[:, 0] - be, nn[:, 0] - bn
+            xte[a:a + step] = dn * np.cos(bth) - de * np.sin(bth)
+            sta[a:a + step] = np.concatenate([[0.0, self.length], s0[:n]])[best] + bt
+            ang[a:a + step] = bth
         return xte, sta, ang
 
     def errors(self, east: ArrayLike, north: ArrayLike, yaw: ArrayLike | None = None) -> TrackErrors:

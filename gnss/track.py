@@ -123,6 +123,7 @@ class PathTracker:
         ``elapsed`` (s, default :attr:`cycle`) is the time since the previous call; it widens
         the forward window to ``max_speed * elapsed + margin`` m.
         """
+        east, north, yaw = float(east), float(north), float(yaw)      # numpy scalars would slow every step
         if not (math.isfinite(east) and math.isfinite(north)):
             raise GeometryError(f"PathTracker.update: expected a finite position in m, got ({east!r}, {north!r}); "
                                 "skip epochs without a fix")

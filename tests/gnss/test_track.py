@@ -55,6 +55,12 @@ def test_tracker_equals_the_global_projection_where_that_is_unambiguous():
         assert r.curvature == float(path.curvature(r.station))
 
 
+def test_numpy_scalars_in_plain_floats_out():
+    tracker = PathTracker(ArcPath((0, 0), 0.0, [(10.0, 0.05)]), station=0.0)
+    r = tracker.update(np.float64(0.3), np.float32(0.1), np.float64(1.5))
+    assert all(type(v) is float for v in r)
+
+
 def test_extensions_before_the_start_and_past_the_end():
     path = ArcPath((0.0, 0.0), 0.0, [(10.0, 0.05)])
     tracker = PathTracker(path, station=0.0)

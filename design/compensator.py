@@ -130,3 +130,22 @@ def closed_loop_matrix(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarra
 def spectral_radius(a: np.ndarray) -> float:
     """Largest eigenvalue modulus of ``a`` (0 for an empty matrix)."""
     return float(np.max(np.abs(np.linalg.eigvals(a)))) if a.size else 0.0
+
+
+def integrator_states(comp: Compensator) -> tuple[int, ...]:
+    """Indices of the compensator's pure integrators of a measured output.
+
+    A state ``i`` is one when its update is ``xc_i[k+1] = xc_i[k] + b y_j[k]`` and nothing
+    else: row ``i`` of ``Ac`` is the unit row ``e_i``, row ``i`` of ``Bc`` has exactly one
+    non-zero entry, and ``Ec`` leaves it alone (the integral of y/V of
+    :func:`design.iostate.feedback_compensator` is such a state). The vehicle holds these
+    during line acquisition (:mod:`design.acquisition`).
+    """
+    out = []
+    for i in range(comp.order):
+        unit = np.zeros(comp.order)
+        unit[i] = 1.0
+        if (np.array_equal(comp.Ac[i], unit) and np.count_nonzero(comp.Bc[i]) == 1
+                and not np.any(comp.Ec[i])):
+            out.append(i)
+    return tuple(out)

@@ -105,7 +105,7 @@ def record_run(spec: ControllerFile, plant: Model, steps: int = 1200, seed: int 
         raise DesignInputError(f"the plant has {plant.n_outputs} outputs and {plant.n_inputs} inputs; the controller "
                                f"reads {spec.compensator.n_measurements} and writes 1")
     rng = np.random.default_rng(seed)
-    ctrl = LinearController(spec)
+    ctrl = LinearController(spec, acquisition=False)      # the bare law the C step implements
     x = np.zeros(plant.order)
     # start offset: the plant state whose outputs are closest to 0.8 s of y/V (far outside the clip)
     target = np.zeros(plant.n_outputs)

@@ -55,6 +55,7 @@ import casadi as ca
 import numpy as np
 
 from .controller import Measurement
+from .curvature import steady_state as curvature_steady_state
 from .errors import DesignInputError, SynthesisError
 from .kinematic import KinematicWeights, kinematic_model
 
@@ -158,13 +159,12 @@ class NMPCSettings:
 def steady_state(kappa: np.ndarray | float, wheelbase: float = 2.85, d2: float = 1.14) -> tuple[Any, Any]:
     """Heading error and wheel angle that keep the control point on an arc of curvature ``kappa``.
 
-    Returns ``(psi, delta)`` in rad: ``psi = -asin(d2 kappa)``, ``delta = atan(L kappa / cos psi)``.
-    Works on numbers, arrays and casadi expressions.
+    :func:`design.curvature.steady_state` (the one copy of the equation) on numbers, arrays or
+    casadi expressions: ``psi = -asin(d2 kappa)``, ``delta = atan(L kappa / cos psi)``, rad.
     """
-    lib = ca if isinstance(kappa, (ca.SX, ca.MX)) else np
-    psi = -lib.arcsin(d2 * kappa) if lib is np else -ca.asin(d2 * kappa)
-    delta = (lib.arctan if lib is np else ca.atan)(wheelbase * kappa / lib.cos(psi))
-    return psi, delta
+    if isinstance(kappa, (ca.SX, ca.MX)):
+        return curvature_steady_state(kappa, wheelbase, d2, (ca.asin, ca.atan, ca.cos))
+    return curvature_steady_state(kappa, wheelbase, d2, (np.arcsin, np.arctan, np.cos))
 
 
 @dataclass(frozen=True, slots=True)

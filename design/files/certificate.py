@@ -125,3 +125,28 @@ def check_certificate(cert: Any, comp: Compensator, what: str = "the controller"
         if not rho < 1.0:
             raise ControllerFileError(f"certificate failed: {what} is not stable on model {name!r} (spectral radius "
                                       f"{rho:.6f}, expected < 1); it must not be exported or run")
+
+
+def recorded_latency(cert: Any) -> float:
+    """The longest output latency a certificate's models state, s (0 when none is recorded).
+
+    Each certificate model may carry ``latency.delay.outputs_latency_s``, a mapping of output
+    name to seconds (the latency the design assumed). The curvature feed-forward looks this far
+    ahead (:class:`design.curvature.Reference`). A value that is not a finite number in 0-1 s is
+    refused.
+    """
+    rows = cert.get("models") if isinstance(cert, dict) else None
+    most = 0.0
+    for row in rows if isinstance(rows, list) else ():
+        lat = row.get("latency") if isinstance(row, dict) else None
+        delay = lat.get("delay") if isinstance(lat, dict) else None
+        outs = delay.get("outputs_latency_s") if isinstance(delay, dict) else None
+        if outs is None:
+            continue
+        if not isinstance(outs, dict):
+            raise ControllerFileError(f"certificate: outputs_latency_s must map outputs to seconds, got {outs!r}")
+        for name, v in outs.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0 <= v <= 1.0):
+                raise ControllerFileError(f"certificate: latency of {name!r} must be 0-1 s, got {v!r}")
+            most = max(most, float(v))
+    return most

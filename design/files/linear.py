@@ -39,11 +39,13 @@ import numpy as np
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-from ..compensator import Compensator
+from ..acquisition import IntegralGate
+from ..compensator import Compensator, integrator_states
+from ..curvature import Reference
 from ..controller import Measurement
 from ..errors import ControllerFileError, DesignInputError
 from ..limits import DT_RANGE, MAX_COEFFICIENT, MAX_MODEL_ORDER, OUTPUT_CLIP_MAX, RATE_LIMIT_MAX, SPEED_MIN_RANGE, in_range
-from .certificate import check_certificate
+from .certificate import check_certificate, recorded_latency
 from .envelope import SCHEMA, check_envelope, read_json, seal, write_atomically
 from .signature import check_signature
 
@@ -260,10 +262,27 @@ class LinearController:
     Each cycle the measured outputs are normalised as the file says, the compensator
     steps, the command is clipped to the file's rate limit and the compensator's
     memory follows the clipped command (anti-windup). The first step after
-    :meth:`reset` starts from ``xc = X0 y`` (bumpless engage).
+    :meth:`reset` starts from ``xc = X0 y`` (bumpless engage). The compensator's pure
+    integrators (:func:`design.compensator.integrator_states`) are held while the line is
+    being acquired (:class:`design.acquisition.IntegralGate`: after an engage until the
+    cross-track reaches the line, and whenever an output is at its clip), so the approach
+    does not wind them up; once tracking, the law is exactly the certified linear one.
+
+    The law acts on the measurement's deviation from its reference
+    (:class:`design.curvature.Reference`): on engage, a smooth approach path from where the
+    tractor is to the line (unless it engages turning, with its heading error or wheel angle at
+    its clip: then the law recovers first, as it always did, and tracks the line itself); on a curve, the steady heading error and wheel angle of the path's
+    curvature, the wheel angle at the curvature ``V * latency`` ahead (the latency the
+    certificate records; the preview is asked for with :attr:`preview_request`); the reference's
+    own steering rate is added to the law's command (and left out of the law's memory of it). On
+    a straight line past the approach the deviation is the measurement itself.
+
+    ``acquisition=False`` runs the bare certified compensator (no approach path, no
+    feed-forward, integrators never held): what the exported C step implements
+    (:mod:`design.export_c`).
     """
 
-    def __init__(self, spec: ControllerFile) -> None:
+    def __init__(self, spec: ControllerFile, acquisition: bool = True) -> None:
         self.spec = spec
         self.name = f"linear:{spec.name}"
         self.dt = spec.compensator.dt
@@ -271,10 +290,27 @@ class LinearController:
         self._ac, self._bc, self._cc, self._dc, self._ec = c.Ac, c.Bc, c.Cc[0], c.Dc[0], c.Ec[:, 0]
         self._xc = np.zeros(c.order)
         self._fresh = True
+        self.acquisition = bool(acquisition)
+        self._integrators = np.array(integrator_states(c) if acquisition else (), dtype=int)
+        self.gate = IntegralGate()
+        self.reference = Reference(self.dt, spec.rate_limit, recorded_latency(spec.certificate))
+        if acquisition:
+            self.preview_request = self.reference.preview_request
 
     def reset(self) -> None:
         self._xc = np.zeros(self.spec.compensator.order)
         self._fresh = True
+        self.gate.reset()
+        self.reference.reset()
+
+    def _turning(self, y: np.ndarray) -> bool:
+        """An output other than the cross-track (heading error, wheel angle) is at its clip."""
+        return any(o.name != "cross_track" and c is not None and abs(v) >= c
+                   for o, c, v in zip(self.spec.outputs, self.spec.output_clip, y.tolist()))
+
+    def clipped(self, y: np.ndarray) -> bool:
+        """True if some entry of the normalised outputs ``y`` (:meth:`outputs`) is at its clip."""
+        return any(c is not None and abs(v) >= c for v, c in zip(y.tolist(), self.spec.output_clip))
 
     def outputs(self, m: Measurement) -> np.ndarray:
         """Normalised output vector of one measurement."""
@@ -287,6 +323,11 @@ class LinearController:
         return y
 
     def step(self, m: Measurement) -> float:
+        ff = 0.0
+        if self.acquisition:
+            if self.reference.approach is None and self._turning(self.outputs(m)):
+                self.reference.on_line()       # engaged while turning away: recover first, no approach path
+            m, ff = self.reference.track(m)
         y = self.outputs(m)
         if self._fresh:
             self._xc = self.spec.compensator.X0 @ y
@@ -296,8 +337,13 @@ class LinearController:
             self.reset()
             return 0.0
         lim = self.spec.rate_limit
-        ua = min(max(u, -lim), lim)
-        self._xc = self._ac @ self._xc + self._bc @ y + self._ec * (ua - u)
+        ua = min(max(u + ff, -lim), lim)
+        held = self._xc[self._integrators]
+        # the law's memory of its command is what reached the plant beyond the reference's own rate
+        self._xc = self._ac @ self._xc + self._bc @ y + self._ec * (ua - ff - u)
+        if self._integrators.size and not (self.gate.integrate(float(m.cross_track), self.clipped(y))
+                                           and self.reference.acquired):    # acquiring: integrals held
+            self._xc[self._integrators] = held
         return ua
 
     def estimate(self) -> tuple[float, ...]:

@@ -47,7 +47,7 @@ from ..mpc.law import unconstrained_gain
 from ..mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 from ..verify import model_hash
 from ..weights import OutputWeights
-from .certificate import check_certificate
+from .certificate import check_certificate, recorded_latency
 from .envelope import SCHEMA, check_envelope, read_json, seal, write_atomically
 from .linear import VELOCITY_OUTPUTS, check_coefficients, check_output_clip
 from .signature import check_signature
@@ -113,7 +113,7 @@ class MPCFile:
         """A fresh :class:`MPCController` for the vehicle loop."""
         problem = mpc_problem(self.model, self.horizon, self.weights, self.limits, self.past)
         return MPCController(problem, self.settings, self.fallback_gain, self.fallback_law, self.output_clip,
-                             self.speed_min, self.name)
+                             self.speed_min, self.name, recorded_latency(self.certificate))
 
     def to_dict(self) -> dict:
         """The file's JSON object, checksum included."""

@@ -9,7 +9,10 @@ the rate limit, or takes longer than its time budget, the command is the fallbac
 law on the same ``z`` (the robust LMI gain when the design was given one, else the
 unconstrained LQR of the Riccati terminal), clipped to the rate limit; the event is
 recorded in :attr:`MPCController.events`. A non-finite measurement gives a zero
-command and a fresh start on the next tick, as the linear controller files do.
+command and a fresh start on the next tick, as the linear controller files do. The
+integral of y/V is held while a measured output is at its clip (far from the line:
+:class:`design.acquisition.IntegralGate` without the crossing rule, since the constrained
+prediction handles the approach itself).
 """
 
 from __future__ import annotations
@@ -22,7 +25,9 @@ from typing import Sequence
 
 import numpy as np
 
+from ..acquisition import IntegralGate
 from ..controller import Measurement
+from ..curvature import Reference
 from ..errors import DesignInputError
 from .backends import SolverSettings, make_backend
 from .problem import MPCProblem
@@ -93,6 +98,10 @@ class MPCController:
         Floor of the speed used for normalisation, m/s.
     name
         Controller name (``name`` attribute is ``"mpc:<name>"``).
+    latency
+        Look-ahead of the wheel-angle feed-forward, s (:class:`design.curvature.Reference`:
+        the QP acts on deviations from the curve's steady state; no approach path, the
+        constrained QP handles the acquisition itself).
 
     Attributes
     ----------
@@ -109,7 +118,7 @@ class MPCController:
     def __init__(self, problem: MPCProblem, settings: SolverSettings | None = None,
                  fallback_gain: np.ndarray | None = None, fallback_name: str = "lqr",
                  output_clip: Sequence[float | None] | None = (0.1, 0.05, None), speed_min: float = 0.3,
-                 name: str = "mpc") -> None:
+                 name: str = "mpc", latency: float = 0.0) -> None:
         self.problem = problem
         self.settings = settings or SolverSettings()
         self.backend = make_backend(problem, self.settings)
@@ -138,6 +147,10 @@ class MPCController:
         self.solve_times: deque[float] = deque(maxlen=KEEP_TIMES)
         self._z = np.zeros(nz)
         self._fresh = True
+        self._integral = np.arange(nz)[problem.layout.integral_slot]
+        self.gate = IntegralGate(crossing=False)
+        self.reference = Reference(self.dt, problem.limits.rate, latency, approach=False)
+        self.preview_request = self.reference.preview_request
 
     # -- the QP --------------------------------------------------------------------
     def solve_qp(self, z0: np.ndarray) -> SolveInfo:
@@ -204,9 +217,13 @@ class MPCController:
         self._z = np.zeros(self.problem.nz)
         self._fresh = True
         self.backend.reset()
+        self.gate.reset()
+        self.reference.reset()
 
     def step(self, m: Measurement) -> float:
-        z = self.state(self.outputs(m))
+        m, ff = self.reference.track(m)
+        y = self.outputs(m)
+        z = self.state(y)
         info = self.solve_qp(z)
         if info.fallback:
             self.events.append(FallbackEvent(float(m.t), info.status, info.reason))
@@ -214,9 +231,14 @@ class MPCController:
         if not np.all(np.isfinite(z)):          # as the linear controller: forget, and start afresh next tick
             self.reset()
             return u
+        lim = self.problem.limits.rate
+        sent = min(max(u + ff, -lim), lim)      # the reference's own rate (0 on a straight line) on top
         self._fresh = False
-        self._z = self.problem.A @ z + self.problem.B[:, 0] * u      # shifts the window, integrates y/V
-        return u
+        self._z = self.problem.A @ z + self.problem.B[:, 0] * (sent - ff)    # shifts the window, integrates y/V
+        clipped = bool(np.any(np.abs(y) >= self._hi))
+        if not (self.gate.integrate(float(m.cross_track), clipped) and self.reference.acquired):
+            self._z[self._integral] = z[self._integral]               # acquiring: the integral is held
+        return sent
 
     def estimate(self) -> tuple[float, ...]:
         """The measured state ``z`` of the latest step (model units)."""

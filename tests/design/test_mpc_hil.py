@@ -4,7 +4,9 @@ The MPC predicts with the kinematic model of the synthetic family (not an identi
 model), so the truth simulator's valve (deadband, lag, asymmetry) and its non-linear,
 quantised wheel-angle sensor are real model mismatch: the rate limit is hard and holds
 exactly; the wheel-angle limit is soft and holds on the predictions, so on the truth it
-is met to within 20 mrad (measured here: about 10 mrad over a 80 mrad limit).
+is met to within 20 mrad (measured here: about 7 mrad over a 50 mrad limit). The limit is 50 mrad
+(80 before the MPC stopped integrating the approach while its outputs are clipped: without that
+windup the free pass turns the wheels to 99 mrad, not beyond 120).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ def _run(limits, seed=5):
 
 
 def test_mpc_in_lockstep_hil_keeps_its_limits_and_is_repeatable():
-    lim = MPCLimits(rate=0.2, wheel_angle=0.08)
+    lim = MPCLimits(rate=0.2, wheel_angle=0.05)
     ctrl, log, on = _run(lim)
     ch = log.channels
     assert on.mean() > 0.8 and ctrl.fallbacks == 0 and ctrl.ticks == on.sum()

@@ -18,11 +18,11 @@ from typing import Callable, Sequence
 from identification.model import Model
 
 from .autotune import SearchOptions, SearchResult, search_weights
-from .iostate import feedback_compensator, observable_past
+from .iostate import feedback_compensator
 from .mpc.law import unconstrained_gain
 from .mpc_design import MPCDesign, MPCSpec, design_mpc, fallback_from_file
 from .mpc.problem import mpc_problem
-from .robust import RobustResult, RobustSpec, _model_names, design_robust
+from .robust import RobustResult, RobustSpec, _model_names, design_robust, resolved_past
 from .specs import Specifications, resolve_latency
 from .weights import OutputWeights
 
@@ -48,9 +48,19 @@ def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications
     options = options or SearchOptions()
     family = [*models, *validate_on]
     latency = resolve_latency(specs, family)
-    past = spec.past if spec.past is not None or spec.structure != "window" else observable_past(models)
+    past = spec.past if spec.structure != "window" else resolved_past(models, spec)
     base = replace(spec, integral=specs.integral, past=past)
-    result = search_weights(lambda w: design_robust(models, replace(base, weights=w)),
+    mode = [base.reduce]
+
+    def design_at(w: OutputWeights) -> RobustResult:
+        # "if-needed" decides once: after the models as given fail at one scale, every further
+        # scale synthesises on the design models straight away (no failed attempt per trial)
+        r = design_robust(models, replace(base, weights=w, reduce=mode[0]))
+        if mode[0] == "if-needed" and r.file.design.get("design_models") is not None:
+            mode[0] = "always"
+        return r
+
+    result = search_weights(design_at,
                             lambda r: r.file.compensator, family, specs, latency, options,
                             spec_names(models, validate_on), progress)
     record = result.to_dict(specs, options)

@@ -13,7 +13,8 @@ from .files.recheck import recheck
 from .export import FORMATS, export_controller
 from .errors import DesignInputError, VerificationError
 from .auto_designs import auto_robust, spec_names
-from .cli_specs import add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of
+from .cli_specs import (add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of,
+                        warn_relaxed)
 from .robust import RobustSpec, design_lqr, design_robust
 from .specs import check_specs
 from .weights import OutputWeights
@@ -65,6 +66,9 @@ def spec_lines(result: dict) -> list[str]:
         lines.append(f"weights chosen from the specifications: scale {auto['chosen_scale']:.4g} -> y_max "
                      f"{', '.join(f'{v:.4g}' for v in w['y_max'])}, u_max {w['u_max']:g} rad/s, i_max {w['i_max']:.4g} "
                      f"({len(auto['search']['trials'])} trials)")
+        if auto.get("relaxed"):
+            lines.append("RELAXED: no weights met the stated specifications; given up, in order: "
+                         + "; ".join(auto["relaxed"]))
     elif checked:
         sp, ach = checked["specifications"], checked["achieved"]
     else:
@@ -91,12 +95,13 @@ def cmd_robust(args: argparse.Namespace) -> dict:
                       tuple(args.initial_errors), args.integral, args.past, args.command_limit, name=args.name,
                       structure=args.structure, nominal=nominal,
                       output_clip=tuple(None if c <= 0 else c for c in args.output_clip), method=args.method,
-                      backend=args.backend, refine=args.refine)
+                      backend=args.backend, refine=args.refine, reduce={"truncated": "always", "as-given": "never"}.get(args.design_models, "if-needed"))
     latency = latency_of(args, [*models, *validate])
     specs = specs_of(args, latency, args.command_limit, args.integral)
     checked = None
     if args.weights == "auto":
         res, _search = auto_robust(models, spec, specs, validate, search_of(args), progress_of(args))
+        warn_relaxed(res.file.design.get("auto_weights"))
     else:
         res = design_robust(models, spec)
         if latency is not None:
@@ -171,6 +176,10 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     r.add_argument("--past", type=parse_past, default=None,
                    help="past samples in the measured state, or 'auto' (default): the shortest window that "
                         "determines every model's state (1 for order 4, 3 for order 10)")
+    r.add_argument("--design-models", choices=("if-needed", "truncated", "as-given"), default="if-needed",
+                   help="what the synthesis runs on (the certificate is always on the models as given): if-needed "
+                        "(default) the models, and when that fails each model balanced and truncated to the states "
+                        "the window observes well; truncated: those straight away; as-given: the models only")
     r.add_argument("--structure", choices=("window", "observer"), default="window",
                    help="measured-window state feedback, or anchored coordinates + the nominal model's predictor")
     r.add_argument("--output-clip", type=number, nargs="+", default=[0.1, 0.05, 0.0],

@@ -21,7 +21,7 @@ from identification.model import Model
 
 from .anchored import anchored, augment_integral, best_anchor, observer_compensator
 from .compensator import Compensator
-from .errors import DesignInputError
+from .errors import DesignInputError, SynthesisError
 from .files.linear import ControllerFile, outputs_for
 from .limits import check_model_order
 from .iostate import IOStateLayout, feedback_compensator, io_state_model, observable_past
@@ -29,11 +29,13 @@ from .lmi import (LMIOptions, StateFeedbackDesign, closed_loop_cost, robust_stat
                   robust_state_feedback_rounds)
 from .lqr import dlqr, lqg_compensator
 from .plausibility import implausible
+from .reduction import WINDOW_CONDITIONING, design_models
 from .verify import Certificate, certify, model_hash, require_stable
 from .weights import OutputWeights
 
 STRUCTURES = ("window", "observer")
 METHODS = ("all", "rounds")
+REDUCE_MODES = ("if-needed", "always", "never")
 
 
 @dataclass(frozen=True)
@@ -60,9 +62,9 @@ class RobustSpec:
     integral
         Integrate the first output (cross-track / speed) so a steady pull leaves no bias.
     past
-        Past samples in the measured state (>= 1), or None: the shortest window whose outputs
-        determine every model's state (:func:`design.iostate.observable_past`; 1 for the
-        order-4 models, 3 for order 10 with 3 outputs).
+        Past samples in the measured state (>= 1), or None (:func:`resolved_past`): the shortest
+        window whose outputs determine every model's state (:func:`design.iostate.observable_past`;
+        1 for the order-4 models, 3 for order 10).
     command_limit
         Clip of the exported controller's command, rad/s (the loop's limit).
     speed_min
@@ -86,6 +88,16 @@ class RobustSpec:
         The model whose predictor the ``observer`` structure uses (e.g. the central model).
     backend, refine
         See :class:`design.lmi.LMIOptions` (direct conic build or cvxpy; slack-update steps).
+    reduce
+        ``window`` structure, which models the synthesis runs on (the certificate is always on
+        the models as given): ``"if-needed"`` (default) the models as given, and when that
+        synthesis fails (infeasible, or a window too short for a model) the design models,
+        each model balanced and truncated to the largest order its window observes with
+        conditioning >= ``window_conditioning`` (:mod:`design.reduction`; models already that
+        well observed go in as given); ``"always"`` the design models straight away;
+        ``"never"`` the models as given only.
+    window_conditioning
+        See :data:`design.reduction.WINDOW_CONDITIONING`.
     """
 
     weights: OutputWeights = field(default_factory=OutputWeights)
@@ -105,12 +117,16 @@ class RobustSpec:
     nominal: Model | None = field(default=None, compare=False)
     backend: str = "auto"
     refine: int = 1
+    reduce: str = "if-needed"
+    window_conditioning: float = WINDOW_CONDITIONING
 
     def __post_init__(self) -> None:
         if self.structure not in STRUCTURES:
             raise DesignInputError(f"structure must be one of {STRUCTURES}, got {self.structure!r}")
         if self.structure == "observer" and self.nominal is None:
             raise DesignInputError("the observer structure needs a nominal model (e.g. the central model)")
+        if self.reduce not in REDUCE_MODES:
+            raise DesignInputError(f"reduce must be one of {REDUCE_MODES}, got {self.reduce!r}")
         if self.method not in METHODS:
             raise DesignInputError(f"method must be one of {METHODS}, got {self.method!r}")
         if self.past is not None and (isinstance(self.past, bool) or not isinstance(self.past, int) or self.past < 1):
@@ -243,6 +259,18 @@ def _anchored_initial_set(nz: int, errors: Sequence[float]) -> np.ndarray:
     return np.column_stack(cols)
 
 
+def resolved_past(models: Sequence[Model], spec: RobustSpec) -> int:
+    """The measured window of a ``window`` design: ``spec.past``, else the shortest window that
+    determines every model's state (:func:`design.iostate.observable_past`).
+
+    Not shorter with ``reduce``: the states a shorter window would drop can be a delay held in the
+    dynamics, which the design must see (a one-sample output delay has Hankel singular values
+    1e-5 of the first, so no Hankel measure tells it from the worn valve's weak modes).
+    """
+    _check_family(models)
+    return spec.past if spec.past is not None else observable_past(models)
+
+
 def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> RobustResult:
     """One verified compensator for every model (see module docstring).
 
@@ -255,11 +283,30 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
     """
     spec = spec or RobustSpec()
     check_model_order(models)
-    if spec.past is None and spec.structure == "window":
-        _check_family(models)
-        spec = replace(spec, past=observable_past(models))
+    if spec.structure != "window" or spec.reduce == "never":
+        if spec.structure == "window":
+            spec = replace(spec, past=resolved_past(models, spec))
+        return _design_robust(models, spec, list(models), None)
+    spec = replace(spec, past=resolved_past(models, spec))
+    reduced_models, records = design_models(models, spec.past, spec.window_conditioning)
+    if all(r["design_order"] == r["order"] for r in records):
+        return _design_robust(models, spec, list(models), None)        # every model already well observed
+    if spec.reduce == "always":
+        return _design_robust(models, spec, reduced_models, records)
+    try:
+        return _design_robust(models, spec, list(models), None)
+    except (SynthesisError, DesignInputError) as exc:
+        first = f"{type(exc).__name__}: {exc}"
+    res = _design_robust(models, spec, reduced_models, records)
+    file = replace(res.file, design={**res.file.design, "as_given_failed": first})
+    return replace(res, file=file)
+
+
+def _design_robust(models: Sequence[Model], spec: RobustSpec, synth_models: Sequence[Model],
+                   reduced: list[dict] | None) -> RobustResult:
+    """The design on ``synth_models`` (``models`` or their design models), certified on ``models``."""
     names = _model_names(models)
-    layout, a_list, b_list, d = design_problem(models, spec)
+    layout, a_list, b_list, d = design_problem(synth_models, spec)
     e0 = None
     if spec.rate_limit is not None:
         e0 = _initial_set(layout, spec.initial_errors) if spec.structure == "window" else \
@@ -298,6 +345,7 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
               "synthesis_bound": syn.synthesis_bound,
               "conservatism_before_refine": syn.synthesis_bound / max(lqr_costs),
               "synthesis_radii": list(syn.radii), "times_s": syn.times,
+              "design_models": reduced, "window_conditioning": spec.window_conditioning if reduced else None,
               "implausible_models": [{"name": c.name, "pulse_outputs": list(c.outputs)}
                                      for c in implausible(models, names)]}
     file = ControllerFile(spec.name, comp, outputs_for(models[0].meta), spec.command_limit, spec.speed_min,

@@ -1,0 +1,34 @@
+"""The worn-valve tractor's identified models (tests/design/data/worn_valve_models.npz; see its PROVENANCE.txt).
+
+15 local models of orders 4-10 (chosen by held-out 3 s prediction) and the central model (order 4),
+as identified by ``hil commission --tractor worn-valve --passes 2 --duration 90`` (seed 1997): the
+family on which the robust LMIs were infeasible before the design models (design/reduction.py).
+Only A, B, C, K, dt and the metadata the design reads are kept.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from identification.model import Model
+
+DATA = Path(__file__).parent / "data" / "worn_valve_models.npz"
+
+
+def worn_models() -> tuple[list[Model], Model, tuple[float, ...]]:
+    """``(local models, central model, latency per output in s)`` of the worn-valve tractor."""
+    with np.load(DATA, allow_pickle=False) as z:
+        names = json.loads(str(z["names"]))
+        dt = float(z["dt"])
+        latency = tuple(json.loads(str(z["latency_s"])))
+        models = []
+        for n in names:
+            a, b, c, k = (np.array(z[f"{n}/{x}"]) for x in "ABCK")
+            meta = json.loads(str(z[f"{n}/meta"]))
+            models.append(Model(a, b, c, np.zeros((c.shape[0], b.shape[1])), k, dt, meta))
+    local = [m for m in models if m.meta.get("kind") == "local"]
+    central = next(m for m in models if m.meta.get("kind") == "central")
+    return local, central, latency

@@ -11,14 +11,16 @@ that tractor, clipping the command at 0.28 instead of 0.35 rad/s with either gai
 12-45 cm at 1.79-2.91 m/s, against 3-13 cm; docs/weights_from_specifications.md.) :func:`search_weights` finds the largest ``s`` in ``[low, high]`` whose design meets
 every :class:`design.specs.Specifications` on every model (a geometric scan, then bisection
 on ``log s`` above the largest passing scale; each trial designs, exports and re-checks the
-controller exactly, :func:`design.specs.check_specs`), and refuses, naming each unmet
-specification and the best value achieved, when no scale meets them all.
+controller exactly, :func:`design.specs.check_specs`). When no scale meets them all it relaxes
+them in a stated order (:func:`relaxations`: delay reserve, disk margin, peak command) until a
+scanned scale meets the relaxed ones, searches with those and records what it gave up; with
+``relax=False`` it refuses instead, naming each unmet specification and the best value achieved.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Generic, Sequence, TypeVar
 
 from identification.model import Model
@@ -58,12 +60,18 @@ class SearchOptions:
     steps
         Bisection steps on ``log s`` between the largest passing scan scale and the next one
         (4 steps over a factor 3.2 resolve ``s`` to about 7 %).
+    relax
+        When no scale meets the specifications: relax them in the order of :func:`relaxations`
+        (delay reserve, then disk margin, then the peak command) until a scanned scale meets the
+        relaxed ones, and search with those; the result says what was relaxed. False: refuse
+        (:class:`SpecificationError`).
     """
 
     low: float = 0.05
     high: float = 50.0
     scan: int = 7
     steps: int = 4
+    relax: bool = True
 
     def __post_init__(self) -> None:
         for nm in ("low", "high"):
@@ -76,6 +84,8 @@ class SearchOptions:
             raise DesignInputError(f"SearchOptions.steps must be an integer in 0..30, got {self.steps!r}")
         if isinstance(self.scan, bool) or not isinstance(self.scan, int) or not 2 <= self.scan <= 50:
             raise DesignInputError(f"SearchOptions.scan must be an integer in 2..50, got {self.scan!r}")
+        if not isinstance(self.relax, bool):
+            raise DesignInputError(f"SearchOptions.relax must be true or false, got {self.relax!r}")
 
 
 @dataclass(frozen=True)
@@ -90,8 +100,10 @@ class Trial:
 
     def to_dict(self) -> dict:
         """JSON-ready form."""
+        worst = None if self.worst is None else \
+            {k: v if not isinstance(v, float) or math.isfinite(v) else str(v) for k, v in self.worst.items()}
         return {"scale": self.scale, "y_max": list(self.weights.y_max), "u_max": self.weights.u_max,
-                "i_max": self.weights.i_max, "passed": self.passed, "worst": self.worst,
+                "i_max": self.weights.i_max, "passed": self.passed, "worst": worst,
                 "failures": list(self.failures[:5]), "n_failures": len(self.failures)}
 
 
@@ -104,13 +116,21 @@ class SearchResult(Generic[T]):
     design: T
     report: SpecReport
     trials: tuple[Trial, ...]
+    met: Specifications | None = None
+    relaxed: tuple[str, ...] = ()
 
     def to_dict(self, specs: Specifications, options: SearchOptions) -> dict:
-        """The record written into the JSON result and the controller file's design metadata."""
+        """The record written into the JSON result and the controller file's design metadata.
+
+        ``specifications`` are those met (the relaxed ones when the search relaxed any);
+        ``asked`` the ones stated, and ``relaxed`` what was given up, in order.
+        """
+        met = self.met or specs
         return {"chosen_scale": self.scale,
                 "weights": {"y_max": list(self.weights.y_max), "u_max": self.weights.u_max,
                             "i_max": self.weights.i_max},
-                "specifications": specs.to_dict(), "achieved": self.report.to_dict(),
+                "specifications": met.to_dict(), "asked": specs.to_dict(), "relaxed": list(self.relaxed),
+                "achieved": self.report.to_dict(),
                 "search": {"line": "y_max, i_max = base / sqrt(scale); u_max = base",
                            "base": {"y_max": list(BASE.y_max), "u_max": BASE.u_max, "i_max": BASE.i_max},
                            "low": options.low, "high": options.high, "scan": options.scan, "steps": options.steps,
@@ -142,25 +162,25 @@ def search_weights(design_at: Callable[[OutputWeights], T], compensator_of: Call
     Raises
     ------
     SpecificationError
-        Even the gentlest scale fails: names every unmet specification and what was achieved.
+        No scale meets the specifications and ``options.relax`` is off, or no scale gives a
+        design at all: names every unmet specification and what was achieved.
     """
     options = options or SearchOptions()
     trials: list[Trial] = []
-    best: tuple[float, OutputWeights, object, SpecReport] | None = None
+    designs: dict[float, tuple[object, SpecReport]] = {}
     total = options.scan + options.steps
+    current = specs
 
     def attempt(scale: float) -> bool:
-        nonlocal best
         w = scaled_weights(scale)
         try:
             d = design_at(w)
-            rep = check_specs(compensator_of(d), models, specs, latency, names)
+            rep = check_specs(compensator_of(d), models, current, latency, names)
         except DesignError as exc:
             trials.append(Trial(scale, w, False, None, (f"design failed: {exc}",)))
         else:
             trials.append(Trial(scale, w, rep.passed, rep.worst(), tuple(rep.failures)))
-            if rep.passed and (best is None or scale > best[0]):
-                best = (scale, w, d, rep)
+            designs[scale] = (d, rep)
         t = trials[-1]
         if progress is not None:
             state = "meets every specification" if t.passed else f"fails ({t.failures[0]}" + \
@@ -173,21 +193,77 @@ def search_weights(design_at: Callable[[OutputWeights], T], compensator_of: Call
 
     grid = [options.low * (options.high / options.low) ** (i / (options.scan - 1)) for i in range(options.scan)]
     passed = [attempt(s) for s in grid]
+    relaxed: tuple[str, ...] = ()
     if not any(passed):
-        raise SpecificationError(_nothing_meets(trials, specs, options))
+        rated = [(s, designs[s][1]) for s in grid if s in designs]
+        if not options.relax or not rated:
+            raise SpecificationError(_nothing_meets(trials, specs, options))
+        for sp, what in relaxations(specs, models[0].dt):
+            ok = [s in designs and meets(designs[s][1], sp) for s in grid]
+            if any(ok):
+                current, relaxed, passed = sp, what, ok
+                break
+        else:                                                 # cannot happen: the last step accepts any stable loop
+            raise SpecificationError(_nothing_meets(trials, specs, options))
+        if progress is not None:
+            progress("weights search: no scale met the specifications; relaxed, in order: " + "; ".join(relaxed))
     top = max(i for i, ok in enumerate(passed) if ok)
+    best = grid[top]
     if top < len(grid) - 1:
         lo, hi = math.log(grid[top]), math.log(grid[top + 1])
         for _ in range(options.steps):
             mid = 0.5 * (lo + hi)
             if attempt(math.exp(mid)):
-                lo = mid
+                lo, best = mid, math.exp(mid)
             else:
                 hi = mid
-    if best is None:                                          # cannot happen: a grid scale passed
-        raise SpecificationError("the weights search kept no passing design")
-    scale, w, d, rep = best
-    return SearchResult(scale, w, d, rep, tuple(trials))
+    d, rep = designs[best]
+    if relaxed:
+        rep = check_specs(compensator_of(d), models, current, latency, names)
+    return SearchResult(best, scaled_weights(best), d, rep, tuple(trials), current, relaxed)
+
+
+def meets(report: SpecReport, specs: Specifications) -> bool:
+    """Whether every model of ``report`` meets ``specs`` (from its recorded values; stability first)."""
+    return all(c.spectral_radius < 1.0 and c.disk_margin >= specs.disk_margin
+               and c.delay_reserve >= specs.delay_reserve - 1e-9 and c.peak_rate <= specs.rate_limit
+               for c in report.checks)
+
+
+#: Floor of the disk margin the relaxation goes down to before it relaxes the peak command.
+DISK_MARGIN_FLOOR = 0.3
+
+
+def relaxations(specs: Specifications, dt: float) -> list[tuple[Specifications, tuple[str, ...]]]:
+    """The relaxed specifications, gentlest first, with what each gives up (cumulative).
+
+    The order is stated and fixed: (1) the delay reserve beyond the latency, one sample
+    (``dt``) at a time down to 0 (the latency itself stays in every loop); (2) the disk margin,
+    0.05 at a time down to :data:`DISK_MARGIN_FLOOR`; (3) the peak command from the
+    tracking-error set, up to 1.5 and then 2 times the actuator rate; (4) any loop stable with
+    the latency (no margin). Stability with the latency is never relaxed.
+    """
+    out: list[tuple[Specifications, tuple[str, ...]]] = []
+    sp, said = specs, ()
+    reserve = specs.delay_reserve
+    while reserve > 1e-9:
+        reserve = max(0.0, round(reserve - dt, 9))
+        sp = replace(sp, delay_reserve=reserve)
+        out.append((sp, (f"delay reserve {specs.delay_reserve:g} -> {reserve:g} s",)))
+    said = out[-1][1] if out else ()
+    dm = specs.disk_margin
+    while dm > DISK_MARGIN_FLOOR + 1e-9:
+        dm = max(DISK_MARGIN_FLOOR, round(dm - 0.05, 9))
+        sp = replace(sp, disk_margin=dm)
+        out.append((sp, (*said, f"disk margin {specs.disk_margin:g} -> {dm:g}")))
+    said = out[-1][1] if out else said
+    for factor in (1.5, 2.0):
+        sp = replace(sp, rate_limit=specs.rate_limit * factor)
+        out.append((sp, (*said, f"peak command {specs.rate_limit:g} -> {specs.rate_limit * factor:g} rad/s")))
+    said = out[-1][1]
+    sp = replace(sp, disk_margin=1e-6, rate_limit=10.0)
+    out.append((sp, (*said, "every margin (only stability with the latency kept)")))
+    return out
 
 
 def _nothing_meets(trials: Sequence[Trial], specs: Specifications, options: SearchOptions) -> str:

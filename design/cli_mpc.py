@@ -16,7 +16,8 @@ from identification.model import Model
 
 from .auto_designs import auto_mpc, spec_names
 from .cli_robust import _load_models, _weights, certificate_table, spec_lines
-from .cli_specs import add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of
+from .cli_specs import (add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of,
+                        warn_relaxed)
 from .iostate import feedback_compensator, observable_past
 from .specs import check_specs
 from .errors import DesignInputError
@@ -55,6 +56,7 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
         res, _search = auto_mpc(central, others, spec, specs, validate, search_of(args), args.fallback,
                                 require=not args.allow_unstable, progress=progress_of(args))
         weights = res.file.weights
+        warn_relaxed(res.file.design.get("auto_weights"))
     else:
         gain = None
         if args.fallback:

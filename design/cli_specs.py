@@ -61,6 +61,9 @@ def add_spec_arguments(p: argparse.ArgumentParser, number: Callable[[str], float
                    metavar=("LOW", "HIGH"), help="aggressiveness scales searched")
     p.add_argument("--scan", type=int, default=SearchOptions.scan, help="scales scanned before the bisection")
     p.add_argument("--search-steps", type=int, default=SearchOptions.steps, help="bisection steps after the scan")
+    p.add_argument("--strict-specifications", action="store_true",
+                   help="refuse when no weights meet the specifications (default: relax them in the stated order, "
+                        "delay reserve, disk margin, peak command, and say so)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
 
@@ -90,7 +93,15 @@ def specs_of(args: argparse.Namespace, latency: tuple[float, ...] | None, defaul
 
 def search_of(args: argparse.Namespace) -> SearchOptions:
     """The :class:`SearchOptions` of the options."""
-    return SearchOptions(args.scale_range[0], args.scale_range[1], args.scan, args.search_steps)
+    return SearchOptions(args.scale_range[0], args.scale_range[1], args.scan, args.search_steps,
+                         relax=not args.strict_specifications)
+
+
+def warn_relaxed(record: dict | None) -> None:
+    """One line on stderr (even with ``--quiet``) when the search relaxed the specifications."""
+    if record and record.get("relaxed"):
+        print("warning: no weights met the stated specifications; relaxed, in order: " + "; ".join(record["relaxed"])
+              + " (recorded in the controller file's design.auto_weights)", file=sys.stderr, flush=True)
 
 
 def progress_of(args: argparse.Namespace) -> Callable[[str], None] | None:

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from design.auto_designs import auto_mpc, auto_robust
-from design.autotune import SearchOptions, scaled_weights
+from design.autotune import SearchOptions, relaxations, scaled_weights
 from design.errors import DesignInputError, SpecificationError
 from design.mpc_design import MPCSpec
 from design.robust import RobustSpec
@@ -93,7 +93,7 @@ def test_a_specification_that_cannot_be_met_names_it_and_what_was_achieved():
     with pytest.raises(SpecificationError, match=r"disk margin >= 1\.9: best worst-model value \d\.\d+ at scale "
                                                  r"[\d.]+ \(NOT MET\).*--disk-margin"):
         auto_robust(family(speeds=(1.0, 2.91), authorities=(1.0,)), RobustSpec(integral=True), specs,
-                    options=SearchOptions(0.3, 3.0, 3, 0))
+                    options=SearchOptions(0.3, 3.0, 3, 0, relax=False))
 
 
 def test_an_unmeetable_delay_reserve_is_named_too():
@@ -101,7 +101,46 @@ def test_an_unmeetable_delay_reserve_is_named_too():
     with pytest.raises(SpecificationError, match=r"delay reserve beyond the latency, s >= 1\.5: best worst-model "
                                                  r"value [\d.]+ at scale [\d.]+ \(NOT MET\)"):
         auto_robust(family(speeds=(1.0,), authorities=(1.0,)), RobustSpec(integral=True), specs,
-                    options=SearchOptions(0.3, 3.0, 2, 0))
+                    options=SearchOptions(0.3, 3.0, 2, 0, relax=False))
+
+
+def test_specifications_that_cannot_be_met_are_relaxed_in_the_stated_order_and_the_result_says_so():
+    # a disk margin of 1.9 is out of reach (0.6-1.1 on these models): the delay reserve goes first (to 0),
+    # then the disk margin 0.05 at a time until a scanned scale meets it; the chosen design meets the relaxed
+    # specifications on every model, and the record names both the asked and the met ones
+    specs = Specifications(disk_margin=1.9, delay_reserve=0.1, latency=LATENCY)
+    lines: list[str] = []
+    res, search = auto_robust(family(speeds=(1.0, 2.91), authorities=(1.0,)), RobustSpec(integral=True), specs,
+                              options=SearchOptions(0.3, 3.0, 3, 1), progress=lines.append)
+    rec = res.file.design["auto_weights"]
+    assert rec["asked"]["disk_margin"] == 1.9 and rec["asked"]["delay_reserve"] == 0.1
+    assert rec["relaxed"][0] == "delay reserve 0.1 -> 0 s" and rec["relaxed"][-1].startswith("disk margin 1.9 -> ")
+    met = rec["specifications"]
+    assert met["delay_reserve"] == 0.0 and 0.3 <= met["disk_margin"] < 1.9
+    best = max(t.worst["disk_margin"] for t in search.trials[:3])
+    assert met["disk_margin"] <= best < met["disk_margin"] + 0.05 + 1e-9     # the gentlest relaxation that passes
+    assert rec["achieved"]["passed"] and min(r["disk_margin"] for r in rec["achieved"]["models"]) >= met["disk_margin"]
+    assert any("relaxed, in order: delay reserve 0.1 -> 0 s" in ln for ln in lines)
+
+
+def test_a_trial_unstable_on_some_model_is_recorded_in_strict_json():
+    # an aggressive scale unstable on a model has an infinite peak command; the record must still be
+    # JSON (a controller file refused to save with "Out of range float values are not JSON compliant")
+    import json
+    from design.autotune import Trial
+    t = Trial(50.0, scaled_weights(50.0), False, {"disk_margin": 0.0, "delay_reserve_s": 0.0,
+                                                   "peak_rate": math.inf, "spectral_radius": 1.2}, ("unstable",))
+    rec = json.loads(json.dumps(t.to_dict(), allow_nan=False))
+    assert rec["worst"]["peak_rate"] == "inf" and rec["worst"]["spectral_radius"] == 1.2
+
+
+def test_relaxations_are_cumulative_and_end_with_stability_only():
+    steps = relaxations(Specifications(disk_margin=0.6, delay_reserve=0.1, rate_limit=0.35), 0.05)
+    assert [sp.delay_reserve for sp, _ in steps[:2]] == [0.05, 0.0]
+    assert [round(sp.disk_margin, 2) for sp, _ in steps[2:8]] == [0.55, 0.5, 0.45, 0.4, 0.35, 0.3]
+    assert [sp.rate_limit for sp, _ in steps[8:10]] == pytest.approx([0.525, 0.7])
+    assert steps[9][1] == ("delay reserve 0.1 -> 0 s", "disk margin 0.6 -> 0.3", "peak command 0.35 -> 0.7 rad/s")
+    assert steps[-1][0].disk_margin < 1e-5 and steps[-1][1][-1].startswith("every margin")
 
 
 def test_delayed_model_reads_each_output_late_with_fractional_taps():

@@ -210,3 +210,19 @@ def test_hil_compare_on_fields_writes_a_report(tmp_path, hairpin):
     assert hil_main(["compare", "kinematic", "stanley", "--fields", hairpin, "--conditions", "none:1.79",
                      "--seeds", "1", "--passes", "2", "--workers", "1", "--out", str(out), "--quiet"]) == 0
     assert json.loads((out / "fields.json").read_text())["rows"] == rows
+
+
+def test_field_geometry_places_a_route_as_the_receivers_place_the_simulator_frame(curved):
+    from hil.devices.receivers import FieldGeometry
+    fr = field_run(curved, SimParams(), 1.79)
+    for geo in (FieldGeometry(), FieldGeometry(line_yaw=math.radians(-135.0))):
+        placed = geo.place(fr.path)
+        s = np.linspace(-5.0, fr.path.length + 5.0, 400)
+        x, y, th = fr.path.pose(s)
+        e, n, th_enu = placed.pose(s)
+        east, north = np.array([geo.line_to_enu(a, b) for a, b in zip(x, y)]).T
+        assert np.max(np.hypot(e - east, n - north)) < 1e-9
+        # a vehicle heading along the route in the simulator's frame is the placed route's direction in ENU
+        yaw = np.array([geo.yaw(t) for t in th])           # yaw of a heading psi = th from the frame's x axis
+        assert np.allclose(np.cos(np.pi / 2 - yaw), np.cos(th_enu)) and np.allclose(np.sin(np.pi / 2 - yaw),
+                                                                                  np.sin(th_enu))

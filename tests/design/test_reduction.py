@@ -93,3 +93,30 @@ def test_the_worn_valves_models_yield_a_robust_controller_and_an_mpc_certified_o
     assert mpc.certificate.passed and len(mpc.certificate.checks) == 16
     law = feedback_compensator(mpc.unconstrained_gain, mpc_problem(central, 30, spec.weights, spec.limits, 1).layout)
     assert certify(law, local, [m.meta["name"] for m in local]).passed
+
+
+@pytest.mark.slow
+def test_automatic_weights_meet_their_margin_specifications_on_every_worn_valve_model():
+    # the test on a real identified family: the margins recomputed with python-control on every
+    # model as given (orders 4-10), the latency in the loop as three whole samples on y/V and psi/V
+    from design.auto_designs import auto_mpc, auto_robust
+    from design.autotune import SearchOptions
+    from design.specs import Specifications
+    from test_autotune import _independent_margins
+
+    local, central, _ = worn_models()
+    specs = Specifications(disk_margin=0.6, delay_reserve=0.1, latency=(0.15, 0.15, 0.0), rate_limit=0.23)
+    res, search = auto_robust(local, RobustSpec(integral=True, past=1), specs, options=SearchOptions(0.3, 5.0, 4, 2))
+    rec = res.file.design["auto_weights"]
+    assert rec["relaxed"] == [] and rec["achieved"]["passed"]
+    comp = res.file.compensator
+    for m, row in zip(local, rec["achieved"]["models"]):
+        dm, stable = _independent_margins(m, comp, latency_samples=3, reserve_samples=2)
+        assert stable and dm >= 0.6 - 2e-3, (m.meta["name"], dm)
+        assert row["peak_rate"] <= 0.23
+    mpc, _ = auto_mpc(central, local, MPCSpec(horizon=30, past=1), specs, options=SearchOptions(0.3, 5.0, 4, 2),
+                      fallback=None)
+    law = feedback_compensator(mpc.unconstrained_gain, mpc.problem.layout)
+    for m in [central, *local]:
+        dm, stable = _independent_margins(m, law, latency_samples=3, reserve_samples=2)
+        assert stable and dm >= 0.6 - 2e-3, (m.meta["name"], dm)

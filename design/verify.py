@@ -150,14 +150,19 @@ def delay_margin_samples(model: Model, comp: Compensator, most: int = 40) -> int
 
 
 def _loop_response(model: Model, comp: Compensator, omega: np.ndarray) -> np.ndarray:
-    zs = np.exp(1j * omega * model.dt)
-    out = np.empty(zs.size, dtype=complex)
+    """``-K(z) P(z)`` at ``z = exp(j omega dt)``; one batched solve per system (the same LAPACK
+    routine, matrix by matrix, as a loop over the frequencies: 3.5 of the 14 s a 15-model
+    specification check took on the worn valve went into 67,500 separate solves)."""
+    zs = np.exp(1j * omega * model.dt)[:, None, None]
     n, nc = model.order, comp.order
-    for i, z in enumerate(zs):
-        p = model.C @ np.linalg.solve(z * np.eye(n) - model.A, model.B) + model.D
-        k = comp.Cc @ np.linalg.solve(z * np.eye(nc) - comp.Ac, comp.Bc) + comp.Dc if nc else comp.Dc
-        out[i] = -(k @ p)[0, 0]
-    return out
+    p = model.C @ np.linalg.solve(zs * np.eye(n) - model.A, np.broadcast_to(model.B, (zs.size, *model.B.shape)))
+    p = p + model.D
+    if nc:
+        k = comp.Cc @ np.linalg.solve(zs * np.eye(nc) - comp.Ac, np.broadcast_to(comp.Bc, (zs.size, *comp.Bc.shape)))
+        k = k + comp.Dc
+    else:
+        k = np.broadcast_to(comp.Dc, (zs.size, *comp.Dc.shape))
+    return -(k @ p)[:, 0, 0]
 
 
 def phase_margin(model: Model, comp: Compensator, omega: np.ndarray) -> tuple[float, float]:

@@ -7,10 +7,11 @@
     design verify CONTROLLER --models models/*.npz
     design export CONTROLLER --format json|c-header|csv|c [--out FILE | DIR]
     design mpc --models models/*.npz --horizon N [--backend casadi|osqp] [--solver daqp|...] --out controllers/mpc.json
+    design nmpc --models models/local_*.npz [--horizon N] [--integral-max MS] --out controllers/nmpc.json
     design keygen --out DIR                       # Ed25519 key pair for signing controller files
     design sign CONTROLLER --key DIR/controller-signing.key [--out FILE]
 
-``robust``, ``lqr`` and ``mpc`` take ``--sign KEY`` to sign the file they write. ``verify``
+``robust``, ``lqr``, ``mpc`` and ``nmpc`` take ``--sign KEY`` to sign the file they write. ``verify``
 exits 1 when anything in the file's certificate does not hold on the given models.
 """
 
@@ -23,7 +24,7 @@ import sys
 
 import numpy as np
 
-from . import cli_mpc, cli_robust
+from . import cli_mpc, cli_nmpc, cli_robust
 from .errors import DesignError
 from .files.load import sign_file
 from .files.signature import key_id, keygen, load_private_key
@@ -78,7 +79,7 @@ def _cmd_sign(args: argparse.Namespace) -> dict:
     return {"controller": str(args.controller), "out": str(out), "key_id": key_id(key.public_key())}
 
 
-SIGNED_COMMANDS = ("robust", "lqr", "mpc")
+SIGNED_COMMANDS = ("robust", "lqr", "mpc", "nmpc")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -97,6 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
     k.set_defaults(func=_cmd_kinematic)
     cli_robust.add_parsers(sub, _float)
     cli_mpc.add_parser(sub, _float)
+    cli_nmpc.add_parser(sub, _float)
     for name in SIGNED_COMMANDS:
         sub.choices[name].add_argument("--sign", metavar="KEY", default=None,
                                        help="sign the written file with this private key (design keygen)")
@@ -138,6 +140,8 @@ def main(argv: list[str] | None = None) -> int:
         print(cli_robust.render(result))
     elif args.command == "mpc":
         print(cli_mpc.render(result))
+    elif args.command == "nmpc":
+        print(cli_nmpc.render(result))
     elif args.command == "keygen":
         print(f"wrote {result['private_key']} (mode 0600, keep it on the design machine) and {result['public_key']} "
               f"(copy it to the field computer); key {result['key_id']}")

@@ -41,25 +41,29 @@ fixed. ``"sqp"`` (casadi's ``sqpmethod``, exact Hessian, iterates to a tolerance
 The model assumes the steering delivers the commanded rate at once. The simulated valve
 delivers less (deadband, flow curve, slower to the right) 80 ms late; with the LQR's weights
 (``y_max`` = 0.15 m) at 2.91 m/s that mismatch can make the NMPC bang between the rate limits
-(see ``notebooks/03_mpc.py``); ``y_max`` = 0.3 m settles. It has no integral action.
+(see ``notebooks/03_mpc.py``); ``y_max`` = 0.3 m settles. With ``integral_max`` it carries the
+integral of the cross-track as a fourth state (offset-free on a steady pull); as a controller file
+it is kind ``"nmpc"`` (:mod:`design.files.nmpc`).
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from dataclasses import dataclass, field, fields
 from typing import Any, Mapping
 
 import casadi as ca
 import numpy as np
 
+from .acquisition import IntegralGate
 from .controller import Measurement
 from .curvature import steady_state as curvature_steady_state
 from .errors import DesignInputError, SynthesisError
 from .kinematic import KinematicWeights, kinematic_model
 
-__all__ = ["NMPCSettings", "NMPCSolution", "NonlinearMPC", "steady_state"]
+__all__ = ["NMPCSettings", "NMPCSolution", "NonlinearMPC", "linear_model", "lqr_gain", "steady_state"]
 
 SOLVERS = ("gauss-newton", "sqp", "ipopt")
 _DEFAULT_ITER = {"gauss-newton": 2, "sqp": 10, "ipopt": 50}
@@ -101,6 +105,11 @@ class NMPCSettings:
         ``"lqr"``: terminal cost from the discrete Riccati equation at the measured speed; ``"none"``.
     speed_range
         Speeds of the terminal-cost table, m/s (clamped outside).
+    integral_max
+        Bryson bound on the integral of the cross-track, m s (``None``: no integral state).
+        With it the model carries ``i' = y`` as a fourth state, weighted ``integral_max^-2``:
+        the integral is computed from the measured cross-track, so a constant pull the model
+        does not know leaves no steady error (in steady state ``i`` is constant, so ``y = 0``).
     """
 
     horizon: int = 30
@@ -117,6 +126,7 @@ class NMPCSettings:
     tol: float = 1e-6
     terminal: str = "lqr"
     speed_range: tuple[float, float] = (0.3, 5.0)
+    integral_max: float | None = None
 
     def __post_init__(self) -> None:
         n = self.horizon
@@ -145,6 +155,15 @@ class NMPCSettings:
         lo, hi = self.speed_range
         if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
             raise DesignInputError(f"speed_range must be 0 < low < high m/s, got {self.speed_range!r}")
+        im = self.integral_max
+        if im is not None and (isinstance(im, bool) or not isinstance(im, (int, float)) or not math.isfinite(im)
+                               or im <= 0):
+            raise DesignInputError(f"integral_max must be a finite number > 0 (m s) or None, got {im!r}")
+
+    @property
+    def n_states(self) -> int:
+        """States of the prediction model: ``[y, psi, delta]``, and the integral ``i`` when weighted."""
+        return 3 if self.integral_max is None else 4
 
     @classmethod
     def from_dict(cls, options: Mapping[str, Any]) -> "NMPCSettings":
@@ -176,7 +195,7 @@ class NMPCSolution:
     u
         Steering-rate sequence, rad/s, shape ``(N,)``; ``u[0]`` is the command.
     states
-        Predicted ``[y, psi, delta]``, shape ``(N + 1, 3)``.
+        Predicted ``[y, psi, delta]`` (and the integral), shape ``(N + 1, nx)``.
     slack
         Wheel-angle slack ``e``, rad.
     cost
@@ -222,6 +241,50 @@ def dare_doubling(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: float, tol: fl
     raise SynthesisError("the Riccati doubling iteration did not converge (is the model stabilisable?)")
 
 
+def stage_weights(settings: NMPCSettings) -> tuple[np.ndarray, float]:
+    """``(Q, R)`` of the stage cost: Bryson weights of ``[y, psi, delta]`` (and the integral), and the rate."""
+    w = settings.weights
+    q = [w.y_max ** -2, w.psi_max ** -2, w.delta_max ** -2]
+    return np.diag(q if settings.n_states == 3 else q + [settings.integral_max ** -2]), w.u_max ** -2
+
+
+def linear_model(settings: NMPCSettings, speed: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold ``(Ad, Bd)`` of the prediction model linearised on a straight line at ``speed`` m/s.
+
+    States ``[y, psi, delta]`` and, with the integral, ``i`` (``i' = y``); exact, since ``A`` is
+    nilpotent (the series ends at ``A^nx``). On a straight line, small errors and no active limit,
+    the NMPC's first move is ``-K x`` with ``K`` = :func:`lqr_gain` (its terminal cost is the
+    Riccati solution; RK4 is exact for this model), which is what its certificate checks.
+    """
+    s = settings
+    a3, b3 = kinematic_model(float(speed), s.wheelbase, s.d2)
+    nx = s.n_states
+    a, b = np.zeros((nx, nx)), np.zeros((nx, 1))
+    a[:3, :3], b[:3] = a3, b3
+    if nx == 4:
+        a[3, 0] = 1.0                           # i' = y
+    ad, bd, term = np.eye(nx), np.eye(nx) * s.dt, np.eye(nx)
+    for k in range(1, nx + 1):
+        term = term @ a * s.dt / k
+        ad = ad + term
+        bd = bd + term * s.dt / (k + 1)
+    return ad, bd @ b
+
+
+def lqr_gain(settings: NMPCSettings, speed: float) -> np.ndarray:
+    """``K`` (1 x nx) of the discrete LQR of :func:`linear_model` with the stage weights at ``speed`` m/s."""
+    ad, bd = linear_model(settings, speed)
+    q, r = stage_weights(settings)
+    p = dare_doubling(ad, bd, q, r)
+    return np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad)
+
+
+def _tri(i: int, j: int, n: int) -> int:
+    """Index of entry ``(i, j)``, ``i <= j``, in the row-major upper triangle of an ``n x n`` matrix
+    (the order of ``numpy.triu_indices``)."""
+    return i * n - i * (i - 1) // 2 + (j - i)
+
+
 def _rhs(x, u, speed, kappa, wheelbase, d2):
     y, psi, delta = x[0], x[1], x[2]
     w = speed * ca.tan(delta) / wheelbase
@@ -247,9 +310,8 @@ class NonlinearMPC:
         self.name = f"nmpc-{s.solver}" + (f"-{s.qpsol}" if s.solver != "ipopt" else "")
         self.dt = float(s.dt)
         n = s.horizon
-        w = s.weights
-        self._q = np.diag([w.y_max ** -2, w.psi_max ** -2, w.delta_max ** -2])
-        self._r = w.u_max ** -2
+        self.nx = s.n_states
+        self._q, self._r = stage_weights(s)
         lo, hi = s.speed_range
         self.speeds = np.linspace(lo, hi, int(round((hi - lo) / 0.05)) + 1)   # the LQR table's grid
         self._p_table = np.array([self._terminal(v) for v in self.speeds])
@@ -259,30 +321,41 @@ class NonlinearMPC:
         self._ubx = np.r_[np.full(n, s.rate_limit), np.inf]
         self._lbg = np.r_[np.full(n, -np.inf), np.full(n, -s.wheel_limit)]
         self._ubg = np.r_[np.full(n, s.wheel_limit), np.full(n, np.inf)]
+        #: The curvature preview the loop gives :meth:`step`: one mean curvature per stage.
+        self.preview_request = (n, self.dt)
+        self.gate = IntegralGate()
+        self.ticks = 0
+        self.solve_times: deque[float] = deque(maxlen=72_000)     # an hour of ticks at 20 Hz
         self.reset()
 
     # -- construction --------------------------------------------------------------
+    def linear_model(self, speed: float) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`linear_model` of these settings."""
+        return linear_model(self.settings, speed)
+
     def _terminal(self, speed: float) -> np.ndarray:
-        """Terminal weight ``P`` (3x3) at ``speed``: the discrete LQR's Riccati solution, or 0."""
-        s = self.settings
-        if s.terminal == "none":
-            return np.zeros((3, 3))
-        a, b = kinematic_model(float(speed), s.wheelbase, s.d2)
-        # exact zero-order hold: A is nilpotent (A^3 = 0)
-        ad = np.eye(3) + a * s.dt + a @ a * s.dt ** 2 / 2
-        bd = (np.eye(3) * s.dt + a * s.dt ** 2 / 2 + a @ a * s.dt ** 3 / 6) @ b
+        """Terminal weight ``P`` (nx x nx) at ``speed``: the discrete LQR's Riccati solution, or 0."""
+        if self.settings.terminal == "none":
+            return np.zeros((self.nx, self.nx))
+        ad, bd = linear_model(self.settings, speed)
         return dare_doubling(ad, bd, self._q, self._r)
+
+    def lqr_gain(self, speed: float) -> np.ndarray:
+        """:func:`lqr_gain` of these settings."""
+        return lqr_gain(self.settings, speed)
 
     def _build(self) -> ca.Function:
         s = self.settings
         n, h = s.horizon, s.dt
-        x = ca.SX.sym("x", 3)
+        nx = self.nx
+        x = ca.SX.sym("x", nx)
         u = ca.SX.sym("u")
         v = ca.SX.sym("v")
         kap = ca.SX.sym("kappa")
 
         def f(xx):
-            return _rhs(xx, u, v, kap, s.wheelbase, s.d2)
+            rhs = _rhs(xx, u, v, kap, s.wheelbase, s.d2)
+            return rhs if nx == 3 else ca.vertcat(rhs, xx[0])      # i' = y
 
         k1 = f(x)
         k2 = f(x + h / 2 * k1)
@@ -292,11 +365,14 @@ class NonlinearMPC:
 
         us = ca.SX.sym("u", n)
         eps = ca.SX.sym("e")
-        x0 = ca.SX.sym("x0", 3)
+        x0 = ca.SX.sym("x0", nx)
         kappas = ca.SX.sym("kappa", n)
-        pt = ca.SX.sym("P", 6)          # upper triangle of the terminal weight, row-major
-        p_mat = ca.vertcat(ca.horzcat(pt[0], pt[1], pt[2]), ca.horzcat(pt[1], pt[3], pt[4]),
-                           ca.horzcat(pt[2], pt[4], pt[5]))
+        pt = ca.SX.sym("P", nx * (nx + 1) // 2)          # upper triangle of the terminal weight, row-major
+        upper = {}
+        for i in range(nx):
+            for j in range(i, nx):
+                upper[i, j] = upper[j, i] = pt[_tri(i, j, nx)]
+        p_mat = ca.vertcat(*[ca.horzcat(*[upper[i, j] for j in range(nx)]) for i in range(nx)])
         sq = ca.DM(np.sqrt(np.diag(self._q)))
         sr = math.sqrt(self._r)
         rho1 = s.slack_weight
@@ -307,13 +383,13 @@ class NonlinearMPC:
         traj = [x0]
         for k in range(n):
             psi_r, del_r = steady_state(kappas[k], s.wheelbase, s.d2)
-            res.append(sq * (xk - ca.vertcat(0, psi_r, del_r)))
+            res.append(sq * (xk - ca.vertcat(0, psi_r, del_r, *([0] * (nx - 3)))))
             res.append(sr * us[k])
             xk = step(xk, us[k], v, kappas[k])
             deltas.append(xk[2])
             traj.append(xk)
         psi_r, del_r = steady_state(kappas[n - 1], s.wheelbase, s.d2)
-        res.append(ca.mtimes(ca.chol(p_mat + 1e-12 * ca.DM.eye(3)), xk - ca.vertcat(0, psi_r, del_r)))
+        res.append(ca.mtimes(ca.chol(p_mat + 1e-12 * ca.DM.eye(nx)), xk - ca.vertcat(0, psi_r, del_r, *([0] * (nx - 3)))))
         res.append(math.sqrt(rho2) * eps)
         r = ca.vertcat(*res)
         cost = ca.sumsqr(r) + rho1 * eps
@@ -382,7 +458,7 @@ class NonlinearMPC:
 
     # -- solving -------------------------------------------------------------------
     def terminal_weight(self, speed: float) -> np.ndarray:
-        """Interpolated terminal weight ``P`` at ``speed`` m/s (3x3)."""
+        """Interpolated terminal weight ``P`` at ``speed`` m/s (nx x nx)."""
         v = float(np.clip(speed, self.speeds[0], self.speeds[-1]))
         i = int(min(np.searchsorted(self.speeds, v, side="right") - 1, len(self.speeds) - 2))
         t = (v - self.speeds[i]) / (self.speeds[i + 1] - self.speeds[i])
@@ -395,7 +471,8 @@ class NonlinearMPC:
         Parameters
         ----------
         state
-            Cross-track (m, + left), heading error (rad), wheel angle (rad).
+            Cross-track (m, + left), heading error (rad), wheel angle (rad), and with the integral
+            state its value (m s).
         speed
             m/s (> 0).
         curvature
@@ -406,8 +483,9 @@ class NonlinearMPC:
         s = self.settings
         n = s.horizon
         x0 = np.asarray(state, dtype=float).reshape(-1)
-        if x0.shape != (3,) or not np.all(np.isfinite(x0)):
-            raise DesignInputError(f"state must be 3 finite numbers [y m, psi rad, delta rad], got {state!r}")
+        if x0.shape != (self.nx,) or not np.all(np.isfinite(x0)):
+            raise DesignInputError(f"state must be {self.nx} finite numbers [y m, psi rad, delta rad"
+                                   f"{', i m s' if self.nx == 4 else ''}], got {state!r}")
         if not (math.isfinite(speed) and speed > 0):
             raise DesignInputError(f"speed must be a finite number of m/s > 0, got {speed!r}")
         kap = np.zeros(n) if curvature is None else np.asarray(curvature, dtype=float).reshape(-1)
@@ -418,7 +496,7 @@ class NonlinearMPC:
             raise DesignInputError(f"curvature preview up to {np.abs(kap).max():.3f} 1/m is tighter than a "
                                    f"tractor turns; check the path")
         pm = self.terminal_weight(speed)
-        p = np.r_[x0, speed, kap, pm[0, 0], pm[0, 1], pm[0, 2], pm[1, 1], pm[1, 2], pm[2, 2]]
+        p = np.r_[x0, speed, kap, pm[np.triu_indices(self.nx)]]
         args = {"x0": self._w if warm else np.zeros(self._n_w), "p": p, "lbx": self._lbx, "ubx": self._ubx,
                 "lbg": self._lbg, "ubg": self._ubg}
         if warm and s.solver != "gauss-newton":
@@ -449,33 +527,65 @@ class NonlinearMPC:
                             success=success, status=status, iterations=iterations, solve_time=elapsed)
 
     def predict(self, state: np.ndarray, u: np.ndarray, speed: float, curvature: np.ndarray) -> np.ndarray:
-        """States ``(N + 1, 3)`` the model predicts for rates ``u`` (same RK4 as the problem)."""
+        """States ``(N + 1, nx)`` the model predicts for rates ``u`` (same RK4 as the problem)."""
         return np.asarray(self._trajectory(np.asarray(state, dtype=float), np.asarray(u, dtype=float), speed,
                                            np.asarray(curvature, dtype=float)))
 
     # -- Controller protocol -------------------------------------------------------
     def reset(self) -> None:
-        """Forget the warm start and the statistics."""
+        """Forget the warm start, the integral and the per-engage statistics (called on every engage)."""
         n = self.settings.horizon
         self._w = np.zeros(n + 1)
         self._lam_x = np.zeros(n + 1)
         self._lam_g = np.zeros(2 * n)
-        self._x = (0.0, 0.0, 0.0)
+        self._x = (0.0,) * self.nx
+        self.integral = 0.0
+        self.gate.reset()
         self.last: NMPCSolution | None = None
         self.failures = 0
 
     def step_curve(self, m: Measurement, curvature: np.ndarray) -> float:
-        """Steering-rate command, rad/s, for a curved line with the curvature ``preview`` ahead."""
-        self._x = (m.cross_track, m.heading_error, m.wheel_angle)
-        sol = self.solve(np.array(self._x), max(m.speed, self.settings.speed_range[0]), curvature)
+        """Steering-rate command, rad/s, for a curved line with the curvature ``preview`` ahead.
+
+        With the integral state, the integral of the measured cross-track advances by ``dt * y``
+        after the solve, except while the line is being acquired after an engage
+        (:class:`design.acquisition.IntegralGate`: held until the cross-track first reaches the line).
+        """
+        y = float(m.cross_track)
+        x = (y, float(m.heading_error), float(m.wheel_angle)) + ((self.integral,) if self.nx == 4 else ())
+        self._x = x
+        sol = self.solve(np.array(x), max(m.speed, self.settings.speed_range[0]), curvature)
         self.last = sol
+        self.ticks += 1
+        self.solve_times.append(sol.solve_time)
         if not sol.success:
             self.failures += 1
+        if self.nx == 4 and self.gate.integrate(y, False):
+            self.integral += self.dt * y
         return float(sol.u[0])
 
     def step(self, m: Measurement) -> float:
-        """Steering-rate command, rad/s, for a straight line (zero curvature ahead)."""
-        return self.step_curve(m, np.zeros(self.settings.horizon))
+        """Steering-rate command, rad/s: the curvature ahead is the loop's preview (asked for with
+        :attr:`preview_request` = ``(N, dt)``; a shorter one is held at its last value), else the
+        present curvature held over the horizon (0 on an AB line). A non-finite measurement gives
+        no steering and a fresh start, as the linear controllers do."""
+        if not all(math.isfinite(v) for v in (m.cross_track, m.heading_error, m.wheel_angle, m.speed, m.curvature)):
+            self.reset()
+            return 0.0
+        n = self.settings.horizon
+        if m.preview:
+            ahead = np.asarray(m.preview[:n], dtype=float)
+            kap = np.r_[ahead, np.full(n - ahead.size, ahead[-1])]
+        else:
+            kap = np.full(n, float(m.curvature))
+        return self.step_curve(m, kap)
 
     def estimate(self) -> tuple[float, ...]:
         return self._x
+
+    def diagnostics(self) -> dict:
+        """Ticks since construction, solves that did not converge, and the kept solve times (ms)."""
+        t = np.asarray(self.solve_times) * 1e3
+        stats = {"median_ms": float(np.median(t)), "p99_ms": float(np.percentile(t, 99)),
+                 "max_ms": float(t.max())} if t.size else {}
+        return {"backend": self.name, "ticks": self.ticks, "fallbacks": 0, "failures": self.failures, **stats}

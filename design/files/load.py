@@ -8,18 +8,21 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey,
 
 from ..errors import ControllerFileError
 from ..mpc.controller import MPCController
+from ..nmpc import NonlinearMPC
 from .envelope import read_json, write_atomically
 from .linear import LinearController, from_body
 from .mpc import mpc_from_body
+from .nmpc import nmpc_from_body
 from .signature import sign_body
 
 
 def load_controller(path: str | Path, dt: float | None = 0.05, public_key: Ed25519PublicKey | None = None,
-                    legacy_certificate: bool = False) -> LinearController | MPCController:
+                    legacy_certificate: bool = False) -> LinearController | MPCController | NonlinearMPC:
     """Read, check and instantiate a controller file for the vehicle loop.
 
     A file of kind ``"linear"`` gives a :class:`~design.files.linear.LinearController`,
-    one of kind ``"mpc"`` a :class:`design.mpc.MPCController`. Every check of
+    one of kind ``"mpc"`` a :class:`design.mpc.MPCController`, one of kind ``"nmpc"`` a
+    :class:`design.nmpc.NonlinearMPC` (:mod:`design.files.nmpc`). Every check of
     :func:`~design.files.linear.read_controller_file` /
     :func:`~design.files.mpc.read_mpc_file` applies, the certificate's included: a
     file whose certificate is missing, failed or made for other matrices is refused.
@@ -48,6 +51,8 @@ def load_controller(path: str | Path, dt: float | None = 0.05, public_key: Ed255
         if isinstance(body, dict) and body.get("kind") == "mpc":
             spec = mpc_from_body(body, dt, public_key, legacy_certificate)
             return spec.controller()
+        if isinstance(body, dict) and body.get("kind") == "nmpc":
+            return nmpc_from_body(body, dt, public_key).controller()
         return LinearController(from_body(body, dt, public_key, legacy_certificate))
     except (ControllerFileError, ValueError) as exc:
         raise ControllerFileError(f"{path}: {exc}") from None
@@ -69,6 +74,8 @@ def sign_file(path: str | Path, key: Ed25519PrivateKey, out: str | Path | None =
     try:
         if isinstance(body, dict) and body.get("kind") == "mpc":
             mpc_from_body(body, dt=None)
+        elif isinstance(body, dict) and body.get("kind") == "nmpc":
+            nmpc_from_body(body, dt=None)
         else:
             from_body(body, dt=None)
     except (ControllerFileError, ValueError) as exc:

@@ -1,7 +1,8 @@
 """``design verify``: re-check everything a controller file's certificate states, on the given model files.
 
 For the law the file certifies (a linear file's compensator, an MPC file's unconstrained
-law) the certificate is computed afresh (:func:`design.verify.certify`) on the given
+law; an NMPC file's linearisation at each model's speed, :mod:`design.files.nmpc`) the
+certificate is computed afresh (:func:`design.verify.certify`) on the given
 models and compared with the file's, row by row for each model of the same hash:
 spectral radius, gain, phase, disk and delay margins, the latency the model file states
 and its validation fits. Every difference, every model the file lists that was not
@@ -23,6 +24,7 @@ from ..verify import certify, compensator_hash, model_hash
 from .envelope import read_json
 from .linear import uncertified_from_body
 from .mpc import uncertified_mpc_from_body
+from .nmpc import recheck_nmpc
 
 NUMBERS = ("spectral_radius", "gain_margin_db", "gain_reduction_margin_db", "phase_margin_deg", "delay_margin_samples",
            "disk_margin", "disk_gain_margin_db", "disk_phase_margin_deg", "delay_margin_s")
@@ -70,6 +72,15 @@ def recheck(path: str | Path, models: Sequence[Model]) -> dict:
         If the file cannot be read or fails a check other than its certificate's.
     """
     body = read_json(path)
+    if isinstance(body, dict) and body.get("kind") == "nmpc":
+        try:
+            fresh, problems = recheck_nmpc(body, models)
+        except ControllerFileError as exc:
+            raise ControllerFileError(f"{path}: {exc}") from None
+        for r in fresh["models"]:
+            r.pop("model", None)
+        return {"controller": str(path), "certificate": fresh, "problems": problems, "passed": not problems,
+                "max_radius_difference_from_file": None}
     try:
         comp, stored = _law(body)
     except ControllerFileError as exc:

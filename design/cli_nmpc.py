@@ -1,0 +1,66 @@
+"""Sub-command ``design nmpc`` (thin layer over :mod:`design.files.nmpc`).
+
+    design nmpc --models models/local_*.npz --out controllers/nmpc.json [--horizon N] [--y-max M]
+                [--integral-max MS] [--rate-limit R] [--wheel-limit W] [--solver gauss-newton|sqp|ipopt]
+                [--qpsol daqp|...] [--name NAME] [--json]
+
+The NMPC (:class:`design.nmpc.NonlinearMPC`, kinematic bicycle in path coordinates, curvature
+preview, the integral of the cross-track as a state) needs no identified model to predict; the
+models given are what its linearisation is certified on, each at its nominal speed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from .cli_robust import _load_models, certificate_table
+from .files.nmpc import design_nmpc
+from .kinematic import KinematicWeights
+from .nmpc import SOLVERS, NMPCSettings
+
+
+def cmd_nmpc(args: argparse.Namespace) -> dict:
+    models = _load_models(args.models)
+    w = KinematicWeights(y_max=args.y_max, psi_max=math.radians(args.psi_max_deg),
+                         delta_max=math.radians(args.delta_max_deg), u_max=args.u_max)
+    settings = NMPCSettings(horizon=args.horizon, weights=w, rate_limit=args.rate_limit, wheel_limit=args.wheel_limit,
+                            solver=args.solver, qpsol=args.qpsol, integral_max=args.integral_max)
+    f = design_nmpc(models, settings, args.name)
+    f.save(args.out)
+    return {"out": str(args.out), "horizon": settings.horizon, "dt": settings.dt,
+            "settings": f.to_dict()["settings"], "certificate": dict(f.certificate)}
+
+
+def add_parser(sub: argparse._SubParsersAction, number) -> None:
+    """Register ``nmpc`` on the ``design`` parser."""
+    p = sub.add_parser("nmpc", help="nonlinear MPC with curvature preview (controller file of kind 'nmpc')")
+    p.add_argument("--models", nargs="+", required=True,
+                   help="identified model files or directories its linearisation is certified on")
+    p.add_argument("--out", required=True, help="controller file (.json)")
+    p.add_argument("--horizon", type=int, default=30, help="stages (default 30 = 1.5 s at 20 Hz)")
+    p.add_argument("--y-max", type=number, default=0.3, help="Bryson: cross-track, m (default 0.3)")
+    p.add_argument("--psi-max-deg", type=number, default=5.0, help="Bryson: heading error, deg")
+    p.add_argument("--delta-max-deg", type=number, default=5.0, help="Bryson: wheel angle, deg")
+    p.add_argument("--u-max", type=number, default=0.35, help="Bryson: steering rate, rad/s")
+    p.add_argument("--integral-max", type=number, default=1.0,
+                   help="Bryson: integral of the cross-track, m s (default 1.0)")
+    p.add_argument("--rate-limit", type=number, default=0.35, help="hard steering-rate limit, rad/s")
+    p.add_argument("--wheel-limit", type=number, default=0.5, help="soft wheel-angle limit, rad")
+    p.add_argument("--solver", choices=SOLVERS, default="gauss-newton")
+    p.add_argument("--qpsol", default="daqp", help="QP plugin of gauss-newton and sqp (default daqp)")
+    p.add_argument("--name", default=None)
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.set_defaults(func=cmd_nmpc, default_name="nmpc")
+
+
+def render(result: dict) -> str:
+    """Text summary of ``design nmpc``."""
+    s = result["settings"]
+    return "\n".join([
+        f"NMPC: horizon {s['horizon']} x {result['dt']:g} s, solver {s['solver']}/{s['qpsol']}, "
+        f"rate limit {s['rate_limit']:g} rad/s, wheel limit {s['wheel_limit']:g} rad, "
+        f"integral_max {s['integral_max']:g} m s",
+        "certificate: " + result["certificate"]["check"],
+        certificate_table(result["certificate"]),
+        f"wrote {result['out']}"])

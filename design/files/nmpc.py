@@ -1,0 +1,306 @@
+"""Controller files of kind ``"nmpc"``: the nonlinear MPC's settings, sealed, certified and checked on load.
+
+Layout (schema ``design-controller/1``, ``kind: "nmpc"``; the envelope's rules: every key known
+and present, finite numbers, the loop's sample time, a checksum, an optional signature)::
+
+    {"schema", "kind": "nmpc", "name", "dt",
+     "settings": {"horizon", "weights": {"y_max", "psi_max", "delta_max", "u_max"}, "rate_limit",
+                  "wheel_limit", "slack_weight", "wheelbase", "d2", "solver", "qpsol", "max_iter",
+                  "tol", "terminal", "speed_range": [lo, hi], "integral_max"},   # design.nmpc.NMPCSettings
+     "design": {...}, "certificate": {...}, "models": [{"name", "hash"}],
+     "checksum": "sha256:..."}
+
+The law is :class:`design.nmpc.NonlinearMPC` with these settings; a file must carry the integral
+state (``integral_max``, m s), so the NMPC has no steady bias. Limits are checked against
+:mod:`design.limits` (rate, wheel angle, sample time) and the NMPC's own bounds (horizon 1..400).
+
+**What the certificate covers.** For small errors on a straight line with no active limit the
+NMPC's first move is the discrete LQR of its linearised model at the measured speed
+(:func:`design.nmpc.lqr_gain`; the Riccati terminal cost makes the finite horizon exact). The
+certificate closes that linear law, at each identified model's nominal speed, around the model
+(which carries the valve, the sensor and the latencies the kinematic model leaves out), and
+records per model the spectral radius and margins (:func:`design.verify.check_model`), the speed
+and the model's matrices, and the hash of the settings. Every read recomputes the spectral radii
+from the file's settings and the recorded models and refuses a file whose certificate is missing,
+failed or made for other settings. It says nothing about the constrained, nonlinear law far from
+the line (the simulator tests cover that).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
+
+from identification.model import Model
+
+from ..compensator import Compensator, closed_loop_matrix, spectral_radius
+from ..errors import ControllerFileError, DesignInputError, VerificationError
+from ..kinematic import KinematicWeights
+from ..limits import DT_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, in_range
+from ..nmpc import NMPCSettings, NonlinearMPC, lqr_gain
+from ..verify import Certificate, check_model, model_hash
+from .certificate import RADIUS_TOLERANCE, recorded_models
+from .envelope import SCHEMA, canonical_bytes, check_envelope, read_json, seal, write_atomically
+from .signature import check_signature
+
+TOP_KEYS = ("schema", "kind", "name", "dt", "settings", "design", "certificate", "models", "checksum")
+SETTING_KEYS = ("horizon", "weights", "rate_limit", "wheel_limit", "slack_weight", "wheelbase", "d2", "solver",
+                "qpsol", "max_iter", "tol", "terminal", "speed_range", "integral_max")
+WEIGHT_KEYS = ("y_max", "psi_max", "delta_max", "u_max")
+#: Speeds a certificate row may state, m/s (field work).
+SPEED_RANGE = (0.1, 10.0)
+
+
+def settings_to_dict(s: NMPCSettings) -> dict:
+    """The file's ``settings`` object."""
+    w = s.weights
+    return {"horizon": int(s.horizon), "weights": {k: float(getattr(w, k)) for k in WEIGHT_KEYS},
+            "rate_limit": s.rate_limit, "wheel_limit": s.wheel_limit, "slack_weight": s.slack_weight,
+            "wheelbase": s.wheelbase, "d2": s.d2, "solver": s.solver, "qpsol": s.qpsol, "max_iter": int(s.max_iter),
+            "tol": s.tol, "terminal": s.terminal, "speed_range": [float(v) for v in s.speed_range],
+            "integral_max": s.integral_max}
+
+
+def _number(v: Any, what: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ControllerFileError(f"settings: {what} must be a finite number, got {v!r}")
+    return float(v)
+
+
+def settings_from_dict(d: Any, dt: float) -> NMPCSettings:
+    """Validated :class:`NMPCSettings` from a file's ``settings`` object and sample time ``dt`` s.
+
+    Raises
+    ------
+    ControllerFileError
+        Unknown or missing keys, non-numbers, limits outside :mod:`design.limits`, no integral state.
+    """
+    if not isinstance(d, dict) or sorted(d) != sorted(SETTING_KEYS):
+        got = sorted(d) if isinstance(d, dict) else type(d).__name__
+        raise ControllerFileError(f"settings must hold exactly {', '.join(SETTING_KEYS)}; got {got}")
+    w = d["weights"]
+    if not isinstance(w, dict) or sorted(w) != sorted(WEIGHT_KEYS):
+        raise ControllerFileError(f"settings.weights must hold exactly {', '.join(WEIGHT_KEYS)}; got {w!r}")
+    sr = d["speed_range"]
+    if not isinstance(sr, list) or len(sr) != 2:
+        raise ControllerFileError(f"settings.speed_range must be [low, high] m/s, got {sr!r}")
+    if d["integral_max"] is None:
+        raise ControllerFileError("settings.integral_max is null: an NMPC file must carry the integral state "
+                                  "(m s), or it keeps a steady bias under a pull; design it with --integral-max")
+    for k in ("horizon", "max_iter"):
+        if isinstance(d[k], bool) or not isinstance(d[k], int):
+            raise ControllerFileError(f"settings: {k} must be an integer, got {d[k]!r}")
+    for k in ("solver", "qpsol", "terminal"):
+        if not isinstance(d[k], str):
+            raise ControllerFileError(f"settings: {k} must be a string, got {d[k]!r}")
+    in_range(dt, *DT_RANGE, "dt (s)", ControllerFileError, low_open=False)
+    in_range(d["rate_limit"], 0.0, RATE_LIMIT_MAX, "settings: rate_limit (rad/s)", ControllerFileError)
+    in_range(d["wheel_limit"], 0.0, WHEEL_ANGLE_MAX, "settings: wheel_limit (rad)", ControllerFileError)
+    in_range(d["wheelbase"], 0.5, 10.0, "settings: wheelbase (m)", ControllerFileError)
+    in_range(d["speed_range"][1] if isinstance(d["speed_range"][1], (int, float)) else math.nan, *SPEED_RANGE,
+             "settings: speed_range high (m/s)", ControllerFileError)
+    try:
+        weights = KinematicWeights(**{k: _number(w[k], f"weights.{k}") for k in WEIGHT_KEYS})
+        return NMPCSettings(horizon=d["horizon"], dt=float(dt), weights=weights,
+                            rate_limit=_number(d["rate_limit"], "rate_limit"),
+                            wheel_limit=_number(d["wheel_limit"], "wheel_limit"),
+                            slack_weight=_number(d["slack_weight"], "slack_weight"),
+                            wheelbase=_number(d["wheelbase"], "wheelbase"), d2=_number(d["d2"], "d2"),
+                            solver=d["solver"], qpsol=d["qpsol"], max_iter=d["max_iter"],
+                            tol=_number(d["tol"], "tol"), terminal=d["terminal"],
+                            speed_range=(_number(sr[0], "speed_range"), _number(sr[1], "speed_range")),
+                            integral_max=_number(d["integral_max"], "integral_max"))
+    except DesignInputError as exc:
+        raise ControllerFileError(f"settings: {exc}") from None
+
+
+def settings_hash(s: NMPCSettings) -> str:
+    """``sha256:`` of the canonical JSON of the settings and the sample time (what a certificate is about)."""
+    return "sha256:" + hashlib.sha256(canonical_bytes({"dt": s.dt, "settings": settings_to_dict(s)})).hexdigest()
+
+
+def linearised_law(s: NMPCSettings, speed: float) -> Compensator:
+    """The NMPC's linearisation at ``speed`` m/s as a compensator on velocity-normalised outputs.
+
+    Reads ``[y/V, psi/V, delta]`` (the identified models' outputs at their nominal speed ``V``):
+    ``u = -K [V y1, V y2, y3, i]`` with ``i[k+1] = i[k] + dt V y1`` (the integral of the cross-track).
+    """
+    k = lqr_gain(s, speed)[0]
+    v = float(speed)
+    return Compensator(Ac=[[1.0]], Bc=[[s.dt * v, 0.0, 0.0]], Cc=[[-k[3]]],
+                       Dc=[[-k[0] * v, -k[1] * v, -k[2]]], dt=s.dt)
+
+
+def model_speed(model: Model) -> float:
+    """Nominal speed of an identified model, m/s (its first condition's)."""
+    conds = model.meta.get("conditions")
+    try:
+        v = float(conds[0]["nominal_speed"])
+    except (TypeError, KeyError, IndexError, ValueError):
+        raise DesignInputError(f"model {model.meta.get('name', '?')!r} states no nominal speed "
+                               "(meta['conditions'][0]['nominal_speed']): the NMPC is certified at each model's "
+                               "speed") from None
+    return in_range(v, *SPEED_RANGE, f"model {model.meta.get('name', '?')!r} nominal speed (m/s)")
+
+
+def certify_nmpc(s: NMPCSettings, models: Sequence[Model]) -> dict:
+    """The certificate of the NMPC with settings ``s`` on ``models`` (see the module docstring)."""
+    if not models:
+        raise DesignInputError("the NMPC is certified on identified models: give at least one")
+    checks, rows = [], []
+    for i, m in enumerate(models):
+        if abs(m.dt - s.dt) > 1e-9:
+            raise VerificationError(f"{m.meta.get('name', i)}: sample time {m.dt} s, the NMPC's is {s.dt} s")
+        v = model_speed(m)
+        checks.append(check_model(m, linearised_law(s, v), str(m.meta.get("name", f"model {i}"))))
+        rows.append(v)
+    cert = Certificate(tuple(checks), tuple(models), settings_hash(s)).to_dict()
+    for row, v in zip(cert["models"], rows):
+        row["speed"] = v
+    cert["check"] = ("closed loop of the NMPC's linearisation (its LQR at each model's nominal speed, with the "
+                     "integral of the cross-track) around each identified model")
+    return cert
+
+
+def check_nmpc_certificate(cert: Any, s: NMPCSettings) -> None:
+    """Refuse unless ``cert`` certifies exactly the settings ``s``: recomputes every spectral radius."""
+    if cert is None:
+        raise ControllerFileError("certificate is missing (null): the NMPC was never verified; it must not be run "
+                                  "(design it again with design nmpc)")
+    if not isinstance(cert, dict) or cert.get("passed") is not True:
+        raise ControllerFileError(f"certificate failed: the NMPC's linearisation is not stable on every model "
+                                  f"(worst {cert.get('worst') if isinstance(cert, dict) else None!r}); it must not run")
+    if cert.get("compensator_hash") != settings_hash(s):
+        raise ControllerFileError(f"certificate does not match the settings: it was made for {cert.get('compensator_hash')!r}, "
+                                  f"the file's settings give {settings_hash(s)!r} (edited after certification; design "
+                                  "it again)")
+    for (name, _, model), row in zip(recorded_models(cert), cert["models"]):
+        v = row.get("speed")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not SPEED_RANGE[0] <= v <= SPEED_RANGE[1]:
+            raise ControllerFileError(f"certificate model {name!r}: speed must be {SPEED_RANGE[0]}-{SPEED_RANGE[1]} m/s, "
+                                      f"got {v!r}")
+        if abs(model.dt - s.dt) > 1e-9:
+            raise ControllerFileError(f"certificate model {name!r} has dt={model.dt} s, the NMPC dt={s.dt} s")
+        rho = spectral_radius(closed_loop_matrix(model.A, model.B, model.C, model.D, linearised_law(s, v)))
+        stated = row.get("spectral_radius")
+        if isinstance(stated, bool) or not isinstance(stated, (int, float)) or abs(rho - stated) > RADIUS_TOLERANCE:
+            raise ControllerFileError(f"certificate does not match the settings: on model {name!r} it states spectral "
+                                      f"radius {stated!r}, the file's settings give {rho!r}")
+        if not rho < 1.0:
+            raise ControllerFileError(f"certificate failed: the NMPC's linearisation is not stable on model {name!r} "
+                                      f"(spectral radius {rho:.6f}, expected < 1)")
+
+
+@dataclass(frozen=True)
+class NMPCFile:
+    """Contents of an NMPC controller file (validated; see the module docstring)."""
+
+    name: str
+    settings: NMPCSettings
+    design: Mapping[str, Any] = field(default_factory=dict)
+    certificate: Mapping[str, Any] | None = field(default_factory=dict)
+    models: tuple[Mapping[str, str], ...] = ()
+
+    def to_dict(self) -> dict:
+        """The file's JSON object, checksum included."""
+        body = {"schema": SCHEMA, "kind": "nmpc", "name": self.name, "dt": self.settings.dt,
+                "settings": settings_to_dict(self.settings), "design": dict(self.design),
+                "certificate": None if self.certificate is None else dict(self.certificate),
+                "models": [dict(m) for m in self.models]}
+        return seal(body)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the file atomically."""
+        return write_atomically(path, self.to_dict())
+
+    def controller(self) -> NonlinearMPC:
+        """A fresh :class:`~design.nmpc.NonlinearMPC` for the vehicle loop."""
+        ctrl = NonlinearMPC(self.settings)
+        ctrl.name = f"nmpc:{self.name}"
+        return ctrl
+
+
+def uncertified_nmpc_from_body(body: Any, dt: float | None = 0.05,
+                               public_key: Ed25519PublicKey | None = None) -> NMPCFile:
+    """Every check of :func:`nmpc_from_body` but the certificate's (for ``design verify``)."""
+    check_envelope(body, "nmpc", TOP_KEYS)
+    if public_key is not None:
+        check_signature(body, public_key)
+    fdt = body["dt"]
+    if isinstance(fdt, bool) or not isinstance(fdt, (int, float)) or not math.isfinite(fdt) or fdt <= 0:
+        raise ControllerFileError(f"dt must be a finite sample time > 0 s, got {fdt!r}")
+    if dt is not None and abs(fdt - dt) > 1e-9:
+        raise ControllerFileError(f"sample time mismatch: the file is for dt={fdt} s, the loop runs at dt={dt} s")
+    settings = settings_from_dict(body["settings"], float(fdt))
+    if not isinstance(body["design"], dict) or not isinstance(body["models"], list):
+        raise ControllerFileError("design must be an object and models a list")
+    return NMPCFile(str(body["name"]), settings, body["design"], body["certificate"], tuple(body["models"]))
+
+
+def nmpc_from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519PublicKey | None = None) -> NMPCFile:
+    """Check a parsed NMPC file and return its contents (the certificate recomputed)."""
+    spec = uncertified_nmpc_from_body(body, dt, public_key)
+    check_nmpc_certificate(body["certificate"], spec.settings)
+    return spec
+
+
+def read_nmpc_file(path: str | Path, dt: float | None = 0.05, public_key: Ed25519PublicKey | None = None) -> NMPCFile:
+    """Read and check an NMPC controller file (see :func:`nmpc_from_body`); errors name the file."""
+    body = read_json(path)
+    try:
+        return nmpc_from_body(body, dt, public_key)
+    except ControllerFileError as exc:
+        raise ControllerFileError(f"{path}: {exc}") from None
+
+
+def design_nmpc(models: Sequence[Model], settings: NMPCSettings, name: str = "nmpc") -> NMPCFile:
+    """An NMPC file certified on ``models``; refuses settings whose linearisation fails on one.
+
+    Raises
+    ------
+    VerificationError
+        Naming every model on which the linearised loop is not stable.
+    ControllerFileError
+        Settings a file cannot carry (no integral state, limits outside :mod:`design.limits`).
+    """
+    settings_from_dict(settings_to_dict(settings), settings.dt)          # what a reader will accept
+    cert = certify_nmpc(settings, models)
+    if not cert["passed"]:
+        bad = [f"{r['name']} (spectral radius {r['spectral_radius']:.6f})" for r in cert["models"]
+               if not r["spectral_radius"] < 1.0]
+        raise VerificationError(f"the NMPC's linearisation does not stabilise {len(bad)} of {len(models)} models: "
+                                f"{', '.join(bad)}; lower y_max/raise u_max, or check the models")
+    return NMPCFile(name, settings, {"method": "nonlinear MPC (kinematic bicycle, path coordinates)",
+                                     "integral": "cross-track, as a model state"}, cert,
+                    tuple({"name": str(m.meta.get("name", f"model {i}")), "hash": model_hash(m)}
+                          for i, m in enumerate(models)))
+
+
+def recheck_nmpc(body: Any, models: Sequence[Model]) -> tuple[dict, list[str]]:
+    """``design verify`` for an NMPC file: the certificate recomputed on ``models`` and what differs."""
+    spec = uncertified_nmpc_from_body(body, dt=None)
+    fresh = certify_nmpc(spec.settings, models)
+    problems: list[str] = []
+    stored = spec.certificate if isinstance(spec.certificate, dict) else None
+    if stored is None:
+        problems.append("the file's certificate is missing or not an object")
+        stored = {}
+    try:
+        check_nmpc_certificate(spec.certificate, spec.settings)
+    except ControllerFileError as exc:
+        problems.append(str(exc))
+    for r in fresh["models"]:
+        if not r["spectral_radius"] < 1.0:
+            problems.append(f"not stable on {r['name']} (spectral radius {r['spectral_radius']:.6f}, expected < 1)")
+    by_hash = {r["hash"]: r for r in fresh["models"]}
+    for row in stored.get("models", []) if isinstance(stored.get("models"), list) else []:
+        if isinstance(row, dict) and row.get("hash") not in by_hash:
+            problems.append(f"model {row.get('name')!r} ({row.get('hash')}) of the certificate was not given: "
+                            "pass its model file with --models")
+    return fresh, problems

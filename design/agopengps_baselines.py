@@ -75,6 +75,7 @@ import math
 from dataclasses import dataclass, fields
 
 from .controller import Measurement
+from .curvature import path_heading, path_offset
 from .errors import DesignInputError
 
 KMH = 3.6          # km/h per m/s: AgOpenGPS's speeds are in km/h
@@ -271,6 +272,8 @@ class _PerFix:
         self.settings = settings
         self.dt = float(dt)
         self.every = max(1, round(settings.fix_period / self.dt))
+        #: Curvature preview for the goal / steer point on a curved path (60 stretches: 3 s of travel).
+        self.preview_request = (60, self.dt)
         self.reset()
 
     def reset(self) -> None:
@@ -316,7 +319,10 @@ class AogPurePursuitController(_PerFix):
 
     def _fix(self, m: Measurement) -> float:
         s = self.settings
-        psi = -m.heading_error                                   # clockwise
+        step = abs(m.speed) * self.dt
+        # on a curve (AgOpenGPS's CABCurve): the heading against the path's tangent at the pivot's
+        # closest point, about pivot_behind back along the path (0 on an AB line)
+        psi = -(m.heading_error + path_heading(s.pivot_behind, m, step))    # clockwise
         d = -(m.cross_track - s.pivot_behind * math.sin(m.heading_error))   # rear axle, + = right
         if s.integral != 0:
             self._pde = d * 0.2 + self._pde * 0.8
@@ -336,8 +342,10 @@ class AogPurePursuitController(_PerFix):
         else:
             self._inty = 0.0
         self._ld = self.look_ahead(m.cross_track, m.speed)
+        # the goal point is on the path, ld along it: its bend shifts it left of the pivot's tangent
+        goal = path_offset(self._ld, m, step)
         # AgOpenGPS adds inty to its local heading 2pi - fixHeading: the heading seen is psi - inty
-        return -pure_pursuit_angle(d, psi - self._inty, self._ld, s.wheelbase)
+        return -pure_pursuit_angle(d + goal, psi - self._inty, self._ld, s.wheelbase)
 
     def estimate(self) -> tuple[float, ...]:
         """(integral [rad], look-ahead [m], wanted wheel angle [rad, + = left])."""
@@ -364,9 +372,12 @@ class AogStanleyController(_PerFix):
     def _fix(self, m: Measurement) -> float:
         s = self.settings
         sin_psi = math.sin(m.heading_error)
+        step = abs(m.speed) * self.dt
         d_pivot = -(m.cross_track - s.pivot_behind * sin_psi)
-        ds = -(m.cross_track + s.steer_ahead * sin_psi) - self._inty
-        he = s.heading_gain * _wrap_half_pi(-m.heading_error)
+        # on a curve: the steer axle's distance from the path and the heading against the path's
+        # tangent there (0 on an AB line)
+        ds = -(m.cross_track + s.steer_ahead * sin_psi - path_offset(s.steer_ahead, m, step)) - self._inty
+        he = s.heading_gain * _wrap_half_pi(-(m.heading_error - path_heading(s.steer_ahead, m, step)))
         xtec = math.atan(ds * s.distance_gain / _sped(m.speed))
         self._xtsc = self._xtsc * 0.5 + xtec * 0.5
         self._dse = self._dse * 0.95 + self._xtsc * 60 * 0.05

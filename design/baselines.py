@@ -11,6 +11,14 @@ proportional wheel-angle servo, because the steering bridge takes a steering
 * **Stanley**: ``delta = -psi - atan(k e_front / (V + v_soft))`` with the cross-track
   error of the front axle, plus the same integral term.
 
+On a curved path the look-ahead point is on the path, not on its tangent: pure pursuit's goal
+and Stanley's front-axle point are offset by the path's bend (:func:`design.curvature.path_offset`,
+from the loop's curvature preview, asked for with ``preview_request``); pure pursuit counts the
+heading the control point has on the arc (``-asin(d2 kappa)``, :func:`design.curvature.steady_state`)
+as aligned, so on an arc it asks for about ``atan(L kappa)``; Stanley's heading error is taken
+against the path's tangent at the front axle, which on an arc is ``-L kappa`` and so supplies the
+arc's wheel angle itself. On an AB line both are unchanged.
+
 Signs as everywhere in the loop: cross-track + = left, heading + = counter-clockwise,
 wheel angle and rate + = left.
 
@@ -48,6 +56,7 @@ import math
 from dataclasses import dataclass, fields
 
 from .controller import Measurement
+from .curvature import path_heading, path_offset, steady_state
 from .errors import DesignInputError
 
 
@@ -163,11 +172,17 @@ class PurePursuitController(_Servoed):
     def __init__(self, gains: PurePursuitGains | None = None, dt: float = 0.05) -> None:
         super().__init__(gains or PurePursuitGains())
         self.dt = float(dt)
+        g = self.gains
+        #: Curvature preview over the look-ahead (down to 0.75 m/s; slower, the last stretch is held).
+        self.preview_request = (math.ceil(max(g.lookahead_time, g.lookahead_min / 0.75) / self.dt) + 1, self.dt)
 
     def step(self, m: Measurement) -> float:
         g = self.gains
         ld = max(g.lookahead_min, g.lookahead_time * abs(m.speed))
-        alpha = -math.atan2(m.cross_track, ld) - m.heading_error
+        goal = path_offset(ld, m, abs(m.speed) * self.dt)        # the goal on the path (0 on an AB line)
+        # the heading the control point, D2_M ahead of the rear axle, has on the arc counts as aligned
+        psi_arc, _ = steady_state(min(max(float(m.curvature), -0.5), 0.5))
+        alpha = math.atan2(goal - m.cross_track, ld) - (m.heading_error - psi_arc)
         want = math.atan2(2.0 * g.wheelbase * math.sin(alpha), ld) + self._integral(m.cross_track)
         return self._servo(want, m)
 
@@ -180,10 +195,13 @@ class StanleyController(_Servoed):
     def __init__(self, gains: StanleyGains | None = None, dt: float = 0.05) -> None:
         super().__init__(gains or StanleyGains())
         self.dt = float(dt)
+        self.preview_request = (math.ceil(self.gains.front_axle / (0.75 * self.dt)) + 1, self.dt)
 
     def step(self, m: Measurement) -> float:
         g = self.gains
-        e_front = m.cross_track + g.front_axle * math.sin(m.heading_error)
-        want = (-g.heading * m.heading_error - math.atan2(g.k * e_front, abs(m.speed) + g.v_soft)
+        step = abs(m.speed) * self.dt
+        e_front = m.cross_track + g.front_axle * math.sin(m.heading_error) - path_offset(g.front_axle, m, step)
+        psi_front = m.heading_error - path_heading(g.front_axle, m, step)     # against the tangent at the front axle
+        want = (-g.heading * psi_front - math.atan2(g.k * e_front, abs(m.speed) + g.v_soft)
                 + self._integral(m.cross_track))
         return self._servo(want, m)

@@ -240,3 +240,43 @@ class Reference:
         dev = Measurement(m.t, m.cross_track - y_r, m.heading_error - (math.atan(slope) + psi_ss),
                           m.wheel_angle - deltas[0], m.speed, m.curvature, m.preview)
         return dev, (deltas[1] - deltas[0]) / self.dt
+
+
+def path_offset(distance: float, m: Measurement, step: float | None = None) -> float:
+    """Lateral offset of the path ``distance`` m ahead of the nearest point, m (+ = left of its tangent there).
+
+    The double integral of the path's curvature (small angles): ``kappa d^2 / 2`` on an arc. With
+    a preview (``m.preview``, stretches of ``step`` m, the last one held beyond its end) the
+    curvature varies along the way; without one the present curvature is held. This is what puts
+    a look-ahead point (pure pursuit's goal, Stanley's front axle) on a curved path instead of on
+    the tangent.
+    """
+    d = max(float(distance), 0.0)
+    if not m.preview or step is None or not step > 0:
+        return float(m.curvature) * d * d / 2
+    off, s = 0.0, 0.0
+    for k in m.preview:
+        if s >= d:
+            break
+        ln = min(step, d - s)
+        off += float(k) * ln * (d - s - ln / 2)           # heading gained over the stretch, carried to d
+        s += ln
+    if s < d:
+        off += float(m.preview[-1]) * (d - s) ** 2 / 2
+    return off
+
+
+def path_heading(distance: float, m: Measurement, step: float | None = None) -> float:
+    """Direction of the path ``distance`` m ahead relative to its tangent at the nearest point, rad
+    (+ = counter-clockwise): the integral of the curvature, from the preview as :func:`path_offset`."""
+    d = max(float(distance), 0.0)
+    if not m.preview or step is None or not step > 0:
+        return float(m.curvature) * d
+    turn, s = 0.0, 0.0
+    for k in m.preview:
+        if s >= d:
+            break
+        ln = min(step, d - s)
+        turn += float(k) * ln
+        s += ln
+    return turn + (float(m.preview[-1]) * (d - s) if s < d else 0.0)

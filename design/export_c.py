@@ -8,7 +8,9 @@ The directory written holds
 * ``autosteer_step.h``, ``autosteer_step.c`` — the step (normalisation, clipping, the
   compensator step with anti-windup, bumpless engage), the same for every controller,
   copied from ``design/c/``; it implements :meth:`design.files.linear.LinearController.step`
-  line by line (``docs/controller_export.md`` shows the two side by side);
+  of the bare certified law (``acquisition=False``: no approach path, curvature feed-forward or
+  held integrators, which the vehicle loop's Python controller adds) line by line
+  (``docs/controller_export.md`` shows the two side by side);
 * ``test_vectors.csv`` — a closed-loop run recorded with the Python controller
   (:func:`record_run`) and ``autosteer_test.c``, which replays it through ``as_step``
   and reports the largest difference (the test suite requires <= 1e-12 rad/s).

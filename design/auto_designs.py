@@ -50,7 +50,7 @@ def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications
     latency = resolve_latency(specs, family)
     past = spec.past if spec.structure != "window" else resolved_past(models, spec)
     base = replace(spec, integral=specs.integral, past=past)
-    mode = [base.reduce]
+    mode, why = [base.reduce], {}
 
     def design_at(w: OutputWeights) -> RobustResult:
         # "if-needed" decides once: after the models as given fail at one scale, every further
@@ -58,6 +58,7 @@ def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications
         r = design_robust(models, replace(base, weights=w, reduce=mode[0]))
         if mode[0] == "if-needed" and r.file.design.get("design_models") is not None:
             mode[0] = "always"
+            why["as_given_failed"] = r.file.design.get("as_given_failed")
         return r
 
     result = search_weights(design_at,
@@ -65,7 +66,7 @@ def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications
                             spec_names(models, validate_on), progress)
     record = result.to_dict(specs, options)
     chosen: RobustResult = result.design
-    file = replace(chosen.file, design={**chosen.file.design, "auto_weights": record})
+    file = replace(chosen.file, design={**chosen.file.design, **why, "auto_weights": record})
     return replace(chosen, file=file), result
 
 

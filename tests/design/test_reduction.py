@@ -109,6 +109,7 @@ def test_automatic_weights_meet_their_margin_specifications_on_every_worn_valve_
     res, search = auto_robust(local, RobustSpec(integral=True, past=1), specs, options=SearchOptions(0.3, 5.0, 4, 2))
     rec = res.file.design["auto_weights"]
     assert rec["relaxed"] == [] and rec["achieved"]["passed"]
+    assert "does not determine" in res.file.design["as_given_failed"]      # why the design models were used
     comp = res.file.compensator
     for m, row in zip(local, rec["achieved"]["models"]):
         dm, stable = _independent_margins(m, comp, latency_samples=3, reserve_samples=2)

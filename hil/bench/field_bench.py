@@ -54,22 +54,25 @@ def field_result(log: PassLog) -> dict:
     return {"summary": summarize(log), "field_metrics": field_metrics(log, f["width_m"], f["curve_entries_m"])}
 
 
-def route_points(log: PassLog, step: float = 0.5) -> np.ndarray:
-    """Points of the run's route every ``step`` m, simulator frame (for the overhead view)."""
-    m = log.meta
-    fr = field_run(m["field"]["source"], SimParams.from_dict(m["simulator"]), m["nominal_speed"],
-             len(m["field"]["passes"]))
-    s = np.arange(0.0, fr.path.length, step)
-    e, n, _ = fr.path.pose(s)
-    return np.column_stack([e, n])
-
-
 def write_field_figures(log: PassLog, out: Path, stem: str = "") -> list[str]:
-    """The overhead view and the per-pass cross-track of a field run, under ``out``."""
-    from hil.bench.plots import plot_field_overhead, plot_field_passes
-    a = plot_field_overhead(log, out / f"{stem}overhead.png", route_points(log))
-    b = plot_field_passes(log, out / f"{stem}passes.png")
-    return [str(a), str(b)]
+    """Under ``out``: the overhead view of a field run (the route and the true CG track of every pass,
+    :func:`gnss.field_plot.plot_field`), a close-up across the passes at the middle of the field (the
+    paper's Figure 9: passes one width apart) and the per-pass cross-track."""
+    from gnss.field_plot import plot_field
+    from hil.bench.plots import pass_masks, plot_field_passes
+    m, ch = log.meta, log.channels
+    fr = field_run(m["field"]["source"], SimParams.from_dict(m["simulator"]), m["nominal_speed"],
+                   len(m["field"]["passes"]))
+    tracks = {f"pass {n}": (ch["truth_x"][k], ch["truth_y"][k]) for n, k in pass_masks(log) if k.any()}
+    title = f"{fr.field.name}: {m.get('controller')}, {m['implement']}, {m['nominal_speed']:.2f} m/s (true CG tracks)"
+    files = [plot_field(fr.route, out / f"{stem}overhead.png", tracks=tracks, title=title)]
+    spans = fr.route.pass_spans
+    e, n, _ = (float(v) for v in fr.path.pose(0.5 * sum(spans[len(spans) // 2])))
+    half = 0.5 * len(spans) * fr.field.width + 2.0
+    files.append(plot_field(fr.route, out / f"{stem}overhead_closeup.png", tracks=tracks, title=title + ", close-up",
+                            window=(e - half, e + half, n - half, n + half)))
+    files.append(plot_field_passes(log, out / f"{stem}passes.png"))
+    return [str(f) for f in files]
 
 
 @dataclass(frozen=True)
@@ -250,7 +253,7 @@ def write_field_report(results: list[dict], comparison: FieldComparison) -> dict
         log = comparison.log_of(key)
         figs = write_field_figures(log, out, f"{fname}_")
         files += figs
-        lines += ["", f"![{fname}: overhead]({Path(figs[0]).name})", "", f"![{fname}: per pass]({Path(figs[1]).name})"]
+        lines += [""] + [f"![{fname}: {Path(f).stem}]({Path(f).name})" for f in figs]
     (out / "fields.md").write_text("\n".join(lines) + "\n")
     (out / "fields.json").write_text(json.dumps({"identity": comparison.identity, "rows": rows,
                                                  "runs": results}, indent=1) + "\n")

@@ -98,7 +98,7 @@ def plot_run(log: PassLog, out: str | Path, summary: dict | None = None) -> Path
     return _save(fig, out)
 
 
-def _pass_masks(log: PassLog) -> list[tuple[int, np.ndarray]]:
+def pass_masks(log: PassLog) -> list[tuple[int, np.ndarray]]:
     """Per pass of a field run (by the truth's station), the cycles on it, turns left out."""
     ch, parts = log.channels, log.meta.get("parts", [])
     sta = ch["truth_along_track"]
@@ -112,39 +112,13 @@ def _pass_masks(log: PassLog) -> list[tuple[int, np.ndarray]]:
     return out
 
 
-def plot_field_overhead(log: PassLog, out: str | Path, route_xy: np.ndarray | None = None,
-                        title: str | None = None) -> Path:
-    """Overhead view of a field run, like the paper's Figure 9: the true tracks of the passes (the
-    simulator's frame, m; one colour per pass), the headland turns in grey, the route dashed."""
-    out = Path(out)
-    ch = log.channels
-    x, y = ch["truth_x"], ch["truth_y"]
-    fig, ax = plt.subplots(figsize=(9, 7))
-    if route_xy is not None:
-        ax.plot(route_xy[:, 0], route_xy[:, 1], "k--", lw=0.6, alpha=0.6, label="route")
-    on_pass = np.zeros(x.shape, dtype=bool)
-    for n, m in _pass_masks(log):
-        on_pass |= m
-        ax.plot(np.where(m, x, np.nan), np.where(m, y, np.nan), lw=1.2, label=f"pass {n}")
-    ax.plot(np.where(~on_pass, x, np.nan), np.where(~on_pass, y, np.nan), color="0.5", lw=0.9, label="turns")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x [m] (field frame)")
-    ax.set_ylabel("y [m] (field frame)")
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize=7, ncol=2)
-    m = log.meta
-    ax.set_title(title or f"{m.get('field', {}).get('name', 'field')}: {m.get('controller')}, {m['implement']}, "
-                 f"{m['nominal_speed']:.2f} m/s (true CG tracks)")
-    return _save(fig, out)
-
-
 def plot_field_passes(log: PassLog, out: str | Path, title: str | None = None) -> Path:
     """True cross-track [m] of each pass against the station along the pass [m], one panel per pass,
     curved stretches shaded."""
     out = Path(out)
     ch, parts = log.channels, log.meta.get("parts", [])
     sta, xte = ch["truth_along_track"], ch["truth_cross_track"]
-    passes = _pass_masks(log)
+    passes = pass_masks(log)
     fig, axes = plt.subplots(max(len(passes), 1), 1, figsize=(10, 1.6 + 1.5 * len(passes)), squeeze=False)
     for ax, (n, m) in zip(axes[:, 0], passes):
         mine = [p for p in parts if p["pass_index"] == n and p["kind"] != "turn"]

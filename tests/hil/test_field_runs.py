@@ -182,7 +182,8 @@ def test_hil_run_on_a_field_writes_its_figures(tmp_path, hairpin):
     res = json.loads((out / "summary.json").read_text())
     f = res["field"]
     assert f["name"] == "hairpin" and f["wrong_segment_jumps"] == 0 and len(f["turns"]) == 1
-    assert (out / "overhead.png").stat().st_size > 0 and (out / "passes.png").stat().st_size > 0
+    for name in ("overhead.png", "overhead_closeup.png", "passes.png"):
+        assert (out / name).stat().st_size > 0
 
 
 def test_hil_run_refuses_field_options_that_do_not_fit(tmp_path, hairpin, capsys):

@@ -20,11 +20,13 @@ from a least-squares initial state (the same metric for all). Peers are given
 their best order from 2..10 *chosen on the validation half itself* (generous to
 them); ``okid-pinned`` runs with the settings pinned in
 tests/identification/test_daisy.py; ``okid-best-n`` is treated like the peers (each order 2..10
-with the refinement chosen on the fit half, the best order on the validation half);
+with the realisation and refinement chosen on the fit half, the best order on the validation half);
 ``okid-validate`` is the automatic path of
-``identification fit --order validate --refine validate``: order 1..10 and the
-refinement (B, D only, or all of A, B, C, D by output error) chosen on the fit
-half alone (identification/generic.py), so it never sees the validation half.
+``identification fit --order validate --refine validate``: order 1..10, the
+realisation of A, C (OKID/ERA or the CVA subspace method) and the refinement
+(B, D only, or all of A, B, C, D by output error) chosen on the fit half alone
+(identification/generic.py), so it never sees the validation half. The okid
+rows are labelled ``n`` (ERA), ``nc`` (CVA) and ``*`` (all matrices refined).
 
 Every process runs on one BLAS thread (set before numpy is imported): on a
 shared 2-core host, threaded BLAS made the small products of these fits two
@@ -238,6 +240,11 @@ def daisy_records() -> list[str]:
     return names
 
 
+def _label(order: int, sel) -> str:
+    """Order of a fit_record model with its realisation and refinement: ``c`` CVA, ``*`` all refined."""
+    return f"{order}{'c' if sel.realisation == 'cva' else ''}{'*' if sel.refine == 'oe-all' else ''}"
+
+
 def daisy_table() -> list[dict]:
     rows = []
     for name in daisy_records():
@@ -261,11 +268,11 @@ def daisy_table() -> list[dict]:
                     elif method == "okid-validate":
                         md, sel = fit_record(IOData.from_arrays(u[:h], y[:h]))
                         mats = (md.A, md.B, md.C, md.D, md.K)
-                        order, chosen = f"{sel.order}{'*' if sel.refine == 'oe-all' else ''}", "fit half"
+                        order, chosen = _label(sel.order, sel), "fit half"
                     elif method == "okid-best-n":     # like the peers: each order, the best on validation
                         md, sel = fit_record(IOData.from_arrays(u[:h], y[:h]), order=order)
                         mats = (md.A, md.B, md.C, md.D, md.K)
-                        order = f"{order}{'*' if sel.refine == 'oe-all' else ''}"
+                        order = _label(order, sel)
                     else:
                         mats = FITTERS[method](u[:h], y[:h], order)
                     el = time.perf_counter() - t0
@@ -306,7 +313,7 @@ def main() -> None:
           f"{'free %':>8s} {'1-step %':>6s}")
     syn = synthetic_table(sizes, args.methods) if sizes else []
     print("\nDaISy records, free-run validation fit % per output (first half fit, second half validate;"
-          " n* = all of A, B, C, D refined by output error)")
+          " n* = all of A, B, C, D refined by output error; nc = A, C by CVA, not ERA)")
     dai = daisy_table()
     if args.json:
         Path(args.json).write_text(json.dumps({"synthetic": syn, "daisy": dai}, indent=2))

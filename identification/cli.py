@@ -216,7 +216,9 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--refine", choices=("pem", "oe", "oe-all", "none", "validate"), default="pem",
                    help="re-estimate B, D for one-step prediction (pem, default) or simulation (oe); "
                    "oe-all: refine all of A, B, C, D by output error from the ERA model; validate: "
-                   "oe or oe-all, whichever simulates the fit data's held-back tails better")
+                   "ERA's or the CVA subspace method's A, C with their own (CVA), least-squares or "
+                   "output-error B, D, or all refined, whichever simulates the fit data's held-back "
+                   "tails best (with --order validate or validate here, ERA and CVA both compete)")
     f.add_argument("--split", type=_fraction, default=None,
                    help="fit on this leading fraction of each experiment and validate on the rest")
     f.add_argument("--experiment-column", default=None, help="column that numbers separate experiments")

@@ -4,18 +4,25 @@
 values say how many states the Markov parameters hold above noise, not which
 model simulates best; so each candidate
 
-* order ``n`` = 1 .. ``max_order`` (or the one order asked for), and
-* refinement: ERA's ``A``, ``C`` with least-squares ``B``, ``D`` (``"oe"``), or
-  that model refined in all of ``A``, ``B``, ``C``, ``D`` by output error
-  (``"oe-all"``, :mod:`identification.pem`),
+* order ``n`` = 1 .. ``max_order`` (or the one order asked for),
+* realisation of ``A``, ``C``: OKID/ERA (``"era"``, from the Markov parameters) or
+  the CVA subspace method (``"cva"``, from estimated states,
+  :mod:`identification.subspace`), and
+* refinement: the realisation's own ``B``, ``D`` (``"none"``, CVA only: its
+  state regression's), least-squares ``B``, ``D`` for the realised ``A``, ``C``
+  (``"oe"``), or that model refined in all of ``A``, ``B``, ``C``, ``D`` by
+  output error (``"oe-all"``, :mod:`identification.pem`),
 
 is identified on the first :data:`INNER_FIT` of every fit experiment and scored
 by its mean free-run fit on the rest (the *selection* data; never the
-held-out data that :func:`~identification.workflow.fit_csv` reports on). The
-chosen structure is the smallest order, then the simpler refinement, within
-:data:`PARSIMONY_POINTS` of the best score, and it is identified again on the
-whole fit data. The refinement is chosen the same way: a full output-error fit
-that overfits the selection data loses to the simpler one.
+held-out data that :func:`~identification.workflow.fit_csv` reports on), and
+the other way round (fit on the last 70 %, score on the first 30 %). The
+chosen structure is the smallest order, then the simpler refinement (``"none"``
+and ``"oe"`` fit ``B``, ``D`` alike; ``"oe-all"`` fits every matrix), within
+:data:`PARSIMONY_POINTS` of the best score; among the realisations and
+refinements of that order and rank, the best scored. It is identified again on
+the whole fit data. A full output-error fit that overfits the selection data
+loses to the simpler one.
 """
 
 from __future__ import annotations
@@ -31,7 +38,9 @@ from .estimator import kalman_gain
 from .model import Model
 from .okid import OKID
 from .pem import refine_output_error
+from .refine import refine_bd
 from .simulate import predict_one_step
+from .subspace import cva
 from .validation import validate
 
 #: Leading fraction of every fit experiment that fits the candidates; the rest selects.
@@ -39,7 +48,12 @@ INNER_FIT = 0.7
 #: A larger order or the full refinement is kept only if it improves the mean selection fit by more
 #: than this many percentage points.
 PARSIMONY_POINTS = 0.5
-REFINEMENTS = ("oe", "oe-all")
+#: Realisations of A, C, and the refinements each takes.
+REALISATIONS = {"era": ("pem", "none", "oe", "oe-all"), "cva": ("none", "oe", "oe-all")}
+#: (realisation, refinement) candidates of ``refine="validate"``.
+VALIDATED = (("era", "oe"), ("era", "oe-all"), ("cva", "none"), ("cva", "oe"), ("cva", "oe-all"))
+#: Complexity rank of a refinement for the parsimony rule (B, D alone, or every matrix).
+RANK = {"pem": 0, "none": 0, "oe": 0, "oe-all": 1}
 
 
 @dataclass(frozen=True)
@@ -49,28 +63,44 @@ class Selection:
     order: int
     refine: str
     scores: dict[str, float] = field(default_factory=dict)
+    realisation: str = "era"
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly form for a model's metadata."""
-        return {"order": self.order, "refine": self.refine, "scores": dict(self.scores),
+        return {"order": self.order, "refine": self.refine, "realisation": self.realisation,
+                "scores": dict(self.scores),
                 "method": f"mean free-run fit % on the last {1 - INNER_FIT:.0%} of every fit experiment"}
 
 
 def _identify(data: IOData, order: int, refine: str, okid_options: dict[str, Any],
-              meta: dict[str, Any] | None = None) -> Model:
-    """OKID (``refine`` = pem, oe or none), or for ``"oe-all"`` OKID with least-squares B, D and then
-    the output-error refinement of all matrices."""
-    opts = {**okid_options, "order": order, "refine": "oe" if refine == "oe-all" else refine}
-    est = OKID(**opts).fit(data, meta=meta)
-    m = est.model_
+              meta: dict[str, Any] | None = None, realisation: str = "era") -> Model:
+    """One candidate: ``realisation``'s A, C (OKID/ERA or CVA) with ``refine``'s B, D, or all
+    matrices refined by output error from there (``"oe-all"``)."""
+    feedthrough = bool(okid_options.get("feedthrough", True))
+    if realisation == "cva":
+        sub = cva(data, order, feedthrough=feedthrough)
+        a, b, c, d = sub.A, sub.B, sub.C, sub.D
+        if refine in ("oe", "oe-all"):
+            b, d, _ = refine_bd(a, c, data, feedthrough)
+        info: dict[str, Any] = {
+            "method": "cva", "order": order, "n_observer_markov": sub.horizon, "subspace_horizon": sub.horizon,
+            "feedthrough": feedthrough, "refine": refine,
+            "weighted_singular_values": [float(v) for v in sub.singular_values], "reflected_modes": sub.reflected,
+            "input_names": list(data.input_names), "output_names": list(data.output_names),
+            "input_units": list(data.input_units), "output_units": list(data.output_units),
+            "n_samples": data.n_samples, "n_experiments": data.n_experiments, **(meta or {})}
+        m = Model(a, b, c, d, _gain(a, c, b, d, data, np.zeros((order, c.shape[0]))), data.dt, info)
+    else:
+        opts = {**okid_options, "order": order, "refine": "oe" if refine == "oe-all" else refine}
+        m = OKID(**opts).fit(data, meta=meta).model_
     if refine != "oe-all":
         return m
-    a, b, c, d, info = refine_output_error(m.A, m.B, m.C, m.D, data, bool(opts.get("feedthrough", True)))
-    if not info["accepted"]:
+    a, b, c, d, info_oe = refine_output_error(m.A, m.B, m.C, m.D, data, feedthrough)
+    if not info_oe["accepted"]:
         return m.with_meta(refine="oe-all (start kept: no stable improvement)")
     k = _gain(a, c, b, d, data, m.K)
     return Model(a, b, c, d, k, m.dt, {**m.meta, "refine": "oe-all", "order": a.shape[0],
-                                       "oe_cost": [info["cost_start"], info["cost_end"]]})
+                                       "oe_cost": [info_oe["cost_start"], info_oe["cost_end"]]})
 
 
 def _gain(a: np.ndarray, c: np.ndarray, b: np.ndarray, d: np.ndarray, data: IOData,
@@ -92,29 +122,43 @@ def _score(m: Model, data: IOData) -> float:
     return float(np.mean(fit)) if np.all(np.isfinite(fit)) else -np.inf
 
 
+def candidates(refine: str) -> tuple[tuple[str, str], ...]:
+    """The (realisation, refinement) pairs tried for ``refine`` (``"validate"``: :data:`VALIDATED`)."""
+    if refine == "validate":
+        return VALIDATED
+    kinds = tuple((r, refine) for r in REALISATIONS if refine in REALISATIONS[r])
+    if not kinds:
+        raise DataError(f"refine must be 'pem', 'none', 'oe', 'oe-all' or 'validate', got {refine!r}")
+    return kinds
+
+
 def select_structure(data: IOData, okid_options: dict[str, Any], orders: list[int],
-                     refinements: tuple[str, ...] = REFINEMENTS) -> Selection:
-    """Choose order and refinement by free-run fit on the tail of every fit experiment."""
+                     kinds: tuple[tuple[str, str], ...] = VALIDATED) -> Selection:
+    """Choose order, realisation and refinement by free-run fit on the tail of every fit experiment.
+
+    ``kinds`` are the (realisation, refinement) pairs tried at every order (:func:`candidates`).
+    """
     head, tail = data.split(INNER_FIT)
     tail_head, tail_tail = data.split(1.0 - INNER_FIT)
     folds = ((head, tail), (tail_tail, tail_head))     # fit on 70 %, select on the other 30 %, both ways
-    scores: dict[tuple[int, str], float] = {}
+    scores: dict[tuple[int, str, str], float] = {}
     last = ""
     for n in orders:
-        for r in refinements:
+        for real, r in kinds:
             try:
-                scores[(n, r)] = float(np.mean([_score(_identify(f, n, r, okid_options), s)
-                                                for f, s in folds]))
+                scores[(n, real, r)] = float(np.mean([_score(_identify(f, n, r, okid_options, realisation=real),
+                                                             s) for f, s in folds]))
             except (RealizationError, DataError, np.linalg.LinAlgError) as exc:
-                scores[(n, r)], last = -np.inf, str(exc)
+                scores[(n, real, r)], last = -np.inf, str(exc)
     best = max(scores.values())
     if not np.isfinite(best):
         raise RealizationError(f"no candidate order in {orders} gave a model that simulates (last "
                                f"failure: {last}); record longer, or lower --markov")
-    n, r = next(key for key in sorted(scores, key=lambda k: (k[0], refinements.index(k[1])))
-                if scores[key] >= best - PARSIMONY_POINTS)
-    return Selection(n, r, {f"{k[0]}/{k[1]}": (round(v, 3) if np.isfinite(v) else None)
-                            for k, v in scores.items()})
+    n, rank = min((k[0], RANK[k[2]]) for k, v in scores.items() if v >= best - PARSIMONY_POINTS)
+    real, r = max(((k[1], k[2]) for k in scores if k[0] == n and RANK[k[2]] == rank),
+                  key=lambda kr: scores[(n, *kr)])
+    return Selection(n, r, {f"{k[0]}/{k[1]}/{k[2]}": (round(v, 3) if np.isfinite(v) else None)
+                            for k, v in scores.items()}, real)
 
 
 def fit_record(data: IOData, order: int | str = "validate", refine: str = "validate",
@@ -130,7 +174,10 @@ def fit_record(data: IOData, order: int | str = "validate", refine: str = "valid
         An order, or ``"validate"`` (1 .. ``max_order``).
     refine
         ``"pem"``, ``"none"``, ``"oe"`` (B, D only, see :class:`~identification.okid.OKID`),
-        ``"oe-all"`` or ``"validate"`` (oe or oe-all, the better on the selection data).
+        ``"oe-all"`` or ``"validate"`` (every pair of :data:`VALIDATED`, the best on the
+        selection data by the module's rule). With an order and a refinement given, the
+        model is OKID/ERA's; with either validated, the realisation (ERA or CVA) is
+        chosen too, among those that take the refinement.
     okid_options
         Further :class:`~identification.okid.OKID` options (``markov``, ``method``, ``feedthrough``...).
     max_order
@@ -143,13 +190,13 @@ def fit_record(data: IOData, order: int | str = "validate", refine: str = "valid
     The model and the :class:`Selection` (None when nothing was chosen).
     """
     opts = dict(okid_options or {})
-    refinements = REFINEMENTS if refine == "validate" else (refine,)
-    if refine not in ("pem", "none", *REFINEMENTS, "validate"):
-        raise DataError(f"refine must be 'pem', 'none', 'oe', 'oe-all' or 'validate', got {refine!r}")
+    kinds = candidates(refine)
     selection = None
-    if order == "validate" or len(refinements) > 1:
+    if order == "validate" or refine == "validate":
         orders = list(range(1, max_order + 1)) if order == "validate" else [int(order)]
-        selection = select_structure(data, opts, orders, refinements)
-        order, refinements = selection.order, (selection.refine,)
+        selection = select_structure(data, opts, orders, kinds)
+        order, kinds = selection.order, ((selection.realisation, selection.refine),)
+    else:
+        kinds = (("era", refine),)
     extra = {**(meta or {}), **({"selection": selection.as_dict()} if selection else {})}
-    return _identify(data, int(order), refinements[0], opts, extra), selection
+    return _identify(data, int(order), kinds[0][1], opts, extra, realisation=kinds[0][0]), selection

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from .data import IOData
+from .errors import RealizationError
 
 CHUNK = 65536
 
@@ -108,8 +109,13 @@ def refine_bd(a: np.ndarray, c: np.ndarray, data: IOData, feedthrough: bool = Tr
                 phi[:, :, col] = lagged[nsig - 1] @ num_x[i].T
                 phi[:, :, col] += np.outer(sig[k0:k1, nsig - 1], c[:, i])
             fl = phi.reshape(b * q, ncol)
-            gram += fl.T @ fl
-            cross += fl.T @ target.reshape(-1)
+            with np.errstate(over="ignore", invalid="ignore"):    # an overflow is refused below
+                gram += fl.T @ fl
+                cross += fl.T @ target.reshape(-1)
+    if not (np.all(np.isfinite(gram)) and np.all(np.isfinite(cross))):
+        raise RealizationError(f"the free response of the realised A overflows over the record (spectral "
+                               f"radius {np.max(np.abs(np.linalg.eigvals(f))):.4f}); B and D cannot be fitted "
+                               "for it; lower the order or choose another realisation")
     d = np.sqrt(np.diag(gram))
     d[d == 0] = 1.0
     theta = np.linalg.lstsq(gram / np.outer(d, d) + 1e-12 * np.eye(ncol), cross / d, rcond=1e-12)[0] / d

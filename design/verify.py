@@ -15,11 +15,9 @@ from __future__ import annotations
 
 import hashlib
 import math
-import warnings
 from dataclasses import asdict, dataclass
 from typing import Sequence
 
-import control
 import numpy as np
 
 from identification.model import Model
@@ -165,9 +163,31 @@ def _loop_response(model: Model, comp: Compensator, omega: np.ndarray) -> np.nda
     return -(k @ p)[:, 0, 0]
 
 
-def phase_margin(model: Model, comp: Compensator, omega: np.ndarray) -> tuple[float, float]:
-    """Smallest phase margin over the loop's unity-gain crossings, deg, and its frequency, rad/s."""
-    resp = _loop_response(model, comp, omega)
+def disk_margins(resp: np.ndarray) -> tuple[float, float, float]:
+    """Balanced (skew 0) disk margin of a one-input loop from its frequency response ``L(e^{j w dt})``.
+
+    The formulas of python-control's ``disk_margins`` for a SISO loop, on the response already
+    computed (``alpha = 1 / |S - 1/2|``, ``S = 1 / (1 + L)``; the disk's real-axis intercepts
+    ``gamma_min = (1 - alpha/2) / (1 + alpha/2)``, ``gamma_max = 1 / gamma_min``), minimised over the
+    frequencies. Returns ``(alpha, disk gain margin in dB, disk phase margin in deg)``: the gain
+    margin as ``20 log10 gamma_max`` once (python-control's value is already in dB).
+    """
+    alpha = 1.0 / np.abs(1.0 / (1.0 + resp) - 0.5)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gmin = (1 - 0.5 * alpha) / (1 + 0.5 * alpha)
+        gmax = (1 + 0.5 * alpha) / (1 - 0.5 * alpha)
+        dgm = 20 * np.log10(np.minimum(1 / gmin, gmax))
+        dgm = np.where(np.isnan(dgm), np.inf, dgm)
+        c = (1 + gmin * gmax) / (gmin + gmax)
+        dpm = np.where(np.isinf(gmax), 90.0, np.where(np.abs(c) >= 1.0, np.inf, np.degrees(np.arccos(np.clip(c, -1, 1)))))
+    return float(alpha.min()), float(dgm.min()), float(dpm.min())
+
+
+def phase_margin(model: Model, comp: Compensator, omega: np.ndarray,
+                 resp: np.ndarray | None = None) -> tuple[float, float]:
+    """Smallest phase margin over the loop's unity-gain crossings, deg, and its frequency, rad/s
+    (``resp``: the loop's response at ``omega`` if already computed)."""
+    resp = _loop_response(model, comp, omega) if resp is None else resp
     mag = np.abs(resp)
     idx = np.nonzero(np.diff(np.sign(mag - 1.0)))[0]
     best, w_best = math.inf, math.nan
@@ -181,14 +201,11 @@ def phase_margin(model: Model, comp: Compensator, omega: np.ndarray) -> tuple[fl
 def _margins(model: Model, comp: Compensator) -> tuple[float, float, float, float, float, float, float]:
     omega = np.geomspace(1e-3, math.pi / model.dt * 0.999, 1500)
     up, low = gain_margins(model, comp)
-    pm, _ = phase_margin(model, comp, omega)
+    resp = _loop_response(model, comp, omega)
+    pm, _ = phase_margin(model, comp, omega, resp)
     delay = float(delay_margin_samples(model, comp))
-    plant = control.ss(model.A, model.B, model.C, model.D, model.dt)
-    kc = control.ss(comp.Ac, comp.Bc, comp.Cc, comp.Dc, comp.dt)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        dm, dgm, dpm = control.disk_margins(-(kc * plant), omega, skew=0.0)
-    return _db(up), (-_db(1 / low) if low > 0 else -math.inf), pm, delay, float(dm), _db(float(dgm)), float(dpm)
+    dm, dgm, dpm = disk_margins(resp)
+    return _db(up), (-_db(1 / low) if low > 0 else -math.inf), pm, delay, dm, dgm, dpm
 
 
 def _disturbance(model: Model, comp: Compensator, seconds: float = 30.0,

@@ -51,3 +51,13 @@ def test_certificate_names_the_failing_model():
     assert cert.to_dict()["passed"] is False
     with pytest.raises(VerificationError, match="sample time 0.1 s"):
         certify(GAIN, [Model(PLANT.A, PLANT.B, PLANT.C, PLANT.D, PLANT.K, 0.1, {"name": "slow"})])
+
+
+def test_disk_margins_match_the_hand_computation_and_the_gain_margin_is_in_db_once():
+    # L = 0.5 / (z - 1): S - 1/2 = (z - 1.5) / (2 (z - 0.5)), largest at z = -1 (5/6), so alpha = 1.2; the disk
+    # meets the real axis at (1 -+ 0.6) / (1 +- 0.6), i.e. gains 1/4 and 4: 20 log10 4 = 12.04 dB (the certificate
+    # said 20 log10 of that dB value, 21.6, before), and a phase of arccos(2 / 4.25) = 61.93 deg
+    row = certify(GAIN, [PLANT], ["integrator"]).checks[0]
+    assert row.disk_margin == pytest.approx(1.2, rel=1e-5)
+    assert row.disk_gain_margin_db == pytest.approx(20 * math.log10(4.0), rel=1e-4)
+    assert row.disk_phase_margin_deg == pytest.approx(math.degrees(math.acos(2 / 4.25)), rel=1e-4)

@@ -99,9 +99,11 @@ def _overall(rows: Sequence[dict]) -> dict:
     for c in _DESIGNED:
         for ref, bound in (("oracle", ORACLE_BOUND), ("paper", PAPER_BOUND)):
             key = f"{c}_over_{ref}"
-            vals = [v for r in done for v in r[key]]
-            cells = sum(r["cells"] for r in done)
-            o[key] = {"cells": cells, "within": sum(v <= bound for v in vals), "median": median(vals) if vals else None,
+            have = [r for r in done if r[key]]          # tractors with that controller
+            vals = [v for r in have for v in r[key]]
+            cells = sum(r["cells"] for r in have)
+            o[key] = {"cells": cells, "tractors": len(have), "within": sum(v <= bound for v in vals),
+                      "median": median(vals) if vals else None,
                       "worst": max(vals) if vals else None,
                       "tractors_all_within": sum(1 for r in done if r[key] and r[f"{key}_within"] == r["cells"])}
     return o
@@ -189,7 +191,8 @@ def overall_line(o: dict) -> str:
              f"{o['diverging_robust_mpc']} diverging robust/MPC passes"]
     for c, label in (("robust", "robust"), ("mpc", "MPC")):
         a, b = o[f"{c}_over_oracle"], o[f"{c}_over_paper"]
-        parts.append(f"{label}: {a['within']}/{a['cells']} cells <= {ORACLE_BOUND:g}x the oracle (median "
+        parts.append(f"{label} ({a['tractors']} tractors): {a['within']}/{a['cells']} cells <= {ORACLE_BOUND:g}x the "
+                     f"oracle (median "
                      f"{_r(a['median'])}, worst {_r(a['worst'])}; {a['tractors_all_within']} tractors in every cell), "
                      f"{b['within']}/{b['cells']} <= {PAPER_BOUND:g}x the paper's method (median {_r(b['median'])}, "
                      f"worst {_r(b['worst'])}; {b['tractors_all_within']} tractors in every cell)")

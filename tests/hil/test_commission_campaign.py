@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from hil.bench.campaign_tractors import commission_campaign, load_result
-from hil.bench.campaign_tractors_report import ORACLE_BOUND, PAPER_BOUND, summarise_tractor
+from hil.bench.campaign_tractors_report import ORACLE_BOUND, PAPER_BOUND, summarise_tractor, write_campaign_report
 from hil.bench.cli import main as hil_main
 from hil.bench.commission import CONTROLLERS, DIVERGED_M, CommissionOptions, options_dict
 from hil.truth.conditions import condition_for
@@ -91,6 +91,19 @@ def test_the_row_of_a_tractor_from_hand_values() -> None:
     assert no_mpc["mpc_over_oracle"] == [] and no_mpc["reason"].startswith("no mpc")
     failed = summarise_tractor(t.name, None, "OSError: disk full", {})
     assert failed["status"] == "failed" and failed["reason"] == "OSError: disk full"
+
+
+def test_the_overall_line_counts_the_cells_of_the_tractors_that_have_the_controller(tmp_path: Path) -> None:
+    a, b = random_tractor(3), random_tractor(4)
+    rows = [summarise_tractor(a.name, _result(a), None, {"commit": "a" * 40, "dirty": False}),
+            summarise_tractor(b.name, _result(b, designs=("central-lqr", "robust")), None, {"commit": "a" * 40})]
+    o = write_campaign_report(rows, tmp_path, SHORT, [a.name, b.name])["overall"]
+    assert o["with_robust_and_mpc"] == 1 and o["diverging_robust_mpc"] == 1
+    assert (o["robust_over_oracle"]["cells"], o["robust_over_oracle"]["tractors"]) == (4, 2)
+    assert (o["mpc_over_oracle"]["cells"], o["mpc_over_oracle"]["tractors"]) == (2, 1)
+    assert o["robust_over_oracle"]["within"] == 2          # 1.2 on each tractor's first cell
+    assert o["commits"] == ["a" * 40]
+    assert (tmp_path / "campaign.md").read_text().count("| random-") == 2
 
 
 def test_the_command_refuses_no_tractor_bad_seeds_and_twice_the_same(tmp_path: Path, capsys) -> None:

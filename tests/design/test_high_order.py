@@ -49,7 +49,12 @@ def test_robust_design_on_models_of_order_6_to_10_is_stable_on_every_model(sampl
     models = high_order_family(samples)
     if samples > 1:                                 # a window of 2 samples cannot hold 8 or 10 states
         with pytest.raises(DesignInputError, match="raise past"):
-            design_robust(models, RobustSpec(integral=True, past=1))
+            design_robust(models, RobustSpec(integral=True, past=1, reduce="never"))
+        # by default it falls back to design models (truncated to what 2 samples observe), and the
+        # certificate is still on the order 8-10 models as given
+        short = design_robust(models, RobustSpec(integral=True, past=1))
+        assert "raise past" in short.file.design["as_given_failed"] and short.certificate.passed
+        assert [c.name for c in short.certificate.checks] == [m.meta["name"] for m in models]
     res = design_robust(models, RobustSpec(integral=True, past=None))
     assert res.file.design["past"] == samples
     assert res.certificate.passed

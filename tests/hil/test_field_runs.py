@@ -227,3 +227,21 @@ def test_field_geometry_places_a_route_as_the_receivers_place_the_simulator_fram
         yaw = np.array([geo.yaw(t) for t in th])           # yaw of a heading psi = th from the frame's x axis
         assert np.allclose(np.cos(np.pi / 2 - yaw), np.cos(th_enu)) and np.allclose(np.sin(np.pi / 2 - yaw),
                                                                                   np.sin(th_enu))
+
+
+class FullLock(KinematicLQRController):
+    """Steers left at the loop's full rate whatever it measures (a U-turn tighter than the tractor can drive)."""
+
+    name = "full-lock"
+
+    def step(self, m):
+        return 0.35
+
+
+def test_a_wheel_held_at_its_stop_is_not_a_steering_fault():
+    log = simulated_run(RunSpec(speed=1.79, duration=8.0, seed=1), FullLock(), NO_DROPOUTS)
+    ch = log.channels
+    assert ch["truth_wheel_angle"].max() > SimParams().steering.max_wheel_angle - 0.01    # it reached the stop
+    reasons = [e["reason"] for e in log.meta["events"] if e["event"] == "disengage"]
+    assert not any("not responding" in r for r in reasons), reasons
+    assert ch["engaged"][-20:].all()

@@ -194,8 +194,16 @@ def _conditions(text: str):
     return out
 
 
+def _names(text: str) -> list[str]:
+    """A comma-separated list of names or files, at least one."""
+    names = [f for f in text.split(",") if f]
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected NAME[,NAME...], got {text!r}")
+    return names
+
+
 def _cmd_compare(args: argparse.Namespace) -> dict:
-    if args.fields:
+    if args.fields is not None:
         return _cmd_compare_fields(args)
     if args.passes is not None:
         raise SimulatorConfigError("--passes needs --fields")
@@ -416,7 +424,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="steering bridge of every pass: the emulated HC11 board or an AgOpenGPS steer module")
     cp.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
     cp.add_argument("--duration", type=_float, default=None, help="seconds per pass (default 60)")
-    cp.add_argument("--fields", type=lambda t: [f for f in t.split(",") if f], default=None, metavar="NAME,...",
+    cp.add_argument("--fields", type=_names, default=None, metavar="NAME,...",
                     help="drive whole field routes instead of AB lines (named fields or files); conditions default "
                          "to none/disker/ripper at 1.79 and 2.91 m/s; report OUT/fields.md")
     cp.add_argument("--passes", type=int, default=None, help="with --fields: drive only the first N passes")

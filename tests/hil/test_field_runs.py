@@ -196,6 +196,18 @@ def test_hil_run_refuses_field_options_that_do_not_fit(tmp_path, hairpin, capsys
                      "--out", str(tmp_path / "c")]) == 1
 
 
+def test_hil_compare_refuses_an_empty_field_list_and_options_it_cannot_use(tmp_path, hairpin, capsys):
+    with pytest.raises(SystemExit) as e:     # an empty list was an AB comparison before
+        hil_main(["compare", "kinematic", "--fields", ",", "--out", str(tmp_path / "a")])
+    assert e.value.code == 2 and "--fields" in capsys.readouterr().err
+    assert not (tmp_path / "a").exists()
+    for extra in (["--duration", "30"], ["--bridge", "agopengps"], ["--realtime", "none:1.79"]):
+        assert hil_main(["compare", "kinematic", "--fields", hairpin, *extra, "--out", str(tmp_path / "b")]) == 1
+        assert "--fields runs whole routes" in capsys.readouterr().err
+    assert hil_main(["compare", "kinematic", "--passes", "2", "--out", str(tmp_path / "c")]) == 1
+    assert "--passes needs --fields" in capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_hil_compare_on_fields_writes_a_report(tmp_path, hairpin):
     out = tmp_path / "cmp"

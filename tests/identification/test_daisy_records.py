@@ -74,9 +74,9 @@ def _auto_fit(name: str, first: int, m: int) -> np.ndarray:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name, first, m, floor", [
-    ("dryer2", 1, 3, 7.9),               # benchmark: 8.93 (n=8, ERA); best peer 10.99 (nfoursid, n chosen on validation)
+    ("dryer2", 1, 3, 7.9),               # benchmark: 8.93 (n=8, CVA); best peer 10.99 (nfoursid, n chosen on validation)
     ("heating_system", 1, 1, 82.7),      # benchmark: 83.76 (n=7, ERA); best peer 83.64 (nfoursid)
-    ("thermic_res_wall", 0, 2, 84.5),    # benchmark: 85.50 (n=2); best peer 85.28 (nfoursid)
+    ("thermic_res_wall", 0, 2, 84.5),    # benchmark: 85.50 (n=2, CVA); best peer 85.28 (nfoursid)
 ])
 def test_automatic_fit_on_the_new_records(name, first, m, floor):
     fit = _auto_fit(name, first, m)

@@ -22,7 +22,11 @@ slope and curvature at both ends), no longer than its curvature and steering-rat
 from 0.3 or 2 m is a small-error tracking problem inside the certified linear region (no clip,
 no windup: the controllers hold their integral until the path's end, :attr:`Reference.acquired`);
 past the path's end the reference is the line's own equilibrium and the law is exactly the
-certified one.
+certified one. A controller that engages turning away from the line (heading error or wheel angle
+at its clip) recovers the turn first with no path (:meth:`Reference.recover`), and then plans one
+from where the turn has left it (:meth:`Reference.replan`); it re-plans likewise whenever the
+tractor is far from its path again (the cross-track deviation at its clip), so the law is never
+left steering a clipped cross-track home.
 """
 
 from __future__ import annotations
@@ -186,12 +190,33 @@ class Reference:
         """A new acquisition: the next measurement plans a new approach path."""
         self.approach: ApproachPath | None = None if self.plans_approach else ApproachPath(0.0, 0.0, 0.0)
         self._s = 0.0
+        #: No approach path for now: the law recovers a turn first (:meth:`recover`).
+        self.recovering = False
+        #: Fixed on the line until the next reset (:meth:`on_line`): never re-planned.
+        self.fixed = not self.plans_approach
 
     def on_line(self) -> None:
         """Take the line as acquired until the next :meth:`reset`: no approach path (the law sees
         the measurement itself on a straight line, e.g. to check its arithmetic)."""
         self.approach = ApproachPath(0.0, 0.0, 0.0)
         self._s = 0.0
+        self.recovering, self.fixed = False, True
+
+    def recover(self) -> None:
+        """No approach path while the law recovers a turn away from the line (its heading error or
+        wheel angle at its clip); :meth:`replan` once it has. Nothing on a reference fixed by
+        :meth:`on_line`."""
+        if self.fixed:
+            return
+        self.approach = ApproachPath(0.0, 0.0, 0.0)
+        self._s = 0.0
+        self.recovering = True
+
+    def replan(self) -> None:
+        """Plan a new approach path from the next measurement (after a recovered turn, or when the
+        tractor is far from the line again); nothing on a reference fixed by :meth:`on_line`."""
+        if self.plans_approach and not self.fixed:
+            self.approach, self._s, self.recovering = None, 0.0, False
 
     @property
     def acquired(self) -> bool:
@@ -209,6 +234,16 @@ class Reference:
     def _clamp(self, kappa: float) -> float:
         limit = 0.9 / max(self.d2, self.wheelbase)            # no steady state beyond a tractor's turn
         return min(max(kappa, -limit), limit)
+
+    def deviation(self, m: Measurement) -> Measurement:
+        """``m`` relative to the line's own equilibrium on its curvature (no approach path), without
+        advancing the reference: what the law would see once the line is acquired."""
+        if not all(math.isfinite(x) for x in (m.heading_error, m.speed, m.curvature)):
+            return m
+        psi_ss, _ = steady_state(self._clamp(float(m.curvature)), self.wheelbase, self.d2)
+        _, delta_ss = steady_state(self._clamp(self._ahead(m)), self.wheelbase, self.d2)
+        return Measurement(m.t, m.cross_track, m.heading_error - psi_ss, m.wheel_angle - delta_ss, m.speed,
+                           m.curvature, m.preview)
 
     def track(self, m: Measurement) -> tuple[Measurement, float]:
         """``m`` as deviations from the reference, and the reference's own steering rate.

@@ -51,6 +51,9 @@ from .signature import check_signature
 
 MEASUREMENTS = ("cross_track", "heading_error", "wheel_angle")
 NORMALIZATIONS = ("speed", "none")
+#: Longest time between the last step before a disengage and the first after the re-engage over which
+#: the integrators keep their value (the steady pull they had learnt), s; after a longer gap they start at 0.
+INTEGRAL_MEMORY_S = 10.0
 MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec", "X0")
 TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "compensator", "limits", "design",
             "certificate", "models", "checksum")
@@ -266,12 +269,15 @@ class LinearController:
     integrators (:func:`design.compensator.integrator_states`) are held while the line is
     being acquired (:class:`design.acquisition.IntegralGate`: after an engage until the
     cross-track reaches the line, and whenever an output is at its clip), so the approach
-    does not wind them up; once tracking, the law is exactly the certified linear one.
+    does not wind them up; once tracking, the law is exactly the certified linear one. Over a
+    re-engage within :data:`INTEGRAL_MEMORY_S` of the last step the integrators keep the value they
+    had (the implement's pull they had learnt; the rest of the state starts bumpless from ``X0 y``).
 
     The law acts on the measurement's deviation from its reference
     (:class:`design.curvature.Reference`): on engage, a smooth approach path from where the
-    tractor is to the line (unless it engages turning, with its heading error or wheel angle at
-    its clip: then the law recovers first, as it always did, and tracks the line itself); on a curve, the steady heading error and wheel angle of the path's
+    tractor is to the line (if it engages turning away, with its heading error or wheel angle at
+    its clip, the law recovers the turn first and the path is planned from where that leaves it; a
+    new path is planned likewise whenever the cross-track deviation is at its clip); on a curve, the steady heading error and wheel angle of the path's
     curvature, the wheel angle at the curvature ``V * latency`` ahead (the latency the
     certificate records; the preview is asked for with :attr:`preview_request`); the reference's
     own steering rate is added to the law's command (and left out of the law's memory of it). On
@@ -290,8 +296,11 @@ class LinearController:
         self._ac, self._bc, self._cc, self._dc, self._ec = c.Ac, c.Bc, c.Cc[0], c.Dc[0], c.Ec[:, 0]
         self._xc = np.zeros(c.order)
         self._fresh = True
+        self._far = False
         self.acquisition = bool(acquisition)
         self._integrators = np.array(integrator_states(c) if acquisition else (), dtype=int)
+        self._kept = np.zeros(self._integrators.size)   # the integrals at the last step, kept over a re-engage
+        self._last_t = math.inf                         # time of the last step, s
         self.gate = IntegralGate()
         self.reference = Reference(self.dt, spec.rate_limit, recorded_latency(spec.certificate))
         if acquisition:
@@ -300,12 +309,18 @@ class LinearController:
     def reset(self) -> None:
         self._xc = np.zeros(self.spec.compensator.order)
         self._fresh = True
+        self._far = False
         self.gate.reset()
         self.reference.reset()
 
     def _turning(self, y: np.ndarray) -> bool:
         """An output other than the cross-track (heading error, wheel angle) is at its clip."""
         return any(o.name != "cross_track" and c is not None and abs(v) >= c
+                   for o, c, v in zip(self.spec.outputs, self.spec.output_clip, y.tolist()))
+
+    def _cross_track_clipped(self, y: np.ndarray) -> bool:
+        """The cross-track entry of the normalised outputs ``y`` is at its clip."""
+        return any(o.name == "cross_track" and c is not None and abs(v) >= c
                    for o, c, v in zip(self.spec.outputs, self.spec.output_clip, y.tolist()))
 
     def clipped(self, y: np.ndarray) -> bool:
@@ -324,14 +339,23 @@ class LinearController:
 
     def step(self, m: Measurement) -> float:
         ff = 0.0
+        ref = self.reference
         if self.acquisition:
-            if self.reference.approach is None and self._turning(self.outputs(m)):
-                self.reference.on_line()       # engaged while turning away: recover first, no approach path
-            m, ff = self.reference.track(m)
+            if (ref.approach is None or ref.recovering or ref.acquired) and self._turning(
+                    self.outputs(ref.deviation(m))):
+                ref.recover()                  # turning away from the line: recover first, no approach path
+            elif ref.recovering or self._far:
+                ref.replan()                   # turn recovered, or far from the path: a new path from here
+            m, ff = ref.track(m)
         y = self.outputs(m)
+        self._far = self._cross_track_clipped(y)
         if self._fresh:
             self._xc = self.spec.compensator.X0 @ y
             self._fresh = False
+            gap = float(m.t) - self._last_t
+            if self._integrators.size and 0.0 <= gap <= INTEGRAL_MEMORY_S:
+                self._xc[self._integrators] = self._kept     # a re-engage: the pull learnt before it
+        self._last_t = float(m.t)
         u = float(self._cc @ self._xc + self._dc @ y)
         if not math.isfinite(u):
             self.reset()
@@ -344,6 +368,8 @@ class LinearController:
         if self._integrators.size and not (self.gate.integrate(float(m.cross_track), self.clipped(y))
                                            and self.reference.acquired):    # acquiring: integrals held
             self._xc[self._integrators] = held
+        if self._integrators.size and np.all(np.isfinite(self._xc[self._integrators])):
+            self._kept = self._xc[self._integrators].copy()
         return ua
 
     def estimate(self) -> tuple[float, ...]:

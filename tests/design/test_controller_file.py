@@ -10,7 +10,7 @@ import pytest
 
 from design.cli import main as design_main
 from design.controller import Controller, Measurement
-from design.files.linear import read_controller_file
+from design.files.linear import INTEGRAL_MEMORY_S, read_controller_file
 from design.files.load import load_controller
 from design.errors import ControllerFileError
 from design.robust import RobustSpec, design_robust
@@ -144,7 +144,15 @@ def test_engage_is_bumpless_for_a_constant_error(saved):
     ctrl.reset()
     ctrl.reference.on_line()
     zero_start = float((c.Dc @ y)[0])          # what a zero initial state would have commanded
-    assert abs(ctrl.step(m) - u0) < 1e-15 and abs(u0 - zero_start) > 1e-3
+    late = Measurement(t=0.1 + INTEGRAL_MEMORY_S, cross_track=0.01, heading_error=0.0, wheel_angle=0.0, speed=1.0)
+    assert abs(ctrl.step(late) - u0) < 1e-15 and abs(u0 - zero_start) > 1e-3   # long after: the integral from 0
+    ctrl.step(late)
+    kept = ctrl.estimate()[-1]
+    assert kept != 0.0
+    ctrl.reset()                               # re-engaged soon after: the integral learnt before is kept
+    ctrl.reference.on_line()
+    soon = Measurement(t=late.t + 1.0, cross_track=0.01, heading_error=0.0, wheel_angle=0.0, speed=1.0)
+    assert ctrl.step(soon) == pytest.approx(u0 + float(c.Cc[0, -1]) * kept, abs=1e-12)
 
 
 def test_outputs_are_clipped_after_normalisation(saved):

@@ -26,15 +26,16 @@ Definitions (also in ``docs/fields.md``):
   0 when it does not cross) and the time to settle.
 * **Pass-to-pass spacing.** For neighbouring passes, the distance from each settled point of
   the later pass's true track to the earlier pass's true track (the nearest point of its
-  polyline, only where that point is inside it), minus the implement width: + = a skip
+  polyline, only where that point is inside it and not across a gap of the scored track), minus the
+  implement width: + = a skip
   (unworked strip), - = an overlap, m.
 * **Off the route.** The time spent more than :data:`OFF_ROUTE` m from the route (the loop's
-  engage limit: it cannot re-engage from there, and on the bench no driver steers it back), and
+  engage limit: it cannot re-engage from there until the driver brings it back), and
   how much of the route was driven (the truth's last station over the route's length).
 * **Wrong-segment jumps.** Cycles where the loop's station goes back by more than
   :data:`JUMP_BACK` m or forward by more than twice a cycle's travel plus :data:`JUMP_MARGIN` m,
-  between two cycles with a healthy GPS solution (RTK fixed or float; the loop's tracker holds its
-  station on any other); the same count for the truth's station.
+  between two cycles with an RTK-fixed solution (the loop's tracker holds its station on an
+  unhealthy one: RTK float, stale, lost); the same count for the truth's station.
 """
 
 from __future__ import annotations
@@ -60,6 +61,8 @@ REENGAGE_SETTLE = 5.0
 ENTRY_BEFORE, ENTRY_AFTER = 2.0, 15.0
 #: Wrong-segment jump thresholds: backwards, m; forwards beyond twice a cycle's travel plus, m.
 JUMP_BACK, JUMP_MARGIN = 0.10, 0.25
+#: A step longer than this between two cycles of a pass's scored track is a gap in it, m.
+TRACK_GAP = 1.0
 #: Farther than this from the route, m, the tractor is off it (the loop's default engage limit).
 OFF_ROUTE = 2.0
 #: A change of curvature larger than this is a curve entry, 1/m.
@@ -98,27 +101,32 @@ def jumps(station: np.ndarray, speed: np.ndarray, valid: np.ndarray, dt: float) 
     return int(np.sum(bad & ok))
 
 
-def track_distance(points: np.ndarray, track: np.ndarray) -> np.ndarray:
-    """Distance of each point to the polyline ``track`` (m); ``nan`` where the nearest point is
-    one of its two ends (the point lies beyond the track)."""
-    if len(track) < 3 or len(points) == 0:
+def track_distance(points: np.ndarray, track: np.ndarray, max_gap: float = TRACK_GAP) -> np.ndarray:
+    """Distance of each point to the polyline ``track`` (m); ``nan`` where the nearest point is an
+    end of the track or of one of its pieces (a step longer than ``max_gap`` m is a gap in it: the
+    cycles left out of the statistics), i.e. the point lies beyond the track."""
+    n = len(track)
+    if n < 3 or len(points) == 0:
         return np.full(len(points), np.nan)
+    d_all = np.diff(track, axis=0)
+    gap = np.hypot(*d_all.T) > max_gap                     # per segment
+    first = np.r_[True, gap]                               # per vertex: a piece starts there
+    last = np.r_[gap, True]                                # ... or ends there
     _, j = cKDTree(track).query(points)
     best = np.full(len(points), np.inf)
     interior = np.zeros(len(points), dtype=bool)
     for off in (-1, 0):   # the segments before and after the nearest vertex
-        a = np.clip(j + off, 0, len(track) - 2)
-        p0, p1 = track[a], track[a + 1]
-        d = p1 - p0
+        a = np.clip(j + off, 0, n - 2)
+        p0, d = track[a], d_all[a]
         L2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-12)
         u = np.einsum("ij,ij->i", points - p0, d) / L2
-        inside = ((u > 0.0) | (a > 0)) & ((u < 1.0) | (a < len(track) - 2))
+        inside = ((u > 0.0) | ~first[a]) & ((u < 1.0) | ~last[a + 1])
         foot = p0 + np.clip(u, 0.0, 1.0)[:, None] * d
-        dist = np.hypot(*(points - foot).T)
+        dist = np.where(gap[a], np.inf, np.hypot(*(points - foot).T))
         better = dist < best
         best = np.where(better, dist, best)
         interior = np.where(better, inside, interior)
-    return np.where(interior, best, np.nan)
+    return np.where(interior & np.isfinite(best), best, np.nan)
 
 
 def field_metrics(log: PassLog, width: float, curve_entries: Sequence[float] = ()) -> dict:
@@ -214,7 +222,7 @@ def field_metrics(log: PassLog, width: float, curve_entries: Sequence[float] = (
                               "worst_overlap_m": float(min(e.min(), 0.0)) if e.size else None,
                               "worst_skip_m": float(max(e.max(), 0.0)) if e.size else None})
     allerr = np.concatenate(errs) if errs else np.zeros(0)
-    valid = (ch["gps_valid"] > 0.5) & (ch["integrity"] <= 1.0)    # RTK fixed or float: what moves the station
+    valid = (ch["gps_valid"] > 0.5) & (ch["integrity"] == 0.0)    # RTK fixed: the fixes that move the station
     worst_entry = [e["worst_abs_m"] for e in entries if e["worst_abs_m"] is not None]
     return {"width_m": float(width), "straight": pooled["straight"], "curve": pooled["curve"],
             "curve_entries": entries, "curve_entry_worst_m": max(worst_entry) if worst_entry else None,

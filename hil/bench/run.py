@@ -22,6 +22,7 @@ from identification.passlog import PassLog
 
 from hil.bench.agio_bench import AgioLockstepBench, AgioUdpBench
 from hil.bench.bridge_bench import LockstepBridge, PtyBridge
+from hil.bench.field_driver import FieldDriver
 from hil.bench.field_route import RouteTruth, field_run
 from hil.truth.conditions import condition_for
 from hil.vehicle.bridge.driver import BridgeDriver
@@ -79,6 +80,9 @@ class RunSpec:
         and how many of its passes to drive (default all): the loop follows the route of the
         passes and the headland turns between them (:mod:`hil.bench.field_route`); the initial
         offsets are then from the route at ``start_station`` m.
+    field_driver
+        On a field, a driver takes the wheel when the autosteer has let go and hands it back on
+        the line (:mod:`hil.bench.field_driver`); without one a disengaged tractor keeps its wheel.
     """
 
     implement: str = "none"
@@ -98,6 +102,7 @@ class RunSpec:
     field: str | None = None
     field_passes: int | None = None
     start_station: float = 0.0
+    field_driver: bool = True
 
     def __post_init__(self) -> None:
         if not (isinstance(self.duration, (int, float)) and math.isfinite(self.duration) and 1 <= self.duration <= 3600):
@@ -121,6 +126,8 @@ class RunSpec:
             raise SimulatorConfigError(f"field must be a field name or file, got {self.field!r}")
         if self.field is None and (self.field_passes is not None or self.start_station != 0.0):
             raise SimulatorConfigError("field_passes and start_station need a field")
+        if not isinstance(self.field_driver, bool):
+            raise SimulatorConfigError(f"field_driver must be True or False, got {self.field_driver!r}")
         if isinstance(self.start_station, bool) or not isinstance(self.start_station, (int, float)) \
                 or not math.isfinite(self.start_station):
             raise SimulatorConfigError(f"start_station must be a finite station in m, got {self.start_station!r}")
@@ -143,6 +150,9 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
                fld.start_state(spec.start_station, spec.initial_cross_track, spec.initial_heading))
     plant = SimulatedTractor(cond, spec.duration + 1.0, spec.seed, params, initial=initial)
     valve = ValveFaults(plant, override=spec.override, stuck_valve=spec.stuck_valve)   # what the bridge drives
+    driver_layer = None
+    if fld is not None and spec.field_driver:   # a driver takes the wheel when the autosteer lets go
+        valve = driver_layer = FieldDriver(valve, plant, fld.path, spec.start_station)
     p = plant.params
     if loop_config is None:   # the steering monitor knows this tractor's wheel stop
         loop_config = LoopConfig(wheel_stop=p.steering.max_wheel_angle)
@@ -182,6 +192,9 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
         receivers[0].downgraded.extend(spec.rtk_float)
         clock = bench.clock
         driver = bench.driver
+        if driver_layer is not None:
+            firmware = bench.firmware
+            driver_layer.autosteer_engaged = lambda: _autosteer_on(firmware.state)
         faulty = None
         if spec.link_faults:
             host = bench.port if spec.realtime else bench.host_link
@@ -225,8 +238,15 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             "gnss_refused": frontend_stats,
             "simulator": p.to_dict()}
     if fld is not None:
-        meta["field"] = {**fld.describe(), "source": spec.field, "start_station_m": spec.start_station}
+        meta["field"] = {**fld.describe(), "source": spec.field, "start_station_m": spec.start_station,
+                         "driver_takeovers": None if driver_layer is None else driver_layer.takeovers}
     return loop.run_log(meta)
+
+
+def _autosteer_on(state) -> bool:
+    """Whether the bridge steers: the HC11 firmware's engaged flag, the steer module's motor."""
+    on = getattr(state, "engaged", None)
+    return bool(state.motor_on if on is None else on)
 
 
 def _refused(frontend: GnssFrontEnd) -> dict:

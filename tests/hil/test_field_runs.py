@@ -257,3 +257,34 @@ def test_a_wheel_held_at_its_stop_is_not_a_steering_fault():
     reasons = [e["reason"] for e in log.meta["events"] if e["event"] == "disengage"]
     assert not any("not responding" in r for r in reasons), reasons
     assert ch["engaged"][-20:].all()
+
+
+def test_a_driver_takes_the_wheel_when_the_autosteer_lets_go_in_a_curve(curved):
+    # RTK float from inside the bend (40 m in: 22 s) to past its end (79 m: 44 s): the loop lets go
+    kw = dict(params=NO_DROPOUTS, rtk_float=((30.0, 50.0),))
+    fr, alone = run_field(curved, KinematicLQRController(), field_driver=False, **kw)
+    _, driven = run_field(curved, KinematicLQRController(), **kw)
+    for log in (alone, driven):
+        assert any("rtk_float" in e["reason"] for e in log.meta["events"] if e["event"] == "disengage")
+    # nobody at the wheel: the held wheel keeps turning the tractor off the route after the bend
+    m_alone = field_metrics(alone, 6.0, fr.curve_entries())
+    assert np.abs(alone.channels["truth_cross_track"]).max() > 2.0 and m_alone["off_route_s"] > 0
+    # the driver steers it back and hands over: the autosteer drives the rest of the route
+    m = field_metrics(driven, 6.0, fr.curve_entries())
+    assert driven.meta["field"]["driver_takeovers"] >= 1        # (again while the fix stays bad)
+    assert m["off_route_s"] == 0.0 and m["route_driven"] > 0.99
+    assert np.abs(driven.channels["truth_cross_track"]).max() < 1.0
+    t = driven.times["t"]
+    assert driven.channels["engaged"][t > 60.0].all()
+
+
+def test_pass_spacing_is_measured_to_the_neighbour_track_and_never_across_its_gaps():
+    from hil.bench.field_metrics import track_distance
+    s = np.arange(0.0, 55.0, 0.1)
+    keep = ((s < 20.0) | (s > 30.0)) & (s < 50.0)       # 10 m of the neighbour left out (a disengagement)
+    arc = np.column_stack([30.0 * np.cos(s / 30.0), 30.0 * np.sin(s / 30.0)])
+    outer = np.column_stack([36.05 * np.cos(s / 30.0), 36.05 * np.sin(s / 30.0)])
+    d = track_distance(outer, arc[keep]) - 6.0
+    assert np.nanmax(np.abs(d - 0.05)) < 1e-9            # exact on an arc, where measured
+    assert np.isnan(d[(s > 20.5) & (s < 29.5)]).all()   # not to the 10 m chord across the gap (0.4 m off)
+    assert np.isnan(d[s > 50.5]).all() and np.isfinite(d[(s > 1) & (s < 19)]).all()

@@ -48,6 +48,8 @@ APPROACH_KAPPA_MAX = 0.05
 APPROACH_RATE_SHARE = 0.5
 #: Longest approach path, m.
 APPROACH_LENGTH_MAX = 500.0
+#: Longest curvature preview a controller asks for, stretches (the vehicle loop's ``MAX_PREVIEW``).
+PREVIEW_MAX = 1000
 
 
 def steady_state(kappa: Any, wheelbase: float = WHEELBASE_M, d2: float = D2_M,
@@ -235,6 +237,23 @@ class Reference:
         limit = 0.9 / max(self.d2, self.wheelbase)            # no steady state beyond a tractor's turn
         return min(max(kappa, -limit), limit)
 
+    def _wheel(self, m: Measurement, extra: int) -> float:
+        """Reference wheel angle ``extra`` samples from now, rad: the steady state of the path's (and
+        the approach path's) curvature ``V * latency`` further ahead."""
+        v = float(m.speed)
+        path = self.approach if self.approach is not None else ApproachPath(0.0, 0.0, 0.0)
+        _, _, k_a = path.at(self._s + extra * max(v, 0.0) * self.dt + v * self.latency)
+        return steady_state(self._clamp(k_a + self._ahead(m, extra)), self.wheelbase, self.d2)[1]
+
+    def wheel_plan(self, m: Measurement, n: int) -> list[float]:
+        """Reference wheel angles ``0 .. n-1`` samples from now, rad (call before :meth:`track`, which
+        advances the reference): the first two are those :meth:`track` feeds forward; a predictive law
+        offsets its wheel-angle and rate bounds by them over its horizon (beyond the preview its last
+        stretch is held). Zeros for a non-finite measurement."""
+        if not all(math.isfinite(x) for x in (m.cross_track, m.heading_error, m.speed, m.curvature)):
+            return [0.0] * n
+        return [self._wheel(m, j) for j in range(n)]
+
     def deviation(self, m: Measurement) -> Measurement:
         """``m`` relative to the line's own equilibrium on its curvature (no approach path), without
         advancing the reference: what the law would see once the line is acquired."""
@@ -267,10 +286,7 @@ class Reference:
         ds = max(v, 0.0) * self.dt
         y_r, slope, k_now = self.approach.at(self._s)
         psi_ss, _ = steady_state(self._clamp(k_now + float(m.curvature)), self.wheelbase, self.d2)
-        deltas = []
-        for extra in (0, 1):
-            _, _, k_a = self.approach.at(self._s + extra * ds + v * self.latency)
-            deltas.append(steady_state(self._clamp(k_a + self._ahead(m, extra)), self.wheelbase, self.d2)[1])
+        deltas = [self._wheel(m, extra) for extra in (0, 1)]
         self._s += ds
         dev = Measurement(m.t, m.cross_track - y_r, m.heading_error - (math.atan(slope) + psi_ss),
                           m.wheel_angle - deltas[0], m.speed, m.curvature, m.preview)

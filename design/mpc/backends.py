@@ -2,7 +2,7 @@
 
 * ``casadi``: the condensed QP (:meth:`MPCProblem.condensed`) through ``casadi.conic``
   with a QP plugin of the installed wheel, wrapped once in a casadi ``Function`` of
-  ``(z0, x0)`` so one call per tick does the affine update of the gradient and bounds
+  ``(z0, x0, rate_ref, wheel_ref)`` so one call per tick does the affine update of the gradient and bounds
   and the solve in C. Offered: ``daqp`` (default), ``qpoases``, ``piqp``: each solved
   every tick of a 2,000-step closed loop on the demo's central model with both limits
   active, exactly (DAQP and qpOASES at N = 20, 50, 100; PIQP at 50). CPU ms per tick at
@@ -14,7 +14,7 @@
   ``hpipm`` needs the stage-wise OCP structure, which a condensed QP does not have.
 * ``osqp``: the sparse QP (:meth:`MPCProblem.sparse`) in OSQP, set up once,
   warm-started from the previous solution, with only the bounds of the initial-state
-  rows updated each tick (STYLE 7). An ADMM solver: cheap when nothing changes, but it
+  rows (and, on a curve, of the rate and wheel-angle rows) updated each tick (STYLE 7). An ADMM solver: cheap when nothing changes, but it
   may need many iterations after a disturbance, and a capped solve is inexact. Its
   tolerances are 1e-4 with solution polishing (an exact solve of the KKT system of
   the active set it found), which gives the exact solution when the active set is right.
@@ -131,18 +131,27 @@ class CasadiConicBackend:
             raise DesignInputError(f"casadi refused the {settings.solver} options {opts}: {exc}") from None
         z0 = ca.MX.sym("z0", problem.nz)
         x0 = ca.MX.sym("x0", self._n + 1)
-        shift = ca.mtimes(ca.DM(qp.Lz), z0)
+        rate_ref = ca.MX.sym("rate_ref", self._n)       # the reference's own rate at u_0..u_{N-1}, rad/s
+        wheel_ref = ca.MX.sym("wheel_ref", self._n)     # its wheel angle at delta_1..delta_N, rad
+        shift = ca.mtimes(ca.DM(qp.Lz), z0) - ca.vertcat(wheel_ref, wheel_ref)
+        off = ca.vertcat(rate_ref, 0.0)
         sol = solver(h=h, g=ca.mtimes(ca.DM(qp.G), z0) + ca.DM(qp.c), a=m, lba=ca.DM(qp.lb_a) + shift,
-                     uba=ca.DM(qp.ub_a) + shift, lbx=ca.DM(qp.lb), ubx=ca.DM(qp.ub), x0=x0)
-        self._fn = ca.Function("mpc_step", [z0, x0], [sol["x"]])
+                     uba=ca.DM(qp.ub_a) + shift, lbx=ca.DM(qp.lb) - off, ubx=ca.DM(qp.ub) - off, x0=x0)
+        self._fn = ca.Function("mpc_step", [z0, x0, rate_ref, wheel_ref], [sol["x"]])
         self._x = np.zeros(self._n + 1)
+        self._zeros = np.zeros(self._n)
 
     def reset(self) -> None:
         """Forget the warm start."""
         self._x = np.zeros(self._n + 1)
 
-    def solve(self, z0: np.ndarray) -> RawSolution:
-        x = np.asarray(self._fn(z0, self._x)).ravel()
+    def solve(self, z0: np.ndarray, rate_ref: np.ndarray | None = None,
+              wheel_ref: np.ndarray | None = None) -> RawSolution:
+        """Solve from ``z0``; ``rate_ref``/``wheel_ref`` (N each) offset the bounds (see
+        the reference over the horizon, :mod:`design.mpc.problem`; None = zeros, a straight line)."""
+        r = self._zeros if rate_ref is None else rate_ref
+        d = self._zeros if wheel_ref is None else wheel_ref
+        x = np.asarray(self._fn(z0, self._x, r, d)).ravel()
         st = self._fn.stats()
         ok = bool(st.get("success", False)) and bool(np.all(np.isfinite(x)))
         if ok:
@@ -164,6 +173,7 @@ class OsqpBackend:
         self._osqp = osqp
         self._n, self._nx, self._nz = problem.horizon, qp.n_states, problem.nz
         self._l, self._u = qp.l.copy(), qp.u.copy()
+        self._l0, self._u0 = qp.l.copy(), qp.u.copy()
         # adaptive_rho_interval fixed: OSQP's default (0) times its set-up and adapts rho on a wall-clock
         # schedule, so the iterates (and the answer within tolerance) would depend on the machine's load.
         s = {"verbose": False, "warm_starting": True, "polishing": True, "eps_abs": 1e-4, "eps_rel": 1e-4,
@@ -180,9 +190,20 @@ class OsqpBackend:
         """Forget the warm start."""
         self._solver.warm_start(x=np.zeros(self._solver.n), y=np.zeros(self._solver.m))
 
-    def solve(self, z0: np.ndarray) -> RawSolution:
+    def solve(self, z0: np.ndarray, rate_ref: np.ndarray | None = None,
+              wheel_ref: np.ndarray | None = None) -> RawSolution:
+        """Solve from ``z0``; ``rate_ref``/``wheel_ref`` (N each) offset the bounds (see
+        the reference over the horizon, :mod:`design.mpc.problem`; None = zeros, a straight line)."""
         self._l[:self._nz] = -z0
         self._u[:self._nz] = -z0
+        n, nx = self._n, self._nx
+        d = np.zeros(n) if wheel_ref is None else np.asarray(wheel_ref, dtype=float)
+        r = np.zeros(n) if rate_ref is None else np.asarray(rate_ref, dtype=float)
+        # rows: dynamics (nx), delta_j - s <= dmax (n), delta_j + s >= -dmax (n), u_j (n), s
+        self._u[nx:nx + n] = self._u0[nx:nx + n] - d
+        self._l[nx + n:nx + 2 * n] = self._l0[nx + n:nx + 2 * n] - d
+        self._l[nx + 2 * n:nx + 3 * n] = self._l0[nx + 2 * n:nx + 3 * n] - r
+        self._u[nx + 2 * n:nx + 3 * n] = self._u0[nx + 2 * n:nx + 3 * n] - r
         self._solver.update(l=self._l, u=self._u)
         res = self._solver.solve(raise_error=False)
         x = res.x

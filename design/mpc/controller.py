@@ -27,7 +27,7 @@ import numpy as np
 
 from ..acquisition import IntegralGate
 from ..controller import Measurement
-from ..curvature import Reference
+from ..curvature import PREVIEW_MAX, Reference
 from ..errors import DesignInputError
 from .backends import SolverSettings, make_backend
 from .problem import MPCProblem
@@ -150,16 +150,25 @@ class MPCController:
         self._integral = np.arange(nz)[problem.layout.integral_slot]
         self.gate = IntegralGate(crossing=False)
         self.reference = Reference(self.dt, problem.limits.rate, latency, approach=False)
-        self.preview_request = self.reference.preview_request
+        n, step = self.reference.preview_request
+        #: The curvature preview over the whole horizon (and the latency), stretches of ``V dt``.
+        self.preview_request = (min(n + problem.horizon, PREVIEW_MAX), step)
 
     # -- the QP --------------------------------------------------------------------
-    def solve_qp(self, z0: np.ndarray) -> SolveInfo:
+    def solve_qp(self, z0: np.ndarray, rate_ref: np.ndarray | None = None,
+                 wheel_ref: np.ndarray | None = None) -> SolveInfo:
         """Solve the MPC's QP from the measured state ``z0`` and choose the command.
+
+        ``rate_ref`` (rad/s, at ``u_0 .. u_{N-1}``) and ``wheel_ref`` (rad, at ``delta_1 .. delta_N``)
+        are the reference's over the horizon: the bounds hold for the command plus them (module
+        docstring of :mod:`design.mpc.problem`); None on a straight line. The command returned is
+        the QP's (or the fallback's) ``u_0``, clipped so that ``u_0 + rate_ref[0]`` is within the rate limit.
 
         Returns the :class:`SolveInfo` (first move, slack, status, iterations, time,
         whether the fallback steered). Updates the counters, but not the controller's
         memory of past outputs and commands (that is :meth:`step`'s).
         """
+        r0 = 0.0 if rate_ref is None else float(rate_ref[0])
         z0 = np.asarray(z0, dtype=float)
         lim = self.problem.limits.rate
         if not np.all(np.isfinite(z0)):
@@ -170,21 +179,22 @@ class MPCController:
             self.last = info
             return info
         t0 = time.perf_counter()
-        raw = self.backend.solve(z0)
+        raw = self.backend.solve(z0, rate_ref, wheel_ref)
         dt = time.perf_counter() - t0
         u0 = float(raw.u[0]) if raw.ok else math.nan
         reason = ""
         if not raw.ok:
             reason = f"solver failed ({raw.status})"
-        elif not (math.isfinite(u0) and abs(u0) <= lim * (1 + RATE_TOLERANCE)):
-            reason = f"first move {u0!r} rad/s outside the rate limit {lim} rad/s (beyond the solver's tolerance)"
+        elif not (math.isfinite(u0) and abs(u0 + r0) <= lim * (1 + RATE_TOLERANCE)):
+            reason = (f"first move {u0!r} rad/s (with the reference's {r0:.4g}) outside the rate limit {lim} rad/s "
+                      "(beyond the solver's tolerance)")
         elif dt > self.settings.time_budget:
             reason = f"solve took {dt * 1e3:.2f} ms, over the {self.settings.time_budget * 1e3:.2f} ms budget"
         if reason:
             cmd = float(self.fallback_gain[0] @ z0)
-            cmd = min(max(cmd, -lim), lim) if math.isfinite(cmd) else 0.0
+            cmd = min(max(cmd, -lim - r0), lim - r0) if math.isfinite(cmd) else 0.0
         else:
-            cmd = min(max(u0, -lim), lim)
+            cmd = min(max(u0, -lim - r0), lim - r0)
         info = SolveInfo(cmd, u0, raw.slack if raw.ok else math.nan, raw.status, raw.iterations, dt, bool(reason),
                          reason)
         self.ticks += 1
@@ -221,10 +231,14 @@ class MPCController:
         self.reference.reset()
 
     def step(self, m: Measurement) -> float:
+        rate_ref = wheel_ref = None
+        if m.curvature or any(m.preview):               # on a curve: the reference over the horizon
+            d = np.array(self.reference.wheel_plan(m, self.problem.horizon + 1))
+            rate_ref, wheel_ref = np.diff(d) / self.dt, d[1:]
         m, ff = self.reference.track(m)
         y = self.outputs(m)
         z = self.state(y)
-        info = self.solve_qp(z)
+        info = self.solve_qp(z, rate_ref, wheel_ref)
         if info.fallback:
             self.events.append(FallbackEvent(float(m.t), info.status, info.reason))
         u = info.command

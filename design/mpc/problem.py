@@ -17,7 +17,11 @@ same one the robust LMI gain acts on: the fallback command is that gain on the s
          |delta_j| <= delta_max + s, j = 1..N      (soft: one slack for the horizon)
          s >= 0
 
-``delta_j = e' z_j`` is the predicted wheel angle (rad). ``P`` is the Riccati
+``delta_j = e' z_j`` is the predicted wheel angle (rad). On a curve ``z`` holds deviations from the
+path's steady state (:class:`design.curvature.Reference`) and the controller sends ``u_j + r_j``, with
+``d_j`` the reference wheel angle ``j`` ticks ahead from the curvature preview and ``r_j = (d_{j+1} -
+d_j) / dt`` its rate: the bounds are then ``|u_j + r_j| <= u_max`` and ``|delta_j + d_j| <= delta_max +
+s``, offset per tick by the back-ends (:mod:`design.mpc.backends`; zero offsets on a straight line). ``P`` is the Riccati
 solution of ``(A, B, Q, R)``, so with no active limit the first move is the LQR's
 for any horizon. The linear slack price ``rho1`` is an exact penalty: whenever the
 limits can be met, the optimum has ``s = 0``; when they cannot (a start beyond the

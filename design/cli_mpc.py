@@ -22,7 +22,7 @@ from .iostate import feedback_compensator, observable_past
 from .specs import check_specs
 from .errors import DesignInputError
 from .mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
-from .mpc_design import MPCSpec, design_mpc, fallback_from_file, read_controller_file
+from .mpc_design import MPCSpec, design_mpc, fallback_from_file, prediction_model, read_controller_file
 from .mpc.problem import TERMINALS, MPCLimits, MPCWeights, mpc_problem
 
 
@@ -43,6 +43,10 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
     past = args.past
     if past is None:
         past = fallback_past(args.fallback) if args.fallback else observable_past([central])
+    predicting, truncation = prediction_model(central, past)
+    if truncation is not None:                  # the window is too short for the central model as given:
+        others = [central, *others]             # predict with its design model, certify on it as given too
+        central = predicting
     weights = MPCWeights(_weights(args), args.slack_weight, args.slack_weight * 1e-2, args.terminal)
     limits = MPCLimits(args.rate_limit, args.wheel_angle_limit)
     settings = SolverSettings(args.backend, args.solver, args.max_iter, args.time_budget_ms * 1e-3)
@@ -68,6 +72,8 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
             checked = {"specifications": specs.to_dict(),
                        "achieved": check_specs(comp, family, specs, latency, names).to_dict()}
             res = replace(res, file=replace(res.file, design={**res.file.design, "specifications_check": checked}))
+    if truncation is not None:
+        res = replace(res, file=replace(res.file, design={**res.file.design, "prediction_truncated": truncation}))
     res.file.save(args.out)
     f = res.file
     return {"out": str(args.out), "horizon": f.horizon, "dt": f.dt, "prediction_model": f.design["design_model"],

@@ -174,8 +174,9 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
                    help="half-widths of the initial-error set of --rate-limit, model units (y/V s, psi/V rad s/m, "
                         "delta rad); the default is on-line tracking error size")
     r.add_argument("--past", type=parse_past, default=None,
-                   help="past samples in the measured state, or 'auto' (default): the shortest window that "
-                        "determines every model's state (1 for order 4, 3 for order 10)")
+                   help="past samples in the measured state, or 'auto' (default): 1 when no model holds a delay "
+                        "in its dynamics (with --design-models if-needed/truncated), else the shortest window that "
+                        "determines every model's state (3 for order 10)")
     r.add_argument("--design-models", choices=("if-needed", "truncated", "as-given"), default="if-needed",
                    help="what the synthesis runs on (the certificate is always on the models as given): if-needed "
                         "(default) the models, and when that fails each model balanced and truncated to the states "

@@ -21,8 +21,9 @@ from identification.model import Model
 from .errors import DesignInputError, SynthesisError
 from .files.linear import read_controller_file
 from .files.mpc import MPCFile
-from .iostate import feedback_compensator
+from .iostate import feedback_compensator, window_to_state
 from .limits import check_model_order
+from .reduction import design_model
 from .verify import Certificate, certify, model_hash, require_stable
 from .mpc.backends import SolverSettings
 from .mpc.controller import MPCController
@@ -78,6 +79,22 @@ def fallback_from_file(path: str | Path, problem: MPCProblem) -> np.ndarray:
     if k.shape != (1, problem.nz) or not np.all(np.isfinite(k)):
         raise DesignInputError(f"{path}: gain_K has shape {k.shape}, expected (1, {problem.nz})")
     return k
+
+
+def prediction_model(model: Model, past: int) -> tuple[Model, dict | None]:
+    """The MPC's prediction model for a window of ``past`` samples: ``model`` itself when the window
+    determines its state, else its design model (:func:`design.reduction.design_model`: balanced and
+    truncated to what the window observes), renamed ``<name>_order<r>``, with the record of the
+    truncation. The caller certifies the law on ``model`` as given too.
+    """
+    try:
+        window_to_state(model.A, model.B, model.C, past)
+        return model, None
+    except DesignInputError:
+        pass
+    pred, rec = design_model(model, past)
+    name = f"{model.meta.get('name', 'model')}_order{rec['design_order']}"
+    return pred.with_meta(name=name), {"name": str(model.meta.get("name", "model")), **rec}
 
 
 def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | None = None,

@@ -121,3 +121,21 @@ def test_automatic_weights_meet_their_margin_specifications_on_every_worn_valve_
     for m in [central, *local]:
         dm, stable = _independent_margins(m, law, latency_samples=3, reserve_samples=2)
         assert stable and dm >= 0.6 - 2e-3, (m.meta["name"], dm)
+
+
+def test_an_mpc_whose_prediction_model_the_window_cannot_hold_predicts_with_its_design_model():
+    # a central model of order 8 with the fall-back's window of 2 samples (the commission's short test
+    # identifies such a central model): before, `design mpc` refused it ("raise past")
+    from design.errors import DesignInputError
+    from design.mpc_design import prediction_model
+    local, _, _ = worn_models()
+    big = next(m for m in local if m.order == 8)
+    spec = MPCSpec(horizon=30, past=1)
+    with pytest.raises(DesignInputError, match="raise past"):
+        mpc_problem(big, 30, spec.weights, spec.limits, 1)
+    pred, rec = prediction_model(big, 1)
+    assert rec["order"] == 8 and rec["design_order"] == 4 and pred.meta["name"] == f"{big.meta['name']}_order4"
+    des = design_mpc(pred, [big, *local[:4]], spec)
+    assert des.certificate.passed and [c.name for c in des.certificate.checks][:2] == [pred.meta["name"],
+                                                                                       big.meta["name"]]
+    assert prediction_model(local[0], 1) == (local[0], None)          # an order-4 model is used as given

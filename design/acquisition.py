@@ -27,6 +27,15 @@ from .errors import DesignInputError
 
 #: Cross-track within which the line counts as acquired even without a crossing, m.
 ACQUIRE_BAND_M = 0.01
+#: Longest time between the last step before a disengage and the first after the re-engage over which
+#: a controller's integrals keep their value (the steady pull they had learnt: an implement's side
+#: force does not change over a short disengage), s; after a longer gap they start at 0.
+INTEGRAL_MEMORY_S = 10.0
+
+
+def integral_kept(gap: float) -> bool:
+    """True if integrals learnt ``gap`` s before a re-engage are kept (``0 <= gap <= INTEGRAL_MEMORY_S``)."""
+    return 0.0 <= gap <= INTEGRAL_MEMORY_S
 
 
 class IntegralGate:

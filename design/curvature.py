@@ -220,6 +220,24 @@ class Reference:
         if self.plans_approach and not self.fixed:
             self.approach, self._s, self.recovering = None, 0.0, False
 
+    def steer(self, m: Measurement, turning: Callable[[Measurement], bool], far: bool) -> None:
+        """Decide, before :meth:`track`, whether to recover a turn or plan a new approach path.
+
+        Parameters
+        ----------
+        m
+            This cycle's measurement.
+        turning
+            Whether a deviation (:meth:`deviation`) has its heading error or wheel angle at the
+            controller's clip.
+        far
+            The previous cycle's cross-track deviation was at its clip.
+        """
+        if (self.approach is None or self.recovering or self.acquired) and turning(self.deviation(m)):
+            self.recover()                     # turning away from the line: recover first, no approach path
+        elif self.recovering or far:
+            self.replan()                      # turn recovered, or far from the path: a new path from here
+
     @property
     def acquired(self) -> bool:
         """The approach path has been travelled: the reference is the line's own equilibrium."""
@@ -237,6 +255,11 @@ class Reference:
         limit = 0.9 / max(self.d2, self.wheelbase)            # no steady state beyond a tractor's turn
         return min(max(kappa, -limit), limit)
 
+    def _plan(self, m: Measurement) -> None:
+        """Plan the approach path from ``m`` if none is planned (``m`` finite)."""
+        if self.approach is None:
+            self.approach = ApproachPath.plan(m.cross_track, float(m.speed), self.rate_limit, wheelbase=self.wheelbase)
+
     def _wheel(self, m: Measurement, extra: int) -> float:
         """Reference wheel angle ``extra`` samples from now, rad: the steady state of the path's (and
         the approach path's) curvature ``V * latency`` further ahead."""
@@ -252,6 +275,7 @@ class Reference:
         stretch is held). Zeros for a non-finite measurement."""
         if not all(math.isfinite(x) for x in (m.cross_track, m.heading_error, m.speed, m.curvature)):
             return [0.0] * n
+        self._plan(m)
         return [self._wheel(m, j) for j in range(n)]
 
     def deviation(self, m: Measurement) -> Measurement:
@@ -281,8 +305,7 @@ class Reference:
         v = float(m.speed)
         if not all(math.isfinite(x) for x in (m.cross_track, m.heading_error, v, m.curvature)):
             return m, 0.0
-        if self.approach is None:
-            self.approach = ApproachPath.plan(m.cross_track, v, self.rate_limit, wheelbase=self.wheelbase)
+        self._plan(m)
         ds = max(v, 0.0) * self.dt
         y_r, slope, k_now = self.approach.at(self._s)
         psi_ss, _ = steady_state(self._clamp(k_now + float(m.curvature)), self.wheelbase, self.d2)

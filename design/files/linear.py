@@ -39,7 +39,7 @@ import numpy as np
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-from ..acquisition import IntegralGate
+from ..acquisition import INTEGRAL_MEMORY_S, IntegralGate, integral_kept
 from ..compensator import Compensator, integrator_states
 from ..curvature import Reference
 from ..controller import Measurement
@@ -51,9 +51,6 @@ from .signature import check_signature
 
 MEASUREMENTS = ("cross_track", "heading_error", "wheel_angle")
 NORMALIZATIONS = ("speed", "none")
-#: Longest time between the last step before a disengage and the first after the re-engage over which
-#: the integrators keep their value (the steady pull they had learnt), s; after a longer gap they start at 0.
-INTEGRAL_MEMORY_S = 10.0
 MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec", "X0")
 TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "compensator", "limits", "design",
             "certificate", "models", "checksum")
@@ -270,7 +267,7 @@ class LinearController:
     being acquired (:class:`design.acquisition.IntegralGate`: after an engage until the
     cross-track reaches the line, and whenever an output is at its clip), so the approach
     does not wind them up; once tracking, the law is exactly the certified linear one. Over a
-    re-engage within :data:`INTEGRAL_MEMORY_S` of the last step the integrators keep the value they
+    re-engage within :data:`design.acquisition.INTEGRAL_MEMORY_S` of the last step the integrators keep the value they
     had (the implement's pull they had learnt; the rest of the state starts bumpless from ``X0 y``).
 
     The law acts on the measurement's deviation from its reference
@@ -339,21 +336,16 @@ class LinearController:
 
     def step(self, m: Measurement) -> float:
         ff = 0.0
-        ref = self.reference
         if self.acquisition:
-            if (ref.approach is None or ref.recovering or ref.acquired) and self._turning(
-                    self.outputs(ref.deviation(m))):
-                ref.recover()                  # turning away from the line: recover first, no approach path
-            elif ref.recovering or self._far:
-                ref.replan()                   # turn recovered, or far from the path: a new path from here
-            m, ff = ref.track(m)
+            self.reference.steer(m, lambda d: self._turning(self.outputs(d)), self._far)
+            m, ff = self.reference.track(m)
         y = self.outputs(m)
         self._far = self._cross_track_clipped(y)
         if self._fresh:
             self._xc = self.spec.compensator.X0 @ y
             self._fresh = False
             gap = float(m.t) - self._last_t
-            if self._integrators.size and 0.0 <= gap <= INTEGRAL_MEMORY_S:
+            if self._integrators.size and integral_kept(gap):
                 self._xc[self._integrators] = self._kept     # a re-engage: the pull learnt before it
         self._last_t = float(m.t)
         u = float(self._cc @ self._xc + self._dc @ y)

@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..acquisition import IntegralGate
+from ..acquisition import IntegralGate, integral_kept
 from ..controller import Measurement
 from ..curvature import PREVIEW_MAX, Reference
 from ..errors import DesignInputError
@@ -148,6 +148,8 @@ class MPCController:
         self._z = np.zeros(nz)
         self._fresh = True
         self._integral = np.arange(nz)[problem.layout.integral_slot]
+        self._kept = np.zeros(self._integral.size)     # the integral at the last step, kept over a re-engage
+        self._last_t = math.inf                         # time of the last step, s
         self.gate = IntegralGate(crossing=False)
         self.reference = Reference(self.dt, problem.limits.rate, latency, approach=False)
         n, step = self.reference.preview_request
@@ -238,6 +240,9 @@ class MPCController:
         m, ff = self.reference.track(m)
         y = self.outputs(m)
         z = self.state(y)
+        if self._fresh and integral_kept(float(m.t) - self._last_t):
+            z[self._integral] = self._kept              # a re-engage: the pull learnt before it
+        self._last_t = float(m.t)
         info = self.solve_qp(z, rate_ref, wheel_ref)
         if info.fallback:
             self.events.append(FallbackEvent(float(m.t), info.status, info.reason))
@@ -252,6 +257,8 @@ class MPCController:
         clipped = bool(np.any(np.abs(y) >= self._hi))
         if not (self.gate.integrate(float(m.cross_track), clipped) and self.reference.acquired):
             self._z[self._integral] = z[self._integral]               # acquiring: the integral is held
+        if np.all(np.isfinite(self._z[self._integral])):
+            self._kept = self._z[self._integral].copy()
         return sent
 
     def estimate(self) -> tuple[float, ...]:

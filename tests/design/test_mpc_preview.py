@@ -43,9 +43,10 @@ def test_the_bounds_hold_for_the_command_plus_the_reference_over_the_horizon(bac
     u_line = ctrl.step(line)
     ctrl.reset()
     assert ctrl.solve_qp(ctrl.state(ctrl.outputs(line))).command == u_line    # a straight line: no offsets
-    # a curve of 1/15 m starting 10 ticks ahead: the reference steps by ~0.19 rad there
+    # a curve of 1/15 m starting 10 ticks ahead: the reference steps by ~0.19 rad there (100 s later: the
+    # integral of the straight-line step is not kept over the reset, design.acquisition.INTEGRAL_MEMORY_S)
     kappa = 1.0 / 15.0
-    curve = Measurement(t=0.0, cross_track=0.0, heading_error=0.0, wheel_angle=0.0, speed=2.91,
+    curve = Measurement(t=100.0, cross_track=0.0, heading_error=0.0, wheel_angle=0.0, speed=2.91,
                         curvature=0.0, preview=(0.0,) * 10 + (kappa,) * 30)
     ctrl.reset()
     d = np.array(ctrl.reference.wheel_plan(curve, ctrl.problem.horizon + 1))

@@ -8,8 +8,11 @@ clip (0.1 s x V = 0.29 m), so once it had turned back it crawled home at ~0.02 r
 after the re-engage and still 2.6 m off 9 s later, when the GPS outage disengaged it. Now, once the turn
 is recovered (or whenever the tractor is far from its path), a new approach path is planned from where
 it is, and the integral keeps the pull it had learnt before the short disengage
-(:data:`design.files.linear.INTEGRAL_MEMORY_S`): peak 1.54 m, within 20 cm 7.65 s after the re-engage
-(before 9bf72f9, with integral windup: 1.88 m).
+(:data:`design.acquisition.INTEGRAL_MEMORY_S`): peak 1.54 m, within 20 cm 7.65 s after the re-engage
+(before 9bf72f9, with integral windup: 1.88 m). The linear MPC (the committed demo file) had the same
+fault: it forgot the pull at the re-engage and then held its integral while the cross-track was clipped
+(2.74 m on 9bf72f9 and on 215a055; 2.52 m before 9bf72f9); keeping its integral over the re-engage: 1.09 m,
+within 20 cm 4.4 s after.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from hil.bench.campaign import make_controller
 from hil.bench.run import RunSpec, simulated_run
@@ -35,14 +39,15 @@ def _case() -> dict:
     return next(r["case"] for r in runs if r["case"]["name"] == "mixed_faults_robust_disker_2.91_seed6")
 
 
-def test_reengage_while_turning_after_a_stuck_valve_comes_home():
+@pytest.mark.parametrize("controller", ["robust.json", "mpc.json"])
+def test_reengage_while_turning_after_a_stuck_valve_comes_home(controller):
     case = _case()
     faults = tuple(LinkFault(k, a, b, rate=r, direction=d) for k, a, b, r, d in case["link_faults"])
     spec = RunSpec(implement=case["implement"], speed=case["speed"], duration=60.0, seed=case["seed"],
                    override=tuple(map(tuple, case["override"])), stuck_valve=tuple(map(tuple, case["stuck_valve"])),
                    gps_outage=tuple(map(tuple, case["gps_outage"])), rtk_float=tuple(map(tuple, case["rtk_float"])),
                    link_faults=faults)
-    log = simulated_run(spec, make_controller(str(DATA / "controllers" / "robust.json")))
+    log = simulated_run(spec, make_controller(str(DATA / "controllers" / controller)))
     events = log.meta["events"]
     stuck_end = case["stuck_valve"][0][1]
     t0 = next(e["t"] for e in events if e["event"] == "engage" and e["t"] >= stuck_end)
@@ -51,7 +56,7 @@ def test_reengage_while_turning_after_a_stuck_valve_comes_home():
     t, y = log.times["t"], log.channels["truth_cross_track"]
     wheel = log.channels["truth_wheel_angle"]
     w = (t >= t0) & (t < t1)
-    assert abs(float(wheel[w][0])) > 0.15                        # re-engaged with the wheels turned
+    assert abs(float(wheel[w][0])) > 0.1                         # re-engaged with the wheels turned
     peak = int(np.argmax(np.abs(y) * w))
     assert abs(float(y[peak])) <= PEAK_MAX_M
     home = t[(t > t[peak]) & w & (np.abs(y) <= HOME_BAND_M)]

@@ -15,7 +15,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
@@ -27,6 +26,7 @@ from hil.bench.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, split_spec, vehicle_controller
 from hil.bench.oracle import OracleOptions, oracle_for
+from hil.bench.workers import run_pool
 
 EXECUTORS = ("local", "dask")
 
@@ -202,20 +202,16 @@ class Campaign:
                 if progress:
                     progress(done, total)
         else:
-            pool = ProcessPoolExecutor(max_workers=workers or os.cpu_count())
-            try:
-                futures = [pool.submit(run_one, k, self.params) for k in todo]
-                for fut in as_completed(futures):
-                    self._save(fut.result())
-                    done += 1
-                    if progress:
-                        progress(done, total)
-            except BaseException:
-                # Ctrl-C or a failed pass: pending passes are cancelled, the running ones are not waited
-                # for (what finished is saved; a rerun resumes)
-                pool.shutdown(wait=False, cancel_futures=True)
-                raise
-            pool.shutdown(wait=True)
+            counter = [done]
+
+            def save(_: int, result: dict) -> None:
+                self._save(result)
+                counter[0] += 1
+                if progress:
+                    progress(counter[0], total)
+            # Ctrl-C, SIGTERM or a failed pass: pending passes are cancelled and the running workers
+            # terminated and joined (what finished is saved; a rerun resumes)
+            run_pool(run_one, [(k, self.params) for k in todo], workers or os.cpu_count() or 1, save)
         return self.results()
 
     def realtime_plan(self, controllers: Sequence[str] | None = None, duration: float | None = None

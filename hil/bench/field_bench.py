@@ -15,7 +15,6 @@ import hashlib
 import json
 import math
 import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
@@ -27,6 +26,7 @@ from identification.passlog import PassLog
 from hil.bench.field_metrics import field_metrics
 from hil.bench.field_route import field_run
 from hil.bench.run import RunSpec, simulated_run
+from hil.bench.workers import run_pool
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import Condition
 from hil.truth.params import SimParams
@@ -174,18 +174,16 @@ class FieldComparison:
                 if progress:
                     progress(done, total)
         else:
-            pool = ProcessPoolExecutor(max_workers=workers or os.cpu_count())
-            try:
-                futures = {pool.submit(run_field_key, k, self.params, logs): k for k in todo}
-                for fut in as_completed(futures):
-                    self._save(futures[fut], fut.result())
-                    done += 1
-                    if progress:
-                        progress(done, total)
-            except BaseException:
-                pool.shutdown(wait=False, cancel_futures=True)
-                raise
-            pool.shutdown(wait=True)
+            counter = [done]
+
+            def save(i: int, result: dict) -> None:
+                self._save(todo[i], result)
+                counter[0] += 1
+                if progress:
+                    progress(counter[0], total)
+            # Ctrl-C, SIGTERM or a failed run: the workers are terminated and joined (no orphan keeps
+            # driving a route); what finished is saved and a rerun resumes
+            run_pool(run_field_key, [(k, self.params, logs) for k in todo], workers or os.cpu_count() or 1, save)
         return [json.loads(self._path(k).read_text()) for k in self.keys]
 
     def log_of(self, key: FieldKey) -> PassLog:

@@ -146,9 +146,11 @@ def test_a_campaign_survives_a_failing_tractor_and_resumes(tmp_path: Path) -> No
 
 
 #: The short campaign of the acceptance test: three generated tractors, four cells, 2 x 60 s passes per
-#: condition, 30 s HIL passes, the recipe's default weights (from specifications when available).
+#: condition, 30 s HIL passes, and the campaign's recipe (docs/tractor_campaign.md): order-4 models, the design's
+#: default weights. (With the recipe's defaults, weights from specifications and validated orders, random-1 alone
+#: ran more than 18 min at 27a27d6: the weights search relaxing its specifications; too long for CI.)
 ACCEPTANCE = CommissionOptions(speeds=(1.0, 2.24), implements=("none", "disker"), passes=2, pass_duration=60.0,
-                               hil_duration=30.0, acceptance="warn")
+                               hil_duration=30.0, acceptance="warn", weights="default", order=4)
 
 
 @pytest.fixture(scope="module")
@@ -177,9 +179,10 @@ def test_a_short_campaign_on_three_generated_tractors_produces_controllers_that_
 
 @pytest.mark.slow
 @pytest.mark.timeout(1800)
-@pytest.mark.xfail(strict=True, reason="issue 14's bounds are not met today in every cell: measured at dc2c1b9, robust "
-                   "worst 1.41x the oracle and 1.13x the paper's method, MPC 1.55x and 1.13x (11/12, 10/12, 11/12, "
-                   "7/12 cells within); strict, so this test fails once they are met and the mark must go")
+@pytest.mark.xfail(strict=True, reason="issue 14's bounds are not met today in every cell: measured at 215a055 "
+                   "(order 4, default weights), robust worst 1.64x the oracle and 1.25x the paper's method, MPC 1.78x "
+                   "and 1.09x (10/12, 4/12, 10/12, 7/12 cells within); strict, so this test fails once they are met "
+                   "and the mark must go")
 def test_a_short_campaign_on_three_generated_tractors_stays_within_the_acceptance_bounds(short_campaign) -> None:
     for r in short_campaign["rows"]:
         for c in ("robust", "mpc"):

@@ -103,8 +103,9 @@ def run_field_key(key: FieldKey, params: dict, log_dir: str | None = None) -> di
                                 field=key.field, field_passes=key.passes), ctrl, p)
     if log_dir is not None:
         log.save(Path(log_dir) / f"{key.name}.npz")
+    solver = ctrl.diagnostics() if callable(getattr(ctrl, "diagnostics", None)) else None   # MPC/NMPC solve times
     return {**asdict(key), "controller": controller_label(key.controller), "controller_spec": key.controller,
-            "duration_s": duration, **field_result(log)}
+            "duration_s": duration, **field_result(log), **({"solver": solver} if solver else {})}
 
 
 class FieldComparison:

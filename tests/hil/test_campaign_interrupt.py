@@ -9,6 +9,7 @@ passes to finish, the workers are still busy when the bounds below run out.
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 import signal
 import subprocess
@@ -96,3 +97,30 @@ def test_a_signal_to_the_parent_stops_the_workers(tmp_path, argv, sig, rc):
             if _alive(pid):
                 os.kill(pid, signal.SIGKILL)
         proc.wait()
+
+
+def _fail_first(i: int) -> int:
+    """Call 0 fails at once; the others would run for a minute."""
+    if i == 0:
+        raise ValueError("pass 0 failed")
+    time.sleep(60.0)
+    return i
+
+
+def test_a_failed_pass_stops_the_other_workers():
+    from hil.bench.workers import run_pool
+    got = []
+    with pytest.raises(ValueError, match="pass 0 failed"):
+        run_pool(_fail_first, [(i,) for i in range(4)], 2, lambda i, r: got.append(r))
+    assert got == []
+    assert not multiprocessing.active_children(), "a worker outlived the failed pool"
+
+
+def test_a_failing_callback_stops_the_workers():
+    from hil.bench.workers import run_pool
+
+    def save(i, r):
+        raise OSError("disk full")
+    with pytest.raises(OSError, match="disk full"):
+        run_pool(os.getpid, [()] * 3, 2, save)
+    assert not multiprocessing.active_children()

@@ -55,6 +55,9 @@ from .signature import check_signature
 TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "model", "estimator", "horizon", "weights", "limits",
             "solver", "fallback", "design", "certificate", "models", "checksum")
 FALLBACK_LAWS = ("robust-lmi", "lqr")
+#: Largest difference, relative to the gain's largest entry (at least 1), between the recorded and the
+#: re-derived unconstrained gain: round-off of a different BLAS, thread count or CPU is ~1e-13.
+GAIN_TOLERANCE = 1e-8
 
 
 @dataclass(frozen=True)
@@ -100,9 +103,38 @@ class MPCFile:
         object.__setattr__(self, "_problem", problem)
 
     def law(self):
-        """The MPC's unconstrained law as a compensator (what the certificate is about)."""
+        """The MPC's unconstrained law as a compensator (what the certificate is about).
+
+        The gain is the one the design recorded (``design["unconstrained_gain"]``, exact
+        through JSON) once it agrees with the gain re-derived from the file's problem to
+        :data:`GAIN_TOLERANCE` (relative): the derivation's last bits depend on the BLAS, its
+        thread count and the CPU, so a law re-derived on the tractor's computer must not be
+        hashed as it comes. A file without a recorded gain uses the re-derived one.
+
+        Raises
+        ------
+        DesignInputError
+            The recorded gain is not a finite matrix of the law's shape, or differs from the
+            re-derived one (the weights, model or horizon were changed after the design).
+        """
         problem: MPCProblem = self._problem
-        return feedback_compensator(unconstrained_gain(problem), problem.layout)
+        k = unconstrained_gain(problem)
+        stored = self.design.get("unconstrained_gain") if isinstance(self.design, Mapping) else None
+        if stored is not None:
+            try:
+                ks = np.array(stored, dtype=float)
+            except (TypeError, ValueError):
+                raise DesignInputError("design: unconstrained_gain must be a matrix of numbers") from None
+            if ks.shape != k.shape or not np.all(np.isfinite(ks)):
+                raise DesignInputError(f"design: unconstrained_gain must be a finite {k.shape} matrix, got shape "
+                                       f"{ks.shape}")
+            gap = float(np.max(np.abs(ks - k))) if k.size else 0.0
+            if not gap <= GAIN_TOLERANCE * max(1.0, float(np.max(np.abs(k)))):
+                raise DesignInputError(f"the recorded unconstrained gain differs from the one the file's model, "
+                                       f"weights and horizon give (by {gap:.3g}): the file was edited after its "
+                                       "design; design the controller again")
+            k = ks
+        return feedback_compensator(k, problem.layout)
 
     @property
     def dt(self) -> float:

@@ -153,6 +153,9 @@ def test_an_mpc_file_whose_law_changed_is_refused(tmp_path):
     p = d.file.save(tmp_path / "mpc.json")
     assert load_controller(p).problem.horizon == 15
     rewrite(p, lambda b: b["weights"].__setitem__("u_max", b["weights"]["u_max"] * 3))     # another unconstrained law
+    with pytest.raises(ControllerFileError, match="differs from the one the file's model, weights and horizon give"):
+        load_controller(p)
+    rewrite(p, lambda b: b["design"].pop("unconstrained_gain"))        # no recorded gain: the re-derived law's hash
     with pytest.raises(ControllerFileError, match="certificate does not match the matrices"):
         load_controller(p)
     rewrite(p, lambda b: b.__setitem__("certificate", None))

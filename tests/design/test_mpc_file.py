@@ -85,6 +85,25 @@ def test_malformed_files_are_refused(saved, edit, match):
         load_controller(saved)
 
 
+def test_a_law_re_derived_with_other_round_off_still_loads(saved, monkeypatch):
+    """Another BLAS, thread count or CPU re-derives the unconstrained gain with other last bits (seen: the
+    demo's MPC file, designed with two BLAS threads, was refused with one). The recorded gain is what the
+    certificate is about, once it agrees with the re-derived one; before, any round-off refused the file."""
+    import design.files.mpc as mpc_file
+    real = mpc_file.unconstrained_gain
+    monkeypatch.setattr(mpc_file, "unconstrained_gain", lambda problem: real(problem) * (1.0 + 3e-14))
+    assert isinstance(load_controller(saved), MPCController)
+
+
+def test_weights_edited_after_the_design_are_refused(saved):
+    rewrite(saved, lambda b: b["weights"].__setitem__("u_max", 2.0 * b["weights"]["u_max"]))
+    with pytest.raises(ControllerFileError, match="edited after its design"):
+        load_controller(saved)
+    rewrite(saved, lambda b: b["design"].__setitem__("unconstrained_gain", [[1.0, 2.0]]))
+    with pytest.raises(ControllerFileError, match=r"unconstrained_gain must be a finite \(1, 8\) matrix"):
+        load_controller(saved)
+
+
 def test_non_finite_numbers_are_refused(saved):
     saved.write_text(saved.read_text().replace('"horizon": 20', '"horizon": NaN'))
     with pytest.raises(ControllerFileError, match="non-finite number NaN"):

@@ -143,6 +143,7 @@ def test_outputs_are_checked_before_the_work(tmp_path, capsys, good_log):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "arm.csv", "folder.npz", "logs"]
 
 
+@pytest.mark.realtime   # races a subprocess against the wall clock (it must still be running when interrupted)
 def test_ctrl_c_exits_130_with_one_line_and_no_partial_file(tmp_path):
     rng = np.random.default_rng(3)
     logs = tmp_path / "logs"

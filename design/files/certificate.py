@@ -117,14 +117,31 @@ def check_certificate(cert: Any, comp: Compensator, what: str = "the controller"
             rho = spectral_radius(closed_loop_matrix(model.A, model.B, model.C, model.D, comp))
         except DesignInputError as exc:
             raise ControllerFileError(f"certificate does not match the matrices: model {name!r}: {exc}") from None
-        stated = row.get("spectral_radius")
-        if isinstance(stated, bool) or not isinstance(stated, (int, float)) or not math.isfinite(rho) \
-                or abs(rho - stated) > RADIUS_TOLERANCE:
-            raise ControllerFileError(f"certificate does not match the matrices: on model {name!r} it states spectral "
-                                      f"radius {stated!r}, the file's matrices give {rho!r}")
-        if not rho < 1.0:
-            raise ControllerFileError(f"certificate failed: {what} is not stable on model {name!r} (spectral radius "
-                                      f"{rho:.6f}, expected < 1); it must not be exported or run")
+        check_stated_radius(row, name, rho, what, "matrices")
+
+
+def check_stated_radius(row: Any, name: str, rho: float, what: str, source: str) -> None:
+    """Refuse unless a certificate row states the recomputed spectral radius ``rho`` (to
+    :data:`RADIUS_TOLERANCE`) and ``rho < 1``.
+
+    Parameters
+    ----------
+    row
+        The certificate's row of model ``name``.
+    rho
+        Spectral radius of the closed loop recomputed on load (dimensionless).
+    what, source
+        How messages name the law (``"the controller"``) and what of the file ``rho`` came
+        from (``"matrices"``, ``"settings"``).
+    """
+    stated = row.get("spectral_radius") if isinstance(row, dict) else None
+    if isinstance(stated, bool) or not isinstance(stated, (int, float)) or not math.isfinite(rho) \
+            or abs(rho - stated) > RADIUS_TOLERANCE:
+        raise ControllerFileError(f"certificate does not match the {source}: on model {name!r} it states spectral "
+                                  f"radius {stated!r}, the file's {source} give {rho!r}")
+    if not rho < 1.0:
+        raise ControllerFileError(f"certificate failed: {what} is not stable on model {name!r} (spectral radius "
+                                  f"{rho:.6f}, expected < 1); it must not be exported or run")
 
 
 def recorded_latency(cert: Any) -> float:

@@ -34,7 +34,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-import numpy as np
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 from identification.model import Model
@@ -45,7 +44,7 @@ from ..kinematic import KinematicWeights
 from ..limits import DT_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, in_range
 from ..nmpc import NMPCSettings, NonlinearMPC, lqr_gain
 from ..verify import Certificate, check_model, model_hash
-from .certificate import RADIUS_TOLERANCE, recorded_models
+from .certificate import check_stated_radius, recorded_models
 from .envelope import SCHEMA, canonical_bytes, check_envelope, read_json, seal, write_atomically
 from .signature import check_signature
 
@@ -188,13 +187,7 @@ def check_nmpc_certificate(cert: Any, s: NMPCSettings) -> None:
         if abs(model.dt - s.dt) > 1e-9:
             raise ControllerFileError(f"certificate model {name!r} has dt={model.dt} s, the NMPC dt={s.dt} s")
         rho = spectral_radius(closed_loop_matrix(model.A, model.B, model.C, model.D, linearised_law(s, v)))
-        stated = row.get("spectral_radius")
-        if isinstance(stated, bool) or not isinstance(stated, (int, float)) or abs(rho - stated) > RADIUS_TOLERANCE:
-            raise ControllerFileError(f"certificate does not match the settings: on model {name!r} it states spectral "
-                                      f"radius {stated!r}, the file's settings give {rho!r}")
-        if not rho < 1.0:
-            raise ControllerFileError(f"certificate failed: the NMPC's linearisation is not stable on model {name!r} "
-                                      f"(spectral radius {rho:.6f}, expected < 1)")
+        check_stated_radius(row, name, rho, "the NMPC's linearisation", "settings")
 
 
 @dataclass(frozen=True)

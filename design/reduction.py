@@ -107,8 +107,52 @@ def truncated(model: Model, order: int, shift: float | None = None) -> tuple[Mod
     hsv, right, left = balanced(model, shift)
     r, li = right[:, :order], left[:order]
     meta = {**dict(model.meta), "reduced_from_order": model.order}
-    reduced = Model(li @ model.A @ r, li @ model.B, model.C @ r, model.D, li @ model.K, model.dt, meta)
+    a_r, c_r = li @ model.A @ r, model.C @ r
+    k_r, how = predictor_gain(a_r, c_r, li @ model.K, model.meta.get("innovation_covariance"))
+    if how != "projected":
+        meta["reduced_predictor"] = how
+    reduced = Model(a_r, li @ model.B, c_r, model.D, k_r, model.dt, meta)
     return reduced, float(2.0 * hsv[order:].sum() / hsv[0])
+
+
+def predictor_gain(a: np.ndarray, c: np.ndarray, k: np.ndarray, innovation=None) -> tuple[np.ndarray, str]:
+    """A stable predictor gain for a truncated model: ``k`` (the full model's gain, projected) if
+    ``A - k C`` is stable, else the steady-state Kalman gain of ``(A, C)``.
+
+    Truncation keeps the input/output behaviour the synthesis uses; the projected gain of the full
+    model need not stabilise the truncated predictor (on random tractors' validated models of order
+    7-9, one state fewer gave spectral radius 1.5-2.4, and :class:`identification.model.Model`
+    refused the design model, so ``design robust`` failed). The Kalman gain uses the noise the
+    projected gain implies: process covariance ``k Re k'`` (``Re`` the model's innovation
+    covariance, identity when absent or not positive definite) plus 1e-9 of its scale, measurement
+    covariance ``Re``. The gain only makes the design model a valid model file; the window
+    synthesis does not use it.
+
+    Returns
+    -------
+    gain, how
+        ``(n, q)`` gain and ``"projected"`` or ``"kalman"``.
+    """
+    n, q = a.shape[0], c.shape[0]
+    if n and float(np.max(np.abs(np.linalg.eigvals(a - k @ c)))) < 1.0 - 1e-9:
+        return k, "projected"
+    re = np.eye(q)
+    if innovation is not None:
+        try:
+            cand = np.asarray(innovation, dtype=float)
+            if cand.shape == (q, q) and np.all(np.isfinite(cand)) and np.linalg.eigvalsh(0.5 * (cand + cand.T)).min() > 0:
+                re = 0.5 * (cand + cand.T)
+        except (TypeError, ValueError):
+            pass
+    qn = k @ re @ k.T
+    qn = 0.5 * (qn + qn.T) + 1e-9 * max(float(np.trace(qn)) / max(n, 1), 1e-300) * np.eye(n)
+    try:
+        p = sla.solve_discrete_are(a.T, c.T, qn, re)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise DesignInputError(f"the truncated model (order {n}) has no stabilising predictor gain ({exc}); "
+                               "give --design-models as-given or re-identify at a lower order") from None
+    gain = a @ p @ c.T @ np.linalg.inv(c @ p @ c.T + re)
+    return gain, "kalman"
 
 
 def design_model(model: Model, past: int, conditioning: float = WINDOW_CONDITIONING) -> tuple[Model, dict]:

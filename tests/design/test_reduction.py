@@ -139,3 +139,34 @@ def test_an_mpc_whose_prediction_model_the_window_cannot_hold_predicts_with_its_
     assert des.certificate.passed and [c.name for c in des.certificate.checks][:2] == [pred.meta["name"],
                                                                                        big.meta["name"]]
     assert prediction_model(local[0], 1) == (local[0], None)          # an order-4 model is used as given
+
+
+def _random1_models() -> list:
+    import json
+    from pathlib import Path
+    from identification.model import Model
+    path = Path(__file__).parent / "data" / "random1_models.npz"
+    with np.load(path, allow_pickle=False) as z:
+        out = []
+        for n in json.loads(str(z["names"])):
+            a, b, c, k = (np.array(z[f"{n}/{x}"]) for x in "ABCK")
+            out.append(Model(a, b, c, np.zeros((c.shape[0], b.shape[1])), k, float(z["dt"]),
+                             json.loads(str(z[f"{n}/meta"]))))
+    return out
+
+
+def test_truncation_gives_a_valid_model_when_the_projected_predictor_is_unstable():
+    # random-1's validated models (orders 9 and 7): the full model's gain, projected on four
+    # balanced states, leaves A - K C unstable; the design model must still be a valid model
+    # with the same input/output behaviour, or design robust fails on the tractor
+    for m in _random1_models():
+        hsv, right, left = balanced(m)
+        a4, c4, k4 = left[:4] @ m.A @ right[:, :4], m.C @ right[:, :4], left[:4] @ m.K
+        assert np.max(np.abs(np.linalg.eigvals(a4 - k4 @ c4))) > 1.2
+        red, rec = design_model(m, 1)
+        assert red.order < m.order
+        assert red.meta["reduced_predictor"] == "kalman"
+        assert np.max(np.abs(np.linalg.eigvals(red.A - red.K @ red.C))) < 1
+        r4, _ = truncated(m, red.order)
+        np.testing.assert_allclose(red.A, r4.A)
+        np.testing.assert_allclose(red.B, r4.B)

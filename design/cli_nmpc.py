@@ -2,7 +2,7 @@
 
     design nmpc --models models/local_*.npz --out controllers/nmpc.json [--horizon N] [--y-max M]
                 [--integral-max MS] [--rate-limit R] [--wheel-limit W] [--solver gauss-newton|sqp|ipopt]
-                [--qpsol daqp|...] [--name NAME] [--json]
+                [--qpsol daqp|...] [--max-calls N] [--name NAME] [--json]
 
 The NMPC (:class:`design.nmpc.NonlinearMPC`, kinematic bicycle in path coordinates, curvature
 preview, the integral of the cross-track as a state) needs no identified model to predict; the
@@ -25,7 +25,8 @@ def cmd_nmpc(args: argparse.Namespace) -> dict:
     w = KinematicWeights(y_max=args.y_max, psi_max=math.radians(args.psi_max_deg),
                          delta_max=math.radians(args.delta_max_deg), u_max=args.u_max)
     settings = NMPCSettings(horizon=args.horizon, weights=w, rate_limit=args.rate_limit, wheel_limit=args.wheel_limit,
-                            solver=args.solver, qpsol=args.qpsol, integral_max=args.integral_max)
+                            solver=args.solver, qpsol=args.qpsol, integral_max=args.integral_max,
+                            max_calls=args.max_calls)
     f = design_nmpc(models, settings, args.name)
     f.save(args.out)
     return {"out": str(args.out), "horizon": settings.horizon, "dt": settings.dt,
@@ -49,6 +50,8 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--wheel-limit", type=number, default=0.5, help="soft wheel-angle limit, rad")
     p.add_argument("--solver", choices=SOLVERS, default="gauss-newton")
     p.add_argument("--qpsol", default="daqp", help="QP plugin of gauss-newton and sqp (default daqp)")
+    p.add_argument("--max-calls", type=int, default=4,
+                   help="Gauss-Newton calls per tick at most before the certified linear law steers (default 4)")
     p.add_argument("--name", default=None)
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=cmd_nmpc, default_name="nmpc")
@@ -60,7 +63,7 @@ def render(result: dict) -> str:
     return "\n".join([
         f"NMPC: horizon {s['horizon']} x {result['dt']:g} s, solver {s['solver']}/{s['qpsol']}, "
         f"rate limit {s['rate_limit']:g} rad/s, wheel limit {s['wheel_limit']:g} rad, "
-        f"integral_max {s['integral_max']:g} m s",
+        f"integral_max {s['integral_max']:g} m s, at most {s['max_calls']} call(s) of {s['max_iter']} step(s) per tick",
         "certificate: " + result["certificate"]["check"],
         certificate_table(result["certificate"]),
         f"wrote {result['out']}"])

@@ -38,6 +38,14 @@ fixed. ``"sqp"`` (casadi's ``sqpmethod``, exact Hessian, iterates to a tolerance
 ``"ipopt"`` solve the same problem to convergence; the tests check that they agree.
 ``benchmarks/bench_mpc.py`` times them (N = 30: about 0.9 ms CPU median for the default).
 
+The work per tick is bounded: a Gauss-Newton solve that has not converged after one call is
+refined from its own iterate, at most ``max_calls`` calls in all (default 4, 8 steps); if it has
+still not converged, or returned non-finite values, the command is the certified linear law's
+(:meth:`NonlinearMPC.fallback_command`: the LQR of the linearisation, which the file's certificate
+closes around every identified model with and without the rate limit), counted in
+``fallbacks`` and recorded in ``events``. The diagnostics give the solve times in wall and CPU
+time (docs/nmpc.md: on a shared host the wall p99 is the host's, the CPU p99 is the work).
+
 The model assumes the steering delivers the commanded rate at once. The simulated valve
 delivers less (deadband, flow curve, slower to the right) 80 ms late; with the LQR's weights
 (``y_max`` = 0.15 m) at 2.91 m/s that mismatch can make the NMPC bang between the rate limits
@@ -57,16 +65,21 @@ from typing import Any, Mapping
 import casadi as ca
 import numpy as np
 
-from .acquisition import IntegralGate
+from .acquisition import IntegralGate, integral_kept
 from .controller import Measurement
 from .curvature import steady_state as curvature_steady_state
 from .errors import DesignInputError, SynthesisError
-from .kinematic import KinematicWeights, kinematic_model
+from .kinematic import KinematicWeights
+from .nmpc_law import dare_doubling, linear_model, lqr_gain, stage_weights
 
-__all__ = ["NMPCSettings", "NMPCSolution", "NonlinearMPC", "linear_model", "lqr_gain", "steady_state"]
+__all__ = ["FallbackEvent", "NMPCSettings", "NMPCSolution", "NonlinearMPC", "linear_model", "lqr_gain", "steady_state"]
 
 SOLVERS = ("gauss-newton", "sqp", "ipopt")
 _DEFAULT_ITER = {"gauss-newton": 2, "sqp": 10, "ipopt": 50}
+#: The issue's deadline for a solve, s: solves slower than it are counted (``over_budget``), not refused.
+SOLVE_BUDGET_S = 0.003
+#: Fallback events kept for the record (the counters count them all).
+KEEP_EVENTS = 1000
 
 
 @dataclass(frozen=True)
@@ -105,6 +118,13 @@ class NMPCSettings:
         ``"lqr"``: terminal cost from the discrete Riccati equation at the measured speed; ``"none"``.
     speed_range
         Speeds of the terminal-cost table, m/s (clamped outside).
+    max_calls
+        Gauss-Newton: calls of the unrolled Function per tick at most (1..20). A solve that has not
+        converged after its first call (``max_iter`` steps) is refined by further calls from its own
+        iterate; one that has not converged after ``max_calls`` gives way to the certified linear law
+        (:meth:`NonlinearMPC.fallback_command`), counted. The work per tick is bounded by
+        ``max_iter * max_calls`` steps and does not depend on the clock, so a lockstep run is
+        reproducible (a wall-clock budget would make the command depend on the host's load).
     integral_max
         Bryson bound on the integral of the cross-track, m s (``None``: no integral state).
         With it the model carries ``i' = y`` as a fourth state, weighted ``integral_max^-2``:
@@ -127,6 +147,7 @@ class NMPCSettings:
     terminal: str = "lqr"
     speed_range: tuple[float, float] = (0.3, 5.0)
     integral_max: float | None = None
+    max_calls: int = 4
 
     def __post_init__(self) -> None:
         n = self.horizon
@@ -150,6 +171,9 @@ class NMPCSettings:
         m = self.max_iter
         if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not 1 <= m <= 1000:
             raise DesignInputError(f"max_iter must be an integer in 1..1000, got {m!r}")
+        mc = self.max_calls
+        if isinstance(mc, bool) or not isinstance(mc, (int, np.integer)) or not 1 <= mc <= 20:
+            raise DesignInputError(f"max_calls must be an integer in 1..20 (Gauss-Newton calls per tick), got {mc!r}")
         if self.terminal not in ("lqr", "none"):
             raise DesignInputError(f"terminal must be 'lqr' or 'none', got {self.terminal!r}")
         lo, hi = self.speed_range
@@ -201,13 +225,18 @@ class NMPCSolution:
     cost
         Optimal cost.
     success
-        The solver reported success.
+        The solver converged (Gauss-Newton: its last step below ``1e3 * tol`` rad/s within the
+        time budget; ``sqp``/``ipopt``: the solver reported success).
     status
         The solver's return status.
     iterations
-        Solver iterations.
+        Solver iterations (Gauss-Newton: steps over all calls).
     solve_time
-        Wall time of the solver call, s.
+        Wall time of the solver calls, s.
+    cpu_time
+        CPU time of this thread in the solver calls, s (the work, without the host's stalls).
+    calls
+        Calls of the solver Function (Gauss-Newton: 1 + refinements, at most ``max_calls``).
     """
 
     u: np.ndarray
@@ -218,65 +247,27 @@ class NMPCSolution:
     status: str
     iterations: int
     solve_time: float
+    cpu_time: float = 0.0
+    calls: int = 1
 
 
-def dare_doubling(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: float, tol: float = 1e-12) -> np.ndarray:
-    """Stabilising solution of the discrete algebraic Riccati equation by structured doubling.
+@dataclass(frozen=True, slots=True)
+class FallbackEvent:
+    """A tick on which the certified linear law steered instead of the NMPC.
 
-    ``P = Q + A'PA - A'PB (R + B'PB)^-1 B'PA`` for a single input. Small matrices only; used
-    instead of :func:`scipy.linalg.solve_discrete_are`, whose triangular solves can take tens of
-    milliseconds each on a loaded machine (multi-threaded BLAS on tiny matrices).
+    Attributes
+    ----------
+    t
+        Loop time of the measurement, s.
+    reason
+        Why (not converged within the budget, non-finite solution), with the solver's status.
+    solve_time
+        Wall time spent in the solver on that tick, s.
     """
-    ak, gk, hk = a.copy(), b @ b.T / r, q.copy()
-    eye = np.eye(a.shape[0])
-    for _ in range(60):
-        w = np.linalg.inv(eye + gk @ hk)
-        a_w = ak @ w
-        h_next = hk + ak.T @ hk @ w @ ak
-        gk = gk + a_w @ gk @ ak.T
-        ak = a_w @ ak
-        if np.max(np.abs(h_next - hk)) <= tol * max(1.0, np.max(np.abs(h_next))):
-            return 0.5 * (h_next + h_next.T)
-        hk = h_next
-    raise SynthesisError("the Riccati doubling iteration did not converge (is the model stabilisable?)")
 
-
-def stage_weights(settings: NMPCSettings) -> tuple[np.ndarray, float]:
-    """``(Q, R)`` of the stage cost: Bryson weights of ``[y, psi, delta]`` (and the integral), and the rate."""
-    w = settings.weights
-    q = [w.y_max ** -2, w.psi_max ** -2, w.delta_max ** -2]
-    return np.diag(q if settings.n_states == 3 else q + [settings.integral_max ** -2]), w.u_max ** -2
-
-
-def linear_model(settings: NMPCSettings, speed: float) -> tuple[np.ndarray, np.ndarray]:
-    """Zero-order-hold ``(Ad, Bd)`` of the prediction model linearised on a straight line at ``speed`` m/s.
-
-    States ``[y, psi, delta]`` and, with the integral, ``i`` (``i' = y``); exact, since ``A`` is
-    nilpotent (the series ends at ``A^nx``). On a straight line, small errors and no active limit,
-    the NMPC's first move is ``-K x`` with ``K`` = :func:`lqr_gain` (its terminal cost is the
-    Riccati solution; RK4 is exact for this model), which is what its certificate checks.
-    """
-    s = settings
-    a3, b3 = kinematic_model(float(speed), s.wheelbase, s.d2)
-    nx = s.n_states
-    a, b = np.zeros((nx, nx)), np.zeros((nx, 1))
-    a[:3, :3], b[:3] = a3, b3
-    if nx == 4:
-        a[3, 0] = 1.0                           # i' = y
-    ad, bd, term = np.eye(nx), np.eye(nx) * s.dt, np.eye(nx)
-    for k in range(1, nx + 1):
-        term = term @ a * s.dt / k
-        ad = ad + term
-        bd = bd + term * s.dt / (k + 1)
-    return ad, bd @ b
-
-
-def lqr_gain(settings: NMPCSettings, speed: float) -> np.ndarray:
-    """``K`` (1 x nx) of the discrete LQR of :func:`linear_model` with the stage weights at ``speed`` m/s."""
-    ad, bd = linear_model(settings, speed)
-    q, r = stage_weights(settings)
-    p = dare_doubling(ad, bd, q, r)
-    return np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad)
+    t: float
+    reason: str
+    solve_time: float
 
 
 def _tri(i: int, j: int, n: int) -> int:
@@ -315,6 +306,8 @@ class NonlinearMPC:
         lo, hi = s.speed_range
         self.speeds = np.linspace(lo, hi, int(round((hi - lo) / 0.05)) + 1)   # the LQR table's grid
         self._p_table = np.array([self._terminal(v) for v in self.speeds])
+        #: The certified law's gain (:func:`lqr_gain`) on the same grid: the fallback's, interpolated.
+        self._k_table = np.array([self._gain_at(v, pm) for v, pm in zip(self.speeds, self._p_table)])
         self._solver = self._build()
         self._n_w = n + 1
         self._lbx = np.r_[np.full(n, -s.rate_limit), 0.0]
@@ -325,7 +318,12 @@ class NonlinearMPC:
         self.preview_request = (n, self.dt)
         self.gate = IntegralGate()
         self.ticks = 0
+        self.failures = 0         # solves that did not converge within the budget, since construction
+        self.fallbacks = 0        # ticks the certified linear law steered, since construction
+        self.events: deque[FallbackEvent] = deque(maxlen=KEEP_EVENTS)
         self.solve_times: deque[float] = deque(maxlen=72_000)     # an hour of ticks at 20 Hz
+        self.cpu_times: deque[float] = deque(maxlen=72_000)
+        self._last_t = -math.inf
         self.reset()
 
     # -- construction --------------------------------------------------------------
@@ -339,6 +337,13 @@ class NonlinearMPC:
             return np.zeros((self.nx, self.nx))
         ad, bd = linear_model(self.settings, speed)
         return dare_doubling(ad, bd, self._q, self._r)
+
+    def _gain_at(self, speed: float, p: np.ndarray) -> np.ndarray:
+        """:func:`lqr_gain` at ``speed`` from its Riccati solution ``p`` (the terminal weight) when there is one."""
+        if self.settings.terminal == "none":
+            return self.lqr_gain(speed)[0]
+        ad, bd = linear_model(self.settings, speed)
+        return np.linalg.solve(self._r + bd.T @ p @ bd, bd.T @ p @ ad)[0]
 
     def lqr_gain(self, speed: float) -> np.ndarray:
         """:func:`lqr_gain` of these settings."""
@@ -452,9 +457,11 @@ class NonlinearMPC:
             w = w + sol["x"]
         rr, _, _ = lin(w, p)
         cost = ca.sumsqr(rr) + rho1 * w[nw - 1]
+        n, nx = s.horizon, self.nx
+        traj = self._trajectory(p[:nx], w[:n], p[nx], p[nx + 1:nx + 1 + n])     # the prediction, in the same call
         return ca.Function("nmpc_gn", [w0, p, lbx, ubx, lbg, ubg],
-                           [w, cost, ca.norm_inf(sol["x"]), sol["lam_x"], sol["lam_a"]],
-                           ["x0", "p", "lbx", "ubx", "lbg", "ubg"], ["x", "f", "step", "lam_x", "lam_g"])
+                           [w, cost, ca.norm_inf(sol["x"]), sol["lam_x"], sol["lam_a"], traj],
+                           ["x0", "p", "lbx", "ubx", "lbg", "ubg"], ["x", "f", "step", "lam_x", "lam_g", "traj"])
 
     # -- solving -------------------------------------------------------------------
     def terminal_weight(self, speed: float) -> np.ndarray:
@@ -501,20 +508,29 @@ class NonlinearMPC:
                 "lbg": self._lbg, "ubg": self._ubg}
         if warm and s.solver != "gauss-newton":
             args["lam_x0"], args["lam_g0"] = self._lam_x, self._lam_g
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         out = self._solver(**args)
-        elapsed = time.perf_counter() - t0
+        calls, elapsed = 1, time.perf_counter() - t0
+        if s.solver == "gauss-newton":          # refine from the iterate until converged, at most max_calls calls
+            tol = 1e3 * s.tol
+            while calls < s.max_calls and not float(out["step"]) <= tol and np.all(np.isfinite(np.asarray(out["x"]))):
+                args["x0"] = out["x"]
+                out = self._solver(**args)
+                calls += 1
+            elapsed = time.perf_counter() - t0
+        cpu = time.thread_time() - c0
         w = np.asarray(out["x"]).reshape(-1)
         u = w[:n]
         if s.solver == "gauss-newton":
             last_step = float(out["step"])
             success = bool(np.all(np.isfinite(w))) and last_step <= 1e3 * s.tol
-            status, iterations = f"last step {last_step:.1e}", s.max_iter
+            status, iterations = f"last step {last_step:.1e} rad/s after {calls} call(s)", s.max_iter * calls
         else:
             st = self._solver.stats()
             success, status = bool(st.get("success", False)), str(st.get("return_status", ""))
             iterations = int(st.get("iter_count", -1))
         if not np.all(np.isfinite(w)):
+            self._w = np.zeros(self._n_w)                 # no warm start from non-finite values
             raise SynthesisError(f"NMPC solver returned non-finite values ({status})")
         # warm start of the next tick: shift by one stage
         self._w = np.r_[u[1:], u[-1], w[n]]
@@ -522,9 +538,33 @@ class NonlinearMPC:
         lam_g = np.asarray(out["lam_g"]).reshape(-1)
         self._lam_x = np.r_[lam_x[1:n], lam_x[n - 1], lam_x[n]]
         self._lam_g = np.r_[lam_g[1:n], lam_g[n - 1], lam_g[n + 1:], lam_g[-1]]
-        states = self.predict(x0, u, speed, kap)
+        states = np.asarray(out["traj"]) if "traj" in out else self.predict(x0, u, speed, kap)
         return NMPCSolution(u=u.copy(), states=states, slack=float(w[n]), cost=float(out["f"]),
-                            success=success, status=status, iterations=iterations, solve_time=elapsed)
+                            success=success, status=status, iterations=iterations, solve_time=elapsed,
+                            cpu_time=cpu, calls=calls)
+
+    def gain(self, speed: float) -> np.ndarray:
+        """The certified law's gain ``K`` (nx,) at ``speed`` m/s: :func:`lqr_gain` on the speed grid,
+        interpolated (exact at the grid's speeds; clamped outside)."""
+        v = float(np.clip(speed, self.speeds[0], self.speeds[-1]))
+        i = int(min(np.searchsorted(self.speeds, v, side="right") - 1, len(self.speeds) - 2))
+        t = (v - self.speeds[i]) / (self.speeds[i + 1] - self.speeds[i])
+        return (1 - t) * self._k_table[i] + t * self._k_table[i + 1]
+
+    def fallback_command(self, state: np.ndarray, speed: float, curvature: float = 0.0) -> float:
+        """The certified linear law's steering rate, rad/s, clipped to the rate limit.
+
+        ``u = -K (x - x_ss)`` with ``K`` = :meth:`gain` at ``speed`` m/s (the law the certificate
+        closes around every identified model, with the rate limit: :mod:`design.files.nmpc`) and
+        ``x_ss`` the steady state ``[0, psi_ss, delta_ss(, i)]`` of the present ``curvature`` 1/m.
+        """
+        x = np.asarray(state, dtype=float).reshape(-1).copy()
+        psi_ss, delta_ss = steady_state(float(curvature), self.settings.wheelbase, self.settings.d2)
+        x[1] -= psi_ss
+        x[2] -= delta_ss
+        u = float(-self.gain(speed) @ x)
+        lim = self.settings.rate_limit
+        return min(max(u, -lim), lim) if math.isfinite(u) else 0.0
 
     def predict(self, state: np.ndarray, u: np.ndarray, speed: float, curvature: np.ndarray) -> np.ndarray:
         """States ``(N + 1, nx)`` the model predicts for rates ``u`` (same RK4 as the problem)."""
@@ -533,36 +573,62 @@ class NonlinearMPC:
 
     # -- Controller protocol -------------------------------------------------------
     def reset(self) -> None:
-        """Forget the warm start, the integral and the per-engage statistics (called on every engage)."""
+        """Forget the warm start and the integral (called on every engage; the counters are kept).
+
+        As the linear controllers and the MPC do, an engage within
+        :data:`design.acquisition.INTEGRAL_MEMORY_S` of the last tick takes back the integral it had
+        (the pull learnt before a short disengagement); a later one starts from 0.
+        """
         n = self.settings.horizon
         self._w = np.zeros(n + 1)
         self._lam_x = np.zeros(n + 1)
         self._lam_g = np.zeros(2 * n)
         self._x = (0.0,) * self.nx
+        self._kept = getattr(self, "integral", 0.0)
+        self._fresh = True
         self.integral = 0.0
         self.gate.reset()
         self.last: NMPCSolution | None = None
-        self.failures = 0
 
     def step_curve(self, m: Measurement, curvature: np.ndarray) -> float:
         """Steering-rate command, rad/s, for a curved line with the curvature ``preview`` ahead.
 
-        With the integral state, the integral of the measured cross-track advances by ``dt * y``
-        after the solve, except while the line is being acquired after an engage
-        (:class:`design.acquisition.IntegralGate`: held until the cross-track first reaches the line).
+        The NMPC's first move when its solve converged within the time budget; otherwise the
+        certified linear law's (:meth:`fallback_command`, at the curvature under the tractor),
+        counted in :attr:`fallbacks` and recorded in :attr:`events`. With the integral state, the
+        integral of the measured cross-track advances by ``dt * y`` after the solve, except while
+        the line is being acquired after an engage (:class:`design.acquisition.IntegralGate`: held
+        until the cross-track first reaches the line).
         """
+        t = float(m.t)
+        if self._fresh and self.nx == 4 and integral_kept(t - self._last_t):
+            self.integral = self._kept                     # a short re-engage: the pull learnt before it
+        self._fresh, self._last_t = False, t
         y = float(m.cross_track)
         x = (y, float(m.heading_error), float(m.wheel_angle)) + ((self.integral,) if self.nx == 4 else ())
         self._x = x
-        sol = self.solve(np.array(x), max(m.speed, self.settings.speed_range[0]), curvature)
+        speed = max(float(m.speed), self.settings.speed_range[0])
+        try:
+            sol = self.solve(np.array(x), speed, curvature)
+            reason = "" if sol.success else f"not converged ({sol.status})"
+            elapsed, cpu = sol.solve_time, sol.cpu_time
+        except SynthesisError as exc:                      # non-finite solution: the warm start was dropped
+            sol, reason, elapsed, cpu = None, str(exc), math.nan, math.nan
         self.last = sol
         self.ticks += 1
-        self.solve_times.append(sol.solve_time)
-        if not sol.success:
+        if math.isfinite(elapsed):
+            self.solve_times.append(elapsed)
+            self.cpu_times.append(cpu)
+        if reason:
             self.failures += 1
+            self.fallbacks += 1
+            self.events.append(FallbackEvent(t, reason, elapsed))
+            u = self.fallback_command(np.array(x), speed, float(np.asarray(curvature).reshape(-1)[0]))
+        else:
+            u = float(sol.u[0])
         if self.nx == 4 and self.gate.integrate(y, False):
             self.integral += self.dt * y
-        return float(sol.u[0])
+        return u
 
     def step(self, m: Measurement) -> float:
         """Steering-rate command, rad/s: the curvature ahead is the loop's preview (asked for with
@@ -584,8 +650,18 @@ class NonlinearMPC:
         return self._x
 
     def diagnostics(self) -> dict:
-        """Ticks since construction, solves that did not converge, and the kept solve times (ms)."""
+        """Counters since construction and statistics of the kept solve times, wall and CPU (ms).
+
+        ``failures`` counts the solves that did not converge within the budget (or returned
+        non-finite values); on each of them the certified linear law steered, so ``fallbacks``
+        equals it. ``cpu_*`` is this thread's CPU time in the solver: the wall times minus what the
+        host took away (other processes, a garbage collection elsewhere is in both).
+        """
         t = np.asarray(self.solve_times) * 1e3
+        c = np.asarray(self.cpu_times) * 1e3
         stats = {"median_ms": float(np.median(t)), "p99_ms": float(np.percentile(t, 99)),
-                 "max_ms": float(t.max())} if t.size else {}
-        return {"backend": self.name, "ticks": self.ticks, "fallbacks": 0, "failures": self.failures, **stats}
+                 "max_ms": float(t.max()), "cpu_median_ms": float(np.median(c)),
+                 "cpu_p99_ms": float(np.percentile(c, 99)), "cpu_max_ms": float(c.max())} if t.size else {}
+        return {"backend": self.name, "ticks": self.ticks, "fallbacks": self.fallbacks, "failures": self.failures,
+                "fallback_law": "certified linearisation (LQR with the integral)",
+                "over_budget": int(np.sum(t > SOLVE_BUDGET_S * 1e3)), "budget_ms": SOLVE_BUDGET_S * 1e3, **stats}

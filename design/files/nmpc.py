@@ -6,7 +6,7 @@ and present, finite numbers, the loop's sample time, a checksum, an optional sig
     {"schema", "kind": "nmpc", "name", "dt",
      "settings": {"horizon", "weights": {"y_max", "psi_max", "delta_max", "u_max"}, "rate_limit",
                   "wheel_limit", "slack_weight", "wheelbase", "d2", "solver", "qpsol", "max_iter",
-                  "tol", "terminal", "speed_range": [lo, hi], "integral_max"},   # design.nmpc.NMPCSettings
+                  "tol", "terminal", "speed_range": [lo, hi], "integral_max", "max_calls"},   # NMPCSettings
      "design": {...}, "certificate": {...}, "models": [{"name", "hash"}],
      "checksum": "sha256:..."}
 
@@ -22,8 +22,21 @@ certificate closes that linear law, at each identified model's nominal speed, ar
 records per model the spectral radius and margins (:func:`design.verify.check_model`), the speed
 and the model's matrices, and the hash of the settings. Every read recomputes the spectral radii
 from the file's settings and the recorded models and refuses a file whose certificate is missing,
-failed or made for other settings. It says nothing about the constrained, nonlinear law far from
-the line (the simulator tests cover that).
+failed or made for other settings.
+
+**The rate-limited check.** A spectral radius below 1 is about the unconstrained law. With the
+rate limit a high-gain law can oscillate between the limits and diverge although its
+linearisation is stable (a chain of integrators under saturated linear feedback): the demo's
+``--y-max 0.03`` gave spectral radii up to 0.9985 on all 15 models and drove 5-12 m off the line
+on the simulator. So the certificate also closes the law with the rate limit (the NMPC's fallback,
+:meth:`design.nmpc.NonlinearMPC.fallback_command`) around every model, with an actuation delay
+reserve of :data:`DELAY_RESERVE_S` on top of the model's own latency, from a tractor parallel to
+the line :data:`CHECK_OFFSET_M` off, for :data:`CHECK_SECONDS`; the cross-track must stay within
+:data:`SETTLE_BOUND_M` over the last :data:`TAIL_SECONDS`. The result per model (``tail_max_m``)
+is recorded and recomputed on every read. It is a necessary condition, not a sufficient one: on
+the simulator (nonlinear valve) at 2.91 m/s the NMPC diverges from ``y_max`` 0.12 m down, and the
+check refuses 0.10 m and below (measured on the demo's models, docs/nmpc.md). It says nothing else
+about the constrained, nonlinear law far from the line (the simulator tests cover that).
 """
 
 from __future__ import annotations
@@ -34,6 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
+import numpy as np
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 from identification.model import Model
@@ -50,10 +64,16 @@ from .signature import check_signature
 
 TOP_KEYS = ("schema", "kind", "name", "dt", "settings", "design", "certificate", "models", "checksum")
 SETTING_KEYS = ("horizon", "weights", "rate_limit", "wheel_limit", "slack_weight", "wheelbase", "d2", "solver",
-                "qpsol", "max_iter", "tol", "terminal", "speed_range", "integral_max")
+                "qpsol", "max_iter", "tol", "terminal", "speed_range", "integral_max", "max_calls")
 WEIGHT_KEYS = ("y_max", "psi_max", "delta_max", "u_max")
 #: Speeds a certificate row may state, m/s (field work).
 SPEED_RANGE = (0.1, 10.0)
+#: The rate-limited check (module docstring): start offset, m; length and settled tail, s; bound, m.
+CHECK_OFFSET_M, CHECK_SECONDS, TAIL_SECONDS, SETTLE_BOUND_M = 0.3, 60.0, 20.0, 0.03
+#: Extra actuation delay the rate-limited check adds to every model, s (3 ticks at 20 Hz).
+DELAY_RESERVE_S = 0.15
+#: Recomputed and stated tails must agree to this, m (the same arithmetic; round-off only).
+TAIL_TOLERANCE_M = 1e-6
 
 
 def settings_to_dict(s: NMPCSettings) -> dict:
@@ -63,7 +83,7 @@ def settings_to_dict(s: NMPCSettings) -> dict:
             "rate_limit": s.rate_limit, "wheel_limit": s.wheel_limit, "slack_weight": s.slack_weight,
             "wheelbase": s.wheelbase, "d2": s.d2, "solver": s.solver, "qpsol": s.qpsol, "max_iter": int(s.max_iter),
             "tol": s.tol, "terminal": s.terminal, "speed_range": [float(v) for v in s.speed_range],
-            "integral_max": s.integral_max}
+            "integral_max": s.integral_max, "max_calls": int(s.max_calls)}
 
 
 def _number(v: Any, what: str) -> float:
@@ -92,7 +112,7 @@ def settings_from_dict(d: Any, dt: float) -> NMPCSettings:
     if d["integral_max"] is None:
         raise ControllerFileError("settings.integral_max is null: an NMPC file must carry the integral state "
                                   "(m s), or it keeps a steady bias under a pull; design it with --integral-max")
-    for k in ("horizon", "max_iter"):
+    for k in ("horizon", "max_iter", "max_calls"):
         if isinstance(d[k], bool) or not isinstance(d[k], int):
             raise ControllerFileError(f"settings: {k} must be an integer, got {d[k]!r}")
     for k in ("solver", "qpsol", "terminal"):
@@ -114,7 +134,8 @@ def settings_from_dict(d: Any, dt: float) -> NMPCSettings:
                             solver=d["solver"], qpsol=d["qpsol"], max_iter=d["max_iter"],
                             tol=_number(d["tol"], "tol"), terminal=d["terminal"],
                             speed_range=(_number(sr[0], "speed_range"), _number(sr[1], "speed_range")),
-                            integral_max=_number(d["integral_max"], "integral_max"))
+                            integral_max=_number(d["integral_max"], "integral_max"),
+                            max_calls=d["max_calls"])
     except DesignInputError as exc:
         raise ControllerFileError(f"settings: {exc}") from None
 
@@ -134,6 +155,65 @@ def linearised_law(s: NMPCSettings, speed: float) -> Compensator:
     v = float(speed)
     return Compensator(Ac=[[1.0]], Bc=[[s.dt * v, 0.0, 0.0]], Cc=[[-k[3]]],
                        Dc=[[-k[0] * v, -k[1] * v, -k[2]]], dt=s.dt)
+
+
+def rate_limited_tail(model: Model, law: Compensator, rate_limit: float, speed: float) -> float:
+    """Largest cross-track, m, over the last :data:`TAIL_SECONDS` of the rate-limited check.
+
+    ``law`` (on the model's normalised outputs ``[y/V, psi/V, delta]``) is closed around ``model``
+    with its command clipped to ``+-rate_limit`` rad/s and delayed by :data:`DELAY_RESERVE_S`,
+    from the model's state nearest to rest parallel to the line :data:`CHECK_OFFSET_M` m off
+    (least squares of ``x = A x``, ``C x = [offset / V, 0, 0]``), for :data:`CHECK_SECONDS`.
+    ``inf`` if the loop leaves any sensible range (diverges).
+    """
+    a, b, c = (np.asarray(m_, dtype=float) for m_ in (model.A, model.B, model.C))
+    n = a.shape[0]
+    target = np.zeros(c.shape[0])
+    target[0] = CHECK_OFFSET_M / speed
+    x = np.linalg.lstsq(np.vstack([a - np.eye(n), c]), np.r_[np.zeros(n), target], rcond=None)[0]
+    xc = np.zeros(law.order)
+    ticks, tail = int(round(CHECK_SECONDS / law.dt)), int(round(TAIL_SECONDS / law.dt))
+    queue = [0.0] * int(round(DELAY_RESERVE_S / law.dt))
+    b0, d = b[:, 0], np.asarray(model.D, dtype=float)[:, 0]
+    worst, u_prev = 0.0, 0.0
+    for k in range(ticks):
+        y = c @ x + d * u_prev
+        u = float(law.Cc[0] @ xc + law.Dc[0] @ y)
+        u = min(max(u, -rate_limit), rate_limit) if math.isfinite(u) else math.nan
+        queue.append(u)
+        u_prev = queue.pop(0)
+        xc = law.Ac @ xc + law.Bc @ y
+        x = a @ x + b0 * u_prev
+        yk = abs(float(y[0])) * speed
+        if not yk < 1e3:
+            return math.inf
+        if k >= ticks - tail:
+            worst = max(worst, yk)
+    return worst
+
+
+def rate_limited_rows(s: NMPCSettings, models: Sequence[Model], speeds: Sequence[float]) -> list[dict]:
+    """One row per model of the rate-limited check: ``name``, ``tail_max_m`` and ``passed``."""
+    rows = []
+    for i, (m, v) in enumerate(zip(models, speeds)):
+        tail = rate_limited_tail(m, linearised_law(s, v), s.rate_limit, v)
+        rows.append({"name": str(m.meta.get("name", f"model {i}")), "tail_max_m": _tail_json(tail),
+                     "passed": bool(tail <= SETTLE_BOUND_M)})
+    return rows
+
+
+def _tail_json(v: float) -> float | str:
+    return float(v) if math.isfinite(v) else "inf"
+
+
+def rate_limited_record(s: NMPCSettings, models: Sequence[Model], speeds: Sequence[float]) -> dict:
+    """The certificate's ``rate_limited`` object (see the module docstring)."""
+    rows = rate_limited_rows(s, models, speeds)
+    return {"check": ("the certified law with the rate limit and an actuation delay reserve, from rest "
+                      f"{CHECK_OFFSET_M} m off the line, around each model"),
+            "offset_m": CHECK_OFFSET_M, "seconds": CHECK_SECONDS, "tail_seconds": TAIL_SECONDS,
+            "bound_m": SETTLE_BOUND_M, "delay_reserve_s": DELAY_RESERVE_S, "rate_limit": s.rate_limit,
+            "models": rows, "passed": all(r["passed"] for r in rows)}
 
 
 def model_speed(model: Model) -> float:
@@ -163,8 +243,23 @@ def certify_nmpc(s: NMPCSettings, models: Sequence[Model]) -> dict:
     for row, v in zip(cert["models"], rows):
         row["speed"] = v
     cert["check"] = ("closed loop of the NMPC's linearisation (its LQR at each model's nominal speed, with the "
-                     "integral of the cross-track) around each identified model")
+                     "integral of the cross-track) around each identified model, unconstrained and with the rate "
+                     "limit")
+    cert["rate_limited"] = rate_limited_record(s, models, rows)
+    cert["passed"] = bool(cert["passed"] and cert["rate_limited"]["passed"])
     return cert
+
+
+def rate_limited_failures(record: Mapping[str, Any]) -> list[str]:
+    """The models a ``rate_limited`` record fails on, each as ``"name (X m)"`` (its tail's largest cross-track)."""
+    return [f"{r['name']} ({r['tail_max_m'] if isinstance(r['tail_max_m'], str) else format(r['tail_max_m'], '.3g')} m)"
+            for r in record["models"] if not r["passed"]]
+
+
+RATE_FIX = (f"closed with the rate limit and {DELAY_RESERVE_S:g} s of extra delay from {CHECK_OFFSET_M} m off, the "
+            f"law's cross-track over the last {TAIL_SECONDS:g} of {CHECK_SECONDS:g} s should stay within {SETTLE_BOUND_M} m; "
+            "it oscillates between the rate limits: weight the cross-track less (raise --y-max) or the rate more "
+            "(lower --u-max)")
 
 
 def check_nmpc_certificate(cert: Any, s: NMPCSettings) -> None:
@@ -173,12 +268,18 @@ def check_nmpc_certificate(cert: Any, s: NMPCSettings) -> None:
         raise ControllerFileError("certificate is missing (null): the NMPC was never verified; it must not be run "
                                   "(design it again with design nmpc)")
     if not isinstance(cert, dict) or cert.get("passed") is not True:
-        raise ControllerFileError(f"certificate failed: the NMPC's linearisation is not stable on every model "
+        raise ControllerFileError(f"certificate failed: the NMPC's linearisation is not stable, or its law with the rate limit does not settle, "
+                                  f"on every model "
                                   f"(worst {cert.get('worst') if isinstance(cert, dict) else None!r}); it must not run")
     if cert.get("compensator_hash") != settings_hash(s):
         raise ControllerFileError(f"certificate does not match the settings: it was made for {cert.get('compensator_hash')!r}, "
                                   f"the file's settings give {settings_hash(s)!r} (edited after certification; design "
                                   "it again)")
+    rec = cert.get("rate_limited")
+    if not isinstance(rec, dict) or not isinstance(rec.get("models"), list) or len(rec["models"]) != len(cert["models"]):
+        raise ControllerFileError("certificate has no rate-limited check of its law (one row per model): it was made "
+                                  "before that check; design it again with design nmpc")
+    speeds = []
     for (name, _, model), row in zip(recorded_models(cert), cert["models"]):
         v = row.get("speed")
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not SPEED_RANGE[0] <= v <= SPEED_RANGE[1]:
@@ -188,6 +289,20 @@ def check_nmpc_certificate(cert: Any, s: NMPCSettings) -> None:
             raise ControllerFileError(f"certificate model {name!r} has dt={model.dt} s, the NMPC dt={s.dt} s")
         rho = spectral_radius(closed_loop_matrix(model.A, model.B, model.C, model.D, linearised_law(s, v)))
         check_stated_radius(row, name, rho, "the NMPC's linearisation", "settings")
+        speeds.append(float(v))
+    fresh = rate_limited_rows(s, [m for _, _, m in recorded_models(cert)], speeds)
+    for new_row, row in zip(fresh, rec["models"]):
+        stated = row.get("tail_max_m") if isinstance(row, dict) else None
+        ok = (stated == new_row["tail_max_m"] if isinstance(new_row["tail_max_m"], str) else
+              isinstance(stated, (int, float)) and not isinstance(stated, bool)
+              and abs(stated - new_row["tail_max_m"]) <= TAIL_TOLERANCE_M)
+        if not ok:
+            raise ControllerFileError(f"certificate model {new_row['name']!r}: the rate-limited check states a tail of "
+                                      f"{stated!r} m, recomputed {new_row['tail_max_m']!r} m (edited; design it again)")
+    bad = rate_limited_failures({"models": fresh})
+    if bad:
+        raise ControllerFileError(f"certificate failed the rate-limited check on {', '.join(bad)}; it must not run: "
+                                  f"{RATE_FIX}")
 
 
 @dataclass(frozen=True)
@@ -267,8 +382,12 @@ def design_nmpc(models: Sequence[Model], settings: NMPCSettings, name: str = "nm
     if not cert["passed"]:
         bad = [f"{r['name']} (spectral radius {r['spectral_radius']:.6f})" for r in cert["models"]
                if not r["spectral_radius"] < 1.0]
-        raise VerificationError(f"the NMPC's linearisation does not stabilise {len(bad)} of {len(models)} models: "
-                                f"{', '.join(bad)}; lower y_max/raise u_max, or check the models")
+        if bad:
+            raise VerificationError(f"the NMPC's linearisation does not stabilise {len(bad)} of {len(models)} models: "
+                                    f"{', '.join(bad)}; lower y_max/raise u_max, or check the models")
+        bad = rate_limited_failures(cert["rate_limited"])
+        raise VerificationError(f"the NMPC's law fails the rate-limited check on {len(bad)} of {len(models)} models: "
+                                f"{', '.join(bad[:3])}{', ...' if len(bad) > 3 else ''}; {RATE_FIX}")
     return NMPCFile(name, settings, {"method": "nonlinear MPC (kinematic bicycle, path coordinates)",
                                      "integral": "cross-track, as a model state"}, cert,
                     tuple({"name": str(m.meta.get("name", f"model {i}")), "hash": model_hash(m)}
@@ -291,6 +410,8 @@ def recheck_nmpc(body: Any, models: Sequence[Model]) -> tuple[dict, list[str]]:
     for r in fresh["models"]:
         if not r["spectral_radius"] < 1.0:
             problems.append(f"not stable on {r['name']} (spectral radius {r['spectral_radius']:.6f}, expected < 1)")
+    for text in rate_limited_failures(fresh["rate_limited"]):
+        problems.append(f"fails the rate-limited check on {text}: {RATE_FIX}")
     by_hash = {r["hash"]: r for r in fresh["models"]}
     for row in stored.get("models", []) if isinstance(stored.get("models"), list) else []:
         if isinstance(row, dict) and row.get("hash") not in by_hash:

@@ -73,6 +73,9 @@ def test_the_certified_law_is_the_nmpcs_first_move(saved):
     (lambda b: b["settings"].__setitem__("horizon", 1e6), "horizon must be an integer"),
     (lambda b: b["settings"].__setitem__("extra", 1), "settings must hold exactly"),
     (lambda b: b["certificate"]["models"][0]["model"]["A"][0].__setitem__(0, 0.5), "hash mismatch"),
+    (lambda b: b["certificate"]["rate_limited"]["models"][1].__setitem__("tail_max_m", 0.0), "rate-limited check states"),
+    (lambda b: b["certificate"].pop("rate_limited"), "no rate-limited check"),
+    (lambda b: b["settings"].__setitem__("max_calls", 0), "max_calls"),
 ])
 def test_a_tampered_file_is_refused(saved, edit, match):
     rewrite(saved, edit)                                     # checksum re-sealed: the content checks must catch it
@@ -97,6 +100,25 @@ def test_signing_and_an_unstable_design_is_not_written(models, saved, tmp_path):
     fast = [with_speed(tractor_model(2.91, 1.0, tau=0.4), 2.91)]
     with pytest.raises(VerificationError, match="does not stabilise"):
         design_nmpc(fast, greedy)
+
+
+def test_a_law_that_oscillates_between_the_rate_limits_is_refused(models, tmp_path, capsys):
+    # the demo's robust cross-track weight: its linearisation is stable on every model (what the certificate
+    # checked alone), but with the rate limit it diverges (on the simulator too: 5-12 m off at 2.91 m/s)
+    tight = dataclasses.replace(SETTINGS, weights=KinematicWeights(y_max=0.03))
+    cert = certify_nmpc(tight, models)
+    assert all(r["spectral_radius"] < 1 for r in cert["models"]) and not cert["passed"]
+    assert not cert["rate_limited"]["passed"]
+    with pytest.raises(VerificationError, match=r"fails the rate-limited check on \d+ of 6 models.*raise --y-max"):
+        design_nmpc(models, tight)
+    assert all(r["passed"] for r in certify_nmpc(SETTINGS, models)["rate_limited"]["models"])
+    paths = []
+    for i, m in enumerate(models):
+        paths.append(str(tmp_path / f"m{i}.npz"))
+        m.save(paths[-1])
+    out = tmp_path / "tight.json"
+    assert design_main(["nmpc", "--models", *paths, "--y-max", "0.03", "--horizon", "20", "--out", str(out)]) == 1
+    assert "rate-limited check" in capsys.readouterr().err and not out.exists()
 
 
 def test_design_nmpc_and_verify_commands(models, tmp_path, capsys):

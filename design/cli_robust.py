@@ -15,7 +15,8 @@ from .errors import DesignInputError, VerificationError
 from .auto_designs import auto_robust, spec_names
 from .cli_specs import (add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of,
                         warn_relaxed)
-from .robust import RobustSpec, design_lqr, design_robust
+from .disturbance import DisturbanceSpec
+from .robust import RobustSpec, design_lqr, design_robust, with_disturbance_estimate
 from .specs import check_specs
 from .weights import OutputWeights
 
@@ -109,14 +110,46 @@ def cmd_robust(args: argparse.Namespace) -> dict:
                                   spec_names(models, validate)).to_dict()
             res = replace(res, file=replace(res.file, design={**res.file.design, "specifications_check": {
                 "specifications": specs.to_dict(), "achieved": checked}}))
+    if args.disturbance_estimate == "on":
+        res = _with_estimate(res, models, validate, spec, specs, latency, args)
     res.file.save(args.out)
     d = res.file.design
-    return {"out": str(args.out), "certificate": dict(res.file.certificate), "guaranteed_cost": d["guaranteed_cost"],
+    return {"out": str(args.out), "disturbance_estimate": d.get("disturbance_estimate"), "certificate": dict(res.file.certificate), "guaranteed_cost": d["guaranteed_cost"],
             "implausible_models": d["implausible_models"],
             "conservatism": d["conservatism"], "times_s": d["times_s"], "formulation": spec.formulation,
             "synthesis_bound": d["synthesis_bound"], "refine_steps": d["refine_steps"],
             "solver": spec.solver, "past": d["past"], "weights": d["weights"],
             "auto_weights": d.get("auto_weights"), "specifications_check": checked and d["specifications_check"]}
+
+
+def _with_estimate(res, models, validate, spec: RobustSpec, specs, latency, args: argparse.Namespace):
+    """The design with the disturbance estimate (:func:`design.robust.with_disturbance_estimate`), its gain
+    scaled back until it meets every specification the window law met, with the latency, on the models
+    and the validation models (only stability when no latency is known)."""
+    if args.structure != "window":
+        raise DesignInputError("--disturbance-estimate on needs --structure window (or give --disturbance-estimate off)")
+    family, names = [*models, *validate], spec_names(models, validate)
+    accept = None
+    if latency is not None:
+        first = check_specs(res.file.compensator, family, specs, latency, names)
+        eff = specs
+        if not first.passed:          # hold the estimate to what the window law itself achieved
+            wst = first.worst()
+            eff = replace(specs, disk_margin=min(specs.disk_margin, 0.999 * wst["disk_margin"]),
+                          delay_reserve=min(specs.delay_reserve, wst["delay_reserve_s"]),
+                          rate_limit=max(specs.rate_limit, 1.001 * float(wst["peak_rate"])))
+
+        def accept(comp) -> bool:
+            return check_specs(comp, family, eff, latency, names).passed
+    out = with_disturbance_estimate(res, models, spec, DisturbanceSpec(args.disturbance_tau, args.estimate_tau),
+                                    accept, latency)
+    d = dict(out.file.design)
+    if latency is not None:
+        after = check_specs(out.file.compensator, family, specs, latency, names).to_dict()
+        d["disturbance_estimate"] = {**d["disturbance_estimate"], "specifications_achieved": after}
+        if "specifications_check" in d:
+            d["specifications_check"] = {**d["specifications_check"], "achieved": after}
+    return replace(out, file=replace(out.file, design=d))
 
 
 def cmd_lqr(args: argparse.Namespace) -> dict:
@@ -185,6 +218,13 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
                    help="measured-window state feedback, or anchored coordinates + the nominal model's predictor")
     r.add_argument("--output-clip", type=number, nargs="+", default=[0.1, 0.05, 0.0],
                    help="clip of each normalised output before the compensator (0 = none)")
+    r.add_argument("--disturbance-estimate", choices=("on", "off"), default="off",
+                   help="window structure: estimate the soil's pull from the one-step prediction error and feed it "
+                        "forward (design.disturbance; its gain is scaled back until the specifications hold)")
+    r.add_argument("--disturbance-tau", type=number, default=DisturbanceSpec.tau_d,
+                   help="correlation time of the disturbance, s")
+    r.add_argument("--estimate-tau", type=number, default=DisturbanceSpec.tau_f,
+                   help="time constant of the disturbance estimate's filter, s")
     r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
     add_spec_arguments(r, number)
@@ -227,6 +267,13 @@ def render(result: dict) -> str:
                      f"{result['conservatism']:.3f}; times " +
                      ", ".join(f"{k} {v:.3f} s" for k, v in result["times_s"].items()))
     lines.extend(spec_lines(result))
+    est = result.get("disturbance_estimate")
+    if est:
+        kept = "kept" if est["scale"] == 1.0 else (f"scaled by {est['scale']:g} to meet the specifications"
+                                                    if est["scale"] > 0 else "off: no gain met the specifications")
+        lines.append(f"disturbance estimate (tau {est['tau_d_s']:g} s, filter {est['tau_f_s']:g} s): gain "
+                     f"{', '.join(f'{v:.4g}' for v in est['gain_Kd'][0])} ({kept}); H2 cost against the disturbance "
+                     f"{est['h2_cost']:.4g} (window law alone {est['h2_cost_without']:.4g})")
     for c in result.get("implausible_models", []):
         lines.append(f"warning: {c['name']}: a left steering pulse gives outputs "
                      f"{', '.join(f'{v:+.3g}' for v in c['pulse_outputs'])} after 3 s (expected all > 0); "

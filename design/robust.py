@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -21,6 +21,7 @@ from identification.model import Model
 
 from .anchored import anchored, augment_integral, best_anchor, observer_compensator
 from .compensator import Compensator
+from .disturbance import DisturbanceSpec, design_estimate
 from .errors import DesignInputError, SynthesisError
 from .files.linear import ControllerFile, outputs_for
 from .limits import check_model_order
@@ -371,6 +372,53 @@ def _design_robust(models: Sequence[Model], spec: RobustSpec, synth_models: Sequ
                           spec.output_clip, design, cert.to_dict(),
                           tuple({"name": n, "hash": model_hash(m)} for n, m in zip(names, models)))
     return RobustResult(file, cert, syn, tuple(lqr_costs), layout)
+
+
+def with_disturbance_estimate(result: RobustResult, models: Sequence[Model], spec: RobustSpec,
+                              dspec: DisturbanceSpec | None = None,
+                              accept: Callable[[Compensator], bool] | None = None,
+                              latency: Sequence[float] | None = None) -> RobustResult:
+    """``result``'s window law with the disturbance estimate of :mod:`design.disturbance` added.
+
+    Parameters
+    ----------
+    result
+        A verified ``window``-structure design of ``models`` with ``spec`` (its ``past`` resolved).
+    accept
+        True if a candidate compensator meets the specifications (e.g. :func:`design.specs.check_specs`
+        with the latency); the estimate's gain is scaled back until it does (to 0: the window law).
+    latency
+        Measurement latency per output, s, put into the loops its gain is chosen on (None: none).
+
+    Returns
+    -------
+    RobustResult
+        The new file (its certificate recomputed on ``models``; ``design["disturbance_estimate"]``
+        records the estimate, its gain and the scale kept).
+    """
+    dspec = dspec or DisturbanceSpec()
+    d = result.file.design
+    if d.get("structure", "window") != "window":
+        raise DesignInputError("the disturbance estimate needs the window structure (design robust --structure window)")
+    w = d["weights"]
+    spec = replace(spec, past=d["past"], integral=bool(d["integral"]),
+                   weights=OutputWeights(tuple(w["y_max"]), w["u_max"], w["i_max"]))
+    synth = models
+    if d.get("design_models") is not None:
+        synth, _ = design_models(models, spec.past, spec.window_conditioning)
+    layout, a_list, b_list, data = design_problem(synth, spec)
+    if layout != result.layout:
+        raise DesignInputError(f"the design's layout {result.layout} is not the one rebuilt ({layout})")
+    k = np.asarray(d["gain_K"], dtype=float)
+    comp, record = design_estimate(k, result.file.compensator, layout, list(zip(a_list, b_list)), data["Q"],
+                                   data["R"], dspec, accept, latency)
+    names = _model_names(models)
+    cert = certify(comp, models, names)
+    require_stable(cert)
+    file = replace(result.file, compensator=comp, certificate=cert.to_dict(),
+                   design={**d, "disturbance_estimate": record,
+                           "coordinates": d["coordinates"] + ", prediction of the outputs, disturbance estimate"})
+    return replace(result, file=file, certificate=cert)
 
 
 def design_lqr(model: Model, verify_on: Sequence[Model] = (), weights: OutputWeights | None = None,

@@ -74,6 +74,8 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
                    help="Markov parameters (past window)")
     c.add_argument("--acceptance", choices=("refuse", "warn"), default="refuse",
                    help="a model that does not predict: stop (refuse) or go on with a warning")
+    c.add_argument("--disturbance-estimate", choices=("on", "off"), default="off",
+                   help="the robust controller with the disturbance estimate (design robust --disturbance-estimate)")
     c.add_argument("--quiet", action="store_true", help="no progress")
     c.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
 
@@ -126,7 +128,8 @@ def _options(args: argparse.Namespace) -> CommissionOptions:
                              pass_duration=args.duration, seed=args.seed,
                              hil_seeds=tuple(range(args.hil_seeds)) if args.hil_seeds >= 1 else (),
                              hil_duration=args.hil_duration, hil_conditions=args.hil_conditions,
-                             weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance)
+                             weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance,
+                             disturbance_estimate=args.disturbance_estimate == "on")
 
 
 def _reporters(quiet: bool):

@@ -95,6 +95,9 @@ class CommissionOptions:
         When no robust design is found on the identified models, identify again at this order
         (``models_order4/``, acceptance ``warn``) and design the robust controller and the MPC on
         those (``None``: do not).
+    disturbance_estimate
+        The robust controller with the disturbance estimate (``design robust --disturbance-estimate
+        on``, :mod:`design.disturbance`).
     """
 
     speeds: tuple[float, ...] = tuple(GEAR_SPEEDS.values())
@@ -112,6 +115,7 @@ class CommissionOptions:
     integral: bool = True
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
+    disturbance_estimate: bool = False
 
     def __post_init__(self) -> None:
         SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
@@ -278,6 +282,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
                 "central-lqr": ["lqr", "--model", str(models_dir / "central.npz"), "--command-limit", limit,
                                 "--out", str(ctrl / "central-lqr.json")],
                 "robust": ["robust", "--models", *local, *(["--integral"] if opts.integral else []), *w, *window,
+                           *(["--disturbance-estimate", "on"] if opts.disturbance_estimate else []),
                            "--command-limit", limit, "--out", str(ctrl / "robust.json")],
                 "mpc": ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *w, *window,
                         "--rate-limit", limit, "--out", str(ctrl / "mpc.json")],

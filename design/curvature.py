@@ -27,6 +27,15 @@ at its clip) recovers the turn first with no path (:meth:`Reference.recover`), a
 from where the turn has left it (:meth:`Reference.replan`); it re-plans likewise whenever the
 tractor is far from its path again (the cross-track deviation at its clip), so the law is never
 left steering a clipped cross-track home.
+
+**Headland turns.** On a field's route the vehicle loop tells the reference which part of the
+route the tractor is on (:data:`ROUTE_PART_METHOD`, :meth:`Reference.enter_part`). Over a headland
+turn the line does not count as acquired (:attr:`Reference.acquired` is False), so the controllers
+hold their integral there: the implement is raised on the headland, so the pull the integral learnt
+on the pass is not there, and what it would learn instead (the tight turn's slip, the raised
+implement swinging on its hitch) is a bias carried into the next pass. Leaving the turn for the
+next pass, the next line is acquired as on engage: a new approach path from where the turn has
+left the tractor, the integral held until the path's end.
 """
 
 from __future__ import annotations
@@ -50,6 +59,13 @@ APPROACH_RATE_SHARE = 0.5
 APPROACH_LENGTH_MAX = 500.0
 #: Longest curvature preview a controller asks for, stretches (the vehicle loop's ``MAX_PREVIEW``).
 PREVIEW_MAX = 1000
+#: Name of the optional method ``enter_part(kind: str) -> None`` that the vehicle loop calls on a field's
+#: route whenever its station enters a part of another kind, and on the first cycle after every engage:
+#: ``kind`` is ``"straight"``, ``"curve"``, ``"turn"`` (a headland turn) or ``""`` (outside every part).
+#: The loop looks for it on the controller, then on the controller's ``reference`` (a :class:`Reference`).
+ROUTE_PART_METHOD = "enter_part"
+#: The part kind of a headland turn.
+HEADLAND_KIND = "turn"
 
 
 def steady_state(kappa: Any, wheelbase: float = WHEELBASE_M, d2: float = D2_M,
@@ -196,6 +212,19 @@ class Reference:
         self.recovering = False
         #: Fixed on the line until the next reset (:meth:`on_line`): never re-planned.
         self.fixed = not self.plans_approach
+        #: On a headland turn (:meth:`enter_part`): the line does not count as acquired.
+        self.headland = False
+
+    def enter_part(self, kind: str) -> None:
+        """The loop's station entered a part of kind ``kind`` of a field's route (:data:`ROUTE_PART_METHOD`).
+
+        Entering a headland turn (``kind == "turn"``): not acquired until it is left. Leaving one: a
+        new approach path from the next measurement (:meth:`replan`), as on engage.
+        """
+        on = kind == HEADLAND_KIND
+        if self.headland and not on:
+            self.replan()
+        self.headland = on
 
     def on_line(self) -> None:
         """Take the line as acquired until the next :meth:`reset`: no approach path (the law sees
@@ -233,15 +262,21 @@ class Reference:
         far
             The previous cycle's cross-track deviation was at its clip.
         """
-        if (self.approach is None or self.recovering or self.acquired) and turning(self.deviation(m)):
+        if (self.approach is None or self.recovering or self.travelled) and turning(self.deviation(m)):
             self.recover()                     # turning away from the line: recover first, no approach path
         elif self.recovering or far:
             self.replan()                      # turn recovered, or far from the path: a new path from here
 
     @property
-    def acquired(self) -> bool:
+    def travelled(self) -> bool:
         """The approach path has been travelled: the reference is the line's own equilibrium."""
         return self.approach is not None and self._s >= self.approach.length
+
+    @property
+    def acquired(self) -> bool:
+        """The line is acquired (a controller's integral may run): the approach path has been travelled
+        and the tractor is not on a headland turn."""
+        return self.travelled and not self.headland
 
     def _ahead(self, m: Measurement, extra: int = 0) -> float:
         """Path curvature ``V * latency`` (plus ``extra`` samples) ahead, 1/m: the preview's stretch

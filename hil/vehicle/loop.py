@@ -24,7 +24,11 @@ kind: straight, curve or headland turn) every cycle. The tracker moves only on a
 search by the time elapsed). The loop stays engaged through a
 headland turn, as AgOpenGPS keeps autosteer on through its U-turn: the turn is part of
 the one route, the controller sees its curvature like any curve's, and the same
-health checks apply (there is no separate turn mode to hand over to and back from).
+health checks apply (there is no separate turn mode to hand over to and back from). A
+controller with the optional method ``enter_part(kind)`` (:data:`design.curvature.ROUTE_PART_METHOD`;
+else the method of its ``reference``, a :class:`design.curvature.Reference`) is told, before its
+step, whenever the loop's station enters a part of another kind and on the first cycle after every
+engage, so it can hold its integral over a headland turn and acquire the next pass as on engage.
 
 Every cycle is recorded; :meth:`VehicleLoop.run_log` turns the record into a
 pass log (all channels on the cycle time base, so a closed-loop run can feed
@@ -44,6 +48,7 @@ from typing import Callable, Protocol, Sequence, runtime_checkable
 import numpy as np
 
 from design.controller import PREVIEW_ATTRIBUTE, Controller, Measurement
+from design.curvature import ROUTE_PART_METHOD
 from gnss.frontend import GnssFrontEnd
 from gnss.guidance import ABLine, TrackErrors
 from gnss.integrity import IntegrityState
@@ -182,6 +187,9 @@ class VehicleLoop:
             raise VehicleConfigError("parts: route parts need a path tracker, not an AB line")
         self._part_starts = [p[0] for p in self._parts]
         self._part_names = [str(p.kind) for p in parts]
+        self._kind_names = {float(code): name for name, code in PART_KINDS.items()}
+        self._enter_part = _route_part_method(controller) if self._parts else None
+        self._told_kind: float | None = None   # the part kind the controller was last told (None: not yet)
         self._path_rows: list[tuple[float, float, float, float]] = []   # station, curvature, pass, kind
         # station held until the first fix: the tracker's starting station if it has one (see gps_valid)
         hint = getattr(line, "station", None) if self._path is not None else None
@@ -281,6 +289,7 @@ class VehicleLoop:
                 near = abs(xte) <= cfg.engage_cross_track and abs(he) <= cfg.engage_heading
                 if near and now - self._healthy_since >= cfg.engage_after - 1e-9:
                     self._engage(now, link_ok)
+        part = self._part_at(self._station) if path is not None else None
         if self.engaged:
             if path is None:
                 m = (Measurement(now, xte, he, delta, speed) if not self._preview_n else
@@ -291,6 +300,9 @@ class VehicleLoop:
                 m = Measurement(now, xte, he, delta, speed, self._kappa, preview)
             why = None
             try:
+                if self._enter_part is not None and part[1] != self._told_kind:
+                    self._told_kind = part[1]
+                    self._enter_part(self._kind_names.get(part[1], ""))
                 raw = float(self.controller.step(m))
             except Exception as exc:  # noqa: BLE001 - a failing control law must disengage, not crash the loop
                 raw, why = math.nan, f"controller failed: {type(exc).__name__}: {exc}"
@@ -318,7 +330,7 @@ class VehicleLoop:
                            done - t_due > 1.0 / cfg.rate, rep.adc_counts if rep else -1.0))
         self._estimates.append(tuple(self.controller.estimate()))
         if path is not None:
-            self._path_rows.append((self._station, self._kappa, *self._part_at(self._station)))
+            self._path_rows.append((self._station, self._kappa, *part))
         if self.truth is not None:
             self._truths.append(self.truth())
 
@@ -351,6 +363,7 @@ class VehicleLoop:
             self.events.append({"t": now, "event": "engage failed", "reason": str(exc)})
             return
         self.engaged, self._engaged_at, self._confirmed = True, now, False
+        self._told_kind = None
         self._response.clear()
         self._response_u.clear()
         self.events.append({"t": now, "event": "engage", "reason": "healthy"})
@@ -460,6 +473,16 @@ def _checked_parts(parts: Sequence) -> tuple[tuple[float, float, float, float], 
                                      f"{a:.3f} m before the previous one ends ({out[-1][1]:.3f} m)")
         out.append((a, b, float(n), float(PART_KINDS[kind])))
     return tuple(out)
+
+
+def _route_part_method(controller: Controller) -> Callable[[str], None] | None:
+    """The controller's ``enter_part`` (:data:`design.curvature.ROUTE_PART_METHOD`), else its reference's; None
+    when neither has one."""
+    for owner in (controller, getattr(controller, "reference", None)):
+        hook = getattr(owner, ROUTE_PART_METHOD, None)
+        if callable(hook):
+            return hook
+    return None
 
 
 def _preview_request(controller: Controller) -> tuple[int, float]:

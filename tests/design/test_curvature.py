@@ -81,3 +81,31 @@ def test_reference_holds_the_arcs_steady_state_and_feeds_its_rate_forward():
     ref.reset()
     dev, ff = ref.track(Measurement(0.0, 0.0, 0.0, 0.0, 2.0, 0.0, (0.0, 0.0, KAPPA, KAPPA)))
     assert dev.wheel_angle == 0.0 and ff == pytest.approx(DELTA_SS / 0.05)
+
+
+def test_a_headland_turn_is_never_acquired_and_the_next_pass_is_acquired_as_on_engage():
+    r = Reference(0.05, 0.35)
+    on_line = Measurement(0.0, 0.0, 0.0, 0.0, 2.0)
+    for _ in range(11):                                 # engaged on the line: the shortest path, 1 m
+        r.track(on_line)
+    assert r.acquired
+    r.enter_part("curve")                               # a curve inside a pass changes nothing
+    assert r.acquired and r.approach.y0 == 0.0
+    r.enter_part("turn")                                # a headland turn: the integral must hold
+    for _ in range(40):
+        r.track(Measurement(0.0, 0.3, 0.1, 0.2, 2.0, 0.1))
+    assert not r.acquired and r.travelled
+    r.enter_part("straight")                            # the next pass: a new approach path from here
+    r.track(Measurement(0.0, 0.4, 0.0, 0.0, 2.0))
+    assert r.approach.y0 == 0.4 and r.approach.length > 1.0 and not r.acquired
+    for _ in range(int(r.approach.length / (2.0 * 0.05)) + 1):
+        r.track(Measurement(0.0, 0.0, 0.0, 0.0, 2.0))
+    assert r.acquired
+    fixed = Reference(0.05, 0.35, approach=False)       # the MPC's: no path, but no integral in the turn
+    fixed.enter_part("turn")
+    assert not fixed.acquired
+    fixed.enter_part("straight")
+    assert fixed.acquired and fixed.approach.length == 0.0
+    fixed.enter_part("turn")
+    fixed.reset()                                       # an engage starts off the headland (the loop tells again)
+    assert fixed.acquired

@@ -45,7 +45,8 @@ def summarise_tractor(name: str, res: dict | None, failure: str | None, code: di
     robust = designs.get("robust", {})
     fallbacks = []
     if res.get("identification_fallback"):
-        fallbacks.append("order-4 models")
+        fallbacks.append("order-4 models for the MPC" if res["identification_fallback"].get("for") == "mpc"
+                         else "order-4 models")
     label = str(robust.get("weights", ""))
     if "past" in label and not label.endswith("past auto"):
         fallbacks.append(label.split(", ")[-1])

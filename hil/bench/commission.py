@@ -261,10 +261,13 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
     if ident is not None:
         res["identification"] = ident
 
-    def design_all(models_dir: Path, with_lqr: bool) -> dict[str, dict]:
-        designs: dict[str, dict] = {}
-        ctrl = out / "controllers"
-        local = sorted(str(p) for p in models_dir.glob("local_*.npz"))
+    ctrl = out / "controllers"
+
+    def recipe_weights() -> tuple[list[str], list[tuple[list[str], str]]]:
+        """The weights options of the designs, and what to try in order: the weights asked for, then
+        (auto-if-available) the defaults; each with the window from observability, then with the longer
+        windows of ``robust_past`` (the robust LMIs over models of mixed orders were infeasible with the
+        shortest window on the heavy tractor, feasible with 6)."""
         limit = f"{com.valve.max_rate:.6g}"
         auto = _auto_weights(opts)
         weights = ["--weights", "auto"] if auto else []
@@ -273,6 +276,21 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         if auto and _design_offers("robust", "--actuator-rate"):
             weights += ["--actuator-rate", limit]                    # the valve's measured rate
         res["weights"] = "auto (from specifications)" if auto else "the design commands' defaults"
+        tries = [(weights, "auto")] + [(weights, str(k)) for k in opts.robust_past]
+        if auto and opts.weights == "auto-if-available":
+            tries += [([], "auto")] + [([], str(k)) for k in opts.robust_past]
+        return weights, tries
+
+    def mpc_argv(models_dir: Path, w: list[str], past: str) -> list[str]:
+        window = [] if past == "auto" else ["--past", past]
+        return ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *w, *window,
+                "--rate-limit", f"{com.valve.max_rate:.6g}", "--out", str(ctrl / "mpc.json")]
+
+    def design_all(models_dir: Path, with_lqr: bool) -> dict[str, dict]:
+        designs: dict[str, dict] = {}
+        local = sorted(str(p) for p in models_dir.glob("local_*.npz"))
+        limit = f"{com.valve.max_rate:.6g}"
+        _, tries = recipe_weights()
 
         def argv_for(name: str, w: list[str], past: str) -> list[str]:
             window = [] if past == "auto" else ["--past", past]
@@ -284,16 +302,9 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
                 "robust": ["robust", "--models", *local, *(["--integral"] if opts.integral else []), *w, *window,
                            *(["--disturbance-estimate", "on"] if opts.disturbance_estimate else []),
                            "--command-limit", limit, "--out", str(ctrl / "robust.json")],
-                "mpc": ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *w, *window,
-                        "--rate-limit", limit, "--out", str(ctrl / "mpc.json")],
+                "mpc": mpc_argv(models_dir, w, past),
             }[name]
 
-        # what to try, in order: the weights asked for, then (auto-if-available) the defaults; each with the
-        # window from observability, then with the longer windows of ``robust_past`` (the robust LMIs over
-        # models of mixed orders were infeasible with the shortest window on the heavy tractor, feasible with 6)
-        tries = [(weights, "auto")] + [(weights, str(k)) for k in opts.robust_past]
-        if auto and opts.weights == "auto-if-available":
-            tries += [([], "auto")] + [([], str(k)) for k in opts.robust_past]
         r = steps.run("design central-lqr", "design lqr (the paper's method)",
                       lambda: _design(argv_for("central-lqr", [], "auto"))) if with_lqr else None
         if r is not None:
@@ -316,6 +327,21 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             break
         return designs
 
+    def design_mpc_only(models_dir: Path) -> dict[str, dict]:
+        """The MPC on ``models_dir`` with the robust file already made as its fall-back (same tries)."""
+        robust_label = designs["robust"]["weights"]
+        for w, past in recipe_weights()[1]:
+            label = f"weights {'auto' if w else 'default'}, past {past}"
+            argv = mpc_argv(models_dir, w, past)
+            r = steps.run(f"design mpc on order-{opts.fallback_order} models ({label})",
+                          f"design mpc on order-{opts.fallback_order} models ({label}; the robust law: {robust_label})",
+                          lambda argv=argv: _design(argv))
+            if r is not None:
+                return {"mpc": {"file": argv[argv.index("--out") + 1], "result": r,
+                                "weights": f"{label}, order-{opts.fallback_order} models",
+                                "command": "design " + " ".join(argv)}}
+        return {}
+
     designs: dict[str, dict] = {}
     if ident is not None and com is not None:
         designs = design_all(models_dir, True)
@@ -333,6 +359,21 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             if again is not None:
                 res["identification_fallback"] = again
                 designs.update(design_all(fallback_dir, False))
+        elif "mpc" not in designs and opts.fallback_order is not None:
+            # the robust controller was found but not the MPC (its central model of the validated order
+            # admits no weights that meet the specifications): the MPC on models identified again at the
+            # fallback order, with the same robust law as its fall-back
+            fallback_dir = out / f"models_order{opts.fallback_order}"
+
+            def identify_for_mpc() -> dict:
+                r = identify_logs([str(out / "logs")], fallback_dir, order=opts.fallback_order, markov=opts.markov,
+                                  latency="auto", acceptance="warn", progress=lambda d, n: tick("identification", d, n))
+                return {k: v for k, v in r.items() if k != "_text"}
+            again = steps.run(f"identification (order {opts.fallback_order})", f"identification again at order "
+                              f"{opts.fallback_order} for the MPC", identify_for_mpc)
+            if again is not None:
+                res["identification_fallback"] = {**again, "for": "mpc"}
+                designs.update(design_mpc_only(fallback_dir))
     res["designs"] = designs
 
     def hil() -> list[dict]:

@@ -128,8 +128,13 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
         lines += ["", "## Designs", "", f"Weights: {res.get('weights', '')}.", ""]
         if res.get("identification_fallback"):
             orders = sorted({m["order"] for m in res["identification_fallback"]["models"]})
-            lines += [f"No robust design was found on the identified models; the robust controller and the MPC "
-                      f"below are designed on models identified again at order {orders} (`models_order*/`).", ""]
+            if res["identification_fallback"].get("for") == "mpc":
+                lines += [f"No MPC was found on the identified models; the MPC below is designed on models identified "
+                          f"again at order {orders} (`models_order*/`), the robust controller on the identified "
+                          "models.", ""]
+            else:
+                lines += [f"No robust design was found on the identified models; the robust controller and the MPC "
+                          f"below are designed on models identified again at order {orders} (`models_order*/`).", ""]
         for name, d in res["designs"].items():
             lines.append(f"- `{name}` (weights: {d.get('weights', '')}): `{d['command']}`")
     cells = hil_ratios(res.get("hil", []))

@@ -18,8 +18,7 @@ from typing import Callable, Sequence
 from identification.model import Model
 
 from .autotune import SearchOptions, SearchResult, search_weights
-from .iostate import feedback_compensator
-from .mpc.law import unconstrained_gain
+from .mpc.law import unconstrained_law
 from .mpc_design import MPCDesign, MPCSpec, design_mpc, fallback_from_file
 from .mpc.problem import mpc_problem
 from .robust import RobustResult, RobustSpec, _model_names, design_robust, resolved_past
@@ -98,15 +97,16 @@ def auto_mpc(model: Model, verify_on: Sequence[Model], spec: MPCSpec, specs: Spe
 
     def law(w: OutputWeights):
         weights = replace(spec.weights, outputs=w)
-        problem = mpc_problem(model, spec.horizon, weights, spec.limits, spec.past)
-        return feedback_compensator(unconstrained_gain(problem), problem.layout)
+        problem = mpc_problem(model, spec.horizon, weights, spec.limits, spec.past, spec.disturbance)
+        return unconstrained_law(problem)
 
     result = search_weights(law, lambda c: c, family, specs, latency, options,
                             spec_names([model, *verify_on], validate_on), progress)
     final = replace(spec, weights=replace(spec.weights, outputs=result.weights))
     gain = None
     if fallback is not None:
-        gain = fallback_from_file(fallback, mpc_problem(model, final.horizon, final.weights, final.limits, final.past))
+        gain = fallback_from_file(fallback, mpc_problem(model, final.horizon, final.weights, final.limits, final.past,
+                                                        final.disturbance))
     des = design_mpc(model, verify_on, final, gain, require=require)
     file = replace(des.file, design={**des.file.design, "auto_weights": result.to_dict(specs, options)})
     return replace(des, file=file), result

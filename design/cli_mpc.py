@@ -18,7 +18,9 @@ from .auto_designs import auto_mpc, spec_names
 from .cli_robust import _load_models, _weights, certificate_table, spec_lines
 from .cli_specs import (add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of,
                         warn_relaxed)
-from .iostate import feedback_compensator, observable_past
+from .disturbance import DisturbanceSpec
+from .iostate import observable_past
+from .mpc.law import unconstrained_law
 from .specs import check_specs
 from .errors import DesignInputError
 from .mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
@@ -50,8 +52,9 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
     weights = MPCWeights(_weights(args), args.slack_weight, args.slack_weight * 1e-2, args.terminal)
     limits = MPCLimits(args.rate_limit, args.wheel_angle_limit)
     settings = SolverSettings(args.backend, args.solver, args.max_iter, args.time_budget_ms * 1e-3)
+    disturbance = DisturbanceSpec(args.disturbance_tau, args.estimate_tau) if args.disturbance_estimate == "on" else None
     spec = MPCSpec(args.horizon, weights, limits, settings, past,
-                   tuple(None if c <= 0 else c for c in args.output_clip), args.speed_min, args.name)
+                   tuple(None if c <= 0 else c for c in args.output_clip), args.speed_min, args.name, disturbance)
     family = [central, *others, *validate]
     latency = latency_of(args, family)
     specs = specs_of(args, latency, args.rate_limit, True)
@@ -64,10 +67,11 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
     else:
         gain = None
         if args.fallback:
-            gain = fallback_from_file(args.fallback, mpc_problem(central, args.horizon, weights, limits, past))
+            gain = fallback_from_file(args.fallback, mpc_problem(central, args.horizon, weights, limits, past,
+                                                                 disturbance))
         res = design_mpc(central, others, spec, gain, require=not args.allow_unstable)
         if latency is not None:
-            comp = feedback_compensator(res.unconstrained_gain, res.problem.layout)
+            comp = unconstrained_law(res.problem, res.unconstrained_gain)
             names = spec_names([central, *others], validate)
             checked = {"specifications": specs.to_dict(),
                        "achieved": check_specs(comp, family, specs, latency, names).to_dict()}
@@ -83,7 +87,8 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
             "limits": {"rate": limits.rate, "wheel_angle": limits.wheel_angle},
             "solver": settings.to_dict(), "fallback": f.fallback_law,
             "unconstrained_gain": f.design["unconstrained_gain"], "certificate": dict(f.certificate),
-            "auto_weights": f.design.get("auto_weights"), "specifications_check": checked}
+            "auto_weights": f.design.get("auto_weights"), "specifications_check": checked,
+            "disturbance_estimate": f.design.get("disturbance_estimate")}
 
 
 def fallback_past(path: str) -> int:
@@ -126,6 +131,12 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--u-max", type=number, default=None, help="Bryson steering rate, rad/s (default 0.35)")
     p.add_argument("--i-max", type=number, default=None, help="Bryson integral of y/V, s^2 (default 0.5)")
     add_spec_arguments(p, number)
+    p.add_argument("--disturbance-estimate", choices=("on", "off"), default="off",
+                   help="the estimate of the soil's pull (design.disturbance) in the MPC's state and prediction")
+    p.add_argument("--disturbance-tau", type=number, default=DisturbanceSpec.tau_d,
+                   help="correlation time of the disturbance, s")
+    p.add_argument("--estimate-tau", type=number, default=DisturbanceSpec.tau_f,
+                   help="time constant of the disturbance estimate's filter, s")
     p.add_argument("--allow-unstable", action="store_true",
                    help="write it even if the unconstrained law is unstable on some model (recorded)")
     p.add_argument("--name", default=None)

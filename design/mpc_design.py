@@ -21,13 +21,14 @@ from identification.model import Model
 from .errors import DesignInputError, SynthesisError
 from .files.linear import read_controller_file
 from .files.mpc import MPCFile
-from .iostate import feedback_compensator, window_to_state
+from .iostate import window_to_state
 from .limits import check_model_order
 from .reduction import design_model
 from .verify import Certificate, certify, model_hash, require_stable
 from .mpc.backends import SolverSettings
 from .mpc.controller import MPCController
-from .mpc.law import unconstrained_gain
+from .mpc.law import unconstrained_gain, unconstrained_law
+from .disturbance import DisturbanceSpec
 from .mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 
 
@@ -43,6 +44,7 @@ class MPCSpec:
     output_clip: tuple[float | None, ...] = (0.1, 0.05, None)
     speed_min: float = 0.3
     name: str = "mpc"
+    disturbance: DisturbanceSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -76,9 +78,10 @@ def fallback_from_file(path: str | Path, problem: MPCProblem) -> np.ndarray:
                                f"{d.get('structure')!r}, integral {d.get('integral')!r}, past {d.get('past')!r}"
                                + ("" if "guaranteed_cost" in d else ", and no robust synthesis record"))
     k = np.array(d.get("gain_K"), dtype=float)
-    if k.shape != (1, problem.nz) or not np.all(np.isfinite(k)):
-        raise DesignInputError(f"{path}: gain_K has shape {k.shape}, expected (1, {problem.nz})")
-    return k
+    nw = problem.n_window_state
+    if k.shape != (1, nw) or not np.all(np.isfinite(k)):
+        raise DesignInputError(f"{path}: gain_K has shape {k.shape}, expected (1, {nw})")
+    return np.pad(k, ((0, 0), (0, problem.nz - nw)))       # the window law: no gain on a disturbance estimate
 
 
 def prediction_model(model: Model, past: int) -> tuple[Model, dict | None]:
@@ -127,11 +130,11 @@ def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | No
     """
     spec = spec or MPCSpec()
     check_model_order([model, *verify_on])
-    problem = mpc_problem(model, spec.horizon, spec.weights, spec.limits, spec.past)
+    problem = mpc_problem(model, spec.horizon, spec.weights, spec.limits, spec.past, spec.disturbance)
     k = unconstrained_gain(problem)
     family = [model, *verify_on]
     names = _model_names(family)
-    cert = certify(feedback_compensator(k, problem.layout), family, names)
+    cert = certify(unconstrained_law(problem, k), family, names)
     require_stable(cert if require else Certificate(cert.checks[:1]))
     law = fallback_law or ("robust-lmi" if fallback_gain is not None else "lqr")
     fb = -problem.lqr_gain if fallback_gain is None else np.asarray(fallback_gain, dtype=float)
@@ -142,9 +145,12 @@ def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | No
               "weights": asdict(spec.weights.outputs), "terminal": spec.weights.terminal,
               "unconstrained_gain": k.tolist(), "lqr_gain": (-problem.lqr_gain).tolist(),
               "unconstrained_passed": cert.passed}
+    if spec.disturbance is not None:
+        design["coordinates"] += ", disturbance estimate " + ", ".join(f"d{j}" for j in spec.disturbance.channels)
+        design["disturbance_estimate"] = spec.disturbance.to_dict()
     file = MPCFile(spec.name, model, spec.horizon, spec.weights, spec.limits, spec.settings, fb, law, spec.past,
                    spec.output_clip, spec.speed_min, design, cert.to_dict(),
-                   tuple({"name": n, "hash": model_hash(m)} for n, m in zip(names, family)))
+                   tuple({"name": n, "hash": model_hash(m)} for n, m in zip(names, family)), spec.disturbance)
     _check_solver(file, k)
     return MPCDesign(file, problem, cert, k)
 
@@ -153,7 +159,8 @@ def _check_solver(file: MPCFile, k: np.ndarray) -> None:
     """The solver, with the file's settings but time to converge, reproduces the unconstrained law."""
     relaxed = replace(file.settings, time_budget=max(file.settings.time_budget, 5.0),
                       max_iter=max(file.settings.max_iter, 20000))
-    ctrl = MPCController(mpc_problem(file.model, file.horizon, file.weights, file.limits, file.past), relaxed,
+    ctrl = MPCController(mpc_problem(file.model, file.horizon, file.weights, file.limits, file.past,
+                                     file.disturbance), relaxed,
                          file.fallback_gain, file.fallback_law, file.output_clip, file.speed_min, file.name)
     nz = ctrl.problem.nz
     z = np.zeros(nz)

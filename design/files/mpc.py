@@ -9,6 +9,8 @@ optional signature)::
      "outputs": [...], "input": {...},                     # as the linear file (velocity-normalised)
      "model": {"A", "B", "C", "D", "K", "name", "hash"},  # the prediction (central) model
      "estimator": {"kind": "measured-window", "past": p, "integral": [0]},
+                    # or kind "measured-window+disturbance" with "disturbance": {"tau_d_s", "tau_f_s",
+                    # "channels"} (design.disturbance: the estimate is part of the MPC's state)
      "horizon": N,
      "weights": {"y_max", "u_max", "i_max", "slack_linear", "slack_quadratic", "terminal"},
      "limits": {"rate": rad/s, "wheel_angle": rad, "speed_min": m/s, "output_clip": [...]},
@@ -39,11 +41,11 @@ from identification.model import Model
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 from ..errors import ControllerFileError, DesignInputError
-from ..iostate import feedback_compensator
+from ..disturbance import DisturbanceSpec
 from ..limits import SPEED_MIN_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, DT_RANGE, check_horizon, check_model_order, in_range
 from ..mpc.backends import SolverSettings
 from ..mpc.controller import MPCController
-from ..mpc.law import unconstrained_gain
+from ..mpc.law import unconstrained_gain, unconstrained_law
 from ..mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 from ..verify import model_hash
 from ..weights import OutputWeights
@@ -78,6 +80,7 @@ class MPCFile:
     design: Mapping[str, Any] = field(default_factory=dict)
     certificate: Mapping[str, Any] | None = field(default_factory=dict)
     models: tuple[Mapping[str, str], ...] = ()
+    disturbance: DisturbanceSpec | None = None
 
     def __post_init__(self) -> None:
         if self.fallback_law not in FALLBACK_LAWS:
@@ -88,7 +91,7 @@ class MPCFile:
         in_range(self.limits.rate, 0.0, RATE_LIMIT_MAX, "limits: rate (rad/s)", ControllerFileError)
         in_range(self.limits.wheel_angle, 0.0, WHEEL_ANGLE_MAX, "limits: wheel-angle limit (rad)", ControllerFileError)
         try:
-            problem = mpc_problem(self.model, self.horizon, self.weights, self.limits, self.past)
+            problem = mpc_problem(self.model, self.horizon, self.weights, self.limits, self.past, self.disturbance)
         except DesignInputError as exc:
             raise ControllerFileError(f"the MPC cannot be built from this file: {exc}") from None
         k = np.array(self.fallback_gain, dtype=float)
@@ -134,7 +137,7 @@ class MPCFile:
                                        f"weights and horizon give (by {gap:.3g}): the file was edited after its "
                                        "design; design the controller again")
             k = ks
-        return feedback_compensator(k, problem.layout)
+        return unconstrained_law(problem, k)
 
     @property
     def dt(self) -> float:
@@ -143,7 +146,7 @@ class MPCFile:
 
     def controller(self) -> MPCController:
         """A fresh :class:`MPCController` for the vehicle loop."""
-        problem = mpc_problem(self.model, self.horizon, self.weights, self.limits, self.past)
+        problem = mpc_problem(self.model, self.horizon, self.weights, self.limits, self.past, self.disturbance)
         return MPCController(problem, self.settings, self.fallback_gain, self.fallback_law, self.output_clip,
                              self.speed_min, self.name, recorded_latency(self.certificate))
 
@@ -156,7 +159,9 @@ class MPCFile:
                 "input": {"name": "steer_rate_cmd", "units": "rad/s"},
                 "model": {**{k: getattr(m, k).tolist() for k in ("A", "B", "C", "D", "K")},
                           "name": str(m.meta.get("name", "model")), "hash": model_hash(m)},
-                "estimator": {"kind": "measured-window", "past": self.past, "integral": [0]},
+                "estimator": {"kind": "measured-window", "past": self.past, "integral": [0]} if self.disturbance is None
+                else {"kind": "measured-window+disturbance", "past": self.past, "integral": [0],
+                      "disturbance": self.disturbance.to_dict()},
                 "horizon": self.horizon,
                 "weights": {"y_max": list(w.outputs.y_max), "u_max": w.outputs.u_max, "i_max": w.outputs.i_max,
                             "slack_linear": w.slack_linear, "slack_quadratic": w.slack_quadratic,
@@ -238,9 +243,22 @@ def uncertified_mpc_from_body(body: Any, dt: float | None = 0.05,
     if model_hash(model) != md["hash"]:
         raise ControllerFileError(f"model hash mismatch: file says {md['hash']!r}, its matrices give "
                                   f"{model_hash(model)!r}")
-    est = _object(body, "estimator", ("kind", "past", "integral"))
-    if est["kind"] != "measured-window" or est["integral"] != [0]:
+    est = body["estimator"]
+    with_d = isinstance(est, dict) and est.get("kind") == "measured-window+disturbance"
+    est = _object(body, "estimator", ("kind", "past", "integral", *(("disturbance",) if with_d else ())))
+    if est["kind"] not in ("measured-window", "measured-window+disturbance") or est["integral"] != [0]:
         raise ControllerFileError(f"estimator must be the measured window with the integral of output 0, got {est!r}")
+    disturbance = None
+    if with_d:
+        dd = est["disturbance"]
+        if not isinstance(dd, dict) or sorted(dd) != ["channels", "tau_d_s", "tau_f_s"]:
+            raise ControllerFileError(f"estimator.disturbance must hold exactly channels, tau_d_s, tau_f_s; got {dd!r}")
+        try:
+            disturbance = DisturbanceSpec(_number(dd["tau_d_s"], "estimator.disturbance.tau_d_s"),
+                                          _number(dd["tau_f_s"], "estimator.disturbance.tau_f_s"),
+                                          tuple(dd["channels"]) if isinstance(dd["channels"], list) else ())
+        except DesignInputError as exc:
+            raise ControllerFileError(f"estimator.disturbance: {exc}") from None
     w = _object(body, "weights", ("y_max", "u_max", "i_max", "slack_linear", "slack_quadratic", "terminal"))
     lim = _object(body, "limits", ("rate", "wheel_angle", "speed_min", "output_clip"))
     sol = _object(body, "solver", ("backend", "solver", "max_iter", "time_budget", "options"))
@@ -271,7 +289,7 @@ def uncertified_mpc_from_body(body: Any, dt: float | None = 0.05,
         raise ControllerFileError(f"limits: output_clip must be a list, got {lim['output_clip']!r}")
     return MPCFile(str(body["name"]), model, horizon, weights, limits, settings, gain,
                    fb["law"], _integer(est["past"], "estimator.past"), tuple(lim["output_clip"]), lim["speed_min"],
-                   body["design"], body["certificate"], tuple(body["models"]))
+                   body["design"], body["certificate"], tuple(body["models"]), disturbance)
 
 
 def read_mpc_file(path: str | Path, dt: float | None = 0.05, public_key: Ed25519PublicKey | None = None) -> MPCFile:

@@ -151,6 +151,19 @@ class MPCController:
         self._kept = np.zeros(self._integral.size)     # the integral at the last step, kept over a re-engage
         self._last_t = math.inf                         # time of the last step, s
         self.gate = IntegralGate(crossing=False)
+        # the disturbance estimate (design.disturbance; the same filter as the certified unconstrained law)
+        dis = problem.disturbance
+        nw = problem.n_window_state
+        self._dist = np.arange(nw, nz)
+        if dis is not None:
+            rows = problem.layout.output_slot(0)
+            self._f, self._g = problem.A[rows, :nw], problem.B[rows, 0]
+            self._sel = np.zeros((len(dis.channels), q))
+            self._sel[np.arange(len(dis.channels)), list(dis.channels)] = 1.0
+            self._a = math.exp(-self.dt / dis.tau_d)
+            self._l = 1.0 - math.exp(-self.dt / dis.tau_f)
+        self._s = np.zeros(q)                    # prediction of the next outputs
+        self._dp = np.zeros(self._dist.size)     # the estimate carried to the next tick
         self.reference = Reference(self.dt, problem.limits.rate, latency, approach=False)
         n, step = self.reference.preview_request
         #: The curvature preview over the whole horizon (and the latency), stretches of ``V dt``.
@@ -223,10 +236,14 @@ class MPCController:
                 z[lay.output_slot(lag)] = y
         else:
             z[lay.output_slot(0)] = y
+            if self._dist.size:                # the estimate: carried value + filtered prediction error
+                z[self._dist] = self._dp + self._l * (self._sel @ (y - self._s))
         return z
 
     def reset(self) -> None:
         self._z = np.zeros(self.problem.nz)
+        self._s = np.zeros(self.problem.layout.n_outputs)
+        self._dp = np.zeros(self._dist.size)
         self._fresh = True
         self.backend.reset()
         self.gate.reset()
@@ -255,6 +272,11 @@ class MPCController:
         self._fresh = False
         self._z = self.problem.A @ z + self.problem.B[:, 0] * (sent - ff)    # shifts the window, integrates y/V
         clipped = bool(np.any(np.abs(y) >= self._hi))
+        if self._dist.size:
+            nw, dh = self.problem.n_window_state, z[self._dist]
+            self._s = self._f @ z[:nw] + self._g * (sent - ff) + self._sel.T @ (self._a * dh)
+            if not (clipped or sent != u + ff):   # at a limit the estimate is held (as the linear files')
+                self._dp = self._a * dh
         if not (self.gate.integrate(float(m.cross_track), clipped) and self.reference.acquired):
             self._z[self._integral] = z[self._integral]               # acquiring: the integral is held
         if np.all(np.isfinite(self._z[self._integral])):

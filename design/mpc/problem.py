@@ -45,6 +45,7 @@ import scipy.sparse as sp
 
 from identification.model import Model
 
+from ..disturbance import DisturbanceSpec
 from ..errors import DesignInputError
 from ..iostate import IOStateLayout, io_state_model
 from ..lqr import dlqr
@@ -133,6 +134,11 @@ class MPCProblem:
         The measured-state layout (past samples, integral channel, dt).
     lqr_gain
         (1, nz) ``F`` of the unconstrained LQR, ``u = -F z`` (the Riccati terminal's).
+    disturbance
+        The disturbance estimate's model (:mod:`design.disturbance`), or None. With it the state is
+        ``[z; d]``: the window state, then the estimate of the disturbance on each chosen output's
+        one-step prediction, which the prediction carries forward as ``d_{j+1} = a d_j`` (known, not
+        steerable: weight 0).
     """
 
     A: np.ndarray
@@ -146,11 +152,17 @@ class MPCProblem:
     weights: MPCWeights
     layout: IOStateLayout
     lqr_gain: np.ndarray
+    disturbance: DisturbanceSpec | None = None
 
     @property
     def nz(self) -> int:
         """State dimension."""
         return self.A.shape[0]
+
+    @property
+    def n_window_state(self) -> int:
+        """Entries of the measured window state ``z`` (without the disturbance estimate)."""
+        return self.layout.order
 
     @property
     def dt(self) -> float:
@@ -273,7 +285,7 @@ def _readonly(a: np.ndarray) -> np.ndarray:
 
 
 def mpc_problem(model: Model, horizon: int, weights: MPCWeights | None = None, limits: MPCLimits | None = None,
-                past: int = 1) -> MPCProblem:
+                past: int = 1, disturbance: DisturbanceSpec | None = None) -> MPCProblem:
     """Build the QP data of the MPC on ``model`` (normally the central model).
 
     Parameters
@@ -286,6 +298,8 @@ def mpc_problem(model: Model, horizon: int, weights: MPCWeights | None = None, l
         See :class:`MPCWeights`, :class:`MPCLimits`.
     past
         Past samples in the measured state (as the robust design's ``--past``).
+    disturbance
+        Append the disturbance estimate's states (see :class:`MPCProblem`); None: none.
     """
     weights = weights or MPCWeights()
     limits = limits or MPCLimits()
@@ -303,9 +317,21 @@ def mpc_problem(model: Model, horizon: int, weights: MPCWeights | None = None, l
     qz[layout.output_slot(0), layout.output_slot(0)] = w.output_matrix(q)
     qz[layout.n_window, layout.n_window] = w.i_max ** -2
     r = w.input_matrix(1)
+    if disturbance is not None:
+        if max(disturbance.channels) >= q:
+            raise DesignInputError(f"disturbance channels {disturbance.channels} name outputs beyond the model's {q}")
+        nd = len(disturbance.channels)
+        big = np.zeros((nz + nd, nz + nd))
+        big[:nz, :nz] = a
+        for i, j in enumerate(disturbance.channels):
+            big[layout.output_slot(0).start + j, nz + i] = 1.0        # d adds to output j's prediction
+        big[nz:, nz:] = math.exp(-layout.dt / disturbance.tau_d) * np.eye(nd)
+        a, b = big, np.vstack([b, np.zeros((nd, 1))])
+        qz = np.pad(qz, ((0, nd), (0, nd)))
+        nz += nd
     f, x = dlqr(a, b, qz, r)
     p = x if weights.terminal == "riccati" else qz
     e = np.zeros(nz)
     e[layout.output_slot(0).start + WHEEL_ANGLE_OUTPUT] = 1.0
     return MPCProblem(_readonly(a), _readonly(b), _readonly(qz), _readonly(r), _readonly(p), _readonly(e),
-                      int(horizon), limits, weights, layout, _readonly(f))
+                      int(horizon), limits, weights, layout, _readonly(f), disturbance)

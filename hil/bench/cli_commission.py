@@ -74,8 +74,9 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
                    help="Markov parameters (past window)")
     c.add_argument("--acceptance", choices=("refuse", "warn"), default="refuse",
                    help="a model that does not predict: stop (refuse) or go on with a warning")
-    c.add_argument("--disturbance-estimate", choices=("on", "off"), default="off",
-                   help="the robust controller with the disturbance estimate (design robust --disturbance-estimate)")
+    c.add_argument("--disturbance-estimate", choices=("on", "off"), default="on",
+                   help="the robust controller and the MPC with the disturbance estimate (design robust/mpc "
+                        "--disturbance-estimate; default on)")
     c.add_argument("--quiet", action="store_true", help="no progress")
     c.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
 

@@ -96,8 +96,8 @@ class CommissionOptions:
         (``models_order4/``, acceptance ``warn``) and design the robust controller and the MPC on
         those (``None``: do not).
     disturbance_estimate
-        The robust controller with the disturbance estimate (``design robust --disturbance-estimate
-        on``, :mod:`design.disturbance`).
+        The robust controller and the MPC with the disturbance estimate (``design robust/mpc
+        --disturbance-estimate on``, :mod:`design.disturbance`; docs/disturbance_estimate.md).
     """
 
     speeds: tuple[float, ...] = tuple(GEAR_SPEEDS.values())
@@ -115,7 +115,7 @@ class CommissionOptions:
     integral: bool = True
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
-    disturbance_estimate: bool = False
+    disturbance_estimate: bool = True
 
     def __post_init__(self) -> None:
         SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
@@ -284,7 +284,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
     def mpc_argv(models_dir: Path, w: list[str], past: str) -> list[str]:
         window = [] if past == "auto" else ["--past", past]
         return ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *w, *window,
-                "--rate-limit", f"{com.valve.max_rate:.6g}", "--out", str(ctrl / "mpc.json")]
+                *(["--disturbance-estimate", "on"] if opts.disturbance_estimate else []), "--rate-limit", f"{com.valve.max_rate:.6g}", "--out", str(ctrl / "mpc.json")]
 
     def design_all(models_dir: Path, with_lqr: bool) -> dict[str, dict]:
         designs: dict[str, dict] = {}

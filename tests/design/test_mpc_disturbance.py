@@ -1,0 +1,88 @@
+"""The linear MPC with the disturbance estimate in its state (design/mpc/problem.py, law.py, controller.py)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from design.controller import Measurement
+from design.disturbance import DisturbanceSpec
+from design.errors import ControllerFileError
+from design.files.load import load_controller
+from design.files.mpc import read_mpc_file
+from design.mpc import MPCLimits, SolverSettings
+from design.mpc.law import unconstrained_law
+from design.mpc_design import MPCSpec, design_mpc, fallback_from_file
+from design.robust import RobustSpec, design_robust
+
+from design_family import family, rewrite, tractor_model
+
+CENTRAL = tractor_model(1.79, name="central").with_meta(kind="central")
+LOCAL = family(speeds=(1.0, 2.91), authorities=(1.0, 0.7))
+
+
+@pytest.fixture(scope="module")
+def designed():
+    spec = MPCSpec(horizon=20, limits=MPCLimits(0.35, 0.5), settings=SolverSettings(time_budget=1.0),
+                   disturbance=DisturbanceSpec(tau_f=1.0))
+    return design_mpc(CENTRAL, LOCAL, spec)
+
+
+def test_the_state_carries_the_estimate_and_the_law_is_certified(designed):
+    p = designed.problem
+    assert p.nz == p.n_window_state + 2
+    assert designed.certificate.passed
+    assert np.any(np.abs(designed.unconstrained_gain[0, p.n_window_state:]) > 0)
+    assert designed.file.design["disturbance_estimate"] == {"tau_d_s": 2.0, "tau_f_s": 1.0, "channels": [0, 1]}
+
+
+def test_the_controller_runs_exactly_its_certified_law_when_no_limit_binds(designed):
+    # the vehicle's MPC (its estimator, its QP) and the certificate's compensator give the same commands
+    ctrl = designed.file.controller()
+    comp = unconstrained_law(designed.problem, designed.unconstrained_gain)
+    rng = np.random.default_rng(5)
+    xc = None
+    for j in range(120):
+        m = Measurement(j * 0.05, 0.004 * np.sin(j / 7) + rng.normal(0, 5e-4), 0.002 * np.cos(j / 5), 0.0, 1.79)
+        u_mpc = ctrl.step(m)
+        y = ctrl.outputs(m)
+        if xc is None:
+            xc = comp.X0 @ y
+        u = float(comp.Cc[0] @ xc + comp.Dc[0] @ y)
+        xc = comp.Ac @ xc + comp.Bc @ y
+        assert abs(u) < 0.3                                   # no limit binds
+        assert u_mpc == pytest.approx(u, abs=1e-6)
+    assert ctrl.fallbacks == 0
+
+
+def test_the_file_round_trips_and_a_bad_estimator_is_refused(designed, tmp_path):
+    path = designed.file.save(tmp_path / "mpc.json")
+    back = read_mpc_file(path)
+    assert back.disturbance == designed.file.disturbance
+    np.testing.assert_array_equal(back.law().Ac, unconstrained_law(designed.problem, designed.unconstrained_gain).Ac)
+    assert load_controller(path).name.startswith("mpc")
+    bad = tmp_path / "bad.json"
+    for edit, match in ((lambda b: b["estimator"]["disturbance"].update(channels=[0, 0]), "channels"),
+                        (lambda b: b["estimator"]["disturbance"].update(tau_f_s=-1.0), "tau_f"),
+                        (lambda b: b["estimator"]["disturbance"].pop("tau_d_s"), "exactly"),
+                        (lambda b: b["estimator"].update(kind="measured-window"), "exactly")):
+        bad.write_text(path.read_text())
+        rewrite(bad, edit)
+        with pytest.raises(ControllerFileError, match=match):
+            read_mpc_file(bad)
+    # a file whose estimate was dropped while keeping its certificate: the law no longer matches
+    bad.write_text(path.read_text())
+    rewrite(bad, lambda b: b.update(estimator={"kind": "measured-window", "past": 1, "integral": [0]}))
+    with pytest.raises(ControllerFileError):
+        read_mpc_file(bad)
+
+
+def test_the_robust_fall_back_gets_no_gain_on_the_estimate(designed, tmp_path):
+    robust = design_robust(LOCAL, RobustSpec(integral=True)).file.save(tmp_path / "robust.json")
+    k = fallback_from_file(robust, designed.problem)
+    nw = designed.problem.n_window_state
+    assert k.shape == (1, designed.problem.nz)
+    np.testing.assert_array_equal(k[0, nw:], 0.0)
+    np.testing.assert_array_equal(k[:, :nw], json.loads(robust.read_text())["design"]["gain_K"])

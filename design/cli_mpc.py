@@ -16,7 +16,8 @@ from identification.model import Model
 
 from .auto_designs import auto_mpc, spec_names
 from .cli_robust import _load_models, _weights, certificate_table, spec_lines
-from .cli_specs import (add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of,
+from .cli_specs import (add_disturbance_arguments, add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed,
+                        search_of, specs_of,
                         warn_relaxed)
 from .disturbance import DisturbanceSpec
 from .iostate import observable_past
@@ -131,12 +132,7 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--u-max", type=number, default=None, help="Bryson steering rate, rad/s (default 0.35)")
     p.add_argument("--i-max", type=number, default=None, help="Bryson integral of y/V, s^2 (default 0.5)")
     add_spec_arguments(p, number)
-    p.add_argument("--disturbance-estimate", choices=("on", "off"), default="off",
-                   help="the estimate of the soil's pull (design.disturbance) in the MPC's state and prediction")
-    p.add_argument("--disturbance-tau", type=number, default=DisturbanceSpec.tau_d,
-                   help="correlation time of the disturbance, s")
-    p.add_argument("--estimate-tau", type=number, default=DisturbanceSpec.tau_f,
-                   help="time constant of the disturbance estimate's filter, s")
+    add_disturbance_arguments(p, number, "carry it in the MPC's state and prediction")
     p.add_argument("--allow-unstable", action="store_true",
                    help="write it even if the unconstrained law is unstable on some model (recorded)")
     p.add_argument("--name", default=None)

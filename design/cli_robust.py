@@ -13,7 +13,8 @@ from .files.recheck import recheck
 from .export import FORMATS, export_controller
 from .errors import DesignInputError, VerificationError
 from .auto_designs import auto_robust, spec_names
-from .cli_specs import (add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed, search_of, specs_of,
+from .cli_specs import (add_disturbance_arguments, add_spec_arguments, latency_of, parse_past, progress_of,
+                        refuse_mixed, search_of, specs_of,
                         warn_relaxed)
 from .disturbance import DisturbanceSpec
 from .robust import RobustSpec, design_lqr, design_robust, with_disturbance_estimate
@@ -218,13 +219,8 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
                    help="measured-window state feedback, or anchored coordinates + the nominal model's predictor")
     r.add_argument("--output-clip", type=number, nargs="+", default=[0.1, 0.05, 0.0],
                    help="clip of each normalised output before the compensator (0 = none)")
-    r.add_argument("--disturbance-estimate", choices=("on", "off"), default="off",
-                   help="window structure: estimate the soil's pull from the one-step prediction error and feed it "
-                        "forward (design.disturbance; its gain is scaled back until the specifications hold)")
-    r.add_argument("--disturbance-tau", type=number, default=DisturbanceSpec.tau_d,
-                   help="correlation time of the disturbance, s")
-    r.add_argument("--estimate-tau", type=number, default=DisturbanceSpec.tau_f,
-                   help="time constant of the disturbance estimate's filter, s")
+    add_disturbance_arguments(r, number, "feed it forward (window structure; its gain is scaled back until the "
+                                         "specifications hold)")
     r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
     add_spec_arguments(r, number)

@@ -67,6 +67,18 @@ def add_spec_arguments(p: argparse.ArgumentParser, number: Callable[[str], float
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
 
+def add_disturbance_arguments(p: argparse.ArgumentParser, number: Callable[[str], float], what: str) -> None:
+    """``--disturbance-estimate on|off``, ``--disturbance-tau`` and ``--estimate-tau`` (design.disturbance)."""
+    from .disturbance import DisturbanceSpec
+    p.add_argument("--disturbance-estimate", choices=("on", "off"), default="off",
+                   help=f"estimate the soil's pull from the one-step prediction error and {what} "
+                        "(design.disturbance; docs/disturbance_estimate.md)")
+    p.add_argument("--disturbance-tau", type=number, default=DisturbanceSpec.tau_d,
+                   help="correlation time of the disturbance, s")
+    p.add_argument("--estimate-tau", type=number, default=DisturbanceSpec.tau_f,
+                   help="time constant of the disturbance estimate's filter, s")
+
+
 def latency_of(args: argparse.Namespace, models: list[Model]) -> tuple[float, ...] | None:
     """The latency (s per output): ``--latency``, else ``--latency-from-logs``, else the models' metadata."""
     q = models[0].n_outputs

@@ -345,35 +345,24 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
     designs: dict[str, dict] = {}
     if ident is not None and com is not None:
         designs = design_all(models_dir, True)
-        if "robust" not in designs and opts.fallback_order is not None:
-            # the robust LMIs over models of mixed orders (chosen by validation) were infeasible on the heavy
-            # and worn tractors, feasible over order-4 models: identify again at that order and design on those
+        # the robust LMIs over models of mixed orders (chosen by validation) were infeasible on the heavy and
+        # worn tractors, feasible over order-4 models: identify again at that order and design on those; when
+        # only the MPC is missing (its central model of the validated order admits no weights that meet the
+        # specifications), the MPC alone on those, with the robust law found as its fall-back
+        missing = "robust" if "robust" not in designs else ("mpc" if "mpc" not in designs else None)
+        if missing is not None and opts.fallback_order is not None:
             fallback_dir = out / f"models_order{opts.fallback_order}"
 
             def identify_again() -> dict:
                 r = identify_logs([str(out / "logs")], fallback_dir, order=opts.fallback_order, markov=opts.markov,
                                   latency="auto", acceptance="warn", progress=lambda d, n: tick("identification", d, n))
                 return {k: v for k, v in r.items() if k != "_text"}
+            why = "no robust design having been found" if missing == "robust" else "for the MPC"
             again = steps.run(f"identification (order {opts.fallback_order})", f"identification again at order "
-                              f"{opts.fallback_order}, no robust design having been found", identify_again)
+                              f"{opts.fallback_order}, {why}", identify_again)
             if again is not None:
-                res["identification_fallback"] = again
-                designs.update(design_all(fallback_dir, False))
-        elif "mpc" not in designs and opts.fallback_order is not None:
-            # the robust controller was found but not the MPC (its central model of the validated order
-            # admits no weights that meet the specifications): the MPC on models identified again at the
-            # fallback order, with the same robust law as its fall-back
-            fallback_dir = out / f"models_order{opts.fallback_order}"
-
-            def identify_for_mpc() -> dict:
-                r = identify_logs([str(out / "logs")], fallback_dir, order=opts.fallback_order, markov=opts.markov,
-                                  latency="auto", acceptance="warn", progress=lambda d, n: tick("identification", d, n))
-                return {k: v for k, v in r.items() if k != "_text"}
-            again = steps.run(f"identification (order {opts.fallback_order})", f"identification again at order "
-                              f"{opts.fallback_order} for the MPC", identify_for_mpc)
-            if again is not None:
-                res["identification_fallback"] = {**again, "for": "mpc"}
-                designs.update(design_mpc_only(fallback_dir))
+                res["identification_fallback"] = again if missing == "robust" else {**again, "for": "mpc"}
+                designs.update(design_all(fallback_dir, False) if missing == "robust" else design_mpc_only(fallback_dir))
     res["designs"] = designs
 
     def hil() -> list[dict]:

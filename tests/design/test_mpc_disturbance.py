@@ -86,3 +86,19 @@ def test_the_robust_fall_back_gets_no_gain_on_the_estimate(designed, tmp_path):
     assert k.shape == (1, designed.problem.nz)
     np.testing.assert_array_equal(k[0, nw:], 0.0)
     np.testing.assert_array_equal(k[:, :nw], json.loads(robust.read_text())["design"]["gain_K"])
+
+
+def test_design_mpc_on_the_command_line_writes_the_estimate(tmp_path):
+    from design.cli import main as design_main
+    paths = [str(CENTRAL.save(tmp_path / "central.npz"))]
+    paths += [str(m.save(tmp_path / f"local_{i}.npz")) for i, m in enumerate(LOCAL)]
+    robust = tmp_path / "robust.json"
+    assert design_main(["robust", "--models", *paths[1:], "--integral", "--disturbance-estimate", "on",
+                        "--latency", "0.05", "--out", str(robust)]) == 0
+    out = tmp_path / "mpc.json"
+    assert design_main(["mpc", "--models", *paths, "--fallback", str(robust), "--horizon", "20", "--latency", "0.05",
+                        "--disturbance-estimate", "on", "--estimate-tau", "1", "--out", str(out)]) == 0
+    body = json.loads(out.read_text())
+    assert body["estimator"]["kind"] == "measured-window+disturbance"
+    assert body["estimator"]["disturbance"] == {"tau_d_s": 2.0, "tau_f_s": 1.0, "channels": [0, 1]}
+    assert design_main(["verify", str(out), "--models", *paths]) == 0

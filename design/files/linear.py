@@ -39,7 +39,7 @@ import numpy as np
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-from ..acquisition import INTEGRAL_MEMORY_S, IntegralGate, integral_kept
+from ..acquisition import INTEGRAL_MEMORY_S, HeadlandIntegrals, IntegralGate, integral_kept
 from ..compensator import Compensator, integrator_states
 from ..curvature import Reference
 from ..controller import Measurement
@@ -330,6 +330,7 @@ class LinearController:
         self._last_t = math.inf                         # time of the last step, s
         self.gate = IntegralGate()
         self.reference = Reference(self.dt, spec.rate_limit, recorded_latency(spec.certificate))
+        self._headland = HeadlandIntegrals()
         if acquisition:
             self.preview_request = self.reference.preview_request
 
@@ -339,6 +340,17 @@ class LinearController:
         self._far = False
         self.gate.reset()
         self.reference.reset()
+
+    def enter_part(self, kind: str) -> None:
+        """The loop's station entered a part of a field's route (:data:`design.curvature.ROUTE_PART_METHOD`):
+        over a headland turn the integrators are set aside (:class:`design.acquisition.HeadlandIntegrals`)
+        and the next pass is acquired as on engage (:meth:`design.curvature.Reference.enter_part`)."""
+        was = self.reference.headland
+        self.reference.enter_part(kind)
+        new = self._headland.enter(was, self.reference.headland, self._kept)
+        if new is not None and self._integrators.size:
+            self._xc[self._integrators] = new
+            self._kept = new.copy()
 
     def _turning(self, y: np.ndarray) -> bool:
         """An output other than the cross-track (heading error, wheel angle) is at its clip."""
@@ -377,6 +389,8 @@ class LinearController:
             gap = float(m.t) - self._last_t
             if self._integrators.size and integral_kept(gap):
                 self._xc[self._integrators] = self._kept     # a re-engage: the pull learnt before it
+            else:
+                self._headland.forget()
         self._last_t = float(m.t)
         u = float(self._cc @ self._xc + self._dc @ y)
         if not math.isfinite(u):

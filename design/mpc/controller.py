@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..acquisition import IntegralGate, integral_kept
+from ..acquisition import HeadlandIntegrals, IntegralGate, integral_kept
 from ..controller import Measurement
 from ..curvature import PREVIEW_MAX, Reference
 from ..errors import DesignInputError
@@ -165,6 +165,7 @@ class MPCController:
         self._s = np.zeros(q)                    # prediction of the next outputs
         self._dp = np.zeros(self._dist.size)     # the estimate carried to the next tick
         self.reference = Reference(self.dt, problem.limits.rate, latency, approach=False)
+        self._headland = HeadlandIntegrals()
         n, step = self.reference.preview_request
         #: The curvature preview over the whole horizon (and the latency), stretches of ``V dt``.
         self.preview_request = (min(n + problem.horizon, PREVIEW_MAX), step)
@@ -249,6 +250,16 @@ class MPCController:
         self.gate.reset()
         self.reference.reset()
 
+    def enter_part(self, kind: str) -> None:
+        """The loop's station entered a part of a field's route (:data:`design.curvature.ROUTE_PART_METHOD`):
+        over a headland turn the integral is set aside (:class:`design.acquisition.HeadlandIntegrals`)."""
+        was = self.reference.headland
+        self.reference.enter_part(kind)
+        new = self._headland.enter(was, self.reference.headland, self._kept)
+        if new is not None:
+            self._z[self._integral] = new
+            self._kept = new.copy()
+
     def step(self, m: Measurement) -> float:
         rate_ref = wheel_ref = None
         if m.curvature or any(m.preview):               # on a curve: the reference over the horizon
@@ -259,6 +270,8 @@ class MPCController:
         z = self.state(y)
         if self._fresh and integral_kept(float(m.t) - self._last_t):
             z[self._integral] = self._kept              # a re-engage: the pull learnt before it
+        elif self._fresh:
+            self._headland.forget()
         self._last_t = float(m.t)
         info = self.solve_qp(z, rate_ref, wheel_ref)
         if info.fallback:

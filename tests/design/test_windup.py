@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from design.acquisition import ACQUIRE_BAND_M, IntegralGate
+from design.acquisition import ACQUIRE_BAND_M, HeadlandIntegrals, IntegralGate
 from design.compensator import integrator_states
 from design.curvature import APPROACH_KAPPA_MAX, ApproachPath
 from design.errors import DesignInputError
@@ -118,3 +118,36 @@ def test_acquisition_settles_without_overshoot(implement, speed, y0):
     t, y = log.times["t"], log.channels["cross_track"]
     late = t >= t_cross + 10.0
     assert abs(float(y[late].mean())) <= 0.02            # on the line after it
+
+
+def test_headland_integrals_are_set_aside_over_a_turn_and_given_back():
+    h = HeadlandIntegrals()
+    assert h.enter(False, False, np.array([0.2])) is None                 # a curve inside a pass: no change
+    assert h.enter(False, True, np.array([0.2])).tolist() == [0.0]       # into the turn: zero
+    assert h.enter(False, True, np.array([0.0])).tolist() == [0.0]       # a re-engage on it keeps the first values
+    assert h.enter(True, False, np.array([0.0])).tolist() == [0.2]       # out of it: given back
+    assert h.enter(True, False, np.array([0.0])) is None
+    h.enter(False, True, np.array([0.3]))
+    h.forget()                                                           # a long disengage: nothing to give back
+    assert h.enter(True, False, np.array([0.0])) is None
+
+
+@pytest.mark.parametrize("name", ["robust", "mpc"])
+def test_the_controllers_set_their_integral_aside_on_a_headland_turn(name):
+    from design.controller import Measurement
+    ctl = make_controller(str(Path(ROBUST).with_name(f"{name}.json")))
+    slot = (integrator_states(ctl.spec.compensator) if name == "robust" else ctl._integral)
+    state = (lambda: ctl._xc[list(slot)]) if name == "robust" else (lambda: ctl._z[slot])
+    t = 0.0
+    for k in range(400):                                 # 20 s 5 cm left of the line: the integral learns
+        t = 0.05 * k
+        ctl.step(Measurement(t, 0.05 if k > 40 else 0.0, 0.0, 0.0, 2.0))
+    learnt = state().copy()
+    assert np.all(np.abs(learnt) > 0)
+    ctl.enter_part("turn")
+    for k in range(100):
+        t += 0.05
+        ctl.step(Measurement(t, 0.3, 0.05, 0.2, 2.0, 0.1))
+    assert np.all(state() == 0.0)                        # zero and held over the turn
+    ctl.enter_part("straight")
+    assert np.array_equal(state(), learnt)               # given back where the next pass starts

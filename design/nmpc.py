@@ -310,6 +310,8 @@ class NonlinearMPC:
         self._k_table = np.array([self._gain_at(v, pm) for v, pm in zip(self.speeds, self._p_table)])
         self._solver = self._build()
         self._n_w = n + 1
+        self._triu = np.triu_indices(self.nx)
+        self._p = np.zeros(self.nx + 1 + n + len(self._triu[0]))
         self._lbx = np.r_[np.full(n, -s.rate_limit), 0.0]
         self._ubx = np.r_[np.full(n, s.rate_limit), np.inf]
         self._lbg = np.r_[np.full(n, -np.inf), np.full(n, -s.wheel_limit)]
@@ -433,7 +435,7 @@ class NonlinearMPC:
         The constraints are linear in the decision variables (``delta_k`` is ``delta_0`` plus a
         sum of rates), so every iterate after the first QP is feasible; only the cost is
         linearised. Outputs: the last iterate, its cost, the infinity norm of the last step and
-        the multipliers of the last QP.
+        the predicted trajectory of the last iterate.
         """
         s = self.settings
         nw = wv.numel()
@@ -459,9 +461,8 @@ class NonlinearMPC:
         cost = ca.sumsqr(rr) + rho1 * w[nw - 1]
         n, nx = s.horizon, self.nx
         traj = self._trajectory(p[:nx], w[:n], p[nx], p[nx + 1:nx + 1 + n])     # the prediction, in the same call
-        return ca.Function("nmpc_gn", [w0, p, lbx, ubx, lbg, ubg],
-                           [w, cost, ca.norm_inf(sol["x"]), sol["lam_x"], sol["lam_a"], traj],
-                           ["x0", "p", "lbx", "ubx", "lbg", "ubg"], ["x", "f", "step", "lam_x", "lam_g", "traj"])
+        return ca.Function("nmpc_gn", [w0, p, lbx, ubx, lbg, ubg], [w, cost, ca.norm_inf(sol["x"]), traj],
+                           ["x0", "p", "lbx", "ubx", "lbg", "ubg"], ["x", "f", "step", "traj"])
 
     # -- solving -------------------------------------------------------------------
     def terminal_weight(self, speed: float) -> np.ndarray:
@@ -503,7 +504,9 @@ class NonlinearMPC:
             raise DesignInputError(f"curvature preview up to {np.abs(kap).max():.3f} 1/m is tighter than a "
                                    f"tractor turns; check the path")
         pm = self.terminal_weight(speed)
-        p = np.r_[x0, speed, kap, pm[np.triu_indices(self.nx)]]
+        p = self._p                                     # [x0, V, kappa_0..N-1, upper triangle of P]
+        nx = self.nx
+        p[:nx], p[nx], p[nx + 1:nx + 1 + n], p[nx + 1 + n:] = x0, speed, kap, pm[self._triu]
         args = {"x0": self._w if warm else np.zeros(self._n_w), "p": p, "lbx": self._lbx, "ubx": self._ubx,
                 "lbg": self._lbg, "ubg": self._ubg}
         if warm and s.solver != "gauss-newton":
@@ -532,12 +535,15 @@ class NonlinearMPC:
         if not np.all(np.isfinite(w)):
             self._w = np.zeros(self._n_w)                 # no warm start from non-finite values
             raise SynthesisError(f"NMPC solver returned non-finite values ({status})")
-        # warm start of the next tick: shift by one stage
-        self._w = np.r_[u[1:], u[-1], w[n]]
-        lam_x = np.asarray(out["lam_x"]).reshape(-1)
-        lam_g = np.asarray(out["lam_g"]).reshape(-1)
-        self._lam_x = np.r_[lam_x[1:n], lam_x[n - 1], lam_x[n]]
-        self._lam_g = np.r_[lam_g[1:n], lam_g[n - 1], lam_g[n + 1:], lam_g[-1]]
+        # warm start of the next tick: shift by one stage (the multipliers too for sqp/ipopt)
+        w_next = np.empty(self._n_w)
+        w_next[:n - 1], w_next[n - 1], w_next[n] = u[1:], u[-1], w[n]
+        self._w = w_next
+        if s.solver != "gauss-newton":
+            lam_x = np.asarray(out["lam_x"]).reshape(-1)
+            lam_g = np.asarray(out["lam_g"]).reshape(-1)
+            self._lam_x = np.r_[lam_x[1:n], lam_x[n - 1], lam_x[n]]
+            self._lam_g = np.r_[lam_g[1:n], lam_g[n - 1], lam_g[n + 1:], lam_g[-1]]
         states = np.asarray(out["traj"]) if "traj" in out else self.predict(x0, u, speed, kap)
         return NMPCSolution(u=u.copy(), states=states, slack=float(w[n]), cost=float(out["f"]),
                             success=success, status=status, iterations=iterations, solve_time=elapsed,

@@ -40,7 +40,9 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
                    help="identified model files or directories its linearisation is certified on")
     p.add_argument("--out", required=True, help="controller file (.json)")
     p.add_argument("--horizon", type=int, default=30, help="stages (default 30 = 1.5 s at 20 Hz)")
-    p.add_argument("--y-max", type=number, default=0.3, help="Bryson: cross-track, m (default 0.3)")
+    p.add_argument("--y-max", type=number, default=0.2,
+                   help="Bryson: cross-track, m (default 0.2; docs/nmpc.md: 0.15 tracks better, 0.12 diverges on the "
+                        "simulator at 2.91 m/s, 0.10 and below are refused by the rate-limited check)")
     p.add_argument("--psi-max-deg", type=number, default=5.0, help="Bryson: heading error, deg")
     p.add_argument("--delta-max-deg", type=number, default=5.0, help="Bryson: wheel angle, deg")
     p.add_argument("--u-max", type=number, default=0.35, help="Bryson: steering rate, rad/s")

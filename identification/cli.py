@@ -207,7 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--out", required=True, help="model file to write (.npz)")
     f.add_argument("--order", type=_order, default="auto",
                    help="model order, 'auto' (default, Hankel gap) or 'validate' (1-10, the order whose "
-                   "model simulates the held-back 30 %% of the fit data best, both ways)")
+                   "model simulates the held-back 15 %% of the fit data best, both ways)")
     f.add_argument("--markov", type=_markov, default="auto")
     f.add_argument("--dt", type=_seconds(1e-9, 1e6), default=None,
                    help="sample time, s (default: from a time column, else 1)")
@@ -216,9 +216,10 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--refine", choices=("pem", "oe", "oe-all", "none", "validate"), default="pem",
                    help="re-estimate B, D for one-step prediction (pem, default) or simulation (oe); "
                    "oe-all: refine all of A, B, C, D by output error from the ERA model; validate: "
-                   "ERA's or the CVA subspace method's A, C with their own (CVA), least-squares or "
-                   "output-error B, D, or all refined, whichever simulates the fit data's held-back "
-                   "tails best (with --order validate or validate here, ERA and CVA both compete)")
+                   "ERA's or a subspace method's (CVA or N4SID weighting) A, C with their own "
+                   "(subspace), least-squares or output-error B, D, or all refined, whichever "
+                   "simulates the fit data's held-back "
+                   "tails best (with --order validate or validate here, ERA, CVA and N4SID all compete)")
     f.add_argument("--split", type=_fraction, default=None,
                    help="fit on this leading fraction of each experiment and validate on the rest")
     f.add_argument("--experiment-column", default=None, help="column that numbers separate experiments")

@@ -1,6 +1,6 @@
-"""Subspace identification by canonical variate analysis (CVA): states estimated, then regressed on.
+"""Subspace identification (N4SID, MOESP, CVA weightings): states estimated, then regressed on.
 
-A second realisation beside OKID/ERA for :func:`identification.generic.fit_record`.
+Realisations beside OKID/ERA for :func:`identification.generic.fit_record`.
 ERA factors a Hankel matrix of Markov parameters that OKID estimated through
 an observer; a subspace method estimates the *states* from the data and finds
 the matrices by least squares on them (Van Overschee and De Moor, *Subspace
@@ -11,10 +11,21 @@ of the past and ``k + f`` of the future):
 
 * the LQ factorisation ``[U_f; W_p; Y_f] = L Qᵀ`` gives the oblique projection
   of ``Y_f`` along ``U_f`` onto ``W_p``, ``O = L32 L22⁺ W_p``;
-* the CVA weight ``W1 = (Y_f Π⊥ Y_fᵀ)^(-1/2)`` (``Π⊥`` projects on the orthogonal
-  complement of the rows of ``U_f``) equalises the future outputs' directions;
-  the ``n`` leading left singular vectors of ``W1 O Π⊥`` give the extended
-  observability matrix ``Γ = W1⁻¹ U₁ S₁^(1/2)``;
+* the three classic algorithms differ only in the weights of the unifying
+  theorem (ibid., ch. 4, Van Overschee and De Moor, Automatica 31(12), 1995), the SVD ``W1 O W2 = U S Vᵀ``:
+
+  ============  ============================  ======
+  weighting     ``W1`` (rows)                 ``W2``
+  ============  ============================  ======
+  ``"n4sid"``   ``I``                         ``I``
+  ``"moesp"``   ``I``                         ``Π⊥``
+  ``"cva"``     ``(Y_f Π⊥ Y_fᵀ)^(-1/2)``      ``Π⊥``
+  ============  ============================  ======
+
+  (``Π⊥`` projects on the orthogonal complement of the rows of ``U_f``; in the
+  LQ coordinates ``W_p Π⊥ = L22 Q2ᵀ`` while ``W_p = L21 Q1ᵀ + L22 Q2ᵀ``, so one
+  product serves all three); the ``n`` leading left singular vectors give the
+  extended observability matrix ``Γ = W1⁻¹ U₁ S₁^(1/2)``;
 * the states are ``X = Γ⁺ O`` (column ``k`` is the state at sample ``k + f``), and
 
       [x(k+1); y(k)] = [A B; C D] [x(k); u(k)]
@@ -42,6 +53,8 @@ from .errors import DataError, RealizationError
 HORIZON = 20
 #: Hankel columns formed at a time.
 CHUNK = 4096
+#: Weightings ``W1`` (on the future outputs' rows), ``W2`` (on the columns) of the oblique projection.
+WEIGHTINGS = {"n4sid": ("I", "I"), "moesp": ("I", "Π⊥"), "cva": ("(Y_f Π⊥ Y_fᵀ)^(-1/2)", "Π⊥")}
 
 
 @dataclass(frozen=True)
@@ -71,7 +84,13 @@ def _triangular_update(r: np.ndarray | None, block: np.ndarray) -> np.ndarray:
 
 def cva(data: IOData, order: int, horizon: int = HORIZON, feedthrough: bool = True,
         stable: bool = True, chunk: int = CHUNK) -> SubspaceModel:
-    """Identify ``A, B, C, D`` of ``data`` by CVA states and least squares (module docstring).
+    """CVA states and least squares: :func:`subspace` with ``weighting="cva"``."""
+    return subspace(data, order, "cva", horizon, feedthrough, stable, chunk)
+
+
+def subspace(data: IOData, order: int, weighting: str = "cva", horizon: int = HORIZON,
+             feedthrough: bool = True, stable: bool = True, chunk: int = CHUNK) -> SubspaceModel:
+    """Identify ``A, B, C, D`` of ``data`` by subspace states and least squares (module docstring).
 
     Parameters
     ----------
@@ -79,6 +98,9 @@ def cva(data: IOData, order: int, horizon: int = HORIZON, feedthrough: bool = Tr
         Experiments (input and output in the record's units, one sample time).
     order
         Number of states ``n`` (1 .. ``horizon * q``).
+    weighting
+        ``"cva"``, ``"moesp"`` or ``"n4sid"``: the weights ``W1``, ``W2`` of the unifying
+        theorem (:data:`WEIGHTINGS`).
     horizon
         Block rows ``f`` of the past and of the future, samples; every experiment
         needs at least ``2 f + 2`` samples.
@@ -104,6 +126,8 @@ def cva(data: IOData, order: int, horizon: int = HORIZON, feedthrough: bool = Tr
     RealizationError
         An order outside 1 .. ``f q`` or beyond the weighted projection's rank.
     """
+    if weighting not in WEIGHTINGS:
+        raise RealizationError(f"the subspace weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
     m, q = data.n_inputs, data.n_outputs
     f = int(horizon)
     if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= f * q:
@@ -147,7 +171,11 @@ def cva(data: IOData, order: int, horizon: int = HORIZON, feedthrough: bool = Tr
                                "the record cannot be realised by the subspace method")
     sv = np.maximum(sv, 1e-12 * sv[0])
     w1, w1_inv = (uy / sv) @ uy.T, (uy * sv) @ uy.T
-    uu, s, _ = np.linalg.svd(w1 @ l32 @ (l22p @ l22), full_matrices=False)
+    if weighting != "cva":
+        w1 = w1_inv = np.eye(f * q)
+    # O W2 in the LQ coordinates: W2 = Π⊥ keeps the Q2 part of W_p = L21 Q1ᵀ + L22 Q2ᵀ, W2 = I all of it
+    wp = l22 if weighting != "n4sid" else low[r1:r1 + r2, :r1 + r2]
+    uu, s, _ = np.linalg.svd(w1 @ l32 @ (l22p @ wp), full_matrices=False)
     if not s[order - 1] > 1e-12 * s[0]:
         raise RealizationError(f"the weighted projection has rank below {order} (singular values "
                                f"{s[order - 1]:.3g} vs {s[0]:.3g}); lower the order")

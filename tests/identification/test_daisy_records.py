@@ -66,16 +66,21 @@ def test_thermic_res_wall_layout():
 
 
 def _auto_fit(name: str, first: int, m: int) -> np.ndarray:
+    # the benchmark's split (benchmarks/bench_identification.py): the first len // 2 samples fit
     raw = np.loadtxt(DATA / name / f"{name}.dat")
-    fit, val = IOData.from_arrays(raw[:, first:first + m], raw[:, first + m:]).split(0.5)
+    h = raw.shape[0] // 2
+    fit = IOData.from_arrays(raw[:h, first:first + m], raw[:h, first + m:])
+    val = IOData.from_arrays(raw[h:, first:first + m], raw[h:, first + m:])
     md, _ = fit_record(fit)
     return validate(md.A, md.B, md.C, md.D, md.K, val).free_run_fit
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name, first, m, floor", [
-    ("dryer2", 1, 3, 7.9),               # benchmark: 8.93 (n=8, CVA); best peer 10.99 (nfoursid, n chosen on validation)
-    ("heating_system", 1, 1, 82.7),      # benchmark: 83.76 (n=7, ERA); best peer 83.64 (nfoursid)
+    # benchmark: 21.01 (n=6, CVA, all refined; 8.93 with the 70 % folds); best peer 10.99 (nfoursid, n chosen
+    # on validation). Fragile: with a fit half one sample longer (434) the choice is n=8 ERA all refined, 4.36 %
+    ("dryer2", 1, 3, 15.0),
+    ("heating_system", 1, 1, 84.5),      # benchmark: 85.98 (n=6, ERA, all refined; 83.76 before); best peer 83.64
     ("thermic_res_wall", 0, 2, 84.5),    # benchmark: 85.50 (n=2, CVA); best peer 85.28 (nfoursid)
 ])
 def test_automatic_fit_on_the_new_records(name, first, m, floor):

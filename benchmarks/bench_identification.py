@@ -23,10 +23,10 @@ tests/identification/test_daisy.py; ``okid-best-n`` is treated like the peers (e
 with the realisation and refinement chosen on the fit half, the best order on the validation half);
 ``okid-validate`` is the automatic path of
 ``identification fit --order validate --refine validate``: order 1..10, the
-realisation of A, C (OKID/ERA or the CVA subspace method) and the refinement
+realisation of A, C (OKID/ERA, or the subspace method with the CVA or N4SID weighting) and the refinement
 (B, D only, or all of A, B, C, D by output error) chosen on the fit half alone
 (identification/generic.py), so it never sees the validation half. The okid
-rows are labelled ``n`` (ERA), ``nc`` (CVA) and ``*`` (all matrices refined).
+rows are labelled ``n`` (ERA), ``nc`` (CVA), ``ns`` (N4SID weighting) and ``*`` (all matrices refined).
 
 Every process runs on one BLAS thread (set before numpy is imported): on a
 shared 2-core host, threaded BLAS made the small products of these fits two
@@ -241,8 +241,9 @@ def daisy_records() -> list[str]:
 
 
 def _label(order: int, sel) -> str:
-    """Order of a fit_record model with its realisation and refinement: ``c`` CVA, ``*`` all refined."""
-    return f"{order}{'c' if sel.realisation == 'cva' else ''}{'*' if sel.refine == 'oe-all' else ''}"
+    """Order of a fit_record model with its realisation and refinement: ``c`` CVA, ``s`` N4SID, ``*`` all refined."""
+    tag = {"cva": "c", "n4sid": "s", "moesp": "m"}.get(sel.realisation, "")
+    return f"{order}{tag}{'*' if sel.refine == 'oe-all' else ''}"
 
 
 def daisy_table() -> list[dict]:
@@ -292,6 +293,24 @@ def daisy_table() -> list[dict]:
     return rows
 
 
+def print_summary(rows: list[dict]) -> None:
+    """Ours (like the peers, and all chosen on the fit half) against the best peer, mean fit %."""
+    def mean(r):
+        return None if r["free_run_fit"] is None else float(np.mean(r["free_run_fit"]))
+
+    print("\nrecord            okid-best-n   okid-validate   best peer            ahead?")
+    for name in dict.fromkeys(r["data"] for r in rows):
+        mine = {r["method"]: r for r in rows if r["data"] == name}
+        peers = [r for r in rows if r["data"] == name and not r["method"].startswith("okid")
+                 and mean(r) is not None]
+        best = max(peers, key=mean)
+        ours = [mean(mine[k]) for k in ("okid-best-n", "okid-validate")]
+        flags = "/".join("yes" if v is not None and v >= mean(best) else "NO" for v in ours)
+        shown = ["  failed" if v is None else f"{v:8.2f}" for v in ours]
+        print(f"{name:16s} {shown[0]} ({mine['okid-best-n']['order']}) {shown[1]} "
+              f"({mine['okid-validate']['order']}) {mean(best):8.2f} ({best['method']}, {best['order']})  {flags}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[5_000, 50_000, 200_000, 1_000_000])
@@ -313,8 +332,9 @@ def main() -> None:
           f"{'free %':>8s} {'1-step %':>6s}")
     syn = synthetic_table(sizes, args.methods) if sizes else []
     print("\nDaISy records, free-run validation fit % per output (first half fit, second half validate;"
-          " n* = all of A, B, C, D refined by output error; nc = A, C by CVA, not ERA)")
+          " n* = all of A, B, C, D refined by output error; nc, ns = A, C by CVA, N4SID, not ERA)")
     dai = daisy_table()
+    print_summary(dai)
     if args.json:
         Path(args.json).write_text(json.dumps({"synthetic": syn, "daisy": dai}, indent=2))
 

@@ -14,8 +14,8 @@ is the controller's own steady error. The controllers are the committed demo fil
   the integral ran through the turns, learnt the turn's own slip (the turns alternate left and
   right) and carried it into the next pass: on 60 m passes at 2.91 m/s, 12 m apart, seed 2, the
   passes after the turns held a bias of +1.41 / -1.43 / +1.24 cm without an implement and +1.61 /
-  -1.68 / +1.42 cm with the ripper, entered 4.4-6.2 cm off the line; now 0.03-0.11 cm and 0.04-0.09
-  cm, entered 0.9-2.5 cm off.
+  -1.68 / +1.42 cm with the ripper, entered 4.4-6.2 cm off the line; now 0.04-0.10 cm and 0.02-0.08
+  cm, entered 1.0-2.3 cm off (c495917).
 """
 
 from __future__ import annotations

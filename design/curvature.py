@@ -62,7 +62,7 @@ PREVIEW_MAX = 1000
 #: Name of the optional method ``enter_part(kind: str) -> None`` that the vehicle loop calls on a field's
 #: route whenever its station enters a part of another kind, and on the first cycle after every engage:
 #: ``kind`` is ``"straight"``, ``"curve"``, ``"turn"`` (a headland turn) or ``""`` (outside every part).
-#: The loop looks for it on the controller, then on the controller's ``reference`` (a :class:`Reference`).
+#: The robust/LQR files and the MPC pass it on to their :class:`Reference` (:meth:`Reference.enter_part`).
 ROUTE_PART_METHOD = "enter_part"
 #: The part kind of a headland turn.
 HEADLAND_KIND = "turn"

@@ -25,9 +25,8 @@ search by the time elapsed). The loop stays engaged through a
 headland turn, as AgOpenGPS keeps autosteer on through its U-turn: the turn is part of
 the one route, the controller sees its curvature like any curve's, and the same
 health checks apply (there is no separate turn mode to hand over to and back from). A
-controller with the optional method ``enter_part(kind)`` (:data:`design.curvature.ROUTE_PART_METHOD`;
-else the method of its ``reference``, a :class:`design.curvature.Reference`) is told, before its
-step, whenever the loop's station enters a part of another kind and on the first cycle after every
+controller with the optional method ``enter_part(kind)`` (:data:`design.curvature.ROUTE_PART_METHOD`)
+is told, before its step, whenever the loop's station enters a part of another kind and on the first cycle after every
 engage, so it can hold its integral over a headland turn and acquire the next pass as on engage.
 
 Every cycle is recorded; :meth:`VehicleLoop.run_log` turns the record into a
@@ -476,13 +475,9 @@ def _checked_parts(parts: Sequence) -> tuple[tuple[float, float, float, float], 
 
 
 def _route_part_method(controller: Controller) -> Callable[[str], None] | None:
-    """The controller's ``enter_part`` (:data:`design.curvature.ROUTE_PART_METHOD`), else its reference's; None
-    when neither has one."""
-    for owner in (controller, getattr(controller, "reference", None)):
-        hook = getattr(owner, ROUTE_PART_METHOD, None)
-        if callable(hook):
-            return hook
-    return None
+    """The controller's ``enter_part`` (:data:`design.curvature.ROUTE_PART_METHOD`); None when it has none."""
+    hook = getattr(controller, ROUTE_PART_METHOD, None)
+    return hook if callable(hook) else None
 
 
 def _preview_request(controller: Controller) -> tuple[int, float]:

@@ -288,3 +288,35 @@ def test_pass_spacing_is_measured_to_the_neighbour_track_and_never_across_its_ga
     assert np.nanmax(np.abs(d - 0.05)) < 1e-9            # exact on an arc, where measured
     assert np.isnan(d[(s > 20.5) & (s < 29.5)]).all()   # not to the 10 m chord across the gap (0.4 m off)
     assert np.isnan(d[s > 50.5]).all() and np.isfinite(d[(s > 1) & (s < 19)]).all()
+
+
+class PartRecorder(KinematicLQRController):
+    """The kinematic LQR, recording what the loop tells it of the route's parts (``enter_part``)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.told: list[tuple[int, str]] = []    # (cycle of the step that follows, kind)
+        self.steps = 0
+
+    def enter_part(self, kind: str) -> None:
+        self.told.append((self.steps, kind))
+
+    def step(self, m):
+        self.steps += 1
+        return super().step(m)
+
+
+def test_the_loop_tells_the_controller_every_change_of_route_part(hairpin):
+    ctrl = PartRecorder()
+    _, log = run_field(hairpin, ctrl, params=NO_DROPOUTS)
+    engaged = log.channels["engaged"] > 0.5
+    kinds = log.channels["part_kind"][engaged]          # the part at the loop's station, every engaged cycle
+    names = {**{float(v): k for k, v in PART_KINDS.items()}, -1.0: ""}     # -1: past the route's end
+    changes = [0] + [i for i in range(1, kinds.size) if kinds[i] != kinds[i - 1]]
+    assert ctrl.steps == kinds.size and len(log.meta["events"]) == 2          # one engage, one stop at the end
+    assert ctrl.told == [(i, names[kinds[i]]) for i in changes]             # told before the step, each change once
+    assert [k for _, k in ctrl.told] == ["straight", "turn", "straight", "turn", "straight", ""]   # "": past the end
+    # on an AB line there are no parts: never called
+    ab = PartRecorder()
+    simulated_run(RunSpec(speed=1.79, duration=3.0, seed=1), ab)
+    assert ab.steps > 0 and ab.told == []

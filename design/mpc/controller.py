@@ -288,7 +288,7 @@ class MPCController:
         if self._dist.size:
             nw, dh = self.problem.n_window_state, z[self._dist]
             self._s = self._f @ z[:nw] + self._g * (sent - ff) + self._sel.T @ (self._a * dh)
-            if not (clipped or sent != u + ff):   # at a limit the estimate is held (as the linear files')
+            if not (clipped or abs(sent) >= lim * (1.0 - 1e-9)):   # at a limit the estimate is held
                 self._dp = self._a * dh
         if not (self.gate.integrate(float(m.cross_track), clipped) and self.reference.acquired):
             self._z[self._integral] = z[self._integral]               # acquiring: the integral is held

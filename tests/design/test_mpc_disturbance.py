@@ -102,3 +102,19 @@ def test_design_mpc_on_the_command_line_writes_the_estimate(tmp_path):
     assert body["estimator"]["kind"] == "measured-window+disturbance"
     assert body["estimator"]["disturbance"] == {"tau_d_s": 2.0, "tau_f_s": 1.0, "channels": [0, 1]}
     assert design_main(["verify", str(out), "--models", *paths]) == 0
+
+
+def test_the_estimate_is_held_while_the_command_is_at_the_rate_limit(designed):
+    # the QP keeps its command within the rate limit, so "at the limit" is |u| = limit, not a clip: a large
+    # heading error saturates the MPC, and its estimate must not learn from that (campaign 4, random-2 at
+    # 2.91 m/s: 10.1 and 13.9 cm with the estimate learning at the limit, 4.3 and 5.6 cm held)
+    ctrl = designed.file.controller()
+    for j in range(40):
+        ctrl.step(Measurement(j * 0.05, 0.003 * np.sin(j / 4), 0.001, 0.0, 1.79))
+    before = ctrl._dp.copy()
+    assert np.any(before != 0)
+    lim = designed.problem.limits.rate
+    for j in range(40, 44):
+        u = ctrl.step(Measurement(j * 0.05, 0.0, 0.07, 0.0, 1.79))
+        assert abs(u) == pytest.approx(lim)
+        np.testing.assert_array_equal(ctrl._dp, before)

@@ -121,6 +121,15 @@ def test_a_law_that_oscillates_between_the_rate_limits_is_refused(models, tmp_pa
     assert "rate-limited check" in capsys.readouterr().err and not out.exists()
 
 
+def test_verify_on_faster_models_runs_the_rate_limited_check(models):
+    from design.files.nmpc import recheck_nmpc
+    tight = dataclasses.replace(SETTINGS, weights=KinematicWeights(y_max=0.05))
+    slow = [m for m in models if m.meta["conditions"][0]["nominal_speed"] == 1.0]
+    body = design_nmpc(slow, tight).to_dict()                # passes at 1 m/s
+    _, problems = recheck_nmpc(body, models)                 # not at 2.91 m/s
+    assert any("fails the rate-limited check on v2.91" in p and "raise --y-max" in p for p in problems), problems
+
+
 def test_design_nmpc_and_verify_commands(models, tmp_path, capsys):
     paths = []
     for i, m in enumerate(models[:2]):

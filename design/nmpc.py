@@ -65,8 +65,9 @@ from typing import Any, Mapping
 import casadi as ca
 import numpy as np
 
-from .acquisition import IntegralGate, integral_kept
+from .acquisition import HeadlandIntegrals, IntegralGate, integral_kept
 from .controller import Measurement
+from .curvature import HEADLAND_KIND
 from .curvature import steady_state as curvature_steady_state
 from .errors import DesignInputError, SynthesisError
 from .kinematic import KinematicWeights
@@ -326,6 +327,8 @@ class NonlinearMPC:
         self.solve_times: deque[float] = deque(maxlen=72_000)     # an hour of ticks at 20 Hz
         self.cpu_times: deque[float] = deque(maxlen=72_000)
         self._last_t = -math.inf
+        self._headland = HeadlandIntegrals()
+        self.headland = False      # on a field's headland turn (the loop's enter_part): the integral set aside
         self.reset()
 
     # -- construction --------------------------------------------------------------
@@ -599,16 +602,19 @@ class NonlinearMPC:
     def step_curve(self, m: Measurement, curvature: np.ndarray) -> float:
         """Steering-rate command, rad/s, for a curved line with the curvature ``preview`` ahead.
 
-        The NMPC's first move when its solve converged within the time budget; otherwise the
+        The NMPC's first move when its solve converged within ``max_calls`` calls; otherwise the
         certified linear law's (:meth:`fallback_command`, at the curvature under the tractor),
         counted in :attr:`fallbacks` and recorded in :attr:`events`. With the integral state, the
         integral of the measured cross-track advances by ``dt * y`` after the solve, except while
         the line is being acquired after an engage (:class:`design.acquisition.IntegralGate`: held
-        until the cross-track first reaches the line).
+        until the cross-track first reaches the line) and on a headland turn (:meth:`enter_part`).
         """
         t = float(m.t)
-        if self._fresh and self.nx == 4 and integral_kept(t - self._last_t):
-            self.integral = self._kept                     # a short re-engage: the pull learnt before it
+        if self._fresh and self.nx == 4:
+            if integral_kept(t - self._last_t):
+                self.integral = self._kept                 # a short re-engage: the pull learnt before it
+            else:
+                self._headland.forget()
         self._fresh, self._last_t = False, t
         y = float(m.cross_track)
         x = (y, float(m.heading_error), float(m.wheel_angle)) + ((self.integral,) if self.nx == 4 else ())
@@ -632,9 +638,20 @@ class NonlinearMPC:
             u = self.fallback_command(np.array(x), speed, float(np.asarray(curvature).reshape(-1)[0]))
         else:
             u = float(sol.u[0])
-        if self.nx == 4 and self.gate.integrate(y, False):
+        if self.nx == 4 and self.gate.integrate(y, False) and not self.headland:
             self.integral += self.dt * y
         return u
+
+    def enter_part(self, kind: str) -> None:
+        """The loop's station entered a part of kind ``kind`` of a field's route
+        (:data:`design.curvature.ROUTE_PART_METHOD`): over a headland turn the integral is zero and
+        held, and where the next pass starts it takes back its value from the turn's start
+        (:class:`design.acquisition.HeadlandIntegrals`, as the linear controllers and the MPC)."""
+        on = kind == HEADLAND_KIND
+        new = self._headland.enter(self.headland, on, np.array([self.integral]))
+        if new is not None:
+            self.integral = self._kept = float(new[0])
+        self.headland = on
 
     def step(self, m: Measurement) -> float:
         """Steering-rate command, rad/s: the curvature ahead is the loop's preview (asked for with

@@ -102,6 +102,25 @@ def test_the_integral_is_kept_over_a_short_re_engage_only():
     assert c.estimate()[3] == 0.0
 
 
+def test_the_integral_is_set_aside_over_a_headland_turn():
+    c = NonlinearMPC(NMPCSettings(horizon=10, integral_max=1.0))
+    t = 0.0
+    for _ in range(40):
+        c.step(Measurement(t, -0.05 if t < 0.2 else 0.1, 0.0, 0.0, 1.8))
+        t += 0.05
+    learnt = c.integral
+    c.enter_part("turn")                                       # the loop: the station entered a headland turn
+    assert c.integral == 0.0
+    for _ in range(20):                                        # 0.3 m off through the turn: nothing learnt
+        c.step(Measurement(t, 0.3, 0.0, 0.0, 1.8, 0.1, (0.1,) * 10))
+        t += 0.05
+    assert c.estimate()[3] == 0.0 and c.integral == 0.0
+    c.enter_part("pass")                                       # the next pass: the pull learnt before the turn
+    assert c.integral == learnt
+    c.enter_part("pass")
+    assert c.integral == learnt
+
+
 @pytest.mark.parametrize("calls", [0, 21, 2.0, math.nan, True])
 def test_a_bad_call_cap_is_refused(calls):
     with pytest.raises(DesignInputError, match="max_calls"):

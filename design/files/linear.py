@@ -344,13 +344,16 @@ class LinearController:
     def enter_part(self, kind: str) -> None:
         """The loop's station entered a part of a field's route (:data:`design.curvature.ROUTE_PART_METHOD`):
         over a headland turn the integrators are set aside (:class:`design.acquisition.HeadlandIntegrals`)
-        and the next pass is acquired as on engage (:meth:`design.curvature.Reference.enter_part`)."""
+        and the next pass is acquired as on engage (:meth:`design.curvature.Reference.enter_part`); a
+        disturbance estimate starts again from zero on entering and on leaving a turn."""
         was = self.reference.headland
         self.reference.enter_part(kind)
         new = self._headland.enter(was, self.reference.headland, self._kept)
         if new is not None and self._integrators.size:
             self._xc[self._integrators] = new
             self._kept = new.copy()
+        if was != self.reference.headland and self._estimate.size:
+            self._xc[self._estimate] = 0.0          # the turn's slip is not the pass's pull: estimate afresh
 
     def _turning(self, y: np.ndarray) -> bool:
         """An output other than the cross-track (heading error, wheel angle) is at its clip."""

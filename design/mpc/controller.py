@@ -252,13 +252,16 @@ class MPCController:
 
     def enter_part(self, kind: str) -> None:
         """The loop's station entered a part of a field's route (:data:`design.curvature.ROUTE_PART_METHOD`):
-        over a headland turn the integral is set aside (:class:`design.acquisition.HeadlandIntegrals`)."""
+        over a headland turn the integral is set aside (:class:`design.acquisition.HeadlandIntegrals`); the
+        disturbance estimate starts again from zero on entering and on leaving a turn."""
         was = self.reference.headland
         self.reference.enter_part(kind)
         new = self._headland.enter(was, self.reference.headland, self._kept)
         if new is not None:
             self._z[self._integral] = new
             self._kept = new.copy()
+        if was != self.reference.headland:
+            self._dp[:] = 0.0                       # the disturbance estimate starts afresh on each part
 
     def step(self, m: Measurement) -> float:
         rate_ref = wheel_ref = None

@@ -118,3 +118,23 @@ def test_the_estimate_is_held_while_the_command_is_at_the_rate_limit(designed):
         u = ctrl.step(Measurement(j * 0.05, 0.0, 0.07, 0.0, 1.79))
         assert abs(u) == pytest.approx(lim)
         np.testing.assert_array_equal(ctrl._dp, before)
+
+
+def test_the_estimate_starts_afresh_on_entering_and_leaving_a_headland_turn(designed, tmp_path):
+    from design.disturbance import DisturbanceSpec as DS
+    from design.files.linear import LinearController, read_controller_file
+    from design.robust import with_disturbance_estimate
+    spec = RobustSpec(integral=True)
+    res = with_disturbance_estimate(design_robust(LOCAL, spec), LOCAL, spec, DS(tau_f=0.5))
+    robust = LinearController(read_controller_file(res.file.save(tmp_path / "r.json")))
+    mpc = designed.file.controller()
+    states = res.file.design["disturbance_estimate"]["states"]
+    for kind in ("turn", "pass"):
+        for j in range(30):
+            m = Measurement(j * 0.05, 0.003 * np.sin(j / 4), 0.001, 0.0, 1.79)
+            robust.step(m)
+            mpc.step(m)
+        assert np.any(np.array(robust.estimate())[states] != 0) and np.any(mpc._dp != 0)
+        robust.enter_part(kind)
+        mpc.enter_part(kind)
+        assert np.all(np.array(robust.estimate())[states] == 0) and np.all(mpc._dp == 0)

@@ -309,6 +309,11 @@ def render(result: dict) -> str:
         lines.append(f"disturbance estimate (tau {est['tau_d_s']:g} s, filter {est['tau_f_s']:g} s): gain "
                      f"{', '.join(f'{v:.4g}' for v in est['gain_Kd'][0])} ({kept}); H2 cost against the disturbance "
                      f"{est['h2_cost']:.4g} (window law alone {est['h2_cost_without']:.4g})")
+        back = est.get("window_backoff")
+        if back and back["kept_scale"] != back["search_scale"]:
+            lines.append(f"window weights backed off from scale {back['search_scale']:.4g} to {back['kept_scale']:.4g} "
+                         f"for the estimate (scale {back['estimate_scale_at_search_weights']:g} beside the searched law); "
+                         "the file's weights are those")
     for c in result.get("implausible_models", []):
         lines.append(f"warning: {c['name']}: a left steering pulse gives outputs "
                      f"{', '.join(f'{v:+.3g}' for v in c['pulse_outputs'])} after 3 s (expected all > 0); "

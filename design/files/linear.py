@@ -402,7 +402,7 @@ class LinearController:
         lim = self.spec.rate_limit
         ua = min(max(u + ff, -lim), lim)
         held = self._xc[self._integrators]
-        held_estimate = self._xc[self._estimate]
+        held_estimate = self._xc[self._estimate] if self._estimate.size else None
         # the law's memory of its command is what reached the plant beyond the reference's own rate
         self._xc = self._ac @ self._xc + self._bc @ y + self._ec * (ua - ff - u)
         if self._integrators.size and not (self.gate.integrate(float(m.cross_track), self.clipped(y))

@@ -72,10 +72,14 @@ def test_the_file_round_trips_and_a_bad_estimator_is_refused(designed, tmp_path)
         rewrite(bad, edit)
         with pytest.raises(ControllerFileError, match=match):
             read_mpc_file(bad)
-    # a file whose estimate was dropped while keeping its certificate: the law no longer matches
+    # a file whose estimate was dropped (its fall-back gain trimmed to the window) while keeping its recorded
+    # law and certificate: what the file now builds is not what was certified
+    def drop(b):
+        b.update(estimator={"kind": "measured-window", "past": 1, "integral": [0]})
+        b["fallback"]["gain"] = [b["fallback"]["gain"][0][:designed.problem.n_window_state]]
     bad.write_text(path.read_text())
-    rewrite(bad, lambda b: b.update(estimator={"kind": "measured-window", "past": 1, "integral": [0]}))
-    with pytest.raises(ControllerFileError):
+    rewrite(bad, drop)
+    with pytest.raises(ControllerFileError, match="unconstrained"):
         read_mpc_file(bad)
 
 

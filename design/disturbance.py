@@ -23,9 +23,11 @@ of the prediction error, with time constant ``tau_f``::
 
 with ``S`` selecting the chosen outputs. All of it is linear in the measured outputs, so the
 whole law is one :class:`design.compensator.Compensator` (states: the window law's, then ``s``,
-then ``dp``), certified on every model like any other. ``K_d`` minimises the summed H2 cost of
-the closed loops (the window models with the disturbance entering as above, the window law,
-the filter) against the disturbance, then is scaled back until the stated specifications are
+then ``dp``), certified on every model like any other. ``K_d`` minimises the worst, over the
+models, ratio of the H2 cost against the disturbance to the window law's own (the closed loops of
+the window models with the disturbance entering as above, each output read as many whole samples
+late as its latency, the window law and the filter; a signed log grid, then Nelder-Mead), then is
+scaled back until the stated specifications are
 met on every model with its latency (:func:`design.specs.check_specs`); with ``K_d = 0`` the
 law is exactly the window law, so a scale of 0 always passes.
 """

@@ -39,6 +39,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass
 from bisect import bisect_right
 from itertools import islice
@@ -55,7 +56,8 @@ from identification.passlog import PassLog
 
 from hil.vehicle.bridge.driver import BridgeDriver, BridgeLinkError
 from hil.vehicle.errors import VehicleConfigError
-from hil.links.clock import Clock
+from hil.links.clock import Clock, RealClock
+from hil.links.realtime import collector_held
 from hil.vehicle.calibration import WheelAngleCalibration
 
 INTEGRITY_CODES = {"RTK_FIXED": 0, "RTK_FLOAT": 1, "DEGRADED": 2, "STALE": 3, "LOST": 4}
@@ -382,17 +384,23 @@ class VehicleLoop:
     # -- whole runs ----------------------------------------------------------------------
     def run(self, duration: float, start: float | None = None,
             progress: Callable[[float, float], None] | None = None) -> None:
-        """Run cycles for ``duration`` seconds from ``start`` (default: the clock now), then disengage."""
+        """Run cycles for ``duration`` seconds from ``start`` (default: the clock now), then disengage.
+
+        On a :class:`~hil.links.clock.RealClock` the garbage collector's full collections are held
+        off for the run (:func:`hil.links.realtime.collector_held`) and run once after it.
+        """
         if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
             raise VehicleConfigError(f"duration must be a finite number of seconds > 0, got {duration!r}")
         t0 = self.clock.now() if start is None else start
         period = 1.0 / self.config.rate
         n = int(math.floor(duration * self.config.rate + 1e-9))
-        for k in range(1, n + 1):
-            self.cycle(t0 + k * period)
-            if progress is not None and k % 100 == 0:
-                progress(k * period, duration)
-        self.stop("end of run")
+        # on the wall clock a full garbage collection (100 ms and more) would miss deadlines: held off
+        with collector_held() if isinstance(self.clock, RealClock) else nullcontext():
+            for k in range(1, n + 1):
+                self.cycle(t0 + k * period)
+                if progress is not None and k % 100 == 0:
+                    progress(k * period, duration)
+            self.stop("end of run")
 
     def stop(self, reason: str) -> None:
         """Disengage now if engaged (sending the disengage frame) and record ``reason``."""

@@ -48,7 +48,7 @@ from hil.errors import SimulatorConfigError
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, Condition, all_conditions
 from hil.truth.tractors import Tractor
 from hil.vehicle.commissioning import Commissioning, save_commissioning
-from hil.vehicle.summary import summarize
+from hil.vehicle.summary import engaged_max_abs, pool_passes, summarize
 
 __all__ = ["CommissionOptions", "commission", "options_dict", "hil_ratios", "CONTROLLERS", "DIVERGED_M"]
 
@@ -404,7 +404,7 @@ def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: Commi
     rows = []
     for cond in conds:
         for name in names:
-            sigmas, biases, dis, errors, worst, diverging, reasons = [], [], 0, [], 0.0, 0, {}
+            summaries, dis, errors, worst, diverging, reasons = [], 0, [], 0.0, 0, {}
             for seed in opts.hil_seeds:
                 try:
                     if name == "oracle":
@@ -421,20 +421,19 @@ def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: Commi
                         if e["event"] == "disengage" and e["reason"] != "end of run":
                             head = str(e["reason"]).split(":")[0][:40]
                             reasons[head] = reasons.get(head, 0) + 1
-                    far = float(np.max(np.abs(log.channels["truth_cross_track"]), initial=0.0))
+                    far = engaged_max_abs(log)      # after a disengagement the controller is not steering
                     worst = max(worst, far)
                     diverging += int(not far <= DIVERGED_M)   # also a NaN cross-track
-                    if "measured_sigma_m" in s:
-                        sigmas.append(s["measured_sigma_m"])
-                        biases.append(s["measured_bias_m"])
+                    summaries.append(s)
                 except Exception as exc:  # noqa: BLE001 - one failing pass is a cell's result, not the end
                     errors.append(f"{type(exc).__name__}: {exc}")
                     diverging += 1            # a pass that did not run to its end counts as diverging
                 done += 1
                 progress(done, total)
+            pooled = pool_passes(summaries)
             rows.append({"implement": cond.implement, "speed": cond.speed, "controller": name,
-                         "sigma_m": sum(sigmas) / len(sigmas) if sigmas else math.nan,
-                         "bias_m": sum(biases) / len(biases) if biases else math.nan,
+                         "sigma_m": pooled["sigma_m"], "bias_m": pooled["bias_m"],
+                         "samples": pooled["samples"],
                          "disengagements": dis, "passes": len(opts.hil_seeds), "errors": errors,
                          "max_abs_cross_track_m": worst, "diverging": diverging, "disengage_reasons": reasons})
     return rows

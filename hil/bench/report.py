@@ -1,7 +1,8 @@
 """Comparison report of a campaign: the paper's Table 2 layout per controller, figures, data files.
 
 Per (controller, condition) cell: bias = mean of the passes' biases; 1-sigma pooled
-within passes (root mean square of the passes' standard deviations); both of the
+within passes (root mean square of the passes' standard deviations), each pass weighted by
+its samples (:func:`hil.vehicle.summary.pool_passes`); both of the
 measured (GPS) cross-track over engaged, settled cycles, as the paper measured it,
 and of the truth. Ratios are to the paper's Table 2 and, when one of the
 controllers is named ``oracle``, to it.
@@ -17,7 +18,6 @@ from __future__ import annotations
 import csv
 import html
 import json
-import math
 from pathlib import Path
 from typing import Sequence
 
@@ -30,6 +30,7 @@ import numpy as np  # noqa: E402
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for  # noqa: E402
 from hil.bench.paper import TABLE2  # noqa: E402
 from hil.bench.targets import Roles, check_targets, targets_markdown  # noqa: E402
+from hil.vehicle.summary import pool_passes  # noqa: E402
 
 ORACLE = "oracle"
 
@@ -50,9 +51,9 @@ def cells(results: Sequence[dict]) -> list[dict]:
                "loop_time_ms_p99": float(max(r["loop_time_ms_p99"] for r in rs)),
                "loop_time_ms_max": float(max(r["loop_time_ms_max"] for r in rs))}
         for kind in ("measured", "true"):
-            if ok:
-                row[f"{kind}_bias_m"] = float(np.mean([r[f"{kind}_bias_m"] for r in ok]))
-                row[f"{kind}_sigma_m"] = math.sqrt(float(np.mean([r[f"{kind}_sigma_m"] ** 2 for r in ok])))
+            pooled = pool_passes(ok, kind)
+            if pooled["passes"]:
+                row[f"{kind}_bias_m"], row[f"{kind}_sigma_m"] = pooled["bias_m"], pooled["sigma_m"]
         ref = TABLE2.get((imp, row["gear"]))
         if ref:
             row["paper_bias_m"], row["paper_sigma_m"] = ref

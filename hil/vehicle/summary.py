@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -44,3 +45,49 @@ def summarize(log: PassLog, settle: float = 5.0) -> dict:
                 "loop_time_ms_max": float(ct.max()),
                 "lateness_ms_p99": float(np.percentile(ch["lateness"] * 1e3, 99))})
     return out
+
+
+def pool_passes(summaries: Sequence[Mapping], kind: str = "measured") -> dict:
+    """Bias and 1-sigma of one condition over several passes, each weighted by its samples.
+
+    Parameters
+    ----------
+    summaries
+        Pass summaries (:func:`summarize`); those without statistics of ``kind`` (a pass that was
+        never engaged and settled) are left out.
+    kind
+        ``"measured"`` (the GPS cross-track, as the paper scores it) or ``"true"``.
+
+    Returns
+    -------
+    dict
+        ``bias_m``: mean of the passes' biases weighted by ``samples_in_statistics``; ``sigma_m``:
+        the within-pass 1-sigma pooled the same way, sqrt(sum n_i sigma_i^2 / sum n_i), m;
+        ``passes`` and ``samples`` used. A pass that disengaged after a few seconds counts for the
+        few samples it has, not as much as a whole pass. Both NaN when no pass has statistics.
+    """
+    if kind not in ("measured", "true"):
+        raise ValueError(f"kind must be 'measured' or 'true', got {kind!r}")
+    with_stats = [s for s in summaries if f"{kind}_sigma_m" in s]
+    if any("samples_in_statistics" not in s for s in with_stats):
+        raise ValueError("a pass summary with statistics has no 'samples_in_statistics': expected summaries "
+                         "made by hil.vehicle.summary.summarize")
+    rows = [(int(s["samples_in_statistics"]), float(s[f"{kind}_bias_m"]), float(s[f"{kind}_sigma_m"]))
+            for s in with_stats if int(s["samples_in_statistics"]) > 0]
+    n = sum(r[0] for r in rows)
+    if n == 0:
+        return {"bias_m": math.nan, "sigma_m": math.nan, "passes": 0, "samples": 0}
+    return {"bias_m": sum(k * b for k, b, _ in rows) / n,
+            "sigma_m": math.sqrt(sum(k * s * s for k, _, s in rows) / n), "passes": len(rows), "samples": n}
+
+
+def engaged_max_abs(log: PassLog, key: str = "truth_cross_track") -> float:
+    """Largest |cross-track| over the engaged cycles of a run, m (0 when never engaged).
+
+    What the controller is answerable for: after a disengagement (a GPS fault, the operator) the
+    tractor is no longer steered by it, so how far it then drifts is not the controller's divergence.
+    """
+    ch = log.channels
+    engaged = ch["engaged"] > 0.5
+    x = np.abs(ch[key][engaged])
+    return float(np.max(x, initial=0.0)) if not np.isnan(x).any() else math.nan

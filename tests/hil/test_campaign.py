@@ -71,7 +71,8 @@ def test_campaign_options_are_checked(tmp_path):
 def fake(ctrl, imp, speed, seed, bias, sigma):
     return {"controller": ctrl, "implement": imp, "speed": speed, "seed": seed, "engaged_fraction": 1.0,
             "disengagements": 0, "deadline_misses": 0, "loop_time_ms_p99": 0.5, "loop_time_ms_max": 1.0,
-            "measured_bias_m": bias, "measured_sigma_m": sigma, "true_bias_m": bias, "true_sigma_m": sigma}
+            "measured_bias_m": bias, "measured_sigma_m": sigma, "true_bias_m": bias, "true_sigma_m": sigma,
+            "samples_in_statistics": 1100}
 
 
 def test_cells_pool_sigma_and_compare_to_the_paper_and_the_oracle():

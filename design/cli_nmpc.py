@@ -2,11 +2,12 @@
 
     design nmpc --models models/local_*.npz --out controllers/nmpc.json [--horizon N] [--y-max M]
                 [--integral-max MS] [--rate-limit R] [--wheel-limit W] [--solver gauss-newton|sqp|ipopt]
-                [--qpsol daqp|...] [--max-calls N] [--name NAME] [--json]
+                [--qpsol daqp|...] [--max-calls N] [--observer on|off] [--name NAME] [--json]
 
 The NMPC (:class:`design.nmpc.NonlinearMPC`, kinematic bicycle in path coordinates, curvature
-preview, the integral of the cross-track as a state) needs no identified model to predict; the
-models given are what its linearisation is certified on, each at its nominal speed.
+preview, the integral of the cross-track as a state, by default a Kalman filter with a steering
+offset and a lateral drift giving it its state) needs no identified model to predict; the models
+given are what its linearisation (with the filter) is certified on, each at its nominal speed.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from .cli_robust import _load_models, certificate_table
 from .files.nmpc import design_nmpc
 from .kinematic import KinematicWeights
 from .nmpc import SOLVERS, NMPCSettings
+from .nmpc_observer import ObserverSettings
 
 
 def cmd_nmpc(args: argparse.Namespace) -> dict:
@@ -26,7 +28,8 @@ def cmd_nmpc(args: argparse.Namespace) -> dict:
                          delta_max=math.radians(args.delta_max_deg), u_max=args.u_max)
     settings = NMPCSettings(horizon=args.horizon, weights=w, rate_limit=args.rate_limit, wheel_limit=args.wheel_limit,
                             solver=args.solver, qpsol=args.qpsol, integral_max=args.integral_max,
-                            max_calls=args.max_calls)
+                            max_calls=args.max_calls,
+                            observer=ObserverSettings() if args.observer == "on" else None)
     f = design_nmpc(models, settings, args.name)
     f.save(args.out)
     return {"out": str(args.out), "horizon": settings.horizon, "dt": settings.dt,
@@ -54,6 +57,8 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--qpsol", default="daqp", help="QP plugin of gauss-newton and sqp (default daqp)")
     p.add_argument("--max-calls", type=int, default=4,
                    help="Gauss-Newton calls per tick at most before the certified linear law steers (default 4)")
+    p.add_argument("--observer", choices=("on", "off"), default="on",
+                   help="Kalman filter with a steering offset and a lateral drift (design.nmpc_observer; default on)")
     p.add_argument("--name", default=None)
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=cmd_nmpc, default_name="nmpc")
@@ -65,7 +70,8 @@ def render(result: dict) -> str:
     return "\n".join([
         f"NMPC: horizon {s['horizon']} x {result['dt']:g} s, solver {s['solver']}/{s['qpsol']}, "
         f"rate limit {s['rate_limit']:g} rad/s, wheel limit {s['wheel_limit']:g} rad, "
-        f"integral_max {s['integral_max']:g} m s, at most {s['max_calls']} call(s) of {s['max_iter']} step(s) per tick",
+        f"integral_max {s['integral_max']:g} m s, at most {s['max_calls']} call(s) of {s['max_iter']} step(s) per tick, "
+        f"observer {'on' if s['observer'] else 'off'}",
         "certificate: " + result["certificate"]["check"],
         certificate_table(result["certificate"]),
         f"wrote {result['out']}"])

@@ -46,12 +46,12 @@ closes around every identified model with and without the rate limit), counted i
 ``fallbacks`` and recorded in ``events``. The diagnostics give the solve times in wall and CPU
 time (docs/nmpc.md: on a shared host the wall p99 is the host's, the CPU p99 is the work).
 
-The model assumes the steering delivers the commanded rate at once. The simulated valve
-delivers less (deadband, flow curve, slower to the right) 80 ms late; with the LQR's weights
-(``y_max`` = 0.15 m) at 2.91 m/s that mismatch can make the NMPC bang between the rate limits
-(see ``notebooks/03_mpc.py``); ``y_max`` = 0.3 m settles. With ``integral_max`` it carries the
-integral of the cross-track as a fourth state (offset-free on a steady pull); as a controller file
-it is kind ``"nmpc"`` (:mod:`design.files.nmpc`).
+The model assumes the steering delivers the commanded rate at once; the simulated valve delivers
+less, 80 ms late, which can make a high-gain NMPC bang between the rate limits (notebook 03). With
+``integral_max`` it carries the integral of the cross-track as a fourth state (offset-free on a
+steady pull); with ``observer`` its state comes from a Kalman filter that also estimates a steering
+offset and a lateral drift (:mod:`design.nmpc_observer`). As a file it is kind ``"nmpc"``
+(:mod:`design.files.nmpc`).
 """
 
 from __future__ import annotations
@@ -72,6 +72,7 @@ from .curvature import steady_state as curvature_steady_state
 from .errors import DesignInputError, SynthesisError
 from .kinematic import KinematicWeights
 from .nmpc_law import dare_doubling, linear_model, lqr_gain, stage_weights
+from .nmpc_observer import NMPCObserver, ObserverSettings
 
 __all__ = ["FallbackEvent", "NMPCSettings", "NMPCSolution", "NonlinearMPC", "linear_model", "lqr_gain", "steady_state"]
 
@@ -131,6 +132,10 @@ class NMPCSettings:
         With it the model carries ``i' = y`` as a fourth state, weighted ``integral_max^-2``:
         the integral is computed from the measured cross-track, so a constant pull the model
         does not know leaves no steady error (in steady state ``i`` is constant, so ``y = 0``).
+    observer
+        Noise levels of the Kalman filter that gives the NMPC its state (:mod:`design.nmpc_observer`:
+        the measured errors filtered, a steering offset and a lateral drift estimated); ``None``:
+        the measurements are the state.
     """
 
     horizon: int = 30
@@ -149,6 +154,7 @@ class NMPCSettings:
     speed_range: tuple[float, float] = (0.3, 5.0)
     integral_max: float | None = None
     max_calls: int = 4
+    observer: ObserverSettings | None = None
 
     def __post_init__(self) -> None:
         n = self.horizon
@@ -184,6 +190,8 @@ class NMPCSettings:
         if im is not None and (isinstance(im, bool) or not isinstance(im, (int, float)) or not math.isfinite(im)
                                or im <= 0):
             raise DesignInputError(f"integral_max must be a finite number > 0 (m s) or None, got {im!r}")
+        if self.observer is not None and not isinstance(self.observer, ObserverSettings):
+            raise DesignInputError(f"observer must be ObserverSettings or None, got {type(self.observer).__name__}")
 
     @property
     def n_states(self) -> int:
@@ -329,6 +337,7 @@ class NonlinearMPC:
         self._last_t = -math.inf
         self._headland = HeadlandIntegrals()
         self.headland = False      # on a field's headland turn (the loop's enter_part): the integral set aside
+        self.observer = NMPCObserver(s) if s.observer is not None else None
         self.reset()
 
     # -- construction --------------------------------------------------------------
@@ -598,6 +607,8 @@ class NonlinearMPC:
         self.integral = 0.0
         self.gate.reset()
         self.last: NMPCSolution | None = None
+        if self.observer is not None:
+            self.observer.reset()
 
     def step_curve(self, m: Measurement, curvature: np.ndarray) -> float:
         """Steering-rate command, rad/s, for a curved line with the curvature ``preview`` ahead.
@@ -617,9 +628,12 @@ class NonlinearMPC:
                 self._headland.forget()
         self._fresh, self._last_t = False, t
         y = float(m.cross_track)
-        x = (y, float(m.heading_error), float(m.wheel_angle)) + ((self.integral,) if self.nx == 4 else ())
-        self._x = x
         speed = max(float(m.speed), self.settings.speed_range[0])
+        x = (y, float(m.heading_error), float(m.wheel_angle))
+        if self.observer is not None:                      # filtered, with the estimated pull (effective state)
+            x = tuple(float(v) for v in self.observer.correct(*x, speed))
+        x += (self.integral,) if self.nx == 4 else ()
+        self._x = x
         try:
             sol = self.solve(np.array(x), speed, curvature)
             reason = "" if sol.success else f"not converged ({sol.status})"
@@ -640,6 +654,8 @@ class NonlinearMPC:
             u = float(sol.u[0])
         if self.nx == 4 and self.gate.integrate(y, False) and not self.headland:
             self.integral += self.dt * y
+        if self.observer is not None:
+            self.observer.predict(u, speed, float(np.asarray(curvature).reshape(-1)[0]))
         return u
 
     def enter_part(self, kind: str) -> None:
@@ -648,6 +664,8 @@ class NonlinearMPC:
         held, and where the next pass starts it takes back its value from the turn's start
         (:class:`design.acquisition.HeadlandIntegrals`, as the linear controllers and the MPC)."""
         on = kind == HEADLAND_KIND
+        if self.observer is not None and on != self.headland:
+            self.observer.forget_disturbance()              # a turn's slip is not the next pass's pull
         new = self._headland.enter(self.headland, on, np.array([self.integral]))
         if new is not None:
             self.integral = self._kept = float(new[0])
@@ -670,7 +688,8 @@ class NonlinearMPC:
         return self.step_curve(m, kap)
 
     def estimate(self) -> tuple[float, ...]:
-        return self._x
+        """The state the NMPC solved from (effective with the observer) and the observer's disturbances."""
+        return self._x + (self.observer.disturbance if self.observer is not None else ())
 
     def diagnostics(self) -> dict:
         """Counters since construction and statistics of the kept solve times, wall and CPU (ms).

@@ -6,7 +6,8 @@ and present, finite numbers, the loop's sample time, a checksum, an optional sig
     {"schema", "kind": "nmpc", "name", "dt",
      "settings": {"horizon", "weights": {"y_max", "psi_max", "delta_max", "u_max"}, "rate_limit",
                   "wheel_limit", "slack_weight", "wheelbase", "d2", "solver", "qpsol", "max_iter",
-                  "tol", "terminal", "speed_range": [lo, hi], "integral_max", "max_calls"},   # NMPCSettings
+                  "tol", "terminal", "speed_range": [lo, hi], "integral_max", "max_calls",
+                  "observer": null | {"noise_y", ..., "drift_rate"}},              # NMPCSettings
      "design": {...}, "certificate": {...}, "models": [{"name", "hash"}],
      "checksum": "sha256:..."}
 
@@ -37,6 +38,12 @@ is recorded and recomputed on every read. It is a necessary condition, not a suf
 the simulator (nonlinear valve) at 2.91 m/s the NMPC diverges from ``y_max`` 0.12 m down, and the
 check refuses 0.10 m and below (measured on the demo's models, docs/nmpc.md). It says nothing else
 about the constrained, nonlinear law far from the line (the simulator tests cover that).
+
+**With the observer** (``settings.observer``, :mod:`design.nmpc_observer`) the vehicle's law is
+the Kalman filter and the LQR on its effective state: at a model's speed one linear compensator
+(:func:`design.nmpc_observer.observed_law`, the filter's gain interpolated on the speed grid as
+the vehicle does). Both checks close that compensator; in the rate-limited one the observer is
+told the clipped command, as the NMPC tells it the command it sent.
 """
 
 from __future__ import annotations
@@ -57,6 +64,7 @@ from ..errors import ControllerFileError, DesignInputError, VerificationError
 from ..kinematic import KinematicWeights
 from ..limits import DT_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, in_range
 from ..nmpc import NMPCSettings, NonlinearMPC, lqr_gain
+from ..nmpc_observer import ObserverSettings, observed_law
 from ..verify import Certificate, check_model, model_hash
 from .certificate import check_stated_radius, recorded_models
 from .envelope import SCHEMA, canonical_bytes, check_envelope, read_json, seal, write_atomically
@@ -64,7 +72,7 @@ from .signature import check_signature
 
 TOP_KEYS = ("schema", "kind", "name", "dt", "settings", "design", "certificate", "models", "checksum")
 SETTING_KEYS = ("horizon", "weights", "rate_limit", "wheel_limit", "slack_weight", "wheelbase", "d2", "solver",
-                "qpsol", "max_iter", "tol", "terminal", "speed_range", "integral_max", "max_calls")
+                "qpsol", "max_iter", "tol", "terminal", "speed_range", "integral_max", "max_calls", "observer")
 WEIGHT_KEYS = ("y_max", "psi_max", "delta_max", "u_max")
 #: Speeds a certificate row may state, m/s (field work).
 SPEED_RANGE = (0.1, 10.0)
@@ -83,7 +91,8 @@ def settings_to_dict(s: NMPCSettings) -> dict:
             "rate_limit": s.rate_limit, "wheel_limit": s.wheel_limit, "slack_weight": s.slack_weight,
             "wheelbase": s.wheelbase, "d2": s.d2, "solver": s.solver, "qpsol": s.qpsol, "max_iter": int(s.max_iter),
             "tol": s.tol, "terminal": s.terminal, "speed_range": [float(v) for v in s.speed_range],
-            "integral_max": s.integral_max, "max_calls": int(s.max_calls)}
+            "integral_max": s.integral_max, "max_calls": int(s.max_calls),
+            "observer": None if s.observer is None else s.observer.to_dict()}
 
 
 def _number(v: Any, what: str) -> float:
@@ -125,6 +134,11 @@ def settings_from_dict(d: Any, dt: float) -> NMPCSettings:
     in_range(d["speed_range"][1] if isinstance(d["speed_range"][1], (int, float)) else math.nan, *SPEED_RANGE,
              "settings: speed_range high (m/s)", ControllerFileError)
     try:
+        obs = d["observer"]
+        if obs is not None and not isinstance(obs, dict):
+            raise DesignInputError(f"observer must be null or an object of noise levels, got {obs!r}")
+        observer = None if obs is None else ObserverSettings.from_dict(
+            {k: _number(v, f"observer.{k}") for k, v in obs.items()})
         weights = KinematicWeights(**{k: _number(w[k], f"weights.{k}") for k in WEIGHT_KEYS})
         return NMPCSettings(horizon=d["horizon"], dt=float(dt), weights=weights,
                             rate_limit=_number(d["rate_limit"], "rate_limit"),
@@ -135,7 +149,7 @@ def settings_from_dict(d: Any, dt: float) -> NMPCSettings:
                             tol=_number(d["tol"], "tol"), terminal=d["terminal"],
                             speed_range=(_number(sr[0], "speed_range"), _number(sr[1], "speed_range")),
                             integral_max=_number(d["integral_max"], "integral_max"),
-                            max_calls=d["max_calls"])
+                            max_calls=d["max_calls"], observer=observer)
     except DesignInputError as exc:
         raise ControllerFileError(f"settings: {exc}") from None
 
@@ -150,21 +164,36 @@ def linearised_law(s: NMPCSettings, speed: float) -> Compensator:
 
     Reads ``[y/V, psi/V, delta]`` (the identified models' outputs at their nominal speed ``V``):
     ``u = -K [V y1, V y2, y3, i]`` with ``i[k+1] = i[k] + dt V y1`` (the integral of the cross-track).
+    With the observer, the filter and the law on its effective state (:func:`law_feedback` gives
+    the matrix through which the observer hears the command it was sent).
     """
     k = lqr_gain(s, speed)[0]
     v = float(speed)
+    if s.observer is not None:
+        ac, bc, cc, dc, _ = observed_law(s, v, k)
+        return Compensator(Ac=ac, Bc=bc, Cc=cc, Dc=dc, dt=s.dt)
     return Compensator(Ac=[[1.0]], Bc=[[s.dt * v, 0.0, 0.0]], Cc=[[-k[3]]],
                        Dc=[[-k[0] * v, -k[1] * v, -k[2]]], dt=s.dt)
 
 
-def rate_limited_tail(model: Model, law: Compensator, rate_limit: float, speed: float) -> float:
+def law_feedback(s: NMPCSettings, speed: float) -> np.ndarray:
+    """``Bu`` (order x 1) of :func:`linearised_law` at ``speed`` m/s: its state moves by ``Bu (u_sent -
+    u)`` when the command sent differs from the law's (0 without the observer: nothing hears it)."""
+    if s.observer is None:
+        return np.zeros((1, 1))
+    return observed_law(s, float(speed), lqr_gain(s, speed)[0])[4]
+
+
+def rate_limited_tail(model: Model, law: Compensator, rate_limit: float, speed: float,
+                      feedback: np.ndarray | None = None) -> float:
     """Largest cross-track, m, over the last :data:`TAIL_SECONDS` of the rate-limited check.
 
     ``law`` (on the model's normalised outputs ``[y/V, psi/V, delta]``) is closed around ``model``
     with its command clipped to ``+-rate_limit`` rad/s and delayed by :data:`DELAY_RESERVE_S`,
     from the model's state nearest to rest parallel to the line :data:`CHECK_OFFSET_M` m off
     (least squares of ``x = A x``, ``C x = [offset / V, 0, 0]``), for :data:`CHECK_SECONDS`.
-    ``inf`` if the loop leaves any sensible range (diverges).
+    ``inf`` if the loop leaves any sensible range (diverges). ``feedback`` (:func:`law_feedback`):
+    the law's state is told the clipped command, not its own.
     """
     a, b, c = (np.asarray(m_, dtype=float) for m_ in (model.A, model.B, model.C))
     n = a.shape[0]
@@ -176,13 +205,14 @@ def rate_limited_tail(model: Model, law: Compensator, rate_limit: float, speed: 
     queue = [0.0] * int(round(DELAY_RESERVE_S / law.dt))
     b0, d = b[:, 0], np.asarray(model.D, dtype=float)[:, 0]
     worst, u_prev = 0.0, 0.0
+    bu = np.zeros(law.order) if feedback is None else np.asarray(feedback, dtype=float).reshape(-1)
     for k in range(ticks):
         y = c @ x + d * u_prev
-        u = float(law.Cc[0] @ xc + law.Dc[0] @ y)
-        u = min(max(u, -rate_limit), rate_limit) if math.isfinite(u) else math.nan
+        u_law = float(law.Cc[0] @ xc + law.Dc[0] @ y)
+        u = min(max(u_law, -rate_limit), rate_limit) if math.isfinite(u_law) else math.nan
         queue.append(u)
         u_prev = queue.pop(0)
-        xc = law.Ac @ xc + law.Bc @ y
+        xc = law.Ac @ xc + law.Bc @ y + bu * (u - u_law)
         x = a @ x + b0 * u_prev
         yk = abs(float(y[0])) * speed
         if not yk < 1e3:
@@ -196,7 +226,7 @@ def rate_limited_rows(s: NMPCSettings, models: Sequence[Model], speeds: Sequence
     """One row per model of the rate-limited check: ``name``, ``tail_max_m`` and ``passed``."""
     rows = []
     for i, (m, v) in enumerate(zip(models, speeds)):
-        tail = rate_limited_tail(m, linearised_law(s, v), s.rate_limit, v)
+        tail = rate_limited_tail(m, linearised_law(s, v), s.rate_limit, v, law_feedback(s, v))
         rows.append({"name": str(m.meta.get("name", f"model {i}")), "tail_max_m": _tail_json(tail),
                      "passed": bool(tail <= SETTLE_BOUND_M)})
     return rows
@@ -259,7 +289,7 @@ def rate_limited_failures(record: Mapping[str, Any]) -> list[str]:
 RATE_FIX = (f"closed with the rate limit and {DELAY_RESERVE_S:g} s of extra delay from {CHECK_OFFSET_M} m off, the "
             f"law's cross-track over the last {TAIL_SECONDS:g} of {CHECK_SECONDS:g} s should stay within {SETTLE_BOUND_M} m; "
             "it oscillates between the rate limits: weight the cross-track less (raise --y-max) or the rate more "
-            "(lower --u-max)")
+            "(lower --u-max), or let the observer's disturbances move more slowly (offset_rate, drift_rate)")
 
 
 def check_nmpc_certificate(cert: Any, s: NMPCSettings) -> None:
@@ -389,7 +419,10 @@ def design_nmpc(models: Sequence[Model], settings: NMPCSettings, name: str = "nm
         raise VerificationError(f"the NMPC's law fails the rate-limited check on {len(bad)} of {len(models)} models: "
                                 f"{', '.join(bad[:3])}{', ...' if len(bad) > 3 else ''}; {RATE_FIX}")
     return NMPCFile(name, settings, {"method": "nonlinear MPC (kinematic bicycle, path coordinates)",
-                                     "integral": "cross-track, as a model state"}, cert,
+                                     "integral": "cross-track, as a model state",
+                                     "observer": ("Kalman filter with a steering offset and a lateral drift"
+                                                  if settings.observer is not None else "none (measured state)")},
+                    cert,
                     tuple({"name": str(m.meta.get("name", f"model {i}")), "hash": model_hash(m)}
                           for i, m in enumerate(models)))
 

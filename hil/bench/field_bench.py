@@ -25,6 +25,7 @@ from identification.passlog import PassLog
 
 from hil.bench.field_metrics import field_metrics
 from hil.bench.field_route import field_run
+from hil.bench.field_spacing import spacing_decomposition
 from hil.bench.run import RunSpec, simulated_run
 from hil.bench.workers import run_pool
 from hil.errors import SimulatorConfigError
@@ -49,9 +50,11 @@ def route_duration(field: str, params: SimParams, speed: float, passes: int | No
 
 
 def field_result(log: PassLog) -> dict:
-    """The run summary (:func:`hil.vehicle.summary.summarize`, over the whole route) and the field figures."""
+    """The run summary (:func:`hil.vehicle.summary.summarize`, over the whole route), the field figures and
+    where the spacing error comes from (:func:`hil.bench.field_spacing.spacing_decomposition`)."""
     f = log.meta["field"]
-    return {"summary": summarize(log), "field_metrics": field_metrics(log, f["width_m"], f["curve_entries_m"])}
+    return {"summary": summarize(log), "field_metrics": field_metrics(log, f["width_m"], f["curve_entries_m"]),
+            "spacing_decomposition": spacing_decomposition(log, f["width_m"])}
 
 
 def write_field_figures(log: PassLog, out: Path, stem: str = "") -> list[str]:

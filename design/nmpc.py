@@ -666,6 +666,7 @@ class NonlinearMPC:
         on = kind == HEADLAND_KIND
         if self.observer is not None and on != self.headland:
             self.observer.forget_disturbance()              # a turn's slip is not the next pass's pull
+            self.observer.held = on
         new = self._headland.enter(self.headland, on, np.array([self.integral]))
         if new is not None:
             self.integral = self._kept = float(new[0])

@@ -92,11 +92,16 @@ def test_engage_and_headland_turns_start_the_disturbances_from_zero():
     assert ctrl.observer.disturbance != (0.0, 0.0) and len(ctrl.estimate()) == 6
     ctrl.enter_part(HEADLAND_KIND)
     assert ctrl.observer.disturbance == (0.0, 0.0)
-    ctrl.step(Measurement(3.0, 0.05, 0.0, 0.02, V))
+    for k in range(20):                                    # held at zero over the turn
+        ctrl.step(Measurement(3.0 + 0.05 * k, 0.05, 0.0, 0.02, V, 0.05))
+        assert ctrl.observer.disturbance == (0.0, 0.0)
+    ctrl.enter_part("straight")
+    ctrl.step(Measurement(4.0, 0.05, 0.0, 0.02, V))
     assert ctrl.observer.disturbance != (0.0, 0.0)
+    ctrl.enter_part(HEADLAND_KIND)
     ctrl.enter_part("straight")
     assert ctrl.observer.disturbance == (0.0, 0.0)
-    ctrl.step(Measurement(3.05, 0.05, 0.0, 0.02, V))
+    ctrl.step(Measurement(4.05, 0.05, 0.0, 0.02, V))
     ctrl.reset()
     assert ctrl.observer.disturbance == (0.0, 0.0)
 

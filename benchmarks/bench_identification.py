@@ -32,7 +32,11 @@ Every process runs on one BLAS thread (set before numpy is imported): on a
 shared 2-core host, threaded BLAS made the small products of these fits two
 orders of magnitude slower.
 
-Run: ``.venv/bin/python benchmarks/bench_identification.py [--sizes 5000 50000 ...] [--quick] [--daisy-only]``.
+``--shift S ...`` fits on the first ``len // 2 + S`` samples instead (one table per value): the split
+sensitivity of the choices made on the fit half; ``--records`` keeps only the named records.
+
+Run: ``.venv/bin/python benchmarks/bench_identification.py [--sizes 5000 50000 ...] [--quick] [--daisy-only]
+[--shift 0 -1 1 ...] [--records dryer2 ...]``.
 """
 
 from __future__ import annotations
@@ -246,13 +250,18 @@ def _label(order: int, sel) -> str:
     return f"{order}{tag}{'*' if sel.refine == 'oe-all' else ''}"
 
 
-def daisy_table() -> list[dict]:
+def daisy_table(shift: int = 0, records: list[str] | None = None) -> list[dict]:
+    """Part 2: every method on every DaISy record (or ``records``), fitted on the first ``len // 2 + shift``
+    samples and validated on the rest."""
     rows = []
-    for name in daisy_records():
+    for name in records or daisy_records():
         first, m = DAISY_COLUMNS[name]
         raw = np.loadtxt(DAISY / name / f"{name}.dat")
         u, y = raw[:, first:first + m], raw[:, first + m:]
-        h = raw.shape[0] // 2
+        h = raw.shape[0] // 2 + shift
+        if not 42 <= h <= raw.shape[0] - 42:
+            raise SystemExit(f"--shift {shift} leaves {h} fit and {raw.shape[0] - h} validation samples of "
+                             f"{name}; expected at least 42 in each (the subspace horizon)")
         for method in DAISY_METHODS:
             best, best_order, t_best, chosen = None, None, 0.0, "validation half"
             if method == "okid-pinned" and name not in DAISY_PINNED:
@@ -284,7 +293,8 @@ def daisy_table() -> list[dict]:
                 fit = res.free_run_fit
                 if np.all(np.isfinite(fit)) and (best is None or fit.mean() > best.mean()):
                     best, best_order, t_best = fit, order, el
-            rows.append({"data": name, "method": method, "order": best_order, "order_chosen_on": chosen,
+            rows.append({"data": name, "method": method, "shift": shift, "order": best_order,
+                         "order_chosen_on": chosen,
                          "free_run_fit": None if best is None else [float(v) for v in best],
                          "time_s": t_best})
             fr = "failed" if best is None else " ".join(f"{v:7.2f}" for v in best) + f"   mean {best.mean():6.2f}"
@@ -317,6 +327,10 @@ def main() -> None:
     ap.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS))
     ap.add_argument("--quick", action="store_true", help="sizes 5k and 50k only")
     ap.add_argument("--daisy-only", action="store_true", help="only part 2 (the DaISy records)")
+    ap.add_argument("--shift", type=int, nargs="+", default=[0],
+                    help="fit on the first len // 2 + SHIFT samples of each DaISy record (several values: one "
+                         "table each; the split sensitivity of the selection)")
+    ap.add_argument("--records", nargs="+", help="only these DaISy records (names of folders in tests/data/sysid)")
     ap.add_argument("--json", help="also write the results to this JSON file")
     ap.add_argument("--case", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -331,10 +345,16 @@ def main() -> None:
     print(f"{'method':12s} {'N':>8s} {'time [s]':>9s} {'peak [MB]':>9s} {'Markov err':>10s} "
           f"{'free %':>8s} {'1-step %':>6s}")
     syn = synthetic_table(sizes, args.methods) if sizes else []
-    print("\nDaISy records, free-run validation fit % per output (first half fit, second half validate;"
-          " n* = all of A, B, C, D refined by output error; nc, ns = A, C by CVA, N4SID, not ERA)")
-    dai = daisy_table()
-    print_summary(dai)
+    known = daisy_records()
+    if args.records and set(args.records) - set(known):
+        ap.error(f"--records: expected names among {known}, got {sorted(set(args.records) - set(known))}")
+    dai: list[dict] = []
+    for shift in args.shift:
+        print(f"\nDaISy records, free-run validation fit % per output (first len // 2 + {shift} samples fit, the "
+              "rest validate; n* = all of A, B, C, D refined by output error; nc, ns = A, C by CVA, N4SID, not ERA)")
+        table = daisy_table(shift, args.records)
+        print_summary(table)
+        dai += table
     if args.json:
         Path(args.json).write_text(json.dumps({"synthetic": syn, "daisy": dai}, indent=2))
 

@@ -61,8 +61,8 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     c.add_argument("--passes", type=int, default=3, help="identification passes per condition (default 3)")
     c.add_argument("--duration", type=number, default=120.0, help="seconds per identification pass (default 120)")
     c.add_argument("--seed", type=int, default=1997, help="seed of the passes and the valve test (default 1997)")
-    c.add_argument("--hil-seeds", type=int, default=1, help="closed-loop passes per condition and controller "
-                   "(seeds 0..N-1, default 1)")
+    c.add_argument("--hil-seeds", type=int, default=3, help="closed-loop passes per condition and controller "
+                   "(seeds 0..N-1, default 3; a cell's 1-sigma is pooled over them)")
     c.add_argument("--hil-duration", type=number, default=60.0, help="seconds per closed-loop pass (default 60)")
     c.add_argument("--hil-conditions", type=_hil_conditions(number), default=None, metavar="IMPLEMENT:SPEED,...",
                    help="conditions of the HIL comparison (default: those of the passes)")

@@ -48,7 +48,7 @@ from hil.errors import SimulatorConfigError
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, Condition, all_conditions
 from hil.truth.tractors import Tractor
 from hil.vehicle.commissioning import Commissioning, save_commissioning
-from hil.vehicle.summary import engaged_max_abs, pool_passes, summarize
+from hil.vehicle.summary import engaged_max_abs, first_gps_fault, pool_passes, summarize
 
 __all__ = ["CommissionOptions", "commission", "options_dict", "hil_ratios", "CONTROLLERS", "DIVERGED_M"]
 
@@ -62,7 +62,7 @@ WEIGHTS = ("auto-if-available", "auto", "default")
 
 @dataclass(frozen=True)
 class CommissionOptions:
-    """Settings of the recipe (defaults: the main job's passes, one HIL seed).
+    """Settings of the recipe (defaults: the main job's passes, three HIL seeds).
 
     Attributes
     ----------
@@ -73,7 +73,10 @@ class CommissionOptions:
     seed
         Seed of the passes and of the valve test; the HIL passes use ``hil_seeds``.
     hil_seeds, hil_duration
-        Seeds and length, s, of the closed-loop passes per condition and controller.
+        Seeds and length, s, of the closed-loop passes per condition and controller; a cell's bias
+        and 1-sigma are pooled over them (:func:`hil.vehicle.summary.pool_passes`). Three, because
+        one 60 s pass is too short to judge a ratio to the oracle: on heavy-11t with the ripper at
+        2.91 m/s the MPC's ratio was 2.02 on seed 0 and 0.91-1.23 on seeds 1-7.
     hil_conditions
         Conditions of the HIL comparison (default: all of the passes').
     weights
@@ -105,7 +108,7 @@ class CommissionOptions:
     passes: int = 3
     pass_duration: float = 120.0
     seed: int = 1997
-    hil_seeds: tuple[int, ...] = (0,)
+    hil_seeds: tuple[int, ...] = (0, 1, 2)
     hil_duration: float = 60.0
     hil_conditions: tuple[Condition, ...] | None = None
     weights: str = "auto-if-available"
@@ -404,7 +407,7 @@ def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: Commi
     rows = []
     for cond in conds:
         for name in names:
-            summaries, dis, errors, worst, diverging, reasons = [], 0, [], 0.0, 0, {}
+            summaries, dis, errors, worst, diverging, reasons, reacquired = [], 0, [], 0.0, 0, {}, 0.0
             for seed in opts.hil_seeds:
                 try:
                     if name == "oracle":
@@ -415,15 +418,17 @@ def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: Commi
                     log = simulated_run(RunSpec(implement=cond.implement, speed=cond.speed,
                                                 duration=opts.hil_duration, seed=seed), ctrl, params,
                                         commissioning=com)
-                    s = summarize(log)
+                    fault = first_gps_fault(log)
+                    s = summarize(log, until_gps_fault=True)
                     dis += s["disengagements"]
                     for e in log.meta.get("events", []):   # what disengaged the loop: "gps stale", "steering ..."
                         if e["event"] == "disengage" and e["reason"] != "end of run":
                             head = str(e["reason"]).split(":")[0][:40]
                             reasons[head] = reasons.get(head, 0) + 1
-                    far = engaged_max_abs(log)      # after a disengagement the controller is not steering
+                    far = engaged_max_abs(log, stop=fault)    # after a disengagement it is not steering
                     worst = max(worst, far)
                     diverging += int(not far <= DIVERGED_M)   # also a NaN cross-track
+                    reacquired = max(reacquired, engaged_max_abs(log, start=fault))
                     summaries.append(s)
                 except Exception as exc:  # noqa: BLE001 - one failing pass is a cell's result, not the end
                     errors.append(f"{type(exc).__name__}: {exc}")
@@ -435,7 +440,8 @@ def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: Commi
                          "sigma_m": pooled["sigma_m"], "bias_m": pooled["bias_m"],
                          "samples": pooled["samples"],
                          "disengagements": dis, "passes": len(opts.hil_seeds), "errors": errors,
-                         "max_abs_cross_track_m": worst, "diverging": diverging, "disengage_reasons": reasons})
+                         "max_abs_cross_track_m": worst, "diverging": diverging, "disengage_reasons": reasons,
+                         "max_abs_after_fault_m": reacquired})
     return rows
 
 

@@ -16,6 +16,11 @@ from hil.vehicle.valve_map import ValveCurve
 __all__ = ["write_commission_report"]
 
 
+
+def _seeds(res: dict) -> str:
+    n = len((res.get("options") or {}).get("hil_seeds") or ())
+    return f"{n} seed(s)" if n else "the seeds"
+
 def _cm(v: float) -> str:
     return "-" if v is None or not math.isfinite(v) else f"{v * 100:.2f}"
 
@@ -140,7 +145,9 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
     cells = hil_ratios(res.get("hil", []))
     if cells:
         lines += ["", "## HIL on this tractor (commissioned loop)", "",
-                  "1-sigma of the measured cross-track, cm (disengagements in brackets); ratios of the robust "
+                  "1-sigma of the measured cross-track, cm (disengagements in brackets), pooled over "
+                  f"{_seeds(res)} with each pass weighted by its samples and scored until its first GPS fault "
+                  "(the re-acquisition after it starts wherever the unsteered tractor drifted); ratios of the robust "
                   "controller and the MPC to the oracle and to the paper's method (central LQR).", "",
                   "| implement | m/s | paper's method | robust | MPC | oracle | robust/oracle | MPC/oracle | "
                   "robust/paper | MPC/paper |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
@@ -152,6 +159,12 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
             lines.append(f"| {c['implement']} | {c['speed']:.2f} | {s('central-lqr')} | {s('robust')} | {s('mpc')} | "
                          f"{s('oracle')} | {_x(c['robust_over_oracle'])} | {_x(c['mpc_over_oracle'])} | "
                          f"{_x(c['robust_over_paper'])} | {_x(c['mpc_over_paper'])} |")
+        after = [r for r in res.get("hil", []) if r.get("max_abs_after_fault_m", 0.0) > 0.0]
+        if after:
+            worst = max(after, key=lambda r: r["max_abs_after_fault_m"])
+            lines += ["", f"Re-acquisitions after a GPS fault (not scored): {len(after)} controller-cells, the widest "
+                      f"{worst['max_abs_after_fault_m']:.2f} m off ({worst['controller']}, {worst['implement']} "
+                      f"{worst['speed']:.2f} m/s)."]
         errors = sorted({f"{r['controller']}: {e}" for r in res.get("hil", []) for e in r.get("errors", [])})
         if errors:
             lines += ["", "Passes that failed:", ""] + [f"- {e}" for e in errors]

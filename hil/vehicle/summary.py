@@ -10,13 +10,26 @@ import numpy as np
 from identification.passlog import PassLog
 
 
-def summarize(log: PassLog, settle: float = 5.0) -> dict:
+def first_gps_fault(log: PassLog) -> float:
+    """Time of the run's first disengagement for the GPS (RTK float, a stale or lost fix: a reason
+    part starting with ``gps``), s; ``inf`` when there is none. Disengagements for the steering,
+    the bridge or the controller are not GPS faults: they may be the controller's own doing."""
+    return min((float(e["t"]) for e in log.meta.get("events", []) if e["event"] == "disengage"
+                and any(part.strip().startswith("gps") for part in str(e["reason"]).split(";"))),
+               default=math.inf)
+
+
+def summarize(log: PassLog, settle: float = 5.0, until_gps_fault: bool = False) -> dict:
     """Tracking and timing figures of a run log.
 
     Cross-track statistics (bias = mean, 1-sigma = standard deviation, max |.|, m) are
     taken over the engaged cycles at least ``settle`` seconds after the latest engage (so
     the approach to the line after each engage is left out); both the
-    measured (GPS) value, as in the paper, and the truth when the log has it.
+    measured (GPS) value, as in the paper, and the truth when the log has it. With
+    ``until_gps_fault``, only the cycles before :func:`first_gps_fault`: a re-acquisition after the
+    GPS let go starts from wherever the unsteered tractor drifted (the wheel held where it
+    was), which says more about that moment than about the controller; on the bench the
+    fault's time is the seed's, the same for every controller, so their windows match.
     """
     t = log.times["t"]
     ch = log.channels
@@ -29,6 +42,8 @@ def summarize(log: PassLog, settle: float = 5.0) -> dict:
         i = np.searchsorted(starts, t + 1e-9, side="right") - 1
         last_engage = np.where(i >= 0, starts[np.maximum(i, 0)], -math.inf)
     window = engaged & (t >= last_engage + settle)
+    if until_gps_fault:
+        window &= t < first_gps_fault(log)
     out: dict = {"cycles": int(t.size), "engaged_fraction": float(engaged.mean()),
                  "first_engage_s": None if math.isinf(first) else float(first),
                  "disengagements": sum(1 for e in events if e["event"] == "disengage" and e["reason"] != "end of run"),
@@ -81,13 +96,16 @@ def pool_passes(summaries: Sequence[Mapping], kind: str = "measured") -> dict:
             "sigma_m": math.sqrt(sum(k * s * s for k, _, s in rows) / n), "passes": len(rows), "samples": n}
 
 
-def engaged_max_abs(log: PassLog, key: str = "truth_cross_track") -> float:
-    """Largest |cross-track| over the engaged cycles of a run, m (0 when never engaged).
+def engaged_max_abs(log: PassLog, key: str = "truth_cross_track", start: float = -math.inf,
+                    stop: float = math.inf) -> float:
+    """Largest |cross-track| over the engaged cycles of a run with ``start <= t < stop``, m (0 when
+    none).
 
     What the controller is answerable for: after a disengagement (a GPS fault, the operator) the
     tractor is no longer steered by it, so how far it then drifts is not the controller's divergence.
     """
     ch = log.channels
-    engaged = ch["engaged"] > 0.5
+    t = log.times["t"]
+    engaged = (ch["engaged"] > 0.5) & (t >= start) & (t < stop)
     x = np.abs(ch[key][engaged])
     return float(np.max(x, initial=0.0)) if not np.isnan(x).any() else math.nan

@@ -9,7 +9,8 @@ from hil.bench.oracle import OracleOptions, oracle_for
 from hil.bench.report import cells
 from hil.bench.run import RunSpec, simulated_run
 from hil.truth.params import SimParams
-from hil.vehicle.summary import engaged_max_abs, pool_passes, summarize
+from hil.vehicle.summary import engaged_max_abs, first_gps_fault, pool_passes, summarize
+from identification.passlog import PassLog
 
 
 def _pass(n, bias, sigma):
@@ -60,3 +61,32 @@ def test_the_drift_after_a_gps_disengagement_is_not_the_controllers_divergence()
     assert s["disengagements"] == 1 and s["samples_in_statistics"] < 20
     assert float(np.max(np.abs(log.channels["truth_cross_track"]))) > 10.0
     assert engaged_max_abs(log) < 0.4                   # it started 0.3 m off and came in while engaged
+
+
+def test_a_pass_is_scored_until_the_gps_lets_go_not_through_the_reacquisition():
+    # seed 4 at 1.00 m/s: RTK float at 5.8 s, the loop lets go with the wheel where it was, engages again
+    # at about 16 s from wherever the tractor drifted; the re-acquisition is not the controller's tracking
+    p = SimParams()
+    log = simulated_run(RunSpec(implement="none", speed=1.0, duration=60.0, seed=4),
+                        oracle_for("none", 1.0, p, OracleOptions()), p)
+    fault = first_gps_fault(log)
+    assert 5.0 < fault < 6.5
+    assert [e["event"] for e in log.meta["events"]][:3] == ["engage", "disengage", "engage"]
+    whole, cut = summarize(log), summarize(log, until_gps_fault=True)
+    t, eng = log.times["t"], log.channels["engaged"] > 0.5
+    start = log.meta["events"][0]["t"] + 5.0          # the first engage, settled
+    assert cut["samples_in_statistics"] == int(np.sum(eng & (t < fault) & (t >= start - 1e-9))) > 0
+    assert whole["samples_in_statistics"] > 10 * cut["samples_in_statistics"]
+    assert engaged_max_abs(log, stop=fault) < 0.35 < engaged_max_abs(log, start=fault)
+
+
+def test_only_gps_disengagements_cut_a_pass():
+    p = SimParams()
+    log = simulated_run(RunSpec(implement="none", speed=1.79, duration=10.0, seed=0),
+                        oracle_for("none", 1.79, p, OracleOptions()), p)
+    assert first_gps_fault(log) == math.inf
+    steer = {"t": 3.0, "event": "disengage", "reason": "steering not responding: commanded 7.3 deg in 1.0 s"}
+    both = {"t": 4.0, "event": "disengage", "reason": "manual override; gps stale: position is 0.30 s old"}
+    for events, want in (([steer], math.inf), ([steer, both], 4.0)):
+        edited = PassLog(times=dict(log.times), channels=dict(log.channels), meta={**log.meta, "events": events})
+        assert first_gps_fault(edited) == want

@@ -345,7 +345,8 @@ class LinearController:
         """The loop's station entered a part of a field's route (:data:`design.curvature.ROUTE_PART_METHOD`):
         over a headland turn the integrators are set aside (:class:`design.acquisition.HeadlandIntegrals`)
         and the next pass is acquired as on engage (:meth:`design.curvature.Reference.enter_part`); a
-        disturbance estimate starts again from zero on entering and on leaving a turn."""
+        disturbance estimate is held at zero over the turn (the law there is the window law the estimate
+        was added beside, certified on its own) and starts from zero on the next pass."""
         was = self.reference.headland
         self.reference.enter_part(kind)
         new = self._headland.enter(was, self.reference.headland, self._kept)
@@ -408,7 +409,9 @@ class LinearController:
         if self._integrators.size and not (self.gate.integrate(float(m.cross_track), self.clipped(y))
                                            and self.reference.acquired):    # acquiring: integrals held
             self._xc[self._integrators] = held
-        if self._estimate.size and (ua != u + ff or self.clipped(y)):       # at a limit: the estimate held
+        if self._estimate.size and self.reference.headland:                 # over a turn: held at zero
+            self._xc[self._estimate] = 0.0
+        elif self._estimate.size and (ua != u + ff or self.clipped(y)):     # at a limit: the estimate held
             self._xc[self._estimate] = held_estimate
         if self._integrators.size and np.all(np.isfinite(self._xc[self._integrators])):
             self._kept = self._xc[self._integrators].copy()

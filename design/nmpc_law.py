@@ -75,11 +75,18 @@ def linear_model(settings: NMPCSettings, speed: float) -> tuple[np.ndarray, np.n
     a[:3, :3], b[:3] = a3, b3
     if nx == 4:
         a[3, 0] = 1.0                           # i' = y
-    ad, bd, term = np.eye(nx), np.eye(nx) * s.dt, np.eye(nx)
-    for k in range(1, nx + 1):
-        term = term @ a * s.dt / k
+    return nilpotent_zoh(a, b, s.dt)
+
+
+def nilpotent_zoh(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold ``(Ad, Bd)`` of ``x' = a x + b u`` over ``dt`` s by the series of ``exp(a dt)``
+    to ``a^n`` (``n`` = states): exact when ``a`` is nilpotent, as the kinematic models here are."""
+    n = a.shape[0]
+    ad, bd, term = np.eye(n), np.eye(n) * dt, np.eye(n)
+    for k in range(1, n + 1):
+        term = term @ a * dt / k
         ad = ad + term
-        bd = bd + term * s.dt / (k + 1)
+        bd = bd + term * dt / (k + 1)
     return ad, bd @ b
 
 

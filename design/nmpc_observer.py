@@ -39,7 +39,7 @@ from typing import Any, Mapping, Protocol
 import numpy as np
 
 from .errors import DesignInputError
-from .nmpc_law import dare_doubling
+from .nmpc_law import dare_doubling, nilpotent_zoh
 
 __all__ = ["ObserverSettings", "NMPCObserver", "observer_model", "observer_gain_table", "observed_law"]
 
@@ -118,12 +118,7 @@ def observer_model(s: _Geometry, speed: float) -> tuple[np.ndarray, np.ndarray]:
     a[1, 2] = a[1, 3] = v / lw
     b = np.zeros((N_OBSERVER, 2))
     b[2, 0], b[1, 1] = 1.0, -v
-    ad, gd, term = np.eye(N_OBSERVER), np.eye(N_OBSERVER) * s.dt, np.eye(N_OBSERVER)
-    for k in range(1, N_OBSERVER + 1):
-        term = term @ a * s.dt / k
-        ad = ad + term
-        gd = gd + term * s.dt / (k + 1)
-    return ad, gd @ b
+    return nilpotent_zoh(a, b, s.dt)
 
 
 def _kalman_gain(s: _Geometry, speed: float) -> np.ndarray:

@@ -10,9 +10,11 @@ import pytest
 from design.controller import KinematicLQRController, Measurement
 from hil.bench.run import RunSpec, simulated_run
 
-#: Longest collector pause allowed during the run, s: one 50 ms cycle (a young collection takes about
-#: 1 ms; a full one 80-150 ms on this bench process, docs/nmpc.md).
-PAUSE_BOUND_S = 0.05
+#: Longest collector pause allowed during the run, s. A young collection takes about 1 ms and a full one
+#: 80-190 ms on this bench process (docs/nmpc.md), but a wall-clock pause also holds any host stall that
+#: falls in it (150 ms now and then on a shared machine), so the bound is generous; what catches a full
+#: collection in the run is the generation-2 assertion, which reads no clock.
+PAUSE_BOUND_S = 0.3
 
 
 class HoardingController(KinematicLQRController):
@@ -34,7 +36,7 @@ class HoardingController(KinematicLQRController):
 
 @pytest.mark.realtime
 @pytest.mark.timeout(90)
-def test_a_real_time_run_has_no_collector_pause_beyond_one_cycle():
+def test_a_real_time_run_has_no_full_collection_and_no_long_collector_pause():
     pauses: list[tuple[int, float, float]] = []          # (generation, start, length) in perf_counter s
     started: dict[str, float] = {}
 

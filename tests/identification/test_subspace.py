@@ -224,18 +224,28 @@ def test_the_weightings_differ_and_cva_is_the_function_of_before():
         subspace(data, 4, "pca")
 
 
+def _coloured(rng, n):
+    """A low-pass (first order, pole 0.9) two-input record of ``n`` samples drawn from ``rng``."""
+    from scipy.signal import lfilter
+    return lfilter([1.0], [1.0, -0.9], rng.normal(size=(n, 2)), axis=0)
+
+
+def _coloured_records(n, seed, fresh_seed):
+    """A record of the true system driven by a coloured input with output error at SNR 2, and a
+    fresh noise-free record of 3000 samples (another input) to judge on."""
+    a, b, c, d = true_system()
+    rng = np.random.default_rng(seed)
+    u = _coloured(rng, n)
+    y0 = simulate(a, b, c, d, u)
+    data = IOData.from_arrays(u, y0 + 0.5 * y0.std(axis=0) * rng.normal(size=y0.shape))
+    uv = _coloured(np.random.default_rng(fresh_seed), 3000)
+    return data, IOData.from_arrays(uv, simulate(a, b, c, d, uv))
+
+
 def test_output_error_from_an_n4sid_start_beats_era_where_the_input_is_coloured():
     # low-pass input, output error at SNR 2 (the record of test_pem.py where OKID's short observer is
     # biased): every matrix refined from the N4SID realisation judges better on a fresh noise-free record
-    from scipy.signal import lfilter
-
-    a, b, c, d = true_system()
-    rng = np.random.default_rng(0)
-    u = lfilter([1.0], [1.0, -0.9], rng.normal(size=(3000, 2)), axis=0)
-    y0 = simulate(a, b, c, d, u)
-    data = IOData.from_arrays(u, y0 + 0.5 * y0.std(axis=0) * rng.normal(size=y0.shape))
-    uv = lfilter([1.0], [1.0, -0.9], np.random.default_rng(9).normal(size=(3000, 2)), axis=0)
-    fresh = IOData.from_arrays(uv, simulate(a, b, c, d, uv))
+    data, fresh = _coloured_records(3000, 0, 9)
     era = _identify(data, 4, "oe", {"markov": 3}, realisation="era")
     refined = _identify(data, 4, "oe-all", {"markov": 3}, realisation="n4sid")
     assert refined.meta["refine"] == "oe-all"
@@ -262,13 +272,7 @@ def test_selection_takes_the_candidate_that_simulates_the_held_out_tails_better(
     # parsimony margin, so it must be chosen (a selection that scored on the data it fitted, took
     # the first or the worst candidate, or ignored the refinement's rank would not), and a fresh
     # record agrees
-    from scipy.signal import lfilter
-
-    a, b, c, d = true_system()
-    rng = np.random.default_rng(1)
-    u = lfilter([1.0], [1.0, -0.9], rng.normal(size=(1500, 2)), axis=0)
-    y0 = simulate(a, b, c, d, u)
-    data = IOData.from_arrays(u, y0 + 0.5 * y0.std(axis=0) * rng.normal(size=y0.shape))
+    data, fresh = _coloured_records(1500, 1, 8)
     kinds = (("era", "oe"), ("n4sid", "oe-all"))
     options = {"markov": 3}
     sel = select_structure(data, options, [4], kinds)
@@ -281,8 +285,6 @@ def test_selection_takes_the_candidate_that_simulates_the_held_out_tails_better(
     sel_simple = select_structure(data, options, [4], (("era", "oe"), ("era", "pem")))
     tails = {r: sel_simple.scores[f"4/era/{r}"] for r in ("oe", "pem")}
     assert sel_simple.refine == max(tails, key=tails.get)
-    uv = lfilter([1.0], [1.0, -0.9], np.random.default_rng(8).normal(size=(3000, 2)), axis=0)
-    fresh = IOData.from_arrays(uv, simulate(a, b, c, d, uv))
     chosen, other = (_identify(data, 4, r, options, realisation=real) for real, r in (kinds[1], kinds[0]))
     assert (validate(chosen.A, chosen.B, chosen.C, chosen.D, chosen.K, fresh).free_run_fit.mean()
             > validate(other.A, other.B, other.C, other.D, other.K, fresh).free_run_fit.mean())

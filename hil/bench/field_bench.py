@@ -204,14 +204,33 @@ def _worst(values: list) -> float | None:
     return max(vals) if vals else None
 
 
+def worst_pass_bias(passes: list[dict], kind: str = "straight") -> dict:
+    """The pass whose true ``kind`` bias (after its settling) is largest in magnitude.
+
+    Returns
+    -------
+    dict
+        ``pass`` (its index, or None when no pass has ``kind`` scored), ``bias_m`` (its true
+        bias, signed, m) and ``measured_bias_m`` (the loop's measured cross-track over the same
+        cycles, m; the difference is the receiver's error averaged over that pass).
+    """
+    scored = [p for p in passes if p.get("reached") and p[kind]["bias_m"] is not None]
+    if not scored:
+        return {"pass": None, "bias_m": None, "measured_bias_m": None}
+    w = max(scored, key=lambda p: abs(p[kind]["bias_m"]))
+    return {"pass": w["pass"], "bias_m": w[kind]["bias_m"], "measured_bias_m": w[kind].get("measured_bias_m")}
+
+
 def field_row(r: dict) -> dict:
     """The report's figures of one run (m, s, counts)."""
     f = r["field_metrics"]
     turns = f["turns"]
+    worst = worst_pass_bias(f["passes"])
     fld = r["field"]
     return {"controller": r["controller"], "field": Path(fld).stem if fld.endswith(".json") else fld,
             "implement": r["implement"], "speed": r["speed"], "seed": r["seed"],
             "straight_bias": f["straight"]["bias_m"], "straight_sigma": f["straight"]["sigma_m"],
+            "pass_bias_worst": worst["bias_m"], "pass_bias_worst_measured": worst["measured_bias_m"],
             "curve_bias": f["curve"]["bias_m"], "curve_sigma": f["curve"]["sigma_m"],
             "entry_worst": f["curve_entry_worst_m"],
             "turn_overshoot": _worst([t["overshoot_m"] for t in turns]),
@@ -231,16 +250,20 @@ def write_field_report(results: list[dict], comparison: FieldComparison) -> dict
              "True cross-track of the CG against the route, after each pass has settled (definitions: "
              "`hil/bench/field_metrics.py`, `docs/fields.md`). cm unless stated; spacing: distance between "
              "neighbouring passes' true tracks minus the implement width (+ skip, - overlap).", "",
-             "| field | controller | implement | m/s | seed | straight bias / 1-sigma | curve bias / 1-sigma | "
+             "worst pass: the pass whose true straight bias is largest in magnitude (its true / measured bias: "
+             "the measured one is the loop's GPS cross-track over the same cycles).", "",
+             "| field | controller | implement | m/s | seed | straight bias / 1-sigma | worst pass straight bias true / "
+             "measured | curve bias / 1-sigma | "
              "worst curve entry | turn overshoot (worst) | settle s (worst) | spacing mean / 1-sigma | "
              "worst overlap / skip | jumps | disengagements | off the route s | route driven |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for w in rows:
         settle = "-" if w["turn_settle"] is None else f"{w['turn_settle']:.1f}"
         if w["unsettled_turns"]:
             settle += f" ({w['unsettled_turns']} never)"
         lines.append(f"| {w['field']} | {w['controller']} | {w['implement']} | {w['speed']:.2f} | {w['seed']} | "
-                     f"{_cm(w['straight_bias'])} / {_cm(w['straight_sigma'])} | {_cm(w['curve_bias'])} / "
+                     f"{_cm(w['straight_bias'])} / {_cm(w['straight_sigma'])} | {_cm(w['pass_bias_worst'])} / "
+                     f"{_cm(w['pass_bias_worst_measured'])} | {_cm(w['curve_bias'])} / "
                      f"{_cm(w['curve_sigma'])} | {_cm(w['entry_worst'])} | {_cm(w['turn_overshoot'])} | {settle} | "
                      f"{_cm(w['spacing_mean'])} / {_cm(w['spacing_sigma'])} | {_cm(w['worst_overlap'])} / "
                      f"{_cm(w['worst_skip'])} | {w['jumps']} | {w['disengagements']} | {w['off_route_s']:.0f} | "
@@ -287,8 +310,10 @@ def field_text(m: dict) -> str:
         return "-" if v is None else f"{v * 100:.1f}"
     turns = m["turns"]
     sp = m["spacing"]
+    wp = worst_pass_bias(m["passes"])
     return "\n".join([
-        f"field {m.get('name', '')}: straight bias {cm(m['straight']['bias_m'])} / 1-sigma {cm(m['straight']['sigma_m'])} cm, "
+        f"field {m.get('name', '')}: straight bias {cm(m['straight']['bias_m'])} / 1-sigma {cm(m['straight']['sigma_m'])} cm "
+        f"(worst pass {cm(wp['bias_m'])} cm, measured {cm(wp['measured_bias_m'])} cm), "
         f"curves {cm(m['curve']['bias_m'])} / {cm(m['curve']['sigma_m'])} cm, worst curve entry {cm(m['curve_entry_worst_m'])} cm",
         f"turns: {len(turns)}, worst overshoot {cm(_worst([t['overshoot_m'] for t in turns]))} cm, worst settle "
         f"{_worst([t['settle_time_s'] for t in turns]) or '-'} s, never settled {sum(t['settle_time_s'] is None for t in turns)}",

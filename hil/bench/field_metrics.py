@@ -16,7 +16,9 @@ Definitions (also in ``docs/fields.md``):
   :func:`hil.vehicle.summary.summarize`, the engaged cycles within :data:`REENGAGE_SETTLE` s of a
   (re-)engage are left out too; disengagements are counted by the run's summary.
 * **Straight and curved parts.** Bias (mean) and 1-sigma (standard deviation) of the true
-  cross-track over the engaged, settled cycles in parts of each kind, per pass and pooled.
+  cross-track over the engaged, settled cycles in parts of each kind, per pass and pooled; per
+  pass also the mean of the loop's measured cross-track (``cross_track``, the GPS's) over the
+  same cycles (``measured_bias_m``): the difference is the receiver's error averaged over the pass.
 * **Curve entries.** Every station inside a pass where the route's curvature changes by more
   than 1e-4 1/m (not a pass start); the worst ``|cross-track|`` from
   :data:`ENTRY_BEFORE` m before to :data:`ENTRY_AFTER` m after it.
@@ -142,7 +144,7 @@ def field_metrics(log: PassLog, width: float, curve_entries: Sequence[float] = (
         Stations of the route where a curve starts inside a pass, m.
     """
     ch, t = log.channels, log.times["t"]
-    need = ("truth_cross_track", "truth_along_track", "truth_x", "truth_y", "station", "engaged")
+    need = ("truth_cross_track", "truth_along_track", "truth_x", "truth_y", "station", "engaged", "cross_track")
     missing = [k for k in need if k not in ch]
     if missing or "parts" not in log.meta:
         raise SimulatorConfigError(f"field_metrics: expected a field run's log (channels {need} and meta 'parts'), "
@@ -189,7 +191,8 @@ def field_metrics(log: PassLog, width: float, curve_entries: Sequence[float] = (
                "settle_time_s": None if i_set is None else float(t[i_set] - t[i_in]),
                "all": _stats(xte[window])}
         for code, kind in ((0, "straight"), (1, "curve")):
-            rec[kind] = _stats(xte[window & np.isin(part_of, [i for i in mine if kinds[i] == kind])])
+            sel = window & np.isin(part_of, [i for i in mine if kinds[i] == kind])
+            rec[kind] = {**_stats(xte[sel]), "measured_bias_m": float(ch["cross_track"][sel].mean()) if sel.any() else None}
         passes.append(rec)
         tracks[n] = np.column_stack([ch["truth_x"][window], ch["truth_y"][window]])
         turn = [i for i, p in enumerate(parts) if p["kind"] == "turn" and i < mine[0]]

@@ -95,6 +95,28 @@ def test_field_figures_of_the_hairpin_run(hairpin_run):
     assert m["curve"]["samples"] == 0
 
 
+def test_each_pass_carries_its_measured_bias_and_the_report_names_the_worst_pass(hairpin_run):
+    from hil.bench.field_bench import worst_pass_bias
+    fr, log = hairpin_run
+    m = field_metrics(log, 3.0, fr.curve_entries())
+    ch = log.channels
+    for p in m["passes"]:       # the measured bias is the loop's cross-track over the pass's scored cycles
+        st = p["straight"]
+        assert st["samples"] > 100 and st["measured_bias_m"] is not None
+        assert abs(st["measured_bias_m"] - st["bias_m"]) < 0.05          # the GPS's error averaged over a pass
+        assert st["measured_bias_m"] != st["bias_m"]
+    assert np.ptp([p["straight"]["measured_bias_m"] for p in m["passes"]]) < np.ptp(ch["cross_track"])
+    w = worst_pass_bias(m["passes"])
+    biases = [p["straight"]["bias_m"] for p in m["passes"]]
+    assert abs(w["bias_m"]) == max(abs(b) for b in biases) and w["bias_m"] in biases
+    assert m["passes"][w["pass"]]["straight"]["measured_bias_m"] == w["measured_bias_m"]
+    synthetic = [{"pass": 0, "reached": True, "straight": {"bias_m": 0.004, "measured_bias_m": 0.0}},
+                 {"pass": 1, "reached": True, "straight": {"bias_m": -0.012, "measured_bias_m": -0.001}},
+                 {"pass": 2, "reached": False}]
+    assert worst_pass_bias(synthetic) == {"pass": 1, "bias_m": -0.012, "measured_bias_m": -0.001}
+    assert worst_pass_bias([{"pass": 0, "reached": False}])["bias_m"] is None
+
+
 class PreviewRecorder(KinematicLQRController):
     """The kinematic LQR asking for a curvature preview, keeping every measurement it is given."""
 

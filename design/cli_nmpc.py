@@ -1,13 +1,14 @@
 """Sub-command ``design nmpc`` (thin layer over :mod:`design.files.nmpc`).
 
     design nmpc --models models/local_*.npz --out controllers/nmpc.json [--horizon N] [--y-max M]
-                [--integral-max MS] [--rate-limit R] [--wheel-limit W] [--solver gauss-newton|sqp|ipopt]
+                [--y-max-speed V|none] [--integral-max MS] [--rate-limit R] [--wheel-limit W] [--solver gauss-newton|sqp|ipopt]
                 [--qpsol daqp|...] [--max-calls N] [--observer on|off] [--name NAME] [--json]
 
 The NMPC (:class:`design.nmpc.NonlinearMPC`, kinematic bicycle in path coordinates, curvature
 preview, the integral of the cross-track as a state, by default a Kalman filter with a steering
 offset and a lateral drift giving it its state) needs no identified model to predict; the models
-given are what its linearisation (with the filter) is certified on, each at its nominal speed.
+given are what its linearisation (with the filter) is certified on, each at its nominal speed,
+with the stage weights of that speed (``--y-max-speed``: the cross-track's bound scaled with speed).
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ def cmd_nmpc(args: argparse.Namespace) -> dict:
     settings = NMPCSettings(horizon=args.horizon, weights=w, rate_limit=args.rate_limit, wheel_limit=args.wheel_limit,
                             solver=args.solver, qpsol=args.qpsol, integral_max=args.integral_max,
                             max_calls=args.max_calls,
-                            observer=ObserverSettings() if args.observer == "on" else None)
+                            observer=ObserverSettings() if args.observer == "on" else None,
+                            y_max_speed=args.y_max_speed)
     f = design_nmpc(models, settings, args.name)
     f.save(args.out)
     return {"out": str(args.out), "horizon": settings.horizon, "dt": settings.dt,
@@ -46,6 +48,9 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--y-max", type=number, default=0.2,
                    help="Bryson: cross-track, m (default 0.2; docs/nmpc.md: 0.15 tracks better, 0.12 diverges on the "
                         "simulator at 2.91 m/s, 0.10 and below are refused by the rate-limited check)")
+    p.add_argument("--y-max-speed", type=_speed_or_none(number), default=None, metavar="V|none",
+                   help="speed, m/s, at which --y-max holds: the bound scales with speed (y_max V / y_max_speed, the "
+                        "paper's y/V normalisation), the law certified per speed; none: the same bound at every speed")
     p.add_argument("--psi-max-deg", type=number, default=5.0, help="Bryson: heading error, deg")
     p.add_argument("--delta-max-deg", type=number, default=5.0, help="Bryson: wheel angle, deg")
     p.add_argument("--u-max", type=number, default=0.35, help="Bryson: steering rate, rad/s")
@@ -64,13 +69,24 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.set_defaults(func=cmd_nmpc, default_name="nmpc")
 
 
+def _speed_or_none(number):
+    """Argument type: a number of m/s, or ``none``."""
+    def parse(text: str):
+        return None if text.strip().lower() == "none" else number(text)
+    parse.__name__ = "speed"
+    return parse
+
+
 def render(result: dict) -> str:
     """Text summary of ``design nmpc``."""
     s = result["settings"]
     return "\n".join([
         f"NMPC: horizon {s['horizon']} x {result['dt']:g} s, solver {s['solver']}/{s['qpsol']}, "
         f"rate limit {s['rate_limit']:g} rad/s, wheel limit {s['wheel_limit']:g} rad, "
-        f"integral_max {s['integral_max']:g} m s, at most {s['max_calls']} call(s) of {s['max_iter']} step(s) per tick, "
+        f"integral_max {s['integral_max']:g} m s, "
+        + (f"y_max {s['weights']['y_max']:g} m at {s['y_max_speed']:g} m/s, scaled with speed, " if s.get("y_max_speed")
+           else f"y_max {s['weights']['y_max']:g} m, ")
+        + f"at most {s['max_calls']} call(s) of {s['max_iter']} step(s) per tick, "
         f"observer {'on' if s['observer'] else 'off'}",
         "certificate: " + result["certificate"]["check"],
         certificate_table(result["certificate"]),

@@ -71,7 +71,7 @@ from .curvature import HEADLAND_KIND
 from .curvature import steady_state as curvature_steady_state
 from .errors import DesignInputError, SynthesisError
 from .kinematic import KinematicWeights
-from .nmpc_law import dare_doubling, linear_model, lqr_gain, stage_weights
+from .nmpc_law import dare_doubling, linear_model, lqr_gain, stage_weights, y_max_at
 from .nmpc_observer import NMPCObserver, ObserverSettings
 
 __all__ = ["FallbackEvent", "NMPCSettings", "NMPCSolution", "NonlinearMPC", "linear_model", "lqr_gain", "steady_state"]
@@ -136,6 +136,12 @@ class NMPCSettings:
         Noise levels of the Kalman filter that gives the NMPC its state (:mod:`design.nmpc_observer`:
         the measured errors filtered, a steering offset and a lateral drift estimated); ``None``:
         the measurements are the state.
+    y_max_speed
+        Speed, m/s, at which the cross-track's Bryson bound is ``weights.y_max``; at speed ``V`` it is
+        ``y_max * V / y_max_speed`` (:func:`design.nmpc_law.y_max_at`: the paper's ``y / V``
+        normalisation, ``V`` clamped to ``speed_range``). ``None``: ``weights.y_max`` at every speed.
+        The stage weights are a parameter of the casadi problem, set each tick from the measured
+        speed, so the problem is built once.
     """
 
     horizon: int = 30
@@ -155,6 +161,7 @@ class NMPCSettings:
     integral_max: float | None = None
     max_calls: int = 4
     observer: ObserverSettings | None = None
+    y_max_speed: float | None = None
 
     def __post_init__(self) -> None:
         n = self.horizon
@@ -192,6 +199,10 @@ class NMPCSettings:
             raise DesignInputError(f"integral_max must be a finite number > 0 (m s) or None, got {im!r}")
         if self.observer is not None and not isinstance(self.observer, ObserverSettings):
             raise DesignInputError(f"observer must be ObserverSettings or None, got {type(self.observer).__name__}")
+        ys = self.y_max_speed
+        if ys is not None and (isinstance(ys, bool) or not isinstance(ys, (int, float)) or not lo <= ys <= hi):
+            raise DesignInputError(f"y_max_speed must be a speed within speed_range {self.speed_range!r} m/s (where "
+                                   f"weights.y_max holds) or None, got {ys!r}")
 
     @property
     def n_states(self) -> int:
@@ -311,7 +322,9 @@ class NonlinearMPC:
         self.dt = float(s.dt)
         n = s.horizon
         self.nx = s.n_states
-        self._q, self._r = stage_weights(s)
+        q, self._r = stage_weights(s, s.speed_range[0])
+        #: Square roots of the stage weights of the states; entry 0 (the cross-track's) is set per speed.
+        self._sqrt_q = np.sqrt(np.diag(q))
         lo, hi = s.speed_range
         self.speeds = np.linspace(lo, hi, int(round((hi - lo) / 0.05)) + 1)   # the LQR table's grid
         self._p_table = np.array([self._terminal(v) for v in self.speeds])
@@ -320,7 +333,7 @@ class NonlinearMPC:
         self._solver = self._build()
         self._n_w = n + 1
         self._triu = np.triu_indices(self.nx)
-        self._p = np.zeros(self.nx + 1 + n + len(self._triu[0]))
+        self._p = np.zeros(self.nx + 1 + n + len(self._triu[0]) + self.nx)
         self._lbx = np.r_[np.full(n, -s.rate_limit), 0.0]
         self._ubx = np.r_[np.full(n, s.rate_limit), np.inf]
         self._lbg = np.r_[np.full(n, -np.inf), np.full(n, -s.wheel_limit)]
@@ -350,7 +363,7 @@ class NonlinearMPC:
         if self.settings.terminal == "none":
             return np.zeros((self.nx, self.nx))
         ad, bd = linear_model(self.settings, speed)
-        return dare_doubling(ad, bd, self._q, self._r)
+        return dare_doubling(ad, bd, *stage_weights(self.settings, speed))
 
     def _gain_at(self, speed: float, p: np.ndarray) -> np.ndarray:
         """:func:`lqr_gain` at ``speed`` from its Riccati solution ``p`` (the terminal weight) when there is one."""
@@ -392,7 +405,7 @@ class NonlinearMPC:
             for j in range(i, nx):
                 upper[i, j] = upper[j, i] = pt[_tri(i, j, nx)]
         p_mat = ca.vertcat(*[ca.horzcat(*[upper[i, j] for j in range(nx)]) for i in range(nx)])
-        sq = ca.DM(np.sqrt(np.diag(self._q)))
+        sq = ca.SX.sym("sq", nx)                          # square roots of the state weights (per speed)
         sr = math.sqrt(self._r)
         rho1 = s.slack_weight
         rho2 = s.slack_weight / s.wheel_limit
@@ -413,7 +426,7 @@ class NonlinearMPC:
         r = ca.vertcat(*res)
         cost = ca.sumsqr(r) + rho1 * eps
         wv = ca.vertcat(us, eps)
-        pv = ca.vertcat(x0, v, kappas, pt)
+        pv = ca.vertcat(x0, v, kappas, pt, sq)
         self._trajectory = ca.Function("trajectory", [x0, us, v, kappas], [ca.horzcat(*traj).T])
         d = ca.vertcat(*deltas)
         g = ca.vertcat(d - eps, d + eps)
@@ -477,6 +490,12 @@ class NonlinearMPC:
                            ["x0", "p", "lbx", "ubx", "lbg", "ubg"], ["x", "f", "step", "traj"])
 
     # -- solving -------------------------------------------------------------------
+    def state_weight_roots(self, speed: float) -> np.ndarray:
+        """Square roots of the stage weights of the states at ``speed`` m/s (:func:`design.nmpc_law.stage_weights`)."""
+        q = self._sqrt_q.copy()
+        q[0] = 1.0 / y_max_at(self.settings, speed)
+        return q
+
     def terminal_weight(self, speed: float) -> np.ndarray:
         """Interpolated terminal weight ``P`` at ``speed`` m/s (nx x nx)."""
         v = float(np.clip(speed, self.speeds[0], self.speeds[-1]))
@@ -516,9 +535,11 @@ class NonlinearMPC:
             raise DesignInputError(f"curvature preview up to {np.abs(kap).max():.3f} 1/m is tighter than a "
                                    f"tractor turns; check the path")
         pm = self.terminal_weight(speed)
-        p = self._p                                     # [x0, V, kappa_0..N-1, upper triangle of P]
+        p = self._p                       # [x0, V, kappa_0..N-1, upper triangle of P, roots of the state weights]
         nx = self.nx
-        p[:nx], p[nx], p[nx + 1:nx + 1 + n], p[nx + 1 + n:] = x0, speed, kap, pm[self._triu]
+        nt = nx + 1 + n + len(self._triu[0])
+        p[:nx], p[nx], p[nx + 1:nx + 1 + n], p[nx + 1 + n:nt] = x0, speed, kap, pm[self._triu]
+        p[nt:] = self.state_weight_roots(speed)
         args = {"x0": self._w if warm else np.zeros(self._n_w), "p": p, "lbx": self._lbx, "ubx": self._ubx,
                 "lbg": self._lbg, "ubg": self._ubg}
         if warm and s.solver != "gauss-newton":

@@ -5,6 +5,11 @@ terminal cost is the Riccati solution, and RK4 is exact for this model), so what
 file certifies (:mod:`design.files.nmpc`) and what steers when a solve does not converge
 (:meth:`design.nmpc.NonlinearMPC.fallback_command`). ``settings`` is a
 :class:`design.nmpc.NMPCSettings` (typed here by the attributes read).
+
+The cross-track's Bryson bound may be scheduled with speed (``settings.y_max_speed``): the paper's
+velocity normalisation, a constant bound on ``y / V`` (:func:`y_max_at`). Every function here that
+takes a speed uses the stage weights of that speed, so the law certified at an identified model's
+nominal speed is the law the NMPC runs there.
 """
 
 from __future__ import annotations
@@ -25,11 +30,13 @@ class NMPCSettings(Protocol):
     wheelbase: float
     d2: float
     integral_max: float | None
+    y_max_speed: float | None
+    speed_range: tuple[float, float]
 
     @property
     def n_states(self) -> int: ...
 
-__all__ = ["dare_doubling", "linear_model", "lqr_gain", "stage_weights"]
+__all__ = ["dare_doubling", "linear_model", "lqr_gain", "stage_weights", "y_max_at"]
 
 
 def dare_doubling(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: float, tol: float = 1e-12) -> np.ndarray:
@@ -53,10 +60,27 @@ def dare_doubling(a: np.ndarray, b: np.ndarray, q: np.ndarray, r: float, tol: fl
     raise SynthesisError("the Riccati doubling iteration did not converge (is the model stabilisable?)")
 
 
-def stage_weights(settings: NMPCSettings) -> tuple[np.ndarray, float]:
-    """``(Q, R)`` of the stage cost: Bryson weights of ``[y, psi, delta]`` (and the integral), and the rate."""
+def y_max_at(settings: NMPCSettings, speed: float) -> float:
+    """The cross-track's Bryson bound at ``speed`` m/s, m.
+
+    ``weights.y_max`` when ``y_max_speed`` is ``None``; otherwise ``y_max * V / y_max_speed`` with
+    ``V`` clamped to ``speed_range`` (the paper's normalisation: ``y_max / V`` constant, so the
+    bound is ``weights.y_max`` at ``y_max_speed``). On the demo's models the rate-limited check
+    (:mod:`design.files.nmpc`) fails once ``y_max / V`` is down to 0.04-0.05 s, at every gear from
+    1.34 to 2.91 m/s (docs/nmpc.md): the bound it allows scales with ``V``.
+    """
+    y_max = float(settings.weights.y_max)
+    if settings.y_max_speed is None:
+        return y_max
+    lo, hi = settings.speed_range
+    return y_max * min(max(float(speed), lo), hi) / float(settings.y_max_speed)
+
+
+def stage_weights(settings: NMPCSettings, speed: float) -> tuple[np.ndarray, float]:
+    """``(Q, R)`` of the stage cost at ``speed`` m/s: Bryson weights of ``[y, psi, delta]`` (and the
+    integral; the cross-track's from :func:`y_max_at`), and the rate's."""
     w = settings.weights
-    q = [w.y_max ** -2, w.psi_max ** -2, w.delta_max ** -2]
+    q = [y_max_at(settings, speed) ** -2, w.psi_max ** -2, w.delta_max ** -2]
     return np.diag(q if settings.n_states == 3 else q + [settings.integral_max ** -2]), w.u_max ** -2
 
 
@@ -93,6 +117,6 @@ def nilpotent_zoh(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, 
 def lqr_gain(settings: NMPCSettings, speed: float) -> np.ndarray:
     """``K`` (1 x nx) of the discrete LQR of :func:`linear_model` with the stage weights at ``speed`` m/s."""
     ad, bd = linear_model(settings, speed)
-    q, r = stage_weights(settings)
+    q, r = stage_weights(settings, speed)
     p = dare_doubling(ad, bd, q, r)
     return np.linalg.solve(r + bd.T @ p @ bd, bd.T @ p @ ad)

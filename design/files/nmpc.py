@@ -7,7 +7,8 @@ and present, finite numbers, the loop's sample time, a checksum, an optional sig
      "settings": {"horizon", "weights": {"y_max", "psi_max", "delta_max", "u_max"}, "rate_limit",
                   "wheel_limit", "slack_weight", "wheelbase", "d2", "solver", "qpsol", "max_iter",
                   "tol", "terminal", "speed_range": [lo, hi], "integral_max", "max_calls",
-                  "observer": null | {"noise_y", ..., "drift_rate"}},              # NMPCSettings
+                  "observer": null | {"noise_y", ..., "drift_rate"},
+                  ["y_max_speed": m/s]},                   # NMPCSettings; the key only when scheduled
      "design": {...}, "certificate": {...}, "models": [{"name", "hash"}],
      "checksum": "sha256:..."}
 
@@ -24,6 +25,12 @@ records per model the spectral radius and margins (:func:`design.verify.check_mo
 and the model's matrices, and the hash of the settings. Every read recomputes the spectral radii
 from the file's settings and the recorded models and refuses a file whose certificate is missing,
 failed or made for other settings.
+
+**Stage weights scheduled with speed** (``settings.y_max_speed``, :func:`design.nmpc_law.y_max_at`):
+the law at each model's nominal speed is the LQR with the weights of that speed, so both checks
+are per speed. The key is written only when the schedule is set: a file without it is one of
+constant weights, byte for byte as files were written before the schedule existed (they load,
+and their certificates still match).
 
 **The rate-limited check.** A spectral radius below 1 is about the unconstrained law. With the
 rate limit a high-gain law can oscillate between the limits and diverge although its
@@ -64,6 +71,7 @@ from ..errors import ControllerFileError, DesignInputError, VerificationError
 from ..kinematic import KinematicWeights
 from ..limits import DT_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, in_range
 from ..nmpc import NMPCSettings, NonlinearMPC, lqr_gain
+from ..nmpc_law import y_max_at
 from ..nmpc_observer import ObserverSettings, observed_law
 from ..verify import Certificate, check_model, model_hash
 from .certificate import check_stated_radius, recorded_models
@@ -73,6 +81,8 @@ from .signature import check_signature
 TOP_KEYS = ("schema", "kind", "name", "dt", "settings", "design", "certificate", "models", "checksum")
 SETTING_KEYS = ("horizon", "weights", "rate_limit", "wheel_limit", "slack_weight", "wheelbase", "d2", "solver",
                 "qpsol", "max_iter", "tol", "terminal", "speed_range", "integral_max", "max_calls", "observer")
+#: Optional setting: present only in files whose cross-track weight is scheduled with speed.
+SCHEDULE_KEY = "y_max_speed"
 WEIGHT_KEYS = ("y_max", "psi_max", "delta_max", "u_max")
 #: Speeds a certificate row may state, m/s (field work).
 SPEED_RANGE = (0.1, 10.0)
@@ -85,14 +95,15 @@ TAIL_TOLERANCE_M = 1e-6
 
 
 def settings_to_dict(s: NMPCSettings) -> dict:
-    """The file's ``settings`` object."""
+    """The file's ``settings`` object (``y_max_speed`` only when the weights are scheduled)."""
     w = s.weights
+    schedule = {} if s.y_max_speed is None else {SCHEDULE_KEY: float(s.y_max_speed)}
     return {"horizon": int(s.horizon), "weights": {k: float(getattr(w, k)) for k in WEIGHT_KEYS},
             "rate_limit": s.rate_limit, "wheel_limit": s.wheel_limit, "slack_weight": s.slack_weight,
             "wheelbase": s.wheelbase, "d2": s.d2, "solver": s.solver, "qpsol": s.qpsol, "max_iter": int(s.max_iter),
             "tol": s.tol, "terminal": s.terminal, "speed_range": [float(v) for v in s.speed_range],
             "integral_max": s.integral_max, "max_calls": int(s.max_calls),
-            "observer": None if s.observer is None else s.observer.to_dict()}
+            "observer": None if s.observer is None else s.observer.to_dict(), **schedule}
 
 
 def _number(v: Any, what: str) -> float:
@@ -109,9 +120,13 @@ def settings_from_dict(d: Any, dt: float) -> NMPCSettings:
     ControllerFileError
         Unknown or missing keys, non-numbers, limits outside :mod:`design.limits`, no integral state.
     """
-    if not isinstance(d, dict) or sorted(d) != sorted(SETTING_KEYS):
+    if not isinstance(d, dict) or sorted(set(d) - {SCHEDULE_KEY}) != sorted(SETTING_KEYS):
         got = sorted(d) if isinstance(d, dict) else type(d).__name__
-        raise ControllerFileError(f"settings must hold exactly {', '.join(SETTING_KEYS)}; got {got}")
+        raise ControllerFileError(f"settings must hold exactly {', '.join(SETTING_KEYS)} (and {SCHEDULE_KEY} when "
+                                  f"the weights are scheduled with speed); got {got}")
+    if SCHEDULE_KEY in d and d[SCHEDULE_KEY] is None:
+        raise ControllerFileError(f"settings.{SCHEDULE_KEY} is null: leave the key out for constant weights, or give "
+                                  "the speed (m/s) at which weights.y_max holds")
     w = d["weights"]
     if not isinstance(w, dict) or sorted(w) != sorted(WEIGHT_KEYS):
         raise ControllerFileError(f"settings.weights must hold exactly {', '.join(WEIGHT_KEYS)}; got {w!r}")
@@ -149,7 +164,8 @@ def settings_from_dict(d: Any, dt: float) -> NMPCSettings:
                             tol=_number(d["tol"], "tol"), terminal=d["terminal"],
                             speed_range=(_number(sr[0], "speed_range"), _number(sr[1], "speed_range")),
                             integral_max=_number(d["integral_max"], "integral_max"),
-                            max_calls=d["max_calls"], observer=observer)
+                            max_calls=d["max_calls"], observer=observer,
+                            y_max_speed=(_number(d[SCHEDULE_KEY], SCHEDULE_KEY) if SCHEDULE_KEY in d else None))
     except DesignInputError as exc:
         raise ControllerFileError(f"settings: {exc}") from None
 
@@ -272,6 +288,8 @@ def certify_nmpc(s: NMPCSettings, models: Sequence[Model]) -> dict:
     cert = Certificate(tuple(checks), tuple(models), settings_hash(s)).to_dict()
     for row, v in zip(cert["models"], rows):
         row["speed"] = v
+        if s.y_max_speed is not None:
+            row["y_max_m"] = y_max_at(s, v)            # the cross-track's bound of the law checked at this speed
     cert["check"] = ("closed loop of the NMPC's linearisation (its LQR at each model's nominal speed, with the "
                      "integral of the cross-track) around each identified model, unconstrained and with the rate "
                      "limit")
@@ -317,6 +335,12 @@ def check_nmpc_certificate(cert: Any, s: NMPCSettings) -> None:
                                       f"got {v!r}")
         if abs(model.dt - s.dt) > 1e-9:
             raise ControllerFileError(f"certificate model {name!r} has dt={model.dt} s, the NMPC dt={s.dt} s")
+        if ("y_max_m" in row) != (s.y_max_speed is not None) or (
+                "y_max_m" in row and not (isinstance(row["y_max_m"], (int, float))
+                                          and abs(row["y_max_m"] - y_max_at(s, v)) <= 1e-12)):
+            raise ControllerFileError(f"certificate model {name!r}: states y_max_m={row.get('y_max_m')!r}, the settings "
+                                      f"give {y_max_at(s, v) if s.y_max_speed is not None else 'none (not scheduled)'} "
+                                      "at its speed (edited; design it again)")
         rho = spectral_radius(closed_loop_matrix(model.A, model.B, model.C, model.D, linearised_law(s, v)))
         check_stated_radius(row, name, rho, "the NMPC's linearisation", "settings")
         speeds.append(float(v))

@@ -96,19 +96,60 @@ class FieldKey:
         return f"{controller_label(self.controller)}__{fld}__{self.implement}_{self.speed:.2f}__seed{self.seed}{n}"
 
 
+def _oracle_weights(spec: str):
+    """``oracle`` or ``oracle?cross_track=0.025&...`` -> its :class:`~hil.bench.oracle.OracleWeights`; None
+    for any other spec. Unknown weights are refused."""
+    from hil.bench.oracle import OracleWeights
+    if spec.endswith(".json") or spec.partition("?")[0] != "oracle":
+        return None
+    from hil.vehicle.controllers import split_spec
+    _, opts = split_spec(spec)
+    known = set(OracleWeights.__dataclass_fields__)
+    bad = sorted(set(opts) - known)
+    if bad:
+        raise SimulatorConfigError(f"oracle weight(s) {bad} in {spec!r}: expected some of {sorted(known)} (m, rad, "
+                                   "rad/s, m s), e.g. oracle?cross_track=0.025")
+    return OracleWeights(**opts)
+
+
+def check_field_controller(spec: str) -> None:
+    """Refuse a controller spec a field run cannot build (before any run starts)."""
+    from hil.bench.campaign import make_controller
+    if _oracle_weights(spec) is None:
+        make_controller(spec)
+
+
+def field_controller(spec: str, implement: str, speed: float, params: SimParams):
+    """The controller of a field run.
+
+    ``oracle`` (optionally with its LQR weights, ``oracle?cross_track=0.025``) is
+    :class:`hil.bench.field_oracle.FieldOracle` for the run's condition: the truth-model LQG on the
+    passes with the curvature as the linear controllers get it, pure pursuit over the headland
+    turns; anything else is :func:`hil.bench.campaign.make_controller`'s.
+    """
+    from hil.bench.campaign import make_controller
+    weights = _oracle_weights(spec)
+    if weights is not None:
+        from hil.bench.field_oracle import FieldOracle
+        from hil.bench.oracle import OracleOptions
+        from hil.truth.conditions import condition_for
+        return FieldOracle(condition_for(implement, speed), params, OracleOptions(invert_valve=False, weights=weights))
+    return make_controller(spec, implement, speed, params)
+
+
 def run_field_key(key: FieldKey, params: dict, log_dir: str | None = None) -> dict:
     """Run one field run (in lockstep) and return its result; with ``log_dir``, save its run log there."""
-    from hil.bench.campaign import make_controller
     p = SimParams.from_dict(params)
-    ctrl = make_controller(key.controller, key.implement, key.speed, p)
+    ctrl = field_controller(key.controller, key.implement, key.speed, p)
     duration = route_duration(key.field, p, key.speed, key.passes)
     log = simulated_run(RunSpec(implement=key.implement, speed=key.speed, duration=duration, seed=key.seed,
                                 field=key.field, field_passes=key.passes), ctrl, p)
     if log_dir is not None:
         log.save(Path(log_dir) / f"{key.name}.npz")
     solver = ctrl.diagnostics() if callable(getattr(ctrl, "diagnostics", None)) else None   # MPC/NMPC solve times
+    extra = {"turn_law_handovers": ctrl.handovers} if hasattr(ctrl, "handovers") else {}   # the field oracle
     return {**asdict(key), "controller": controller_label(key.controller), "controller_spec": key.controller,
-            "duration_s": duration, **field_result(log), **({"solver": solver} if solver else {})}
+            "duration_s": duration, **field_result(log), **({"solver": solver} if solver else {}), **extra}
 
 
 class FieldComparison:
@@ -117,11 +158,10 @@ class FieldComparison:
     def __init__(self, out: str | Path, controllers: Sequence[str], fields: Sequence[str],
                  conditions: Sequence[Condition], seeds: Sequence[int] = (0,), params: SimParams | None = None,
                  passes: int | None = None) -> None:
-        from hil.bench.campaign import make_controller
         if not controllers or not fields or not conditions:
             raise SimulatorConfigError("a field comparison needs at least one controller, field and condition")
         for c in controllers:
-            make_controller(c)
+            check_field_controller(c)
         if not seeds or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
             raise SimulatorConfigError(f"seeds must be integers >= 0, got {list(seeds)!r}")
         self.out = Path(out)

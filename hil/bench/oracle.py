@@ -384,19 +384,33 @@ class OracleLQG:
         self._xhat = np.zeros(self.design.A.shape[0])
         self._q = 0.0
 
-    def step(self, m: Measurement) -> float:
-        """One measurement update, control and time update; returns the rate command, rad/s, + left."""
+    def step(self, m: Measurement, feedforward: float = 0.0,
+             reference_shift: tuple[float, float, float] | None = None) -> float:
+        """One measurement update, control and time update; returns the rate command, rad/s, + left.
+
+        On a curved route (:mod:`hil.bench.field_oracle`) ``m`` is the deviation from a reference
+        (:meth:`design.curvature.Reference.track`) that moves: ``reference_shift`` is how much its
+        cross-track, heading and wheel angle (measurement units: m, rad, calibrated rad) have moved
+        since the previous step, taken off the prediction (and its delayed copies, through ``X0``)
+        before the measurement update, and ``feedforward`` [rad/s] is the rate its wheel angle
+        turns at over the next step, added to the command (the model sees the valve's whole rate).
+        Both at their defaults (an AB line): the oracle as designed.
+        """
         d = self.design
         z = np.array([m.cross_track, m.heading_error, m.wheel_angle]) - d.y_trim
         if not np.all(np.isfinite(z)):
             raise SimulatorConfigError(f"oracle got a non-finite measurement {m!r}")
         if self._pred is None:
             self._pred = d.X0 @ z
+        elif reference_shift is not None:
+            self._pred = self._pred - d.X0 @ np.asarray(reference_shift, dtype=float)
         x = self._pred + d.M @ (z - d.C @ self._pred)
         n = x.size
         xf = x.copy()
         xf[self._ycols] = np.clip(x[self._ycols], -self._capture, self._capture)
         u = -float(d.K[0, :n] @ xf + d.K[0, n] * self._q)
+        if feedforward:
+            u += float(feedforward)
         st = self._steering
         if self.options.host_map:      # the host's inverse map makes the valve run at the command
             cmd = rate = min(max(u, -st.max_rate), st.max_rate)

@@ -26,6 +26,8 @@ import numpy as np
 
 from . import cli_mpc, cli_nmpc, cli_robust
 from .errors import DesignError
+from .estimate_schedule import EstimateSchedule
+from .files.schedule import set_estimate_schedule
 from .files.load import sign_file
 from .files.signature import key_id, keygen, load_private_key
 from .kinematic import KinematicWeights, gains_versus_speed
@@ -79,6 +81,20 @@ def _cmd_sign(args: argparse.Namespace) -> dict:
     return {"controller": str(args.controller), "out": str(out), "key_id": key_id(key.public_key())}
 
 
+def _band(text: str) -> tuple[float, float]:
+    """``LOW:HIGH`` m/s (``HIGH`` may be ``inf``) for ``--off``."""
+    lo, sep, hi = text.partition(":")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"expected LOW:HIGH in m/s (e.g. 2.6:inf), got {text!r}")
+    return _float(lo), (math.inf if hi.strip() in ("inf", "") else _float(hi))
+
+
+def _cmd_estimate_schedule(args: argparse.Namespace) -> dict:
+    schedule = EstimateSchedule(tuple(args.off or ()))
+    out = set_estimate_schedule(args.controller, schedule, args.out or args.controller)
+    return {"controller": str(args.controller), "out": str(out), **schedule.to_dict()}
+
+
 SIGNED_COMMANDS = ("robust", "lqr", "mpc", "nmpc")
 
 
@@ -112,6 +128,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default=None, help="signed file (default: replace CONTROLLER)")
     s.add_argument("--json", action="store_true", help="print the result as JSON")
     s.set_defaults(func=_cmd_sign)
+    e = sub.add_parser("estimate-schedule", help="set the speeds at which a file's disturbance estimate is off "
+                       "(both laws are certified in the file; hil commission sets it from a trial drive)")
+    e.add_argument("controller", help="a linear or MPC file designed with --disturbance-estimate on")
+    e.add_argument("--off", type=_band, action="append", metavar="LOW:HIGH",
+                   help="a speed band, m/s, where the estimate is off (repeatable; none given: on at every speed)")
+    e.add_argument("--out", default=None, help="file to write (default: replace CONTROLLER)")
+    e.add_argument("--json", action="store_true", help="print the result as JSON")
+    e.set_defaults(func=_cmd_estimate_schedule)
     return p
 
 
@@ -147,6 +171,9 @@ def main(argv: list[str] | None = None) -> int:
               f"(copy it to the field computer); key {result['key_id']}")
     elif args.command == "sign":
         print(f"signed {result['out']} with key {result['key_id']}")
+    elif args.command == "estimate-schedule":
+        bands = ", ".join(f"{lo:g}-{'inf' if hi is None else f'{hi:g}'} m/s" for lo, hi in result["off_speed_bands"])
+        print(f"wrote {result['out']}: the disturbance estimate is off at {bands or 'no speed'}")
     else:
         print(f"{'speed m/s':>10} {'K_y':>10} {'K_psi':>10} {'K_delta':>10}")
         for row in zip(result["speeds"], result["k_cross_track"], result["k_heading"], result["k_wheel_angle"]):

@@ -31,6 +31,7 @@ from identification.model import Model
 
 from .controller import Measurement
 from .errors import DesignInputError
+from .estimate_schedule import RECORD, EstimateSchedule
 from .files.certificate import recorded_models
 from .files.linear import MATRICES, MEASUREMENTS, ControllerFile, LinearController
 
@@ -171,6 +172,11 @@ def export_c(spec: ControllerFile, certificate: dict, checksum: str, out: str | 
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise DesignInputError(f"--out {out} is a file; --format c writes a directory of C sources")
+    sched = spec.design.get(RECORD) if isinstance(spec.design, dict) else None
+    if sched is not None and EstimateSchedule.from_record(sched).off:
+        raise DesignInputError("the file turns its disturbance estimate off at some speeds "
+                               f"({EstimateSchedule.from_record(sched).off}); the C step runs one law at every "
+                               "speed: export it with the estimate at every speed (design estimate-schedule FILE --out COPY, no --off)")
     name, _, plant = recorded_models(certificate)[0]
     rows = record_run(spec, plant)
     try:

@@ -19,6 +19,7 @@ import numpy as np
 from identification.model import Model
 
 from .errors import DesignInputError, SynthesisError
+from .estimate_schedule import RECORD, schedule_record, trailing_states
 from .files.linear import read_controller_file
 from .files.mpc import MPCFile
 from .iostate import window_to_state
@@ -134,7 +135,8 @@ def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | No
     k = unconstrained_gain(problem)
     family = [model, *verify_on]
     names = _model_names(family)
-    cert = certify(unconstrained_law(problem, k), family, names)
+    ulaw = unconstrained_law(problem, k)
+    cert = certify(ulaw, family, names)
     require_stable(cert if require else Certificate(cert.checks[:1]))
     law = fallback_law or ("robust-lmi" if fallback_gain is not None else "lqr")
     fb = -problem.lqr_gain if fallback_gain is None else np.asarray(fallback_gain, dtype=float)
@@ -148,6 +150,7 @@ def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | No
     if spec.disturbance is not None:
         design["coordinates"] += ", disturbance estimate " + ", ".join(f"d{j}" for j in spec.disturbance.channels)
         design["disturbance_estimate"] = spec.disturbance.to_dict()
+        design[RECORD] = schedule_record(ulaw, trailing_states(ulaw, len(spec.disturbance.channels)), family, names)
     file = MPCFile(spec.name, model, spec.horizon, spec.weights, spec.limits, spec.settings, fb, law, spec.past,
                    spec.output_clip, spec.speed_min, design, cert.to_dict(),
                    tuple({"name": n, "hash": model_hash(m)} for n, m in zip(names, family)), spec.disturbance)

@@ -23,6 +23,7 @@ from .anchored import anchored, augment_integral, best_anchor, observer_compensa
 from .compensator import Compensator
 from .disturbance import DisturbanceSpec, design_estimate
 from .errors import DesignInputError, SynthesisError
+from .estimate_schedule import RECORD, schedule_record
 from .files.linear import ControllerFile, outputs_for
 from .limits import check_model_order
 from .iostate import IOStateLayout, feedback_compensator, io_state_model, observable_past
@@ -417,6 +418,7 @@ def with_disturbance_estimate(result: RobustResult, models: Sequence[Model], spe
     require_stable(cert)
     file = replace(result.file, compensator=comp, certificate=cert.to_dict(),
                    design={**d, "disturbance_estimate": record,
+                           RECORD: schedule_record(comp, record["states"], models, names),
                            "coordinates": d["coordinates"] + ", prediction of the outputs, disturbance estimate"})
     return replace(result, file=file, certificate=cert)
 

@@ -167,3 +167,49 @@ def recorded_latency(cert: Any) -> float:
                 raise ControllerFileError(f"certificate: latency of {name!r} must be 0-1 s, got {v!r}")
             most = max(most, float(v))
     return most
+
+
+def check_estimate_schedule(design: Any, cert: Any, law: Compensator, dp_states: tuple[int, ...],
+                            legacy: bool = False) -> "EstimateSchedule | None":
+    """The file's estimate schedule (:mod:`design.estimate_schedule`), its law without the estimate certified.
+
+    ``design`` is the file's ``design`` object, ``cert`` its certificate, ``law`` the law it certifies (with the
+    estimate) and ``dp_states`` the estimate's states. Returns None when the file has no schedule (the
+    estimate acts at every speed, as in files written before schedules). Otherwise the record's
+    ``certificate_off`` must certify exactly :func:`~design.estimate_schedule.law_without_estimate` (as
+    :func:`check_certificate` does for the file's own) on the same models as the file's certificate,
+    whenever the schedule turns the estimate off somewhere.
+
+    Raises
+    ------
+    ControllerFileError
+        A malformed schedule, a schedule without an estimate, or one whose law without the estimate is
+        not certified on the file's models.
+    """
+    from ..estimate_schedule import RECORD, EstimateSchedule, law_without_estimate
+    rec = design.get(RECORD) if isinstance(design, dict) else None
+    if rec is None:
+        return None
+    schedule = EstimateSchedule.from_record(rec)
+    if not dp_states:
+        raise ControllerFileError(f"design.{RECORD} is given but the file has no disturbance estimate")
+    if not schedule.off:
+        return schedule
+    what = "the law without the disturbance estimate (design.estimate_schedule.certificate_off)"
+    try:
+        off = law_without_estimate(law, dp_states)
+    except DesignInputError as exc:
+        raise ControllerFileError(f"design.{RECORD}: {exc}") from None
+    try:
+        check_certificate(rec.get("certificate_off"), off, what, legacy)
+    except ControllerFileError as exc:
+        raise ControllerFileError(f"design.{RECORD}.certificate_off (the law without the disturbance estimate): "
+                                  f"{exc}") from None
+    if legacy and is_legacy(rec.get("certificate_off")):
+        return schedule
+    main = {h for _, h, _ in recorded_models(cert)} if isinstance(cert, dict) and not is_legacy(cert) else set()
+    have = {h for _, h, _ in recorded_models(rec["certificate_off"])}
+    if main - have:
+        raise ControllerFileError(f"{what} was not checked on every model of the file's certificate "
+                                  f"({len(main - have)} missing): design the controller again")
+    return schedule

@@ -45,7 +45,8 @@ from ..curvature import Reference
 from ..controller import Measurement
 from ..errors import ControllerFileError, DesignInputError
 from ..limits import DT_RANGE, MAX_COEFFICIENT, MAX_MODEL_ORDER, OUTPUT_CLIP_MAX, RATE_LIMIT_MAX, SPEED_MIN_RANGE, in_range
-from .certificate import check_certificate, recorded_latency
+from ..estimate_schedule import RECORD, EstimateSchedule, law_without_estimate
+from .certificate import check_certificate, check_estimate_schedule, recorded_latency
 from .envelope import SCHEMA, check_envelope, read_json, seal, write_atomically
 from .signature import check_signature
 
@@ -196,6 +197,8 @@ def from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519PublicKey |
     (``legacy_certificate``: see :func:`design.files.certificate.check_certificate`)."""
     spec = uncertified_from_body(body, dt, public_key)
     check_certificate(body["certificate"], spec.compensator, "the compensator", legacy_certificate)
+    check_estimate_schedule(body["design"], body["certificate"], spec.compensator, estimate_states(spec),
+                            legacy_certificate)
     return spec
 
 
@@ -319,13 +322,17 @@ class LinearController:
         self.name = f"linear:{spec.name}"
         self.dt = spec.compensator.dt
         c = spec.compensator
-        self._ac, self._bc, self._cc, self._dc, self._ec = c.Ac, c.Bc, c.Cc[0], c.Dc[0], c.Ec[:, 0]
         self._xc = np.zeros(c.order)
         self._fresh = True
         self._far = False
         self.acquisition = bool(acquisition)
         self._integrators = np.array(integrator_states(c) if acquisition else (), dtype=int)
         self._estimate = np.array(estimate_states(spec) if acquisition else (), dtype=int)
+        # the estimate's speed schedule (design.estimate_schedule): the law without it where it is off
+        rec = spec.design.get(RECORD) if acquisition and isinstance(spec.design, Mapping) else None
+        self.schedule = None if rec is None else EstimateSchedule.from_record(rec)
+        self._laws = {True: c, False: c if self.schedule is None or not self.schedule.off
+                      else law_without_estimate(c, estimate_states(spec))}
         self._kept = np.zeros(self._integrators.size)   # the integrals at the last step, kept over a re-engage
         self._last_t = math.inf                         # time of the last step, s
         self.gate = IntegralGate()
@@ -396,7 +403,8 @@ class LinearController:
             else:
                 self._headland.forget()
         self._last_t = float(m.t)
-        u = float(self._cc @ self._xc + self._dc @ y)
+        law = self._laws[self.schedule is None or self.schedule.acts_at(float(m.speed))]
+        u = float(law.Cc[0] @ self._xc + law.Dc[0] @ y)
         if not math.isfinite(u):
             self.reset()
             return 0.0
@@ -405,7 +413,7 @@ class LinearController:
         held = self._xc[self._integrators]
         held_estimate = self._xc[self._estimate] if self._estimate.size else None
         # the law's memory of its command is what reached the plant beyond the reference's own rate
-        self._xc = self._ac @ self._xc + self._bc @ y + self._ec * (ua - ff - u)
+        self._xc = law.Ac @ self._xc + law.Bc @ y + law.Ec[:, 0] * (ua - ff - u)
         if self._integrators.size and not (self.gate.integrate(float(m.cross_track), self.clipped(y))
                                            and self.reference.acquired):    # acquiring: integrals held
             self._xc[self._integrators] = held

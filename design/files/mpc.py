@@ -40,8 +40,10 @@ from identification.model import Model
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
+from ..compensator import Compensator
 from ..errors import ControllerFileError, DesignInputError
 from ..disturbance import DisturbanceSpec
+from ..estimate_schedule import RECORD, EstimateSchedule, trailing_states
 from ..limits import SPEED_MIN_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, DT_RANGE, check_horizon, check_model_order, in_range
 from ..mpc.backends import SolverSettings
 from ..mpc.controller import MPCController
@@ -49,7 +51,7 @@ from ..mpc.law import unconstrained_gain, unconstrained_law
 from ..mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 from ..verify import model_hash
 from ..weights import OutputWeights
-from .certificate import check_certificate, recorded_latency
+from .certificate import check_certificate, check_estimate_schedule, recorded_latency
 from .envelope import SCHEMA, check_envelope, read_json, seal, write_atomically
 from .linear import VELOCITY_OUTPUTS, check_coefficients, check_output_clip
 from .signature import check_signature
@@ -144,11 +146,17 @@ class MPCFile:
         """Sample time, s."""
         return self.model.dt
 
+    def estimate_states(self, law: Compensator) -> tuple[int, ...]:
+        """The disturbance estimate's carried states of the unconstrained ``law`` (() without an estimate)."""
+        return trailing_states(law, 0 if self.disturbance is None else len(self.disturbance.channels))
+
     def controller(self) -> MPCController:
-        """A fresh :class:`MPCController` for the vehicle loop."""
+        """A fresh :class:`MPCController` for the vehicle loop (with the file's estimate schedule, if any)."""
         problem = mpc_problem(self.model, self.horizon, self.weights, self.limits, self.past, self.disturbance)
+        rec = self.design.get(RECORD) if isinstance(self.design, Mapping) else None
         return MPCController(problem, self.settings, self.fallback_gain, self.fallback_law, self.output_clip,
-                             self.speed_min, self.name, recorded_latency(self.certificate))
+                             self.speed_min, self.name, recorded_latency(self.certificate),
+                             None if rec is None else EstimateSchedule.from_record(rec))
 
     def to_dict(self) -> dict:
         """The file's JSON object, checksum included."""
@@ -210,6 +218,7 @@ def mpc_from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519PublicK
     except DesignInputError as exc:
         raise ControllerFileError(f"the MPC's unconstrained law cannot be formed: {exc}") from None
     check_certificate(body["certificate"], law, "the MPC's unconstrained law", legacy_certificate)
+    check_estimate_schedule(body["design"], body["certificate"], law, spec.estimate_states(law), legacy_certificate)
     return spec
 
 

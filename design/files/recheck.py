@@ -22,7 +22,8 @@ from ..compensator import Compensator
 from ..errors import ControllerFileError, DesignInputError
 from ..verify import certify, compensator_hash, model_hash
 from .envelope import read_json
-from .linear import uncertified_from_body
+from ..estimate_schedule import RECORD, law_without_estimate
+from .linear import estimate_states, uncertified_from_body
 from .mpc import uncertified_mpc_from_body
 from .nmpc import recheck_nmpc
 
@@ -85,6 +86,29 @@ def recheck(path: str | Path, models: Sequence[Model]) -> dict:
         comp, stored = _law(body)
     except ControllerFileError as exc:
         raise ControllerFileError(f"{path}: {exc}") from None
+    problems, fresh, diff = _compare(comp, stored, models)
+    rec = body["design"].get(RECORD) if isinstance(body.get("design"), dict) else None
+    if isinstance(rec, dict):                  # the law without the estimate, certified for the schedule
+        try:
+            off = law_without_estimate(comp, _estimate_states(body, comp))
+        except (ControllerFileError, DesignInputError) as exc:
+            problems.append(f"the law without the estimate cannot be formed: {exc}")
+        else:
+            problems += [f"without the estimate: {p}" for p in _compare(off, rec.get("certificate_off"), models)[0]]
+    return {"controller": str(path), "certificate": fresh, "problems": problems, "passed": not problems,
+            "max_radius_difference_from_file": diff}
+
+
+def _estimate_states(body: dict, comp: Compensator) -> tuple[int, ...]:
+    if body.get("kind") == "mpc":
+        spec = uncertified_mpc_from_body(body, dt=None)
+        return spec.estimate_states(comp)
+    return estimate_states(uncertified_from_body(body, dt=None))
+
+
+def _compare(comp: Compensator, stored: Any, models: Sequence[Model]) -> tuple[list[str], dict, float | None]:
+    """Problems of ``stored`` (a certificate as read) against the certificate of ``comp`` recomputed on
+    ``models``; the recomputed certificate (without model matrices) and the largest radius difference."""
     cert = certify(comp, models)
     fresh = cert.to_dict()
     problems: list[str] = []
@@ -123,5 +147,4 @@ def recheck(path: str | Path, models: Sequence[Model]) -> dict:
             diffs.append(abs(a - b))
     for r in fresh["models"]:
         r.pop("model", None)
-    return {"controller": str(path), "certificate": fresh, "problems": problems, "passed": not problems,
-            "max_radius_difference_from_file": max(diffs) if diffs else None}
+    return problems, fresh, (max(diffs) if diffs else None)

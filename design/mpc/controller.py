@@ -29,6 +29,7 @@ from ..acquisition import HeadlandIntegrals, IntegralGate, integral_kept
 from ..controller import Measurement
 from ..curvature import PREVIEW_MAX, Reference
 from ..errors import DesignInputError
+from ..estimate_schedule import EstimateSchedule
 from .backends import SolverSettings, make_backend
 from .problem import MPCProblem
 
@@ -118,8 +119,10 @@ class MPCController:
     def __init__(self, problem: MPCProblem, settings: SolverSettings | None = None,
                  fallback_gain: np.ndarray | None = None, fallback_name: str = "lqr",
                  output_clip: Sequence[float | None] | None = (0.1, 0.05, None), speed_min: float = 0.3,
-                 name: str = "mpc", latency: float = 0.0) -> None:
+                 name: str = "mpc", latency: float = 0.0, schedule: EstimateSchedule | None = None) -> None:
         self.problem = problem
+        #: Where the disturbance estimate acts (:mod:`design.estimate_schedule`; None: at every speed).
+        self.schedule = schedule
         self.settings = settings or SolverSettings()
         self.backend = make_backend(problem, self.settings)
         self.name = f"mpc:{name}"
@@ -279,7 +282,11 @@ class MPCController:
         elif self._fresh:
             self._headland.forget()
         self._last_t = float(m.t)
-        info = self.solve_qp(z, rate_ref, wheel_ref)
+        zq = z
+        if self._dist.size and self.schedule is not None and not self.schedule.acts_at(float(m.speed)):
+            zq = z.copy()
+            zq[self._dist] = 0.0             # the estimate off at this speed: the QP does not see it (it still runs)
+        info = self.solve_qp(zq, rate_ref, wheel_ref)
         if info.fallback:
             self.events.append(FallbackEvent(float(m.t), info.status, info.reason))
         u = info.command

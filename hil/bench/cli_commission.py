@@ -77,6 +77,9 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     c.add_argument("--disturbance-estimate", choices=("on", "off"), default="on",
                    help="the robust controller and the MPC with the disturbance estimate (design robust/mpc "
                         "--disturbance-estimate; default on)")
+    c.add_argument("--estimate-trial", choices=("on", "off"), default="on",
+                   help="choose per speed whether the estimate acts, by a trial drive with it and without it "
+                        "(design estimate-schedule; default on)")
     c.add_argument("--quiet", action="store_true", help="no progress")
     c.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
 
@@ -130,7 +133,8 @@ def _options(args: argparse.Namespace) -> CommissionOptions:
                              hil_seeds=tuple(range(args.hil_seeds)) if args.hil_seeds >= 1 else (),
                              hil_duration=args.hil_duration, hil_conditions=args.hil_conditions,
                              weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance,
-                             disturbance_estimate=args.disturbance_estimate == "on")
+                             disturbance_estimate=args.disturbance_estimate == "on",
+                             estimate_trial=args.estimate_trial == "on")
 
 
 def _reporters(quiet: bool):

@@ -40,6 +40,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from hil.bench.estimate_trial import TRIAL_SEEDS, choose_schedule, has_schedule
 from hil.bench.oracle import OracleOptions, oracle_for
 from hil.bench.run import RunSpec, simulated_run
 from hil.bench.sysid import SysidPlan, make_passes
@@ -101,6 +102,9 @@ class CommissionOptions:
     disturbance_estimate
         The robust controller and the MPC with the disturbance estimate (``design robust/mpc
         --disturbance-estimate on``, :mod:`design.disturbance`; docs/disturbance_estimate.md).
+    estimate_trial, trial_seeds
+        Choose per speed whether the estimate acts by a trial drive with and without it
+        (:mod:`hil.bench.estimate_trial`), on passes with ``trial_seeds`` (apart from ``hil_seeds``).
     """
 
     speeds: tuple[float, ...] = tuple(GEAR_SPEEDS.values())
@@ -119,12 +123,19 @@ class CommissionOptions:
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
     disturbance_estimate: bool = True
+    estimate_trial: bool = True
+    trial_seeds: tuple[int, ...] = TRIAL_SEEDS
 
     def __post_init__(self) -> None:
         SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
                   duration=self.pass_duration, seed=self.seed)   # validates those
         if not self.hil_seeds or not all(isinstance(s, int) and s >= 0 for s in self.hil_seeds):
             raise SimulatorConfigError(f"hil_seeds must be integers >= 0, got {self.hil_seeds!r}")
+        if not self.trial_seeds or not all(isinstance(s, int) and s >= 0 for s in self.trial_seeds):
+            raise SimulatorConfigError(f"trial_seeds must be integers >= 0, got {self.trial_seeds!r}")
+        if set(self.trial_seeds) & set(self.hil_seeds):
+            raise SimulatorConfigError(f"trial_seeds {self.trial_seeds} must differ from hil_seeds {self.hil_seeds}: "
+                                       "the HIL comparison judges what the trial chose")
         RunSpec(duration=self.hil_duration)
         if self.weights not in WEIGHTS:
             raise SimulatorConfigError(f"weights must be one of {list(WEIGHTS)}, got {self.weights!r}")
@@ -367,6 +378,19 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
                 res["identification_fallback"] = again if missing == "robust" else {**again, "for": "mpc"}
                 designs.update(design_all(fallback_dir, False) if missing == "robust" else design_mpc_only(fallback_dir))
     res["designs"] = designs
+
+    # where the disturbance estimate acts: a trial drive per speed, with it and without it (both laws certified)
+    trial_files = [n for n in ("robust", "mpc") if n in designs and opts.estimate_trial and com is not None
+                   and has_schedule(designs[n]["file"])]
+    for name in trial_files:
+        def trial(name=name) -> dict:
+            return choose_schedule(designs[name]["file"], params, com, opts.speeds, opts.implements, ctrl / "trial",
+                                   opts.trial_seeds, opts.hil_duration,
+                                   lambda d, n: tick(f"estimate trial {name}", d, n))
+        r = steps.run(f"estimate trial {name}", f"estimate trial ({name}: each speed and implement with the "
+                      f"estimate and without it, seeds {', '.join(map(str, opts.trial_seeds))})", trial)
+        if r is not None:
+            res.setdefault("estimate_trial", {})[name] = r
 
     def hil() -> list[dict]:
         return _hil_table(params, com, designs, opts, lambda d, n: tick("hil", d, n))

@@ -47,6 +47,17 @@ def test_commission_runs_end_to_end_and_writes_everything_under_out(tmp_path: Pa
             assert c[k] > 0, (k, c)
     report = (out / "report.md").read_text()
     assert "| deadband, duty |" in report and "robust/oracle" in report
+    # the trial chose, per speed, where each file's estimate acts, and the files say so
+    from design.files.load import load_controller
+    assert set(res["estimate_trial"]) == {"robust", "mpc"}
+    for name, tr in res["estimate_trial"].items():
+        assert [r["speed"] for r in tr["speeds"]] == [1.0, 2.24]
+        for r in tr["speeds"]:
+            assert r["estimate"] == ("off" if r["rms_off_cm"] < r["rms_on_cm"] else "on")
+        sched = load_controller(out / "controllers" / f"{name}.json").schedule
+        assert [v for v in (1.0, 2.24) if not sched.acts_at(v)] == tr["off_speeds"]
+        assert (out / "controllers" / "trial" / f"{name}.estimate-on.json").is_file()
+    assert "## Where the disturbance estimate acts: `robust`" in report
 
 
 def test_the_command_refuses_bad_options(capsys) -> None:
@@ -64,6 +75,8 @@ def test_the_command_refuses_bad_options(capsys) -> None:
         CommissionOptions(weights="tuned")
     with pytest.raises(ValueError, match="hil_seeds"):
         CommissionOptions(hil_seeds=())
+    with pytest.raises(ValueError, match="must differ from hil_seeds"):
+        CommissionOptions(hil_seeds=(0, 1), trial_seeds=(1, 5))
 
 
 def test_hil_run_takes_a_commissioning_file_and_hil_commission_refuses_an_unknown_tractor(tmp_path: Path,

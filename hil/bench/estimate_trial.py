@@ -1,0 +1,101 @@
+"""The trial drive that chooses, per speed, whether a file's disturbance estimate acts (issue 14).
+
+A file designed with the estimate carries two certified laws, with and without it
+(:mod:`design.estimate_schedule`). Which is better at a speed depends on the tractor: on
+heavy-11t the estimate helps at 1.00-2.24 m/s and costs 1.4-1.8x at 2.91 m/s, where it drives a
+slow valve into its rate limit. No model the identification gives predicts that (a rate limit
+met 20-35 % of the time is not in a linear model), so it is measured the way a technician would:
+a short closed-loop drive at each speed with each implement, once with the estimate and once
+without, scored on the GPS cross-track the vehicle sees (no truth, no oracle: what a tractor
+has). The estimate is turned off at a speed when the law without it has the lower 1-sigma (RMS
+over the implements, each pooled over the trial's passes). On the bench the trial's passes have
+seeds of their own (:data:`TRIAL_SEEDS`), apart from those of the HIL comparison that judges the
+result.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+from typing import Callable, Sequence
+
+from design.estimate_schedule import RECORD, EstimateSchedule, bands_for
+from design.files.envelope import read_json
+from design.files.schedule import set_estimate_schedule
+
+from hil.bench.run import RunSpec, simulated_run
+from hil.vehicle.commissioning import Commissioning
+from hil.vehicle.summary import pool_passes, summarize
+
+#: Seeds of the trial's passes (the HIL comparison's are 0, 1, 2).
+TRIAL_SEEDS = (100, 101)
+
+
+def has_schedule(path: str | Path) -> bool:
+    """True if the controller file can switch its estimate (designed with it, schedule record present)."""
+    body = read_json(path)
+    return isinstance(body, dict) and isinstance(body.get("design"), dict) and isinstance(body["design"].get(RECORD), dict)
+
+
+def trial_sigma(path: Path, params, com: Commissioning | None, implement: str, speed: float, seeds: Sequence[int],
+                duration: float) -> float:
+    """Pooled 1-sigma (m) of the measured cross-track of ``path`` over closed-loop passes with ``seeds``."""
+    from hil.bench.campaign import make_controller      # campaign imports the commissioning, which imports this
+    summaries = []
+    for seed in seeds:
+        log = simulated_run(RunSpec(implement=implement, speed=speed, duration=duration, seed=seed),
+                            make_controller(str(path)), params, commissioning=com)
+        summaries.append(summarize(log, until_gps_fault=True))
+    return float(pool_passes(summaries)["sigma_m"])
+
+
+def choose_schedule(path: str | Path, params, com: Commissioning | None, speeds: Sequence[float],
+                    implements: Sequence[str], work: str | Path, seeds: Sequence[int] = TRIAL_SEEDS,
+                    duration: float = 60.0, progress: Callable[[int, int], None] | None = None) -> dict:
+    """Run the trial for one file and write the chosen schedule into it.
+
+    Parameters
+    ----------
+    path
+        Controller file designed with the estimate (linear or MPC); rewritten with the schedule.
+    params, com
+        The tractor's simulator parameters and its commissioning (the loop of ``hil commission``).
+    speeds, implements
+        The conditions of the trial (m/s; implement names).
+    work
+        Directory for the trial's two files (``<name>.estimate-on.json``: the file as designed, kept;
+        ``<name>.estimate-off.json``: the estimate off at every speed).
+
+    Returns
+    -------
+    dict
+        ``speeds``: per speed, the 1-sigma (cm) per implement with and without the estimate and the
+        choice; ``off_speeds``; ``schedule`` (the record written); ``files``.
+    """
+    path, work = Path(path), Path(work)
+    work.mkdir(parents=True, exist_ok=True)
+    on = work / f"{path.stem}.estimate-on.json"
+    off = work / f"{path.stem}.estimate-off.json"
+    shutil.copyfile(path, on)
+    set_estimate_schedule(on, EstimateSchedule(((0.0, math.inf),)), off)
+    total, done = 2 * len(speeds) * len(implements), 0
+    rows, off_speeds = [], []
+    for v in speeds:
+        row = {"speed": float(v), "on_cm": {}, "off_cm": {}}
+        for imp in implements:
+            for key, f in (("on_cm", on), ("off_cm", off)):
+                row[key][imp] = 100.0 * trial_sigma(f, params, com, imp, float(v), seeds, duration)
+                done += 1
+                if progress:
+                    progress(done, total)
+        rms = {k: math.sqrt(sum(x * x for x in row[k].values()) / len(implements)) for k in ("on_cm", "off_cm")}
+        row["rms_on_cm"], row["rms_off_cm"] = rms["on_cm"], rms["off_cm"]
+        row["estimate"] = "off" if rms["off_cm"] < rms["on_cm"] else "on"
+        if row["estimate"] == "off":
+            off_speeds.append(float(v))
+        rows.append(row)
+    schedule = bands_for(speeds, off_speeds)
+    set_estimate_schedule(on, schedule, path)
+    return {"speeds": rows, "off_speeds": off_speeds, "schedule": schedule.to_dict(), "seeds": list(seeds),
+            "duration_s": duration, "files": {"as_designed": str(on), "estimate_off": str(off), "scheduled": str(path)}}

@@ -66,7 +66,7 @@ def y_max_at(settings: NMPCSettings, speed: float) -> float:
     ``weights.y_max`` when ``y_max_speed`` is ``None``; otherwise ``y_max * V / y_max_speed`` with
     ``V`` clamped to ``speed_range`` (the paper's normalisation: ``y_max / V`` constant, so the
     bound is ``weights.y_max`` at ``y_max_speed``). On the demo's models the rate-limited check
-    (:mod:`design.files.nmpc`) fails once ``y_max / V`` is down to 0.04-0.05 s, at every gear from
+    (:mod:`design.files.nmpc`) fails once ``y_max / V`` is down to 0.045-0.052 s, at every gear from
     1.34 to 2.91 m/s (docs/nmpc.md): the bound it allows scales with ``V``.
     """
     y_max = float(settings.weights.y_max)

@@ -45,10 +45,11 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
                    help="identified model files or directories its linearisation is certified on")
     p.add_argument("--out", required=True, help="controller file (.json)")
     p.add_argument("--horizon", type=int, default=30, help="stages (default 30 = 1.5 s at 20 Hz)")
-    p.add_argument("--y-max", type=number, default=0.16,
-                   help="Bryson: cross-track, m, at --y-max-speed (default 0.16 m at 2.91 m/s, 0.098 m at 1.79; "
-                        "docs/nmpc.md: ahead of pure pursuit and Stanley at 1.79 and 2.91 m/s on gentle-curves; "
-                        "scheduled, 0.13 m and below are refused by the rate-limited check at 1.34-2.91 m/s)")
+    p.add_argument("--y-max", type=number, default=0.18,
+                   help="Bryson: cross-track, m, at --y-max-speed (default 0.18 m at 2.91 m/s, 0.111 m at 1.79; "
+                        "docs/nmpc.md: ahead of pure pursuit and Stanley at 1.79 and 2.91 m/s on gentle-curves, 0.16 "
+                        "further ahead; scheduled, 0.13 m and below are refused by the rate-limited check at "
+                        "1.34-2.91 m/s)")
     p.add_argument("--y-max-speed", type=_speed_or_none(number), default=2.91, metavar="V|none",
                    help="speed, m/s, at which --y-max holds (default 2.91): the bound scales with speed (y_max V / "
                         "y_max_speed, the paper's y/V normalisation), the law certified per speed; none: the same bound "

@@ -301,6 +301,8 @@ class LinearController:
     the clip: on random-1 over 5 seeds, at 2.91 m/s with the none implement 12.8 cm against 15.6 cm
     unheld); unlike the integral it runs during the rest of the approach (holding it there cost 5 %
     on the disker at 1.79 m/s), and it starts at zero on every engage.
+    Where the file's estimate schedule (:mod:`design.estimate_schedule`) turns it off at the measured
+    speed, the step runs the certified law without it (the estimate's filter still runs).
 
     The law acts on the measurement's deviation from its reference
     (:class:`design.curvature.Reference`): on engage, a smooth approach path from where the

@@ -121,14 +121,20 @@ def assess(name: str, model: Model, data: IOData, warmup: int = 0, horizon_s: fl
     return Acceptance(name, status, pred, tuple(messages), tuple(refusals), _fix(model))
 
 
-def enforce(verdicts: Sequence[Acceptance], policy: str = "refuse") -> list[str]:
+def enforce(verdicts: Sequence[Acceptance], policy: str = "refuse",
+            conditions: Sequence[Sequence[dict]] | None = None) -> list[str]:
     """Raise :class:`ModelRefusedError` if any verdict is a refusal (``policy="refuse"``).
 
-    Returns the warnings (and, with ``policy="warn"``, the refusals as warnings).
+    ``conditions`` (one list per verdict, as in a model's ``meta["conditions"]``) are carried by the
+    error's ``refused`` so a caller can record more passes of exactly those conditions. Returns the
+    warnings (and, with ``policy="warn"``, the refusals as warnings).
     """
+    if conditions is not None and len(conditions) != len(verdicts):
+        raise OptionError(f"{len(conditions)} condition lists for {len(verdicts)} verdicts")
     if policy not in ("refuse", "warn"):
         raise OptionError(f"acceptance policy must be 'refuse' or 'warn', got {policy!r}")
-    bad = [v for v in verdicts if v.refusals]
+    bad_at = [k for k, v in enumerate(verdicts) if v.refusals]
+    bad = [verdicts[k] for k in bad_at]
     if bad and policy == "refuse":
         fixes = {v.fix for v in bad}
         if len(fixes) == 1:      # one fix for all: said once, after the list
@@ -138,5 +144,7 @@ def enforce(verdicts: Sequence[Acceptance], policy: str = "refuse") -> list[str]
             lines = [m for v in bad for m in v.refusals]
         raise ModelRefusedError(f"{len(bad)} model(s) do not predict well enough to design on:\n  "
                                 + "\n  ".join(lines)
-                                + "\n(--acceptance warn writes them anyway, marked refused in their metadata)")
+                                + "\n(--acceptance warn writes them anyway, marked refused in their metadata)",
+                                refused={verdicts[k].name: [dict(c) for c in (conditions[k] if conditions is not None
+                                                                              else [])] for k in bad_at})
     return [m for v in verdicts for m in v.messages]

@@ -36,4 +36,16 @@ class ModelFileError(IdentificationError, ValueError):
 
 
 class ModelRefusedError(IdentificationError, ValueError):
-    """An identified model does not predict well enough on held-out data to design on."""
+    """An identified model does not predict well enough on held-out data to design on.
+
+    Attributes
+    ----------
+    refused
+        ``{model name: [condition, ...]}`` of the refused models, each condition as in a model's
+        ``meta["conditions"]`` (``implement``, ``gear``, ``nominal_speed``); empty when not known. A
+        recipe that records more passes for the refused conditions reads it.
+    """
+
+    def __init__(self, message: str, refused: dict[str, list[dict]] | None = None) -> None:
+        super().__init__(message)
+        self.refused: dict[str, list[dict]] = dict(refused or {})

@@ -67,7 +67,8 @@ def identify_logs(logs: Sequence[str | Path], out_dir: str | Path, order: int | 
     pre = Preprocessing(dt=dt, normalize=normalize)
     results = identify_tractor(passes, pre, {"order": order, "markov": markov, "method": method,
                                              "latency": latency, "delay_mode": delay}, kinds, progress)
-    warnings = enforce([r.acceptance for r in results], acceptance)
+    warnings = enforce([r.acceptance for r in results], acceptance,
+                       [r.model.meta.get("conditions", []) for r in results])
     written = save_results(results, out_dir)
     report = write_validation_report(results, out_dir)
     rows = []

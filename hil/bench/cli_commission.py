@@ -74,6 +74,10 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
                    help="Markov parameters (past window)")
     c.add_argument("--acceptance", choices=("refuse", "warn"), default="refuse",
                    help="a model that does not predict: stop (refuse) or go on with a warning")
+    c.add_argument("--more-passes", type=int, default=2, metavar="ROUNDS",
+                   help="with --acceptance refuse: rounds of --passes more passes of the conditions a refused model "
+                        "came from, each followed by identification again, before the refusal stops the recipe "
+                        "(0..5, default 2)")
     c.add_argument("--disturbance-estimate", choices=("on", "off"), default="on",
                    help="the robust controller and the MPC with the disturbance estimate (design robust/mpc "
                         "--disturbance-estimate; default on)")
@@ -133,7 +137,7 @@ def _options(args: argparse.Namespace) -> CommissionOptions:
                              hil_seeds=tuple(range(args.hil_seeds)) if args.hil_seeds >= 1 else (),
                              hil_duration=args.hil_duration, hil_conditions=args.hil_conditions,
                              weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance,
-                             disturbance_estimate=args.disturbance_estimate == "on",
+                             more_passes=args.more_passes, disturbance_estimate=args.disturbance_estimate == "on",
                              estimate_trial=args.estimate_trial == "on")
 
 

@@ -9,7 +9,9 @@ under one directory:
 2. **passes** -- the open-loop identification passes through the inverse map (``logs/``,
    :func:`hil.bench.sysid.make_passes` with ``valve=``);
 3. **identification** -- :func:`identification.workflow.identify_logs` (``models/``, its
-   ``validation.md``);
+   ``validation.md``); when it refuses a model, more passes of the refused models' conditions and
+   identification again, as the refusal's fix says (:mod:`hil.bench.more_passes`, at most
+   :attr:`CommissionOptions.more_passes` rounds);
 4. **designs** -- the paper's central LQR (certified on the central model, as the paper's), the
    robust controller and the MPC (certified on every local model) through the
    ``design`` commands (``controllers/``, each with its certificate), their command limits set to
@@ -41,6 +43,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from hil.bench.estimate_trial import TRIAL_SEEDS, choose_schedule, has_schedule
+from hil.bench.more_passes import identify_with_more_passes
 from hil.bench.oracle import OracleOptions, oracle_for
 from hil.bench.run import RunSpec, simulated_run
 from hil.bench.sysid import SysidPlan, make_passes
@@ -90,6 +93,10 @@ class CommissionOptions:
         picked order 2 and every model was refused).
     acceptance
         ``"refuse"`` (a model that does not predict stops the recipe) or ``"warn"``.
+    more_passes
+        With ``acceptance="refuse"``: rounds of more identification passes (``passes`` more of each
+        condition a refused model came from, :mod:`hil.bench.more_passes`) before a refusal stops the
+        recipe (0: none).
     integral
         Integral action in the robust design.
     robust_past
@@ -119,6 +126,7 @@ class CommissionOptions:
     order: int | str = "validate"
     markov: int | str = "auto"
     acceptance: str = "refuse"
+    more_passes: int = 2
     integral: bool = True
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
@@ -146,6 +154,8 @@ class CommissionOptions:
             raise SimulatorConfigError(f"fallback_order must be None or an order >= 1, got {self.fallback_order!r}")
         if self.acceptance not in ("refuse", "warn"):
             raise SimulatorConfigError(f"acceptance must be 'refuse' or 'warn', got {self.acceptance!r}")
+        if isinstance(self.more_passes, bool) or not isinstance(self.more_passes, int) or not 0 <= self.more_passes <= 5:
+            raise SimulatorConfigError(f"more_passes must be 0..5 rounds, got {self.more_passes!r}")
 
     def conditions(self) -> list[Condition]:
         """The HIL comparison's conditions."""
@@ -255,9 +265,10 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         res["linearity"] = dict(com.linearity or {})
         res["loop"] = asdict(com.loop_config())
 
+    plan = SysidPlan(speeds=opts.speeds, implements=opts.implements, passes=opts.passes,
+                     duration=opts.pass_duration, seed=opts.seed)
+
     def passes() -> list[str]:
-        plan = SysidPlan(speeds=opts.speeds, implements=opts.implements, passes=opts.passes,
-                         duration=opts.pass_duration, seed=opts.seed)
         made = make_passes(plan, params, progress=lambda d, n: tick("passes", d, n), valve=com.valve)
         return [str(log.save(out / "logs" / f"{name}.npz")) for name, log in made]
     logs = steps.run("passes", f"identification passes through the inverse map ({opts.passes} per condition, "
@@ -266,10 +277,10 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
     models_dir = out / "models"
 
     def identify() -> dict:
-        r = identify_logs([str(out / "logs")], models_dir, order=opts.order, markov=opts.markov,
-                          latency="auto", acceptance=opts.acceptance,
-                          progress=lambda d, n: tick("identification", d, n))
-        return {k: v for k, v in r.items() if k != "_text"}
+        return identify_with_more_passes(plan, params, com.valve, out / "logs", models_dir, opts.more_passes,
+                                         {"order": opts.order, "markov": opts.markov, "latency": "auto",
+                                          "acceptance": opts.acceptance}, say, tick,
+                                         res.setdefault("more_passes", []))
     ident = steps.run("identification", "identification (OKID/ERA, validation on held-out passes)",
                       identify) if logs else None
     if ident is not None:

@@ -119,6 +119,10 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
                          f"deg commanded, alarm below {lp['response_min_ratio']:.2f} of it.")
         files.append(str(_valve_figure(res, out / "valve.png")))
         lines += ["", "![valve](valve.png)"]
+    for r in res.get("more_passes", []):
+        lines += ["", f"More passes, round {r['round']}: identification refused {', '.join(r['refused'])}; "
+                  f"{len(r['files'])} more passes of {', '.join(r['conditions'])}, then identification again "
+                  "on every log."]
     ident = res.get("identification")
     if ident:
         lines += ["", "## Identification", "", f"{ident['n_logs']} pass logs; models in `models/` "

@@ -107,6 +107,9 @@ class SysidPlan:
         Length of each pass, s (> 0).
     seed
         Master seed (>= 0); pass ``i`` of a condition gets its own stream derived from it.
+    first_index
+        Index of the first pass of each condition (>= 0): passes ``first_index .. first_index + passes - 1``
+        are made, so more passes for a condition are new streams that never repeat the earlier ones.
     """
 
     speeds: tuple[float, ...] = tuple(GEAR_SPEEDS.values())
@@ -114,6 +117,7 @@ class SysidPlan:
     passes: int = 3
     duration: float = 120.0
     seed: int = 0
+    first_index: int = 0
 
     def __post_init__(self) -> None:
         if not self.speeds or not self.implements:
@@ -131,6 +135,8 @@ class SysidPlan:
             raise SimulatorConfigError(f"duration must be between 5 and 3600 s, got {self.duration!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise SimulatorConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
+        if isinstance(self.first_index, bool) or not isinstance(self.first_index, int) or self.first_index < 0:
+            raise SimulatorConfigError(f"first_index must be an integer >= 0, got {self.first_index!r}")
 
     def conditions(self) -> list[Condition]:
         return [condition_for(i, float(v)) for i in self.implements for v in self.speeds]
@@ -188,7 +194,7 @@ def make_passes(plan: SysidPlan, params: SimParams | None = None,
                                    "angle loop (pass valve=None with bridge='agopengps')")
     if module_driver is not None and bridge != "agopengps":
         raise SimulatorConfigError("module_driver applies only to bridge='agopengps'")
-    jobs = [(c, i) for c in plan.conditions() for i in range(plan.passes)]
+    jobs = [(c, i) for c in plan.conditions() for i in range(plan.first_index, plan.first_index + plan.passes)]
     conds = [c for c, _ in jobs]
     seeds = [pass_seed(plan.seed, c, i) for c, i in jobs]
     # the driver's own random draws come from a stream separate from the simulator's

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.bench.cli_commission import add_commission_parser
+from hil.bench.cli_commission import _options, add_commission_parser
 from hil.bench.commission import CommissionOptions, commission, hil_ratios
 from hil.truth.conditions import condition_for
 from hil.truth.tractors import resolve_tractor
@@ -77,6 +77,9 @@ def test_the_command_refuses_bad_options(capsys) -> None:
         CommissionOptions(hil_seeds=())
     with pytest.raises(ValueError, match="must differ from hil_seeds"):
         CommissionOptions(hil_seeds=(0, 1), trial_seeds=(1, 5))
+    with pytest.raises(ValueError, match="more_passes must be 0..5 rounds"):
+        CommissionOptions(more_passes=-1)
+    assert _options(p.parse_args(["commission", "--tractor", "x", "--out", "o", "--more-passes", "0"])).more_passes == 0
 
 
 def test_hil_run_takes_a_commissioning_file_and_hil_commission_refuses_an_unknown_tractor(tmp_path: Path,

@@ -18,6 +18,8 @@ from typing import Callable, Sequence
 from identification.model import Model
 
 from .autotune import SearchOptions, SearchResult, search_weights
+from .errors import SpecificationError
+from .iostate import observable_past
 from .mpc.law import unconstrained_law
 from .mpc_design import MPCDesign, MPCSpec, design_mpc, fallback_from_file
 from .mpc.problem import mpc_problem
@@ -37,13 +39,63 @@ def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications
     """The robust design at the most aggressive weights that meet ``specs`` on every model.
 
     ``spec`` gives everything but the weights (its ``integral`` is replaced by the
-    specification's, its ``past`` None is resolved once over ``models``).
+    specification's). Its ``past`` None (a window design) is chosen here: the weights are searched
+    with each of :func:`window_candidates` and the window whose search reaches the most aggressive
+    weights is kept (fewest relaxed specifications first, then the larger scale, then the shorter
+    window): the specifications are the same, so that window's law tracks with the widest
+    bandwidth they allow. Measured on random-1's validated models (orders 4-10, session 10): the
+    one-sample window met them up to a scale of 0.147, the observable window (3) up to 2.27, and
+    closed-loop 1-sigma at 2.91 m/s went from 13.1 to 10.4 cm (none) and 15.9 to 12.0 cm (ripper).
+    Every window's search is recorded in ``design["auto_weights"]["windows"]``.
 
     Raises
     ------
     SpecificationError
-        Even the gentlest weights fail a specification (named, with what was achieved).
+        Even the gentlest weights fail a specification with every window (the first window's
+        error, naming what was achieved).
     """
+    windows = window_candidates(models, spec)
+    found, tried, first_error = [], [], None
+    for past in windows:
+        say = None if progress is None else (
+            progress if len(windows) == 1 else (lambda line, past=past: progress(f"window {past}: {line}")))
+        try:
+            design, result = _auto_robust_at(models, replace(spec, past=past), specs, validate_on, options, say)
+        except SpecificationError as exc:
+            first_error = first_error or exc
+            tried.append({"past": past, "error": str(exc)})
+            continue
+        found.append((design, result, past))
+        tried.append({"past": past, "chosen_scale": result.scale, "relaxed": list(result.relaxed)})
+    if not found:
+        raise first_error          # type: ignore[misc] - windows is never empty
+    design, result, past = min(found, key=lambda f: (len(f[1].relaxed), -f[1].scale, f[2]))
+    d = design.file.design
+    file = replace(design.file, design={**d, "auto_weights": {**d["auto_weights"], "windows": {
+        "tried": tried, "kept": past,
+        "rule": "fewest relaxed specifications, then the largest scale, then the shortest window"}}})
+    return replace(design, file=file), result
+
+
+def window_candidates(models: Sequence[Model], spec: RobustSpec) -> list[int]:
+    """The measured windows the automatic weights are searched with.
+
+    ``[spec.past]`` when given or when the structure is not a window. Else the window
+    :func:`design.robust.resolved_past` picks (1 when design models may be made and no model
+    holds a delay) and the shortest window that determines every model's state
+    (:func:`design.iostate.observable_past`), each once, shortest first.
+    """
+    if spec.structure != "window":
+        return [spec.past]
+    if spec.past is not None:
+        return [resolved_past(models, spec)]
+    return sorted({resolved_past(models, spec), observable_past(models)})
+
+
+def _auto_robust_at(models: Sequence[Model], spec: RobustSpec, specs: Specifications,
+                    validate_on: Sequence[Model], options: SearchOptions | None,
+                    progress: Callable[[str], None] | None) -> tuple[RobustResult, SearchResult]:
+    """:func:`auto_robust` with the window ``spec.past`` (resolved when None)."""
     options = options or SearchOptions()
     family = [*models, *validate_on]
     latency = resolve_latency(specs, family)

@@ -32,16 +32,29 @@ def rewrite(path: Path, edit: Callable[[dict], object], fix_checksum: bool = Tru
 
 
 def tractor_model(speed: float, authority: float = 1.0, tau: float = 0.1, wheelbase: float = 2.85,
-                  d2: float = 1.14, dt: float = 0.05, name: str | None = None) -> Model:
+                  d2: float = 1.14, dt: float = 0.05, name: str | None = None,
+                  lags: tuple[float, ...] = ()) -> Model:
+    """One model of the family; ``lags`` (s) are first-order lags in series before the valve's, the
+    command passing through them in order (a slow hydraulic chain: the model's order is 4 + len(lags))."""
     v, ell = speed, wheelbase
-    a = np.array([[0, v, v * d2 / ell * authority, 0],
-                  [0, 0, v / ell * authority, 0],
-                  [0, 0, 0, 1],
-                  [0, 0, 0, -1 / tau]], dtype=float)
-    b = np.array([[0], [0], [0], [1 / tau]])
-    c = np.array([[1 / v, 0, 0, 0], [0, 1 / v, 0, 0], [0, 0, 1, 0]])
+    n = 4 + len(lags)
+    a = np.zeros((n, n))
+    a[:4, :4] = [[0, v, v * d2 / ell * authority, 0],
+                 [0, 0, v / ell * authority, 0],
+                 [0, 0, 0, 1],
+                 [0, 0, 0, -1 / tau]]
+    b = np.zeros((n, 1))
+    for j in range(3, n):                         # state n-1 is the first lag, state 3 the valve's rate
+        t = tau if j == 3 else lags[n - 1 - j]
+        a[j, j] = -1 / t
+        if j < n - 1:
+            a[j, j + 1] = 1 / t
+        else:
+            b[j, 0] = 1 / t
+    c = np.zeros((3, n))
+    c[0, 0], c[1, 1], c[2, 2] = 1 / v, 1 / v, 1
     ad, bd, *_ = cont2discrete((a, b, c, np.zeros((3, 1))), dt, method="zoh")
-    p = sla.solve_discrete_are(ad.T, c.T, np.eye(4) * 1e-4, np.eye(3) * 1e-4)
+    p = sla.solve_discrete_are(ad.T, c.T, np.eye(n) * 1e-4, np.eye(3) * 1e-4)
     k = ad @ p @ c.T @ np.linalg.inv(c @ p @ c.T + np.eye(3) * 1e-4)
     meta = {"name": name or f"v{speed:g}_a{authority:g}", "kind": "local", "normalization": "velocity",
             "output_names": ["y/V", "psi/V", "delta"], "input_names": ["steer_rate_cmd"]}

@@ -138,6 +138,13 @@ def _cmd_params(args: argparse.Namespace) -> dict:
 
 
 def _controller_spec(text: str) -> str:
+    if text.partition("?")[0] == "oracle" and "?" in text:       # the oracle's weights: field runs only
+        from hil.bench.field_bench import check_field_controller
+        try:
+            check_field_controller(text)
+        except (ValueError, TypeError, SimulatorConfigError) as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+        return text
     if text.partition("?")[0] in BUILTIN_CONTROLLERS:
         try:
             make_controller(text)
@@ -207,6 +214,7 @@ def _cmd_compare(args: argparse.Namespace) -> dict:
         return _cmd_compare_fields(args)
     if args.passes is not None:
         raise SimulatorConfigError("--passes needs --fields")
+    _refuse_oracle_weights(args.controllers, "--fields")
     campaign = Campaign(Path(args.out) / "campaign", args.controllers, args.conditions,
                         seeds=list(range(args.seed, args.seed + args.seeds)),
                         duration=60.0 if args.duration is None else args.duration,
@@ -227,6 +235,14 @@ def _cmd_compare(args: argparse.Namespace) -> dict:
                                      duration=args.realtime_duration) if args.realtime else []
     rep = write_report(results, args.out, extra={"campaign": campaign.identity}, realtime=realtime)
     return {"out": args.out, "passes": len(results), "tables": rep["tables"], "files": rep["files"]}
+
+
+def _refuse_oracle_weights(controllers: list[str], option: str) -> None:
+    """The oracle's weights (``oracle?cross_track=...``) are those of the field oracle: refuse them on AB lines."""
+    for c in controllers:
+        if c.startswith("oracle?"):
+            raise SimulatorConfigError(f"{c!r}: the oracle's weights are for field runs ({option}); on an AB line "
+                                       "give plain 'oracle'")
 
 
 def _cmd_compare_fields(args: argparse.Namespace) -> dict:
@@ -304,10 +320,14 @@ def _cmd_run(args: argparse.Namespace) -> dict:
                    realtime=args.realtime, initial_cross_track=args.initial_cross_track, bridge=args.bridge,
                    field=args.field, field_passes=args.passes, **{k: tuple(v) for k, v in faults.items()})
     com = load_commissioning(args.commissioning) if args.commissioning else None
-    if com is not None and args.controller == "oracle":      # behind the host's inverse map
+    if spec.field:         # the field oracle (curvature, headland turns) for 'oracle'; any other as on a line
+        from hil.bench.field_bench import field_controller
+        controller = field_controller(args.controller, spec.implement, spec.speed, params, host_map=com is not None)
+    elif com is not None and args.controller == "oracle":      # behind the host's inverse map
         from hil.bench.oracle import OracleOptions, oracle_for
         controller = oracle_for(spec.implement, spec.speed, params, OracleOptions(invert_valve=False, host_map=True))
     else:
+        _refuse_oracle_weights([args.controller], "--field")
         controller = make_controller(args.controller, spec.implement, spec.speed, params)
     bar = tqdm(total=round(spec.duration), unit="s", desc="closed-loop pass", disable=args.quiet, file=sys.stderr)
 
@@ -389,7 +409,8 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("run", parents=[common], help="one closed-loop pass following an AB line")
     r.add_argument("--controller", required=True, type=_controller_spec,
                    help="kinematic (the paper's LQR on the kinematic model at the measured speed), pure-pursuit, "
-                        "stanley, or a controller file (.json) from `design`")
+                        "stanley, oracle (with --field: the field oracle, its weights as oracle?cross_track=0.025), "
+                        "or a controller file (.json) from `design`")
     r.add_argument("--implement", choices=IMPLEMENTS, default="none")
     r.add_argument("--speed", type=_float, default=1.79, help="nominal speed, m/s (default 1.79)")
     r.add_argument("--duration", type=_float, default=None,

@@ -119,13 +119,15 @@ def check_field_controller(spec: str) -> None:
         make_controller(spec)
 
 
-def field_controller(spec: str, implement: str, speed: float, params: SimParams):
+def field_controller(spec: str, implement: str, speed: float, params: SimParams, host_map: bool = False):
     """The controller of a field run.
 
     ``oracle`` (optionally with its LQR weights, ``oracle?cross_track=0.025``) is
     :class:`hil.bench.field_oracle.FieldOracle` for the run's condition: the truth-model LQG on the
     passes with the curvature as the linear controllers get it, pure pursuit over the headland
-    turns; anything else is :func:`hil.bench.campaign.make_controller`'s.
+    turns; anything else is :func:`hil.bench.campaign.make_controller`'s. ``host_map``: the run goes
+    through a commissioning file's inverse valve map, so the oracle designs on a unit valve gain
+    (:class:`hil.bench.oracle.OracleOptions`).
     """
     from hil.bench.campaign import make_controller
     weights = _oracle_weights(spec)
@@ -133,7 +135,8 @@ def field_controller(spec: str, implement: str, speed: float, params: SimParams)
         from hil.bench.field_oracle import FieldOracle
         from hil.bench.oracle import OracleOptions
         from hil.truth.conditions import condition_for
-        return FieldOracle(condition_for(implement, speed), params, OracleOptions(invert_valve=False, weights=weights))
+        return FieldOracle(condition_for(implement, speed), params,
+                           OracleOptions(invert_valve=False, weights=weights, host_map=host_map))
     return make_controller(spec, implement, speed, params)
 
 

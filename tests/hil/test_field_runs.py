@@ -218,6 +218,33 @@ def test_hil_run_refuses_field_options_that_do_not_fit(tmp_path, hairpin, capsys
                      "--out", str(tmp_path / "c")]) == 1
 
 
+def test_hil_run_with_the_oracle_on_a_field_runs_the_field_oracle(tmp_path, curved, capsys):
+    # measured on the bend at 1.79 m/s, seed 0, no GPS outages: the field oracle's curve bias per pass -2.1 and
+    # -2.7 cm, worst curve entry 11.7 cm; the bare straight-line oracle (what `hil run --field` built before)
+    # 29.5 and -37.9 cm, 54.8 cm
+    out = tmp_path / "oracle"
+    assert hil_main(["run", "--controller", "oracle", "--field", curved, "--speed", "1.79", "--out", str(out),
+                     "--set", "gps.dropout_rate=0", "--quiet"]) == 0
+    f = json.loads((out / "summary.json").read_text())["field"]
+    assert len(f["passes"]) == 2 and f["wrong_segment_jumps"] == 0 and f["route_driven"] > 0.99
+    assert all(abs(p["curve"]["bias_m"]) <= 0.05 for p in f["passes"]), f["passes"]
+    assert f["curve_entry_worst_m"] <= 0.2
+    capsys.readouterr()
+    # its weights are the field oracle's: accepted with --field, refused on an AB line, checked by name
+    assert hil_main(["run", "--controller", "oracle?cross_track=0.025", "--field", curved, "--passes", "1",
+                     "--duration", "5", "--out", str(tmp_path / "w"), "--quiet"]) == 0
+    assert hil_main(["run", "--controller", "oracle?cross_track=0.025", "--duration", "5",
+                     "--out", str(tmp_path / "ab"), "--quiet"]) == 1
+    assert "the oracle's weights are for field runs (--field)" in capsys.readouterr().err
+    assert not (tmp_path / "ab").exists()
+    with pytest.raises(SystemExit) as e:
+        hil_main(["run", "--controller", "oracle?crosstrack=0.025", "--field", curved, "--out", str(tmp_path / "x")])
+    assert e.value.code == 2 and "crosstrack" in capsys.readouterr().err
+    assert hil_main(["compare", "oracle?cross_track=0.025", "--conditions", "none:1.79", "--seeds", "1",
+                     "--out", str(tmp_path / "cmp")]) == 1
+    assert "the oracle's weights are for field runs (--fields)" in capsys.readouterr().err
+
+
 def test_hil_compare_refuses_an_empty_field_list_and_options_it_cannot_use(tmp_path, hairpin, capsys):
     with pytest.raises(SystemExit) as e:     # an empty list was an AB comparison before
         hil_main(["compare", "kinematic", "--fields", ",", "--out", str(tmp_path / "a")])

@@ -150,13 +150,14 @@ class MPCFile:
         """The disturbance estimate's carried states of the unconstrained ``law`` (() without an estimate)."""
         return trailing_states(law, 0 if self.disturbance is None else len(self.disturbance.channels))
 
-    def controller(self) -> MPCController:
-        """A fresh :class:`MPCController` for the vehicle loop (with the file's estimate schedule, if any)."""
+    def controller(self, approach: bool = True) -> MPCController:
+        """A fresh :class:`MPCController` for the vehicle loop (with the file's estimate schedule, if any;
+        ``approach``: :class:`design.mpc.controller.MPCController`'s, False for the bare law)."""
         problem = mpc_problem(self.model, self.horizon, self.weights, self.limits, self.past, self.disturbance)
         rec = self.design.get(RECORD) if isinstance(self.design, Mapping) else None
         return MPCController(problem, self.settings, self.fallback_gain, self.fallback_law, self.output_clip,
                              self.speed_min, self.name, recorded_latency(self.certificate),
-                             None if rec is None else EstimateSchedule.from_record(rec))
+                             None if rec is None else EstimateSchedule.from_record(rec), approach=approach)
 
     def to_dict(self) -> dict:
         """The file's JSON object, checksum included."""

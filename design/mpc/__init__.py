@@ -46,7 +46,7 @@ def build_mpc(model: Model, horizon: int = 50, weights: MPCWeights | None = None
               backend: str = "casadi", solver: str = "daqp", max_iter: int | None = None, time_budget: float = 0.025,
               fallback_gain: np.ndarray | None = None, fallback_name: str | None = None, past: int = 1,
               output_clip: Sequence[float | None] | None = (0.1, 0.05, None), speed_min: float = 0.3,
-              solver_options: dict | None = None, name: str = "mpc") -> MPCController:
+              solver_options: dict | None = None, name: str = "mpc", approach: bool = True) -> MPCController:
     """Build the MPC on ``model`` (normally the central model), ready to step.
 
     Parameters
@@ -73,8 +73,10 @@ def build_mpc(model: Model, horizon: int = 50, weights: MPCWeights | None = None
         Normalisation of the measurements (as in the linear controller files).
     name
         Controller name.
+    approach
+        Follow the approach path to the line on engage (:class:`MPCController`); False: the bare law.
     """
     problem = mpc_problem(model, horizon, weights, limits, past)
     settings = SolverSettings(backend, solver, max_iter, time_budget, solver_options or {})
     label = fallback_name or ("robust-lmi" if fallback_gain is not None else "lqr")
-    return MPCController(problem, settings, fallback_gain, label, output_clip, speed_min, name)
+    return MPCController(problem, settings, fallback_gain, label, output_clip, speed_min, name, approach=approach)

@@ -16,6 +16,7 @@ from design.errors import ControllerFileError, DesignInputError
 from design.estimate_schedule import EstimateSchedule, bands_for, law_without_estimate
 from design.files.linear import LinearController, read_controller_file
 from design.files.load import load_controller
+from design.files.mpc import read_mpc_file
 from design.files.schedule import set_estimate_schedule
 from design.mpc import MPCLimits, SolverSettings
 from design.mpc.law import unconstrained_law
@@ -127,7 +128,8 @@ def test_the_mpc_runs_its_law_without_the_estimate_where_the_schedule_says(tmp_p
     path = tmp_path / "mpc.json"
     d.file.save(path)
     set_estimate_schedule(path, bands_for([1.0, 2.91], [2.91]), path)
-    ctrl = load_controller(path)
+    ctrl = read_mpc_file(path).controller(approach=False)          # the bare law: no approach path on engage
+    assert load_controller(path).schedule == ctrl.schedule
     full = unconstrained_law(d.problem, d.unconstrained_gain)
     nz = d.problem.nz
     off = law_without_estimate(full, list(range(full.order - 2, full.order)))

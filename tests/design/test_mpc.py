@@ -28,8 +28,9 @@ SLOW_OK = 1.0       # time budget, s: generous, so a loaded CI machine does not 
 
 
 def mpc(horizon, *args, **kwargs):
-    """``build_mpc`` on the central model with a generous time budget (unless given)."""
-    return build_mpc(CENTRAL, horizon, *args, **{"time_budget": SLOW_OK, **kwargs})
+    """``build_mpc`` on the central model with a generous time budget (unless given), running its bare law
+    (no approach path on engage: these tests are about the QP, its limits and its fallback)."""
+    return build_mpc(CENTRAL, horizon, *args, **{"time_budget": SLOW_OK, "approach": False, **kwargs})
 
 
 def closed_loop(ctrl, plant, steps, y0=0.6, psi0=0.0, delta0=0.0, noise=0.0, seed=0, wheel_noise=True):
@@ -148,7 +149,7 @@ def test_iteration_cap_gives_the_fallback_and_a_recorded_event(backend, solver):
 
 
 def test_time_budget_gives_the_fallback():
-    ctrl = build_mpc(CENTRAL, 30, time_budget=1e-9)
+    ctrl = build_mpc(CENTRAL, 30, time_budget=1e-9, approach=False)
     z = np.zeros(8)
     z[0] = 0.05
     info = ctrl.solve_qp(z)

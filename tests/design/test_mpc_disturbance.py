@@ -40,7 +40,7 @@ def test_the_state_carries_the_estimate_and_the_law_is_certified(designed):
 
 def test_the_controller_runs_exactly_its_certified_law_when_no_limit_binds(designed):
     # the vehicle's MPC (its estimator, its QP) and the certificate's compensator give the same commands
-    ctrl = designed.file.controller()
+    ctrl = designed.file.controller(approach=False)          # the bare law: no approach path on engage
     comp = unconstrained_law(designed.problem, designed.unconstrained_gain)
     rng = np.random.default_rng(5)
     xc = None

@@ -4,9 +4,11 @@ The MPC predicts with the kinematic model of the synthetic family (not an identi
 model), so the truth simulator's valve (deadband, lag, asymmetry) and its non-linear,
 quantised wheel-angle sensor are real model mismatch: the rate limit is hard and holds
 exactly; the wheel-angle limit is soft and holds on the predictions, so on the truth it
-is met to within 20 mrad (measured here: about 7 mrad over a 50 mrad limit). The limit is 50 mrad
+is met to within 20 mrad (measured here: about 9 mrad over a 50 mrad limit). The limit is 50 mrad
 (80 before the MPC stopped integrating the approach while its outputs are clipped: without that
-windup the free pass turns the wheels to 99 mrad, not beyond 120).
+windup the free pass turns the wheels to 99 mrad, not beyond 120). Since the MPC follows the
+approach path of the linear controllers (session 11) the free pass turns them to 83 mrad and the
+limited one to 59 mrad (before: 99 and 57).
 """
 
 from __future__ import annotations
@@ -44,4 +46,5 @@ def test_mpc_in_lockstep_hil_keeps_its_limits_and_is_repeatable():
     assert not np.array_equal(other["steer_rate_cmd"], ch["steer_rate_cmd"])
     # without the wheel-angle limit the same pass turns the wheels much further
     _, free, on_free = _run(MPCLimits(rate=0.2, wheel_angle=10.0))
-    assert np.max(np.abs(free.channels["truth_wheel_angle"][on_free])) > lim.wheel_angle + 0.04
+    limited = np.max(np.abs(ch["truth_wheel_angle"][on]))
+    assert np.max(np.abs(free.channels["truth_wheel_angle"][on_free])) > limited + 0.02

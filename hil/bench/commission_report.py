@@ -151,13 +151,17 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
                   f"A trial drive at each speed with each implement, the estimate on and off (both laws certified), "
                   f"{tr['duration_s']:g} s passes with seeds {', '.join(map(str, tr['seeds']))} (not the HIL "
                   "comparison's); 1-sigma of the measured cross-track, cm. The estimate is off where the law without "
-                  "it has the lower RMS over the implements.", "",
-                  "| m/s | " + " | ".join(f"{i} on / off" for i in tr["speeds"][0]["on_cm"]) + " | RMS on / off | estimate |",
-                  "|---:|" + "---:|" * (len(tr["speeds"][0]["on_cm"]) + 1) + "---|"]
+                  "it has the lower 1-sigma by the geometric mean over the implements of the ratio on / off (each "
+                  "implement alike; the RMS is given for reference).", "",
+                  "| m/s | " + " | ".join(f"{i} on / off" for i in tr["speeds"][0]["on_cm"])
+                  + " | RMS on / off | on / off, geometric mean | estimate |",
+                  "|---:|" + "---:|" * (len(tr["speeds"][0]["on_cm"]) + 2) + "---|"]
         for r in tr["speeds"]:
+            ratio = r.get("ratio_on_off")
             lines.append(f"| {r['speed']:.2f} | " + " | ".join(f"{r['on_cm'][i]:.2f} / {r['off_cm'][i]:.2f}"
                                                              for i in r["on_cm"])
-                         + f" | {r['rms_on_cm']:.2f} / {r['rms_off_cm']:.2f} | {r['estimate']} |")
+                         + f" | {r['rms_on_cm']:.2f} / {r['rms_off_cm']:.2f} | "
+                         + ("-" if ratio is None else f"{ratio:.3f}") + f" | {r['estimate']} |")
         bands = tr["schedule"]["off_speed_bands"]
         lines += ["", "Schedule written: the estimate off at " + (", ".join(
             f"{lo:g}-{'inf' if hi is None else f'{hi:g}'} m/s" for lo, hi in bands) or "no speed") + "."]

@@ -109,8 +109,8 @@ class MPCController:
         (random-5, none/disker/ripper 2.26/2.39/2.26 cm; with the path 1.80/1.84/1.80 cm). A
         re-engage within :data:`design.acquisition.INTEGRAL_MEMORY_S` of the last step (the integral
         kept) takes the line as acquired (:meth:`design.curvature.Reference.on_line`): the QP recovers
-        by itself, as before; with an approach path planned there the stuck-valve case of
-        ``tests/design/test_windup_reengage.py`` peaked at 2.55 m against 1.09 m.
+        by itself, as before (the stuck-valve faults measured with and without the approach path are in
+        ``tests/design/test_windup_reengage.py``'s docstring).
     approach
         Plan the approach path (default). False: the line is taken as acquired at once, so on a
         straight line the command is the certified law on the measurement itself (the law's tests).

@@ -68,6 +68,9 @@ def test_field_oracle_specs_are_checked():
     check_field_controller("oracle?cross_track=0.025&rate=0.35")
     ctl = field_controller("oracle?cross_track=0.025", "disker", 1.79, SimParams())
     assert ctl.oracle.options.weights.cross_track == 0.025 and ctl.oracle.condition.implement == "disker"
+    assert not ctl.oracle.options.host_map
+    # behind a commissioning file's valve map (hil run --field --commissioning) it designs on a unit valve gain
+    assert field_controller("oracle", "disker", 1.79, SimParams(), host_map=True).oracle.options.host_map
     with pytest.raises(SimulatorConfigError, match="crosstrack"):
         check_field_controller("oracle?crosstrack=0.025")
     with pytest.raises(SimulatorConfigError, match="cross_track must be"):

@@ -17,12 +17,15 @@ data held out from the fit. The chosen structure is the smallest order, then
 the shortest past, whose score is within :data:`PARSIMONY_POINTS` of the best
 (an extra state must earn its keep). The selection data are the first half of
 every held-out experiment; the acceptance fit is reported on the second half,
-so the reported fit is not the one the choice was made on.
+so the reported fit is not the one the choice was made on. A caller that knows what the
+plant cannot have passes ``implausible`` (the tractor identification: a lightly damped mode near
+the Nyquist frequency, :mod:`identification.modes`); a candidate it names is recorded and not
+chosen while another candidate is free of it.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -60,7 +63,8 @@ def _candidates(opts: dict[str, Any], q: int, dt: float, delay_samples: int) -> 
 
 
 def fit_select(fit: IOData, held_out: IOData, okid_options: dict[str, Any], delay_samples: int = 0,
-               horizon_s: float = HORIZON_S) -> tuple[OKID, IOData, dict]:
+               horizon_s: float = HORIZON_S,
+               implausible: Callable[[np.ndarray, float], str | None] | None = None) -> tuple[OKID, IOData, dict]:
     """Identify with the structure chosen on held-out data (module docstring).
 
     Parameters
@@ -78,6 +82,12 @@ def fit_select(fit: IOData, held_out: IOData, okid_options: dict[str, Any], dela
         read from ``okid_options["delay_samples"]``.
     horizon_s
         Prediction horizon of the score, s.
+    implausible
+        ``implausible(A, dt)`` names what the plant cannot have in a candidate's state matrix
+        (e.g. :func:`identification.modes.sampling_artefact`), or returns ``None``. A named
+        candidate is recorded with the reason and is not chosen, nor counted in the best score,
+        while another candidate is free of it; if none is, the choice is made over all and the
+        record says so (``"implausible_all"``).
 
     Returns
     -------
@@ -111,12 +121,17 @@ def fit_select(fit: IOData, held_out: IOData, okid_options: dict[str, Any], dela
             continue
         key = (est.order_, est.n_lags_)
         best_est[key] = est
-        table.append({"order": est.order_, "past": est.n_lags_, "fit": [float(v) for v in score],
-                      "score": float(np.nanmean(score))})
+        row = {"order": est.order_, "past": est.n_lags_, "fit": [float(v) for v in score],
+               "score": float(np.nanmean(score))}
+        why = implausible(m.A, m.dt) if implausible is not None else None
+        table.append({**row, "implausible": why} if why else row)
     scored = [r for r in table if "score" in r]
     if not scored:
         raise RealizationError("no candidate order could be realised: "
                                + "; ".join(f"n={r['order']}, p={r['past']}: {r['error']}" for r in table))
+    plausible = [r for r in scored if "implausible" not in r]
+    implausible_all = not plausible and implausible is not None
+    scored = plausible or scored
     top = max(r["score"] for r in scored)
     keep = min((r for r in scored if r["score"] >= top - PARSIMONY_POINTS),
                key=lambda r: (r["order"], r["past"]))
@@ -124,5 +139,6 @@ def fit_select(fit: IOData, held_out: IOData, okid_options: dict[str, Any], dela
     selection = {"method": "multi-step prediction on held-out data", "horizon_s": horizon_s,
                  "parsimony_points": PARSIMONY_POINTS, "order": keep["order"], "past": keep["past"],
                  "score": keep["score"], "best_score": top, "candidates": table,
-                 "selection_samples": select.n_samples, "report_samples": report.n_samples}
+                 "selection_samples": select.n_samples, "report_samples": report.n_samples,
+                 **({"implausible_all": True} if implausible_all else {})}
     return est, report, selection

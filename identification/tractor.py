@@ -21,6 +21,7 @@ from typing import Any, Callable, Sequence
 from .acceptance import assess
 from .data import IOData
 from .delay import align
+from .modes import sampling_artefact
 from .outputs import inside
 from .passlog import PassLog, check_physical
 from .preprocess import Preprocessing, condition_of, passes_to_iodata
@@ -89,7 +90,7 @@ def identify_group(name: str, kind: str, logs: Sequence[PassLog], pre: Preproces
     opts.setdefault("hankel_rows", horizon)
     opts.setdefault("hankel_cols", horizon)
     delay = opts.pop("delay", None)
-    est, val, selection = fit_select(fit, val, {"feedthrough": False, **opts})
+    est, val, selection = fit_select(fit, val, {"feedthrough": False, **opts}, implausible=sampling_artefact)
     mdl = est.model_
     res = validate(mdl.A, mdl.B, mdl.C, mdl.D, mdl.K, val, warmup=est.n_lags_)
     meta = {**fit.meta, "kind": kind, "name": name, "selection": selection, "fit": {**res.as_dict(),

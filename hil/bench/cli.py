@@ -344,6 +344,9 @@ def _cmd_run(args: argparse.Namespace) -> dict:
     result = {"out": str(out), "controller": controller_label(args.controller), "implement": spec.implement, "speed": spec.speed,
               "mode": log.meta["mode"], "summary": summary, "events": list(log.meta["events"]),
               "files": [str(out / "run_log.npz"), str(out / "track.png"), str(out / "summary.json")]}
+    solver = controller.diagnostics() if callable(getattr(controller, "diagnostics", None)) else None
+    if solver:              # the MPC's / NMPC's solve times (wall and, for the NMPC, CPU) apart from the loop's
+        result["solver"] = solver
     if spec.field:
         from hil.bench.field_bench import field_result, write_field_figures
         result["field"] = {**field_result(log)["field_metrics"], "name": log.meta["field"]["name"]}
@@ -564,6 +567,9 @@ def _print_human(command: str, result: dict) -> None:
         print(f"report: {result['files'][0]}")
     elif command in ("run", "drive"):
         print_run_result(result)
+        if result.get("solver"):
+            from hil.bench.report import solver_text
+            print(solver_text(result["solver"]))
         if "field" in result:
             from hil.bench.field_bench import field_text
             print(field_text(result["field"]))

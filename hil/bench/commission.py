@@ -18,7 +18,9 @@ under one directory:
    the valve's measured rate; the weights are the design's defaults or, when ``design`` offers
    them, chosen from specifications (``--weights auto``, :attr:`CommissionOptions.weights`; when no
    weights meet the specifications the step is recorded as failed and, with ``auto-if-available``,
-   the design is made again with the defaults);
+   the design is made again with the defaults); when the MPC's automatic weights had to relax a
+   specification on the robust controller's window, the MPC gets its own window
+   (:mod:`hil.bench.mpc_window`);
 5. **HIL** -- closed-loop passes of those three and of the oracle on the tractor, through the
    commissioned loop (inverse map and thresholds), ``hil/`` and the report's table;
 6. **report** -- ``report.md`` and figures (:mod:`hil.bench.commission_report`).
@@ -44,6 +46,7 @@ import numpy as np
 
 from hil.bench.estimate_trial import TRIAL_SEEDS, choose_schedule, has_schedule
 from hil.bench.more_passes import identify_with_more_passes
+from hil.bench.mpc_window import own_window
 from hil.bench.oracle import OracleOptions, oracle_for
 from hil.bench.run import RunSpec, simulated_run
 from hil.bench.sysid import SysidPlan, make_passes
@@ -306,10 +309,39 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             tries += [([], "auto")] + [([], str(k)) for k in opts.robust_past]
         return weights, tries
 
-    def mpc_argv(models_dir: Path, w: list[str], past: str) -> list[str]:
+    def mpc_argv(models_dir: Path, w: list[str], past: str, fallback: Path | None = None,
+                 out_file: Path | None = None) -> list[str]:
+        """``fallback``: the robust file whose law is the MPC's fall-back (default ``robust.json``)."""
         window = [] if past == "auto" else ["--past", past]
-        return ["mpc", "--models", str(models_dir), "--fallback", str(ctrl / "robust.json"), *w, *window,
-                *(["--disturbance-estimate", "on"] if opts.disturbance_estimate else []), "--rate-limit", f"{com.valve.max_rate:.6g}", "--out", str(ctrl / "mpc.json")]
+        fb = fallback if fallback is not None else ctrl / "robust.json"
+        return ["mpc", "--models", str(models_dir), "--fallback", str(fb), *w, *window,
+                *(["--disturbance-estimate", "on"] if opts.disturbance_estimate else []), "--rate-limit",
+                f"{com.valve.max_rate:.6g}", "--out", str(out_file if out_file is not None else ctrl / "mpc.json")]
+
+    def mpc_window_search(models_dir: Path, w: list[str], argv_for: Callable[..., list[str]],
+                          designs: dict[str, dict]) -> None:
+        """The MPC on its own window when the robust controller's left it short of a specification
+        (:mod:`hil.bench.mpc_window`); updates ``designs["mpc"]`` in place."""
+        def search_argv(fallback: Path | None, past: int, out_file: Path) -> list[str]:
+            argv = mpc_argv(models_dir, w, str(past), fallback, out_file)
+            if fallback is None:                       # the weights search alone: no fall-back law yet
+                i = argv.index("--fallback")
+                del argv[i:i + 2]
+            return argv
+
+        def fallback_argv(past: int, out_file: Path) -> list[str]:
+            argv = argv_for("robust", w, str(past))
+            argv[argv.index("--out") + 1] = str(out_file)
+            return argv
+        rec = own_window(steps.run, _design, search_argv, fallback_argv, Path(designs["mpc"]["file"]),
+                         ctrl / "windows")
+        mpc = designs["mpc"]
+        mpc["window_search"] = {k: v for k, v in rec.items() if k not in ("result", "command")}
+        if "command" in rec:
+            mpc.update(result=rec["result"], command=rec["command"],
+                       weights=f"{mpc['weights']}; the MPC's own window {rec['kept']} (with the robust controller's "
+                               f"window {rec['tries'][0]['past']} it relaxed {'; '.join(rec['tries'][0]['relaxed'])}), "
+                               f"its fall-back a robust law on that window")
 
     def design_all(models_dir: Path, with_lqr: bool) -> dict[str, dict]:
         designs: dict[str, dict] = {}
@@ -349,6 +381,8 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             if r is not None:
                 designs["mpc"] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": label,
                                   "command": "design " + " ".join(argv)}
+                if w and past == "auto":             # automatic weights and window: the MPC's own window
+                    mpc_window_search(models_dir, w, argv_for, designs)
             break
         return designs
 

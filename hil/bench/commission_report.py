@@ -146,6 +146,15 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
                           f"below are designed on models identified again at order {orders} (`models_order*/`).", ""]
         for name, d in res["designs"].items():
             lines.append(f"- `{name}` (weights: {d.get('weights', '')}): `{d['command']}`")
+        search = (res["designs"].get("mpc") or {}).get("window_search")
+        if search and len(search.get("tries", [])) > 1:
+            lines += ["", "The MPC's automatic weights relaxed a specification on the robust controller's window, so "
+                      "they were searched on other windows (hil/bench/mpc_window.py); kept: window "
+                      f"{search.get('kept')}." + (f" {search['note']}." if search.get("note") else ""), "",
+                      "| window, samples | scale | relaxed specifications |", "|---:|---:|---|"]
+            for t in search["tries"]:
+                lines.append(f"| {t.get('past')} | " + (f"{t['scale']:.3g} | {'; '.join(t['relaxed']) or 'none'} |"
+                                                        if "error" not in t else f"- | {t['error']} |"))
     for name, tr in (res.get("estimate_trial") or {}).items():
         lines += ["", f"## Where the disturbance estimate acts: `{name}`", "",
                   f"A trial drive at each speed with each implement, the estimate on and off (both laws certified), "

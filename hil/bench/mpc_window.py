@@ -1,0 +1,127 @@
+"""The MPC's own measured window, when the robust controller's leaves it short of its specifications (issue 14).
+
+``hil commission`` designs the robust controller first (``design robust --weights auto --past auto``
+keeps the window that reaches the most aggressive weights *of the robust law*) and then the MPC on
+that window, since the MPC's fall-back law must be a robust design on the same measured state. On
+random-19 (session 12, artefact-free models) the robust search kept the one-sample window (scale
+4.33; 4.03 with two samples), where no MPC weights meet the specifications: the MPC's search relaxed
+the delay reserve to 0 s and the disk margin to 0.45, chose scale 0.62, and that MPC held 6 of 15
+HIL cells within issue 14's bounds (worst 1.78x the oracle). With a window of three samples the MPC
+meets every specification at scale 2.27.
+
+So when the MPC's automatic weights relaxed a specification, the recipe searches them again with the
+other windows of :data:`WINDOWS` (the MPC's search alone: 10-40 s each), keeps the window with the
+fewest relaxed specifications, then the largest scale, then the shortest (:func:`best_window`, the
+rule of the robust design's own window choice), designs a robust law on that window as the MPC's
+fall-back only (``controllers/windows/robust-past<W>.json``; the robust controller keeps its own
+window) and designs the MPC there with it. Every search is recorded (``window_search`` of the MPC's
+design in ``result.json``, and the report). When the MPC relaxed nothing, nothing of this runs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Callable, Sequence
+
+#: Measured windows (samples of past outputs and commands) the MPC's weights are searched with.
+WINDOWS = (1, 2, 3)
+
+Run = Callable[[str, str, Callable[[], object]], object | None]
+
+
+def auto_record(path: str | Path) -> tuple[int, list[str], float]:
+    """The measured window, the relaxed specifications and the chosen scale of an MPC file's automatic weights.
+
+    Raises
+    ------
+    ValueError
+        The file has no valid record of automatic weights (designed with explicit weights, or damaged).
+    """
+    body = json.loads(Path(path).read_text())
+    try:
+        past = body["estimator"]["past"]
+        aw = body["design"]["auto_weights"]
+        relaxed, scale = aw["relaxed"], aw["chosen_scale"]
+    except (KeyError, TypeError) as exc:
+        raise ValueError(f"{path}: no record of automatic weights ({exc})") from None
+    if isinstance(past, bool) or not isinstance(past, int) or not 1 <= past <= 40:
+        raise ValueError(f"{path}: measured window must be 1..40 samples, got {past!r}")
+    if not isinstance(relaxed, list) or not all(isinstance(r, str) for r in relaxed):
+        raise ValueError(f"{path}: relaxed specifications must be a list of text, got {relaxed!r}")
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (math.isfinite(scale) and scale > 0):
+        raise ValueError(f"{path}: chosen scale must be a finite number > 0, got {scale!r}")
+    return past, list(relaxed), float(scale)
+
+
+def best_window(tries: Sequence[dict]) -> int | None:
+    """The window of the try with the fewest relaxed specifications, then the largest scale, then the
+    shortest window; ``None`` when every try failed (``{"past": W, "error": ...}``)."""
+    done = [t for t in tries if "error" not in t]
+    if not done:
+        return None
+    return min(done, key=lambda t: (len(t["relaxed"]), -t["scale"], t["past"]))["past"]
+
+
+def own_window(run: Run, design: Callable[[list[str]], dict],
+               mpc_argv: Callable[[Path | None, int, Path], list[str]],
+               robust_argv: Callable[[int, Path], list[str]], current: Path, work: Path,
+               windows: Sequence[int] = WINDOWS) -> dict:
+    """Search the MPC's weights on the other windows and redesign it on the best one (module docstring).
+
+    Parameters
+    ----------
+    run
+        Runs one named step and returns its value, or ``None`` if it failed (the recipe's step runner).
+    design
+        Runs one ``design`` command line (without ``design``), returns its JSON result or raises.
+    mpc_argv
+        ``mpc_argv(fallback, past, out)``: the MPC's command line with that fall-back file (``None``: none,
+        for the search alone), window and output.
+    robust_argv
+        ``robust_argv(past, out)``: the robust design's command line with that window and output.
+    current
+        The MPC file designed on the robust controller's window; replaced only by a successful design.
+    work
+        Folder of the searches' files.
+    windows
+        Windows tried (samples).
+
+    Returns
+    -------
+    dict
+        ``tries`` (per window: ``past``, ``relaxed``, ``scale`` or ``error``), ``kept`` (the MPC's window
+        now), and when it changed ``fallback`` (the fall-back's file), ``result`` and ``command`` of the
+        MPC's design; ``note`` when a better window was found but its designs failed.
+    """
+    past, relaxed, scale = auto_record(current)
+    tries: list[dict] = [{"past": past, "relaxed": relaxed, "scale": scale}]
+    rec: dict = {"tries": tries, "kept": past, "windows": list(windows)}
+    if not relaxed:
+        return rec
+    for w in windows:
+        if w == past:
+            continue
+        out = work / f"mpc-past{w}.json"
+        argv = mpc_argv(None, w, out)
+        if run(f"design mpc (window {w})", f"design mpc with a window of {w} samples (with {past} it relaxed "
+               f"{'; '.join(relaxed)})", lambda argv=argv: design(argv)) is None:
+            tries.append({"past": w, "error": "design failed (see its step)"})
+            continue
+        _, rel, sc = auto_record(out)
+        tries.append({"past": w, "relaxed": rel, "scale": sc})
+    best = best_window(tries)
+    if best is None or best == past:
+        return rec
+    fallback = work / f"robust-past{best}.json"
+    argv = robust_argv(best, fallback)
+    if run(f"design robust (window {best}, the MPC's fall-back)", f"design robust with a window of {best} samples, "
+           "the MPC's fall-back law", lambda: design(argv)) is None:
+        return {**rec, "note": f"window {best} suits the MPC better, but no robust fall-back law was found there"}
+    argv = mpc_argv(fallback, best, current)
+    result = run(f"design mpc (window {best})", f"design mpc with a window of {best} samples and that fall-back",
+                 lambda: design(argv))
+    if result is None:
+        return {**rec, "note": f"window {best} suits the MPC better, but its design with the fall-back failed"}
+    return {**rec, "kept": best, "fallback": str(fallback), "result": result, "command": "design " + " ".join(argv)}

@@ -75,3 +75,23 @@ def test_the_window_that_meets_the_specifications_is_kept_and_both_searches_are_
     assert max(spectral_radius(closed_loop_matrix(m.A, m.B, m.C, m.D, comp)) for m in models) < 1.0
     assert any(line.startswith("window 1: ") for line in lines) and any(line.startswith(f"window {past}: ")
                                                                          for line in lines)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1200)
+def test_when_no_candidate_window_meets_the_specifications_a_longer_window_is_searched():
+    # random-11's artefact-free models (orders 4-6) are observable with one sample, so the candidates are [1];
+    # there the delay reserve is 0.05 s at every scale (relaxed, scale 0.17, 0/15 HIL cells within the bounds)
+    from worn_family import random11_models
+    models, latency = random11_models()
+    assert window_candidates(models, RobustSpec(past=None)) == [1]
+    specs = Specifications(latency=latency, rate_limit=0.353979)          # defaults: disk 0.6, reserve 0.1 s
+    lines: list[str] = []
+    res, search = auto_robust(models, RobustSpec(integral=True, past=None), specs,
+                              options=SearchOptions(0.05, 5.0, 2, 0), progress=lines.append)
+    rec = res.file.design["auto_weights"]["windows"]
+    assert [t["past"] for t in rec["tried"]] == [1, 2]                    # window 2 met them: 3 is not searched
+    assert any("delay reserve" in r for r in rec["tried"][0]["relaxed"])
+    assert rec["tried"][1]["relaxed"] == [] and rec["kept"] == 2 and res.file.design["past"] == 2
+    assert not search.relaxed and search.scale == pytest.approx(5.0)
+    assert any("searching a longer one" in line for line in lines)

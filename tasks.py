@@ -109,12 +109,19 @@ def demo(args: list[str]) -> None:
 _ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
+def _workers() -> list[str]:
+    """pytest-xdist options: one worker per core, whole test files to a worker (so a module's fixtures are
+    built once); none on a single core. ``-n 0`` after ``tasks.py test`` runs everything in one process."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return ["-n", str(cores), "--dist", "loadfile"] if cores > 1 else []
+
+
 def test(args: list[str]) -> None:
-    """Every test, slow and notebook ones included (what CI runs)."""
+    """Every test, slow and notebook ones included (what CI runs), on every core."""
     ensure_env()
     for key, value in _ONE_BLAS_THREAD.items():
         os.environ.setdefault(key, value)
-    _run(PY, "-m", "pytest", "-m", "", "-q", *args)
+    _run(PY, "-m", "pytest", "-m", "", "-q", *_workers(), *args)
 
 
 def bench(args: list[str]) -> None:

@@ -146,15 +146,22 @@ def _with_estimate(res, models, validate, spec: RobustSpec, specs, latency, args
     dspec = DisturbanceSpec(args.disturbance_tau, args.estimate_tau)
     out = with_disturbance_estimate(res, models, spec, dspec, accept, latency)
     auto = res.file.design.get("auto_weights")
+    made = [out]
     if auto and latency is not None and out.file.design["disturbance_estimate"]["scale"] < 1.0:
-        out = _backed_off(out, res, models, spec, dspec, accept, latency, float(auto["chosen_scale"]))
-    d = dict(out.file.design)
-    if latency is not None:
-        after = check_specs(out.file.compensator, family, specs, latency, names).to_dict()
-        d["disturbance_estimate"] = {**d["disturbance_estimate"], "specifications_achieved": after}
-        if "specifications_check" in d:
-            d["specifications_check"] = {**d["specifications_check"], "achieved": after}
-    return replace(out, file=replace(out.file, design=d))
+        out, made = _backed_off(out, res, models, spec, dspec, accept, latency, float(auto["chosen_scale"]))
+
+    def finish(o):
+        d = dict(o.file.design)
+        if latency is not None:
+            after = check_specs(o.file.compensator, family, specs, latency, names).to_dict()
+            d["disturbance_estimate"] = {**d["disturbance_estimate"], "specifications_achieved": after}
+            if "specifications_check" in d:
+                d["specifications_check"] = {**d["specifications_check"], "achieved": after}
+        return replace(o, file=replace(o.file, design=d))
+
+    if getattr(args, "window_candidates", None):
+        _write_candidates([finish(o) for o in made if o is not out], args.window_candidates, Path(args.out).stem)
+    return finish(out)
 
 
 #: Gentler window weights tried, as fractions of the automatic weights' scale, when the estimate does not
@@ -165,9 +172,14 @@ BACKOFF = (0.7, 0.5, 0.35)
 
 def _backed_off(out, res, models, spec: RobustSpec, dspec, accept, latency, chosen: float):
     """The first gentler window law (:data:`BACKOFF`) beside which the estimate keeps its full gain, else the
-    one with the largest estimate scale (``out`` if none is larger); recorded in the estimate's record."""
+    one with the largest estimate scale (``out`` if none is larger); recorded in the estimate's record.
+
+    Returns the kept design and every design made (``out`` first, then the gentler ones in the order tried),
+    each with the record naming its own window scale as ``kept_scale``: the candidates that a trial drive on
+    the tractor may choose among (``--window-candidates``; :mod:`hil.bench.window_trial`)."""
     d0 = res.file.design
     best, best_scale, tried = out, out.file.design["disturbance_estimate"]["scale"], []
+    made = [(chosen, out)]
     base = replace(spec, integral=bool(d0["integral"]), past=d0["past"],
                    reduce="always" if d0.get("design_models") is not None else spec.reduce)
     for f in BACKOFF:
@@ -179,17 +191,32 @@ def _backed_off(out, res, models, spec: RobustSpec, dspec, accept, latency, chos
             continue
         s2 = o2.file.design["disturbance_estimate"]["scale"]
         tried.append({"scale": chosen * f, "estimate_scale": s2})
+        made.append((chosen * f, o2))
         if s2 > best_scale:
             best, best_scale = o2, s2
         if s2 >= 1.0:
             break
-    d = dict(best.file.design)
-    d["disturbance_estimate"] = {**d["disturbance_estimate"], "window_backoff": {
-        "search_scale": chosen, "estimate_scale_at_search_weights": out.file.design["disturbance_estimate"]["scale"],
-        "tried": tried,
-        "kept_scale": chosen if best is out else float(tried[[t.get("estimate_scale") for t in tried].index(best_scale)]["scale"])}}
-    d["auto_weights"] = d0["auto_weights"]
-    return replace(best, file=replace(best.file, design=d))
+
+    def recorded(scale: float, o):
+        d = dict(o.file.design)
+        d["disturbance_estimate"] = {**d["disturbance_estimate"], "window_backoff": {
+            "search_scale": chosen, "estimate_scale_at_search_weights": out.file.design["disturbance_estimate"]["scale"],
+            "tried": tried, "kept_scale": float(scale)}}
+        d["auto_weights"] = d0["auto_weights"]
+        return replace(o, file=replace(o.file, design=d))
+
+    kept = [recorded(sc, o) for sc, o in made]
+    return kept[next(i for i, (_, o) in enumerate(made) if o is best)], kept
+
+
+def _write_candidates(designs, folder: str, stem: str) -> None:
+    """Each window law the estimate's back-off made but did not keep, as a controller file in ``folder``
+    (``<stem>.window-<scale>.json``; the folder is made)."""
+    path = Path(folder)
+    path.mkdir(parents=True, exist_ok=True)
+    for o in designs:
+        scale = o.file.design["disturbance_estimate"]["window_backoff"]["kept_scale"]
+        o.file.save(path / f"{stem}.window-{scale:.4g}.json")
 
 
 def cmd_lqr(args: argparse.Namespace) -> dict:
@@ -260,6 +287,9 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
                    help="clip of each normalised output before the compensator (0 = none)")
     add_disturbance_arguments(r, number, "feed it forward (window structure; its gain is scaled back until the "
                                          "specifications hold)")
+    r.add_argument("--window-candidates", metavar="DIR", default=None,
+                   help="with --weights auto and the estimate on: also write, in DIR, each gentler window law "
+                        "the estimate's back-off designed and did not keep (for a trial drive to choose among)")
     r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
     add_spec_arguments(r, number)

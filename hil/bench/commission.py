@@ -47,6 +47,7 @@ import numpy as np
 from hil.bench.estimate_trial import TRIAL_SEEDS, choose_schedule, has_schedule
 from hil.bench.more_passes import identify_with_more_passes
 from hil.bench.mpc_window import own_window
+from hil.bench.window_trial import candidate_files, choose_window
 from hil.bench.oracle import OracleOptions, oracle_for
 from hil.bench.run import RunSpec, simulated_run
 from hil.bench.sysid import SysidPlan, make_passes
@@ -343,6 +344,22 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
                                f"window {rec['tries'][0]['past']} it relaxed {'; '.join(rec['tries'][0]['relaxed'])}), "
                                f"its fall-back a robust law on that window")
 
+    def window_trial(robust_file: str) -> None:
+        """Among the window laws the estimate's back-off made, the one a trial drive finds best
+        (:mod:`hil.bench.window_trial`), before the MPC takes the robust law as its fall-back."""
+        others = candidate_files(ctrl / "windows" / "robust", Path(robust_file).stem)
+        if not others or com is None:
+            return
+
+        def run() -> dict:
+            return choose_window(robust_file, others, params, com, opts.speeds, opts.implements, ctrl / "trial",
+                                 opts.trial_seeds, opts.hil_duration, lambda d, n: tick("window trial robust", d, n))
+        r = steps.run("window trial robust", f"window trial (robust: the design's law and the {len(others)} its "
+                      f"estimate's back-off dropped, each speed and implement, seeds "
+                      f"{', '.join(map(str, opts.trial_seeds))})", run)
+        if r is not None:
+            res["window_trial"] = r
+
     def design_all(models_dir: Path, with_lqr: bool) -> dict[str, dict]:
         designs: dict[str, dict] = {}
         local = sorted(str(p) for p in models_dir.glob("local_*.npz"))
@@ -358,6 +375,8 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
                                 "--out", str(ctrl / "central-lqr.json")],
                 "robust": ["robust", "--models", *local, *(["--integral"] if opts.integral else []), *w, *window,
                            *(["--disturbance-estimate", "on"] if opts.disturbance_estimate else []),
+                           *(["--window-candidates", str(ctrl / "windows" / "robust")]
+                             if w and opts.disturbance_estimate and opts.estimate_trial else []),
                            "--command-limit", limit, "--out", str(ctrl / "robust.json")],
                 "mpc": mpc_argv(models_dir, w, past),
             }[name]
@@ -376,6 +395,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
                 continue
             designs["robust"] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": label,
                                  "command": "design " + " ".join(argv)}
+            window_trial(designs["robust"]["file"])
             argv = argv_for("mpc", w, past)
             r = steps.run(f"design mpc ({label})", f"design mpc ({label})", lambda argv=argv: _design(argv))
             if r is not None:

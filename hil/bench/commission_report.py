@@ -85,6 +85,28 @@ def _sigma_figure(cells: list[dict], path: Path) -> Path:
     return path
 
 
+def _window_trial_lines(tr: dict | None) -> list[str]:
+    """The robust controller's window trial (:mod:`hil.bench.window_trial`) as a section, or nothing."""
+    if not tr:
+        return []
+    cells = list(tr["candidates"][0]["sigma_cm"])
+    lines = ["", "## The robust controller's window law", "",
+             "The estimate did not fit at its full gain beside the window law the weights search chose, so the design "
+             "backed that law off; a trial drive (each speed and implement, "
+             f"{tr['duration_s']:g} s passes with seeds {', '.join(map(str, tr['seeds']))}, not the HIL "
+             "comparison's) chose among the laws it made: the lowest geometric mean of the cells' 1-sigma of the "
+             f"measured cross-track, cm. Kept: `{tr['chosen']}`" + (" (not the design's own)." if tr["changed"]
+                                                                    else " (the design's own)."), "",
+             "| file | window scale | estimate's gain | geometric mean | worst cell |", "|---|---:|---:|---:|---|"]
+    for c in tr["candidates"]:
+        worst = max(cells, key=lambda k: c["sigma_cm"][k])
+        scale, gain = c.get("window_scale"), c.get("estimate_scale")
+        lines.append(f"| `{c['file']}` | {'-' if scale is None else f'{scale:.3g}'} | "
+                     f"{'-' if gain is None else f'{gain:g}'} | {c['geometric_mean_cm']:.2f} | "
+                     f"{worst} {c['sigma_cm'][worst]:.2f} |")
+    return lines
+
+
 def write_commission_report(res: dict, out: Path) -> list[str]:
     """Write ``report.md`` and its figures under ``out``; returns the files written."""
     from hil.bench.commission import hil_ratios
@@ -155,6 +177,7 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
             for t in search["tries"]:
                 lines.append(f"| {t.get('past')} | " + (f"{t['scale']:.3g} | {'; '.join(t['relaxed']) or 'none'} |"
                                                         if "error" not in t else f"- | {t['error']} |"))
+    lines += _window_trial_lines(res.get("window_trial"))
     for name, tr in (res.get("estimate_trial") or {}).items():
         lines += ["", f"## Where the disturbance estimate acts: `{name}`", "",
                   f"A trial drive at each speed with each implement, the estimate on and off (both laws certified), "

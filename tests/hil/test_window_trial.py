@@ -1,0 +1,102 @@
+"""The robust controller's window law: the estimate's back-off in ``design robust`` keeps every law it made as a
+candidate file (``--window-candidates``), and a trial drive on the tractor chooses among them
+(hil/bench/window_trial.py; issue 14)."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+from design.cli import main as design_main
+from design.files.load import load_controller
+from hil.bench.commission_report import _window_trial_lines
+from hil.bench.estimate_trial import trial_sigma
+from hil.bench.window_trial import candidate_files, choose_window, geometric_mean, window_record
+from hil.truth.tractors import resolve_tractor
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "design"))
+from worn_family import worn_models  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def backed_off(tmp_path_factory):
+    """The worn valve's robust design with the estimate: its automatic window law sits at the delay reserve asked
+    (0.1 s), no estimate gain fits beside it, and the design backs the window law off. --past 1: the one-sample
+    window's search (about 40 s); --past auto searches the observable window too (342 s; test_window_choice.py)."""
+    tmp = tmp_path_factory.mktemp("backoff")
+    local, _, lat = worn_models()
+    paths = [str(m.save(tmp / f"{m.meta['name']}.npz")) for m in local]
+    out, cands = tmp / "robust.json", tmp / "windows"
+    rc = design_main(["robust", "--models", *paths, "--integral", "--weights", "auto", "--latency", *map(str, lat),
+                      "--actuator-rate", "0.23", "--command-limit", "0.23", "--disturbance-estimate", "on",
+                      "--quiet", "--past", "1", "--window-candidates", str(cands), "--out", str(out)])
+    assert rc == 0
+    return out, cands, paths
+
+
+@pytest.mark.slow
+def test_the_back_off_keeps_the_first_law_with_the_full_estimate_and_writes_the_others(backed_off, capsys):
+    out, cands, paths = backed_off
+    d = json.loads(out.read_text())["design"]
+    rec = d["disturbance_estimate"]
+    back = rec["window_backoff"]
+    assert back["estimate_scale_at_search_weights"] == 0.0
+    assert rec["scale"] > 0 and back["kept_scale"] < back["search_scale"]
+    assert rec["specifications_achieved"]["passed"]
+    assert d["auto_weights"]["chosen_scale"] == back["search_scale"]
+    files = candidate_files(cands, "robust")
+    # the searched law (no estimate gain fitted beside it) and every gentler one tried before the kept one
+    tried = [t for t in back["tried"] if "estimate_scale" in t]
+    assert len(files) == len(tried)          # the kept law is one of the tried ones, the searched law is added
+    records = [window_record(f) for f in files]
+    assert {round(r["window_scale"], 9) for r in records} == (
+        {round(back["search_scale"], 9)} | {round(t["scale"], 9) for t in tried} - {round(back["kept_scale"], 9)})
+    searched = next(r for r in records if math.isclose(r["window_scale"], back["search_scale"]))
+    assert searched["estimate_scale"] == 0.0
+    for f in files:
+        ctrl = load_controller(str(f))           # checksum and certificate as any controller file
+        assert ctrl is not None
+        assert design_main(["verify", str(f), "--models", *paths]) == 0
+    assert window_record(out)["window_scale"] == back["kept_scale"]
+
+
+@pytest.mark.slow
+def test_the_trial_keeps_the_law_with_the_lowest_geometric_mean(backed_off, tmp_path):
+    out, cands, _ = backed_off
+    path = tmp_path / "robust.json"
+    path.write_bytes(out.read_bytes())
+    others = candidate_files(cands, "robust")
+    params = resolve_tractor("worn-valve").params()
+    r = choose_window(path, others, params, None, [2.24], ["ripper"], tmp_path / "trial", seeds=(7,), duration=20.0)
+    gms = [c["geometric_mean_cm"] for c in r["candidates"]]
+    assert [c["file"] for c in r["candidates"]] == ["robust.json", *(f.name for f in others)]
+    best = min(range(len(gms)), key=lambda i: (gms[i], i))
+    assert r["chosen"] == r["candidates"][best]["file"] and r["changed"] == (best != 0)
+    # the trial's figure is the pass's own: driving the file now kept gives the chosen candidate's 1-sigma
+    again = 100.0 * trial_sigma(path, params, None, "ripper", 2.24, (7,), 20.0)
+    assert again == pytest.approx(r["candidates"][best]["sigma_cm"]["ripper:2.24"], rel=1e-9)
+    if r["changed"]:
+        assert (tmp_path / "trial" / "robust.as-designed.json").read_bytes() == out.read_bytes()
+    lines = "\n".join(_window_trial_lines(r))
+    assert "## The robust controller's window law" in lines and f"Kept: `{r['chosen']}`" in lines
+
+
+def test_geometric_mean_and_a_candidate_that_lost_a_pass():
+    assert geometric_mean([2.0, 8.0]) == pytest.approx(4.0)
+    assert geometric_mean([2.0, math.nan]) == math.inf
+    assert geometric_mean([2.0, 0.0]) == math.inf
+    assert geometric_mean([]) == math.inf
+
+
+def test_records_and_folders_that_are_not_there(tmp_path):
+    assert candidate_files(tmp_path / "missing", "robust") == []
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"design": {"disturbance_estimate": {"scale": 1.0, "window_backoff": {"kept_scale": "x"}}}}))
+    assert window_record(bad) == {}
+    bad.write_text("[1, 2]")
+    assert window_record(bad) == {}
+    assert _window_trial_lines(None) == []

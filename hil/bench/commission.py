@@ -47,6 +47,7 @@ import numpy as np
 from hil.bench.estimate_trial import TRIAL_SEEDS, choose_schedule, has_schedule
 from hil.bench.more_passes import identify_with_more_passes
 from hil.bench.mpc_window import own_window
+from hil.bench.mpc_window_trial import mpc_window_trial
 from hil.bench.window_trial import candidate_files, choose_window
 from hil.bench.oracle import OracleOptions, oracle_for
 from hil.bench.run import RunSpec, simulated_run
@@ -319,10 +320,9 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
                 *(["--disturbance-estimate", "on"] if opts.disturbance_estimate else []), "--rate-limit",
                 f"{com.valve.max_rate:.6g}", "--out", str(out_file if out_file is not None else ctrl / "mpc.json")]
 
-    def mpc_window_search(models_dir: Path, w: list[str], argv_for: Callable[..., list[str]],
-                          designs: dict[str, dict]) -> None:
-        """The MPC on its own window when the robust controller's left it short of a specification
-        (:mod:`hil.bench.mpc_window`); updates ``designs["mpc"]`` in place."""
+    def window_argvs(models_dir: Path, w: list[str], argv_for: Callable[..., list[str]]):
+        """The MPC's command line on a window (no fall-back: the weights search alone) and the robust
+        fall-back's, for :mod:`hil.bench.mpc_window` and :mod:`hil.bench.mpc_window_trial`."""
         def search_argv(fallback: Path | None, past: int, out_file: Path) -> list[str]:
             argv = mpc_argv(models_dir, w, str(past), fallback, out_file)
             if fallback is None:                       # the weights search alone: no fall-back law yet
@@ -333,7 +333,18 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         def fallback_argv(past: int, out_file: Path) -> list[str]:
             argv = argv_for("robust", w, str(past))
             argv[argv.index("--out") + 1] = str(out_file)
+            if "--window-candidates" in argv:          # the fall-back law is the design's own, no trial
+                i = argv.index("--window-candidates")
+                del argv[i:i + 2]
             return argv
+        return search_argv, fallback_argv
+
+    def mpc_window_search(models_dir: Path, w: list[str], argv_for: Callable[..., list[str]],
+                          designs: dict[str, dict]) -> None:
+        """The MPC on its own window when the robust controller's left it short of a specification
+        (:mod:`hil.bench.mpc_window`), then the window a trial drive finds best among those that meet as
+        much (:mod:`hil.bench.mpc_window_trial`); updates ``designs["mpc"]`` in place."""
+        search_argv, fallback_argv = window_argvs(models_dir, w, argv_for)
         rec = own_window(steps.run, _design, search_argv, fallback_argv, Path(designs["mpc"]["file"]),
                          ctrl / "windows")
         mpc = designs["mpc"]
@@ -342,6 +353,16 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             mpc.update(result=rec["result"], command=rec["command"],
                        weights=f"{mpc['weights']}; the MPC's own window {rec['kept']} (with the robust controller's "
                                f"window {rec['tries'][0]['past']} it relaxed {'; '.join(rec['tries'][0]['relaxed'])}), "
+                               f"its fall-back a robust law on that window")
+        if not opts.estimate_trial or com is None:
+            return
+        trial = mpc_window_trial(steps.run, _design, search_argv, fallback_argv, Path(mpc["file"]), ctrl / "windows",
+                                 params, com, opts.speeds, opts.implements, opts.trial_seeds, opts.hil_duration,
+                                 lambda d, n: tick("mpc window trial", d, n))
+        mpc["window_trial"] = {k: v for k, v in trial.items() if k not in ("result", "command")}
+        if "command" in trial:
+            mpc.update(result=trial["result"], command=trial["command"],
+                       weights=f"{mpc['weights']}; window {trial['kept']} by the window trial (it drove best), "
                                f"its fall-back a robust law on that window")
 
     def window_trial(robust_file: str) -> None:

@@ -107,6 +107,26 @@ def _window_trial_lines(tr: dict | None) -> list[str]:
     return lines
 
 
+def _mpc_window_trial_lines(tr: dict | None) -> list[str]:
+    """The MPC's window trial (:mod:`hil.bench.mpc_window_trial`) as a section, or nothing."""
+    if not tr or not tr.get("trial"):
+        return []
+    by_past = {t["past"]: t for t in tr["tries"] if "error" not in t}
+    lines = ["", "## The MPC's window", "",
+             "The MPC's weights were searched on each other window; those relaxing no more specifications than the "
+             "MPC as designed drove each speed and implement (the trial's seeds; the 1-sigma of the measured "
+             f"cross-track, cm). The lowest geometric mean wins; kept: window {tr['kept']}."
+             + (f" {tr['note']}." if tr.get("note") else ""), "",
+             "| window, samples | scale | relaxed specifications | geometric mean | worst cell |",
+             "|---:|---:|---|---:|---|"]
+    for r in tr["trial"]:
+        t = by_past.get(r["past"], {})
+        worst = max(r["sigma_cm"], key=lambda k: r["sigma_cm"][k])
+        lines.append(f"| {r['past']} | {t.get('scale', float('nan')):.3g} | {'; '.join(t.get('relaxed', [])) or 'none'} | "
+                     f"{r['geometric_mean_cm']:.2f} | {worst} {r['sigma_cm'][worst]:.2f} |")
+    return lines
+
+
 def write_commission_report(res: dict, out: Path) -> list[str]:
     """Write ``report.md`` and its figures under ``out``; returns the files written."""
     from hil.bench.commission import hil_ratios
@@ -178,6 +198,7 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
                 lines.append(f"| {t.get('past')} | " + (f"{t['scale']:.3g} | {'; '.join(t['relaxed']) or 'none'} |"
                                                         if "error" not in t else f"- | {t['error']} |"))
     lines += _window_trial_lines(res.get("window_trial"))
+    lines += _mpc_window_trial_lines((res.get("designs", {}).get("mpc") or {}).get("window_trial"))
     for name, tr in (res.get("estimate_trial") or {}).items():
         lines += ["", f"## Where the disturbance estimate acts: `{name}`", "",
                   f"A trial drive at each speed with each implement, the estimate on and off (both laws certified), "

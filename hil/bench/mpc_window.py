@@ -114,14 +114,29 @@ def own_window(run: Run, design: Callable[[list[str]], dict],
     best = best_window(tries)
     if best is None or best == past:
         return rec
-    fallback = work / f"robust-past{best}.json"
-    argv = robust_argv(best, fallback)
-    if run(f"design robust (window {best}, the MPC's fall-back)", f"design robust with a window of {best} samples, "
-           "the MPC's fall-back law", lambda: design(argv)) is None:
-        return {**rec, "note": f"window {best} suits the MPC better, but no robust fall-back law was found there"}
-    argv = mpc_argv(fallback, best, current)
-    result = run(f"design mpc (window {best})", f"design mpc with a window of {best} samples and that fall-back",
+    return {**rec, **redesign_on(run, design, mpc_argv, robust_argv, current, work, best, "suits the MPC better")}
+
+
+def redesign_on(run: Run, design: Callable[[list[str]], dict], mpc_argv: Callable[[Path | None, int, Path], list[str]],
+                robust_argv: Callable[[int, Path], list[str]], current: Path, work: Path, window: int,
+                why: str) -> dict:
+    """A robust law on ``window`` as the MPC's fall-back (``work/robust-past<W>.json``), then the MPC there with it,
+    written over ``current``.
+
+    Returns
+    -------
+    dict
+        ``kept`` (the window), ``fallback``, ``result`` and ``command`` of the MPC's design; or ``note`` (why
+        ``current`` was left as it was: "window W <why>, but ...").
+    """
+    fallback = work / f"robust-past{window}.json"
+    argv = robust_argv(window, fallback)
+    if run(f"design robust (window {window}, the MPC's fall-back)", f"design robust with a window of {window} "
+           "samples, the MPC's fall-back law", lambda: design(argv)) is None:
+        return {"note": f"window {window} {why}, but no robust fall-back law was found there"}
+    argv = mpc_argv(fallback, window, current)
+    result = run(f"design mpc (window {window})", f"design mpc with a window of {window} samples and that fall-back",
                  lambda: design(argv))
     if result is None:
-        return {**rec, "note": f"window {best} suits the MPC better, but its design with the fall-back failed"}
-    return {**rec, "kept": best, "fallback": str(fallback), "result": result, "command": "design " + " ".join(argv)}
+        return {"note": f"window {window} {why}, but its design with the fall-back failed"}
+    return {"kept": window, "fallback": str(fallback), "result": result, "command": "design " + " ".join(argv)}

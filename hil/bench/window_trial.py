@@ -59,6 +59,36 @@ def geometric_mean(values: Sequence[float]) -> float:
     return math.exp(sum(math.log(v) for v in values) / len(values))
 
 
+def trial_files(files: Sequence[str | Path], params, com: Commissioning | None, speeds: Sequence[float],
+                implements: Sequence[str], seeds: Sequence[int] = TRIAL_SEEDS, duration: float = 60.0,
+                progress: Callable[[int, int], None] | None = None) -> list[dict]:
+    """Drive each controller file at every speed with every implement on ``seeds``.
+
+    Returns
+    -------
+    list of dict
+        Per file: ``file`` (name), the 1-sigma (cm) of the measured cross-track per cell (``sigma_cm``,
+        keys ``"implement:speed"``) and their geometric mean (``geometric_mean_cm``).
+    """
+    total, done = len(files) * len(speeds) * len(implements), 0
+    rows = []
+    for f in map(Path, files):
+        sig = {}
+        for v in speeds:
+            for imp in implements:
+                sig[f"{imp}:{float(v):g}"] = 100.0 * trial_sigma(f, params, com, imp, float(v), seeds, duration)
+                done += 1
+                if progress:
+                    progress(done, total)
+        rows.append({"file": f.name, "sigma_cm": sig, "geometric_mean_cm": geometric_mean(list(sig.values()))})
+    return rows
+
+
+def lowest(rows: Sequence[dict]) -> int:
+    """Index of the row with the lowest geometric mean; the first (the design's own) on a tie."""
+    return min(range(len(rows)), key=lambda i: (rows[i]["geometric_mean_cm"], i))
+
+
 def choose_window(path: str | Path, candidates: Sequence[str | Path], params, com: Commissioning | None,
                   speeds: Sequence[float], implements: Sequence[str], work: str | Path,
                   seeds: Sequence[int] = TRIAL_SEEDS, duration: float = 60.0,
@@ -87,19 +117,9 @@ def choose_window(path: str | Path, candidates: Sequence[str | Path], params, co
     """
     path, work = Path(path), Path(work)
     files = [path, *map(Path, candidates)]
-    total, done = len(files) * len(speeds) * len(implements), 0
-    rows = []
-    for f in files:
-        sig = {}
-        for v in speeds:
-            for imp in implements:
-                sig[f"{imp}:{float(v):g}"] = 100.0 * trial_sigma(f, params, com, imp, float(v), seeds, duration)
-                done += 1
-                if progress:
-                    progress(done, total)
-        rows.append({"file": f.name, **window_record(f), "sigma_cm": sig,
-                     "geometric_mean_cm": geometric_mean(list(sig.values()))})
-    best = min(range(len(rows)), key=lambda i: (rows[i]["geometric_mean_cm"], i))   # ties: the design's own
+    rows = [{**r, **window_record(f)} for r, f in
+            zip(trial_files(files, params, com, speeds, implements, seeds, duration, progress), files)]
+    best = lowest(rows)
     changed = best != 0
     if changed:
         work.mkdir(parents=True, exist_ok=True)

@@ -38,15 +38,16 @@ def test_a_file_without_automatic_weights_is_refused(tmp_path):
         auto_record(path)
 
 
-def _argv(models: Path, work: Path):
+def _argv(models: Path, work: Path, specs: list[str] = SPECS):
+    """The MPC's and the robust fall-back's command lines on random-19's five models, with ``specs``."""
     local = sorted(str(p) for p in models.glob("local_*.npz"))
 
     def mpc(fallback: Path | None, past: int, out: Path) -> list[str]:
-        return ["mpc", "--models", str(models), *SPECS, "--past", str(past), "--disturbance-estimate", "on",
+        return ["mpc", "--models", str(models), *specs, "--past", str(past), "--disturbance-estimate", "on",
                 "--rate-limit", "0.268058", *(["--fallback", str(fallback)] if fallback else []), "--out", str(out)]
 
     def robust(past: int, out: Path) -> list[str]:
-        return ["robust", "--models", *local, "--integral", *SPECS, "--past", str(past), "--disturbance-estimate",
+        return ["robust", "--models", *local, "--integral", *specs, "--past", str(past), "--disturbance-estimate",
                 "on", "--command-limit", "0.268058", "--out", str(out)]
     return mpc, robust
 

@@ -567,9 +567,6 @@ def _print_human(command: str, result: dict) -> None:
         print(f"report: {result['files'][0]}")
     elif command in ("run", "drive"):
         print_run_result(result)
-        if result.get("solver"):
-            from hil.bench.report import solver_text
-            print(solver_text(result["solver"]))
         if "field" in result:
             from hil.bench.field_bench import field_text
             print(field_text(result["field"]))

@@ -178,19 +178,6 @@ def solver_table(results: Sequence[dict]) -> list[str]:
     return rows
 
 
-def solver_text(s: dict) -> str:
-    """One line of an optimisation-based controller's diagnostics (``controller.diagnostics()``): ticks,
-    fall-backs and the solve times in ms, wall-clock and, where the controller measures it, CPU."""
-    line = f"solver {s.get('backend', '?')}: {s.get('ticks', 0)} ticks, {s.get('fallbacks', 0)} fall-backs"
-    if "median_ms" in s:
-        line += f", solve wall p50 / p99 / max {s['median_ms']:.2f} / {s['p99_ms']:.2f} / {s['max_ms']:.2f} ms"
-    if "cpu_median_ms" in s:
-        line += f", CPU {s['cpu_median_ms']:.2f} / {s['cpu_p99_ms']:.2f} / {s['cpu_max_ms']:.2f} ms"
-    if "over_budget" in s:
-        line += f", {s['over_budget']} over the {s.get('budget_ms', float('nan')):g} ms budget"
-    return line
-
-
 def _md_to_html(lines: Sequence[str]) -> str:
     """HTML of simple Markdown: runs of ``| ... |`` rows become a table (separator rows dropped),
     ``## `` lines headings, other non-empty lines paragraphs."""

@@ -65,14 +65,17 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
                       wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
                       gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time))
     key = load_public_key(args.require_signature) if args.require_signature else None
-    log = drive(cfg, vehicle_controller(args.controller, key), args.duration, implement=args.implement,
-                nominal_speed=args.speed)
+    controller = vehicle_controller(args.controller, key)
+    log = drive(cfg, controller, args.duration, implement=args.implement, nominal_speed=args.speed)
     out = Path(args.out)
     summary = summarize(log)
     log.save(out / "run_log.npz")
     result = {"out": str(out), "controller": controller_label(args.controller), "implement": args.implement,
               "speed": args.speed, "mode": "vehicle", "summary": summary, "events": list(log.meta["events"]),
               "files": [str(out / "run_log.npz"), str(out / "summary.json")]}
+    solver = controller.diagnostics() if callable(getattr(controller, "diagnostics", None)) else None
+    if solver:              # the MPC's / NMPC's solve times (wall and, for the NMPC, CPU) apart from the loop's
+        result["solver"] = solver
     write_text_atomic(out / "summary.json", json.dumps(result, indent=2) + "\n")
     return result
 
@@ -111,6 +114,19 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
     return d
 
 
+def solver_text(s: dict) -> str:
+    """One line of an optimisation-based controller's diagnostics (``controller.diagnostics()``): ticks,
+    fall-backs and the solve times in ms, wall-clock and, where the controller measures it, CPU."""
+    line = f"solver {s.get('backend', '?')}: {s.get('ticks', 0)} ticks, {s.get('fallbacks', 0)} fall-backs"
+    if "median_ms" in s:
+        line += f", solve wall p50 / p99 / max {s['median_ms']:.2f} / {s['p99_ms']:.2f} / {s['max_ms']:.2f} ms"
+    if "cpu_median_ms" in s:
+        line += f", CPU {s['cpu_median_ms']:.2f} / {s['cpu_p99_ms']:.2f} / {s['cpu_max_ms']:.2f} ms"
+    if "over_budget" in s:
+        line += f", {s['over_budget']} over the {s.get('budget_ms', float('nan')):g} ms budget"
+    return line
+
+
 def print_run_result(result: dict) -> None:
     """Human summary of a closed-loop pass (``hil drive`` or ``hil run``)."""
     s = result["summary"]
@@ -125,6 +141,8 @@ def print_run_result(result: dict) -> None:
     print(f"engaged {s['engaged_fraction'] * 100:.0f} % of cycles, {s['disengagements']} disengagement(s), "
           f"{s['deadline_misses']} deadline miss(es), loop time p50 {s['loop_time_ms_p50']:.2f} ms, "
           f"p99 {s['loop_time_ms_p99']:.2f} ms")
+    if result.get("solver"):       # the MPC's / NMPC's solve times apart from the loop's
+        print(solver_text(result["solver"]))
     for e in result["events"]:
         print(f"  t={e['t']:7.2f} s  {e['event']}: {e['reason']}")
     print(f"files in {result['out']}")

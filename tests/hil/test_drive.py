@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
+
 import pytest
 
 from hil.cli import main as hil_main
@@ -48,3 +50,23 @@ def test_drive_refuses_a_missing_port(tmp_path, capsys):
     assert rc == 1
     assert "cannot open a serial port" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+@pytest.mark.timeout(60)
+def test_drive_reports_the_mpcs_solve_times_apart_from_the_loops(tmp_path, capsys):
+    # the tractor runtime gives the optimisation-based controller's solve times as `hil run` does (issue 16)
+    from design.cli import main as design_main
+    models = Path(__file__).resolve().parents[1] / "data" / "random19_models"     # five identified models
+    mpc = tmp_path / "mpc.json"
+    assert design_main(["mpc", "--models", str(models), "--quiet", "--out", str(mpc)]) == 0
+    with EmulatedTractor(implement="none", speed=1.34, duration=30.0, seed=12) as tractor:
+        rc = hil_main(["drive", *tractor.setup.drive_args(), "--controller", str(mpc), "--duration", "5",
+                       "--implement", "none", "--speed", "1.34", "--out", str(tmp_path / "run")])
+    assert rc == 0
+    printed = capsys.readouterr().out
+    s = json.loads((tmp_path / "run" / "summary.json").read_text())["solver"]
+    assert s["ticks"] >= 40 and s["fallbacks"] == 0          # about 5 s at 20 Hz once engaged
+    assert 0 < s["median_ms"] <= s["p99_ms"] <= s["max_ms"]
+    assert f"{s['ticks']} ticks" in printed and "solve wall p50 / p99 / max" in printed

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from hil.bench.report import solver_text
+from hil.vehicle.cli import solver_text
 from hil.cli import main as hil_main
 
 MPC = Path(__file__).resolve().parents[1] / "data" / "hil_reference" / "controllers" / "mpc.json"

@@ -100,21 +100,33 @@ def own_window(run: Run, design: Callable[[list[str]], dict],
     rec: dict = {"tries": tries, "kept": past, "windows": list(windows)}
     if not relaxed:
         return rec
-    for w in windows:
-        if w == past:
-            continue
-        out = work / f"mpc-past{w}.json"
-        argv = mpc_argv(None, w, out)
-        if run(f"design mpc (window {w})", f"design mpc with a window of {w} samples (with {past} it relaxed "
-               f"{'; '.join(relaxed)})", lambda argv=argv: design(argv)) is None:
-            tries.append({"past": w, "error": "design failed (see its step)"})
-            continue
-        _, rel, sc = auto_record(out)
-        tries.append({"past": w, "relaxed": rel, "scale": sc})
+    tries += search_windows(run, design, mpc_argv, past, work, windows, "mpc",
+                            "", f" (with {past} it relaxed {'; '.join(relaxed)})")
     best = best_window(tries)
     if best is None or best == past:
         return rec
     return {**rec, **redesign_on(run, design, mpc_argv, robust_argv, current, work, best, "suits the MPC better")}
+
+
+def search_windows(run: Run, design: Callable[[list[str]], dict],
+                   mpc_argv: Callable[[Path | None, int, Path], list[str]], past: int, work: Path,
+                   windows: Sequence[int], name: str, label: str, why: str) -> list[dict]:
+    """The MPC's weights searched alone (no fall-back) on each of ``windows`` but ``past``, into
+    ``work/<name>-past<W>.json``; per window ``past``, ``relaxed``, ``scale`` and ``file``, or ``error``.
+    ``label`` and ``why`` complete each step's name and description."""
+    tries: list[dict] = []
+    for w in windows:
+        if w == past:
+            continue
+        out = work / f"{name}-past{w}.json"
+        argv = mpc_argv(None, w, out)
+        if run(f"design mpc (window {w}{label})", f"design mpc with a window of {w} samples{why}",
+               lambda argv=argv: design(argv)) is None:
+            tries.append({"past": w, "error": "design failed (see its step)"})
+            continue
+        _, rel, sc = auto_record(out)
+        tries.append({"past": w, "relaxed": rel, "scale": sc, "file": out.name})
+    return tries
 
 
 def redesign_on(run: Run, design: Callable[[list[str]], dict], mpc_argv: Callable[[Path | None, int, Path], list[str]],

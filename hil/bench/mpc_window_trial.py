@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from hil.bench.estimate_trial import TRIAL_SEEDS
-from hil.bench.mpc_window import WINDOWS, Run, auto_record, redesign_on
+from hil.bench.mpc_window import WINDOWS, Run, auto_record, redesign_on, search_windows
 from hil.bench.window_trial import lowest, trial_files
 from hil.vehicle.commissioning import Commissioning
 
@@ -58,20 +58,10 @@ def mpc_window_trial(run: Run, design: Callable[[list[str]], dict],
     tries: list[dict] = [{"past": past, "relaxed": relaxed, "scale": scale, "file": current.name}]
     rec: dict = {"tries": tries, "kept": past, "windows": list(windows), "trial": None}
     work.mkdir(parents=True, exist_ok=True)
-    candidates: list[tuple[int, Path]] = []
-    for w in windows:
-        if w == past:
-            continue
-        out = work / f"mpc-trial-past{w}.json"
-        argv = mpc_argv(None, w, out)
-        if run(f"design mpc (window {w}, trial)", f"design mpc with a window of {w} samples, a candidate of the "
-               "window trial", lambda argv=argv: design(argv)) is None:
-            tries.append({"past": w, "error": "design failed (see its step)"})
-            continue
-        _, rel, sc = auto_record(out)
-        tries.append({"past": w, "relaxed": rel, "scale": sc, "file": out.name})
-        if len(rel) <= len(relaxed):
-            candidates.append((w, out))
+    tries += search_windows(run, design, mpc_argv, past, work, windows, "mpc-trial", ", trial",
+                            ", a candidate of the window trial")
+    candidates = [(t["past"], work / t["file"]) for t in tries[1:]
+                  if "error" not in t and len(t["relaxed"]) <= len(relaxed)]
     if not candidates:
         return rec
     files = [current, *(f for _, f in candidates)]

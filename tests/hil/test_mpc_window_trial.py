@@ -23,14 +23,21 @@ from test_mpc_window import MODELS, SPECS as RECIPE_SPECS, _argv  # noqa: E402 -
 SPECS = [*RECIPE_SPECS, "--disk-margin", "0.4", "--delay-reserve", "0"]
 
 
+def _designed(tmp_path: Path, specs: list[str], past: int):
+    """random-19's five models copied under ``tmp_path``, their command lines with ``specs``, and the MPC designed
+    on ``past`` samples without a fall-back (``tmp_path/mpc.json``)."""
+    models = tmp_path / "models"
+    shutil.copytree(MODELS, models, ignore=shutil.ignore_patterns("*.txt"))
+    mpc, robust = _argv(models, tmp_path, specs)
+    current = tmp_path / "mpc.json"
+    _design(mpc(None, past, current))
+    return mpc, robust, current
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(1200)
 def test_the_window_that_drove_best_is_kept_with_a_fall_back_on_it(tmp_path):
-    models = tmp_path / "models"
-    shutil.copytree(MODELS, models, ignore=shutil.ignore_patterns("*.txt"))
-    mpc, robust = _argv(models, tmp_path, SPECS)
-    current = tmp_path / "mpc.json"
-    _design(mpc(None, 1, current))
+    mpc, robust, current = _designed(tmp_path, SPECS, 1)
     before = current.read_bytes()
     _, relaxed, _ = auto_record(current)
     steps = _Steps(lambda line: None)
@@ -61,11 +68,7 @@ def test_the_window_that_drove_best_is_kept_with_a_fall_back_on_it(tmp_path):
 @pytest.mark.slow
 def test_nothing_is_driven_when_every_other_window_relaxes_more(tmp_path):
     # the recipe's specifications: on these models window 3 meets them all and windows 1 and 2 relax two
-    models = tmp_path / "models"
-    shutil.copytree(MODELS, models, ignore=shutil.ignore_patterns("*.txt"))
-    mpc, robust = _argv(models, tmp_path, RECIPE_SPECS)
-    current = tmp_path / "mpc.json"
-    _design(mpc(None, 3, current))
+    mpc, robust, current = _designed(tmp_path, RECIPE_SPECS, 3)
     before = current.read_bytes()
     rec = mpc_window_trial(_Steps(lambda line: None).run, _design, mpc, robust, current, tmp_path / "w",
                            resolve_tractor("random-19").params(), None, [2.24], ["disker"], seeds=(3,), duration=20.0)

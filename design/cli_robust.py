@@ -288,8 +288,9 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     add_disturbance_arguments(r, number, "feed it forward (window structure; its gain is scaled back until the "
                                          "specifications hold)")
     r.add_argument("--window-candidates", metavar="DIR", default=None,
-                   help="with --weights auto and the estimate on: also write, in DIR, each gentler window law "
-                        "the estimate's back-off designed and did not keep (for a trial drive to choose among)")
+                   help="with --weights auto and the estimate on: also write, in DIR, each window law the "
+                        "estimate's back-off made and did not keep, the searched one included (for a trial drive "
+                        "to choose among)")
     r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
     add_spec_arguments(r, number)

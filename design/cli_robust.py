@@ -211,9 +211,13 @@ def _backed_off(out, res, models, spec: RobustSpec, dspec, accept, latency, chos
 
 def _write_candidates(designs, folder: str, stem: str) -> None:
     """Each window law the estimate's back-off made but did not keep, as a controller file in ``folder``
-    (``<stem>.window-<scale>.json``; the folder is made)."""
+    (``<stem>.window-<scale>.json``; the folder is made). The folder's earlier ``<stem>.window-*.json`` are
+    removed first, so that it holds this design's candidates only (none when nothing was backed off): a
+    re-run into the same folder must not offer laws designed on other models."""
     path = Path(folder)
     path.mkdir(parents=True, exist_ok=True)
+    for old in path.glob(f"{stem}.window-*.json"):
+        old.unlink()
     for o in designs:
         scale = o.file.design["disturbance_estimate"]["window_backoff"]["kept_scale"]
         o.file.save(path / f"{stem}.window-{scale:.4g}.json")
@@ -290,7 +294,7 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     r.add_argument("--window-candidates", metavar="DIR", default=None,
                    help="with --weights auto and the estimate on: also write, in DIR, each window law the "
                         "estimate's back-off made and did not keep, the searched one included (for a trial drive "
-                        "to choose among)")
+                        "to choose among); DIR's earlier <out stem>.window-*.json are removed")
     r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
     add_spec_arguments(r, number)

@@ -152,8 +152,14 @@ def test_design_robust_writes_the_estimate_and_design_verify_rechecks_it(tmp_pat
     for i, m in enumerate(family()):
         paths.append(str(m.save(tmp_path / f"local_{i}.npz")))
     out = tmp_path / "dob.json"
+    cands = tmp_path / "windows"
+    cands.mkdir()
+    (cands / "dob.window-3.json").write_text("{}")        # a candidate of an earlier design into this folder
+    (cands / "other.window-3.json").write_text("{}")      # another file's: not this design's to remove
     assert design_main(["robust", "--models", *paths, "--integral", "--latency", "0.1", "--disturbance-estimate", "on",
-                        "--estimate-tau", "1.5", "--out", str(out)]) == 0
+                        "--estimate-tau", "1.5", "--window-candidates", str(cands), "--out", str(out)]) == 0
+    # explicit weights: nothing backed off, so no candidate, and the earlier one is gone
+    assert sorted(f.name for f in cands.iterdir()) == ["other.window-3.json"]
     body = json.loads(out.read_text())
     rec = body["design"]["disturbance_estimate"]
     assert rec["tau_f_s"] == 1.5 and rec["latency_samples"] == [2, 2, 0]

@@ -44,7 +44,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from hil.bench.estimate_trial import TRIAL_SEEDS, choose_schedule, has_schedule
+from hil.bench.estimate_trial import OFF_ABOVE, TRIAL_SEEDS, choose_schedule, has_schedule
 from hil.bench.more_passes import identify_with_more_passes
 from hil.bench.mpc_window import own_window
 from hil.bench.mpc_window_trial import mpc_window_trial
@@ -472,7 +472,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         def trial(name=name) -> dict:
             return choose_schedule(designs[name]["file"], params, com, opts.speeds, opts.implements, ctrl / "trial",
                                    opts.trial_seeds, opts.hil_duration,
-                                   lambda d, n: tick(f"estimate trial {name}", d, n))
+                                   lambda d, n: tick(f"estimate trial {name}", d, n), OFF_ABOVE[name])
         r = steps.run(f"estimate trial {name}", f"estimate trial ({name}: each speed and implement with the "
                       f"estimate and without it, seeds {', '.join(map(str, opts.trial_seeds))})", trial)
         if r is not None:

@@ -17,6 +17,17 @@ off although it took 36 % and 31 % off without an implement and with the ripper;
 the estimate on there 15/15 cells within both bounds (worst 1.20x / 0.94x). On the bench the trial's passes have
 seeds of their own (:data:`TRIAL_SEEDS`), apart from those of the HIL comparison that judges the
 result.
+
+The MPC's estimate is turned off only when the trial has it costing more than 10 % (:data:`OFF_ABOVE`). The
+MPC bounds the steering-rate command (a hard constraint of its problem), so the mechanism the trial is there
+for, the estimate driving a slow valve into a rate limit that a linear law does not know, is not the MPC's; and
+the trial's two seeds are not precise enough for less. Measured in session 14 on the campaign's 22 tractors
+(docs/tractor_campaign.md): the MPC's trial had turned the estimate off in three speed bands, at 1.016-1.077;
+with it on there the HIL comparison (seeds 0-2) was lower or equal in all three (geometric mean on / off
+0.974-0.986), and random-19's disker cell at 2.24 m/s came within both bounds (1.05x -> 0.91x the paper's
+method). The same threshold for the robust law was worse: on random-19 and random-2 at 2.91 m/s, where the
+trial had measured 1.043 and 1.066, the estimate on cost 1.18x and 1.12x in the HIL comparison and a cell
+each (the ripper: 1.47x and 1.31x the oracle), so the robust law keeps 1.0.
 """
 
 from __future__ import annotations
@@ -36,6 +47,10 @@ from hil.vehicle.summary import pool_passes, summarize
 
 #: Seeds of the trial's passes (the HIL comparison's are 0, 1, 2).
 TRIAL_SEEDS = (100, 101)
+
+#: Per file of ``hil commission``: the trial turns the estimate off at a speed when the geometric mean of the
+#: ratio with / without is above this (see the module's text for the measurements).
+OFF_ABOVE = {"robust": 1.0, "mpc": 1.10}
 
 
 def geometric_ratio(on: dict[str, float], off: dict[str, float]) -> float:
@@ -67,7 +82,8 @@ def trial_sigma(path: Path, params, com: Commissioning | None, implement: str, s
 
 def choose_schedule(path: str | Path, params, com: Commissioning | None, speeds: Sequence[float],
                     implements: Sequence[str], work: str | Path, seeds: Sequence[int] = TRIAL_SEEDS,
-                    duration: float = 60.0, progress: Callable[[int, int], None] | None = None) -> dict:
+                    duration: float = 60.0, progress: Callable[[int, int], None] | None = None,
+                    off_above: float = 1.0) -> dict:
     """Run the trial for one file and write the chosen schedule into it.
 
     Parameters
@@ -81,13 +97,23 @@ def choose_schedule(path: str | Path, params, com: Commissioning | None, speeds:
     work
         Directory for the trial's two files (``<name>.estimate-on.json``: the file as designed, kept;
         ``<name>.estimate-off.json``: the estimate off at every speed).
+    seeds, duration
+        The trial's passes (seeds apart from the HIL comparison's) and their length, s.
+    progress
+        Called with (passes done, passes in all).
+    off_above
+        The estimate is turned off at a speed where the geometric mean over the implements of the 1-sigma
+        ratio with / without it is above this (1.0: wherever the law without it is lower; :data:`OFF_ABOVE`).
 
     Returns
     -------
     dict
         ``speeds``: per speed, the 1-sigma (cm) per implement with and without the estimate and the
-        choice; ``off_speeds``; ``schedule`` (the record written); ``files``.
+        choice; ``off_speeds``; ``schedule`` (the record written); ``seeds``, ``duration_s``, ``off_above``;
+        ``files``.
     """
+    if not (math.isfinite(off_above) and off_above >= 1.0):
+        raise ValueError(f"off_above must be a finite ratio >= 1.0, got {off_above!r}")
     path, work = Path(path), Path(work)
     work.mkdir(parents=True, exist_ok=True)
     on = work / f"{path.stem}.estimate-on.json"
@@ -107,11 +133,11 @@ def choose_schedule(path: str | Path, params, com: Commissioning | None, speeds:
         rms = {k: math.sqrt(sum(x * x for x in row[k].values()) / len(implements)) for k in ("on_cm", "off_cm")}
         row["rms_on_cm"], row["rms_off_cm"] = rms["on_cm"], rms["off_cm"]
         row["ratio_on_off"] = geometric_ratio(row["on_cm"], row["off_cm"])
-        row["estimate"] = "off" if row["ratio_on_off"] > 1.0 else "on"
+        row["estimate"] = "off" if row["ratio_on_off"] > off_above else "on"
         if row["estimate"] == "off":
             off_speeds.append(float(v))
         rows.append(row)
     schedule = bands_for(speeds, off_speeds)
     set_estimate_schedule(on, schedule, path)
     return {"speeds": rows, "off_speeds": off_speeds, "schedule": schedule.to_dict(), "seeds": list(seeds),
-            "duration_s": duration, "files": {"as_designed": str(on), "estimate_off": str(off), "scheduled": str(path)}}
+            "duration_s": duration, "off_above": off_above, "files": {"as_designed": str(on), "estimate_off": str(off), "scheduled": str(path)}}

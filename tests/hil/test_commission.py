@@ -53,14 +53,16 @@ def test_commission_runs_end_to_end_and_writes_everything_under_out(tmp_path: Pa
     assert set(res["estimate_trial"]) == {"robust", "mpc"}
     for name, tr in res["estimate_trial"].items():
         assert [r["speed"] for r in tr["speeds"]] == [1.0, 2.24]
+        assert tr["off_above"] == {"robust": 1.0, "mpc": 1.1}[name]
         for r in tr["speeds"]:
             ratios = [r["on_cm"][i] / r["off_cm"][i] for i in r["on_cm"]]
             assert r["ratio_on_off"] == pytest.approx(math.prod(ratios) ** (1 / len(ratios)))
-            assert r["estimate"] == ("off" if r["ratio_on_off"] > 1.0 else "on")
+            assert r["estimate"] == ("off" if r["ratio_on_off"] > tr["off_above"] else "on")
         sched = load_controller(out / "controllers" / f"{name}.json").schedule
         assert [v for v in (1.0, 2.24) if not sched.acts_at(v)] == tr["off_speeds"]
         assert (out / "controllers" / "trial" / f"{name}.estimate-on.json").is_file()
     assert "## Where the disturbance estimate acts: `robust`" in report
+    assert "is above 1.1 (the MPC bounds the steering rate" in report
 
 
 def test_the_command_refuses_bad_options(capsys) -> None:
@@ -126,3 +128,15 @@ def test_the_trial_counts_each_implement_alike() -> None:
     # an implement without two positive, finite figures does not vote; none at all: the estimate stays on
     assert geometric_ratio({"none": 2.0, "disker": math.nan}, {"none": 1.0, "disker": 1.0}) == pytest.approx(2.0)
     assert geometric_ratio({"none": math.nan}, {"none": 1.0}) == 1.0
+
+
+@pytest.mark.parametrize("bad", [0.9, math.nan, math.inf, -1.0])
+def test_the_trial_refuses_a_threshold_below_one_and_writes_nothing(tmp_path, bad) -> None:
+    # below 1.0 the estimate would be turned off where the trial measured it helping
+    from hil.bench.estimate_trial import OFF_ABOVE, choose_schedule
+    f = tmp_path / "robust.json"
+    f.write_text("{}")
+    with pytest.raises(ValueError, match="off_above must be a finite ratio >= 1.0"):
+        choose_schedule(f, None, None, (1.0,), ("none",), tmp_path / "trial", off_above=bad)
+    assert not (tmp_path / "trial").exists() and f.read_text() == "{}"
+    assert OFF_ABOVE == {"robust": 1.0, "mpc": 1.10}

@@ -1,4 +1,4 @@
-"""Shared test fixtures: executing a notebook of ``notebooks/`` the way a user would.
+"""Shared test fixtures: executing a notebook of ``notebooks/`` the way a user would; long test files first.
 
 It lives at the repository root, not in ``tests/``: a conftest in ``tests/`` would put
 ``tests/`` on ``sys.path``, where ``tests/hil`` and friends would shadow the packages.
@@ -28,3 +28,15 @@ def run_notebook(tmp_path):
                        resources={"metadata": {"path": str(tmp_path)}}).execute()
         return "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
     return run
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Put the test files that hold a test marked ``long`` first, each file's order kept.
+
+    ``tasks.py test`` gives whole files to pytest-xdist's workers in this order (``--dist loadfile
+    --no-loadscope-reorder``), so a worker starts on the longest file (minutes: issue 14's short campaign)
+    while the others take the rest, rather than starting it when the rest is nearly done.
+    """
+    long_files = {item.path for item in items if item.get_closest_marker("long")}
+    if long_files:
+        items.sort(key=lambda item: item.path not in long_files)     # stable: every other order is kept

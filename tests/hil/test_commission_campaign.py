@@ -145,12 +145,13 @@ def test_a_campaign_survives_a_failing_tractor_and_resumes(tmp_path: Path) -> No
     assert all(len(r["commit"]) == 40 or r["commit"] == "unknown" for r in agg["rows"])
 
 
-#: The short campaign of the acceptance test: three generated tractors, four cells, 2 x 60 s passes per
-#: condition, 30 s HIL passes, and the campaign's recipe (docs/tractor_campaign.md): order-4 models, the design's
-#: default weights. (With the recipe's defaults, weights from specifications and validated orders, random-1 alone
-#: ran more than 18 min at 27a27d6: the weights search relaxing its specifications; too long for CI.)
+#: The short campaign of the acceptance test: three generated tractors, four cells (1.00 and 2.24 m/s, without an
+#: implement and with the disker), 2 x 60 s identification passes per condition, and otherwise the README's recipe
+#: with every default (weights from specifications, validated orders, the trials, three 60 s HIL passes per cell:
+#: with 30 s HIL passes random-1's disker cell at 2.24 m/s was 1.48x the oracle, against 1.10x with 60 s ones, on
+#: the same files; docs/tractor_campaign.md, "The short campaign of the tests").
 ACCEPTANCE = CommissionOptions(speeds=(1.0, 2.24), implements=("none", "disker"), passes=2, pass_duration=60.0,
-                               hil_duration=30.0, acceptance="warn", weights="default", order=4)
+                               acceptance="warn")
 
 
 @pytest.fixture(scope="module")
@@ -160,12 +161,14 @@ def short_campaign(tmp_path_factory) -> dict:
 
 
 @pytest.mark.slow
+@pytest.mark.long
 @pytest.mark.timeout(1800)
 def test_a_short_campaign_on_three_generated_tractors_produces_controllers_that_hold(short_campaign) -> None:
     # What holds today (issue 14's acceptance): a robust controller and an MPC on every tractor, no
     # diverging pass (true cross-track beyond DIVERGED_M, or a pass that did not finish). Disengagements are
     # not asserted: the bench's GPS (RTK float spells, 0.30 s staleness at 0.15 s latency) disengages every
-    # controller, the oracle too, now and then (one per 30 s cell in this campaign)
+    # controller, the oracle too, now and then (one per 30 s cell with 30 s HIL passes; none in this campaign's
+    # 60 s cells at fe346f5)
     rows = short_campaign["rows"]
     assert [r["status"] for r in rows] == ["ok"] * 3
     for r in rows:
@@ -178,13 +181,14 @@ def test_a_short_campaign_on_three_generated_tractors_produces_controllers_that_
 
 
 @pytest.mark.slow
+@pytest.mark.long
 @pytest.mark.timeout(1800)
-@pytest.mark.xfail(strict=True, reason="issue 14's bounds are not met today in every cell: measured at 179b4d2 "
-                   "(order 4, default weights, the disturbance estimate on with its trial, three HIL seeds pooled), "
-                   "robust worst 1.59x the oracle and 1.05x the paper's method, MPC 1.63x and 1.07x (both random-1, "
-                   "disker 2.24; random-0's MPC at 1.00 m/s, 1.56x and 1.53x at 884e9b3, is 1.01x and 0.99x since the "
-                   "MPC follows the approach path); strict, so this test fails once they are met and the mark must go")
 def test_a_short_campaign_on_three_generated_tractors_stays_within_the_acceptance_bounds(short_campaign) -> None:
+    # the README's recipe: only the conditions, the identification passes and the acceptance differ from hil
+    # commission's defaults ("warn": a model that predicts badly is reported, the campaign goes on)
+    recipe = options_dict(CommissionOptions())
+    assert {k for k, v in options_dict(ACCEPTANCE).items() if v != recipe[k]} == {
+        "speeds", "implements", "passes", "pass_duration", "acceptance"}
     for r in short_campaign["rows"]:
         for c in ("robust", "mpc"):
             assert max(r[f"{c}_over_oracle"]) <= ORACLE_BOUND, (r["tractor"], c, r[f"{c}_over_oracle"])

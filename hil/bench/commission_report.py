@@ -207,7 +207,7 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
                   "over the implements of the ratio on / off (each implement alike; the RMS is given for reference) "
                   f"is above {tr.get('off_above', 1.0):g}"
                   + (" (the MPC bounds the steering rate; the trial's two seeds are not precise enough for less)."
-                     if tr.get("off_above", 1.0) > 1.0 else "."), "",
+                     if name == "mpc" and tr.get("off_above", 1.0) > 1.0 else "."), "",
                   "| m/s | " + " | ".join(f"{i} on / off" for i in tr["speeds"][0]["on_cm"])
                   + " | RMS on / off | on / off, geometric mean | estimate |",
                   "|---:|" + "---:|" * (len(tr["speeds"][0]["on_cm"]) + 2) + "---|"]

@@ -341,6 +341,41 @@ def bench_nmpc(steps: int) -> None:
               f"{max(wall) * 1e3:>9.2f}{np.median(cpu_ms) / ref:>8.1f}{max(0, us.max() - s.rate_limit):>10.1e}"
               f"{max(0, ds.max() - s.wheel_limit):>10.1e}{du0:>10.1e}{unconv:>9}{100 * np.mean(us > 0.999 * s.rate_limit):>6.0f}%"
               f"{100 * np.mean(ds > 0.999 * s.wheel_limit):>5.0f}%")
+    bench_nmpc_jacobian()
+
+
+def bench_nmpc_jacobian(calls: int = 2000) -> None:
+    """The Gauss-Newton residual's Jacobian as the NMPC builds it (the chain rule along the horizon)
+    against casadi's symbolic ``jacobian`` of the same residual, built here in the same run: CPU per
+    call and operations, N = 30, with and without the integral state."""
+    import casadi as ca
+    from design.nmpc import NMPCSettings, NonlinearMPC
+
+    print(f"\nNMPC residual Jacobian, N = 30: the chain rule along the horizon (design.nmpc) against casadi's "
+          f"jacobian of the same residual; CPU per call over {calls} calls")
+    print(f"{'states':<10}{'ours ms':>9}{'casadi ms':>11}{'ratio':>8}{'ours ops':>10}{'casadi ops':>12}{'max diff':>10}")
+    rng = np.random.default_rng(0)
+    for integral in (None, 0.5):
+        c = NonlinearMPC(NMPCSettings(horizon=30, integral_max=integral))
+        f = c.residual
+        w, p = ca.SX.sym("w", f.size1_in(0)), ca.SX.sym("p", f.size1_in(1))
+        r, jac = f(w, p)
+        ours, theirs = ca.Function("ours", [w, p], [jac]), ca.Function("casadi", [w, p], [ca.jacobian(r, w)])
+        nx, n = c.nx, c.settings.horizon
+        pm = c.terminal_weight(SPEED)
+        pv = np.r_[0.3, np.zeros(nx - 1), SPEED, rng.uniform(-0.01, 0.01, n), pm[np.triu_indices(nx)],
+                   c.state_weight_roots(SPEED)]
+        wv = rng.uniform(-0.2, 0.2, n + 1)
+        times = []
+        for fn in (ours, theirs):
+            fn(wv, pv)
+            t0 = time.thread_time()
+            for _ in range(calls):
+                fn(wv, pv)
+            times.append((time.thread_time() - t0) / calls * 1e3)
+        diff = float(np.abs(np.array(ca.densify(ours(wv, pv))) - np.array(ca.densify(theirs(wv, pv)))).max())
+        print(f"{nx:<10}{times[0]:>9.3f}{times[1]:>11.3f}{times[1] / times[0]:>8.1f}{ours.n_instructions():>10}"
+              f"{theirs.n_instructions():>12}{diff:>10.1e}")
 
 
 # ------------------------------------------------------------------ set-up

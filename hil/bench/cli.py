@@ -360,13 +360,16 @@ def _cmd_emulate(args: argparse.Namespace) -> dict:
 
     from hil.devices.emulate import EmulatedTractor
     with EmulatedTractor(implement=args.implement, speed=args.speed, duration=args.duration, seed=args.seed,
-                         params=_params(args), bridge=args.bridge, module_port=args.module_port) as tractor:
+                         params=_params(args), bridge=args.bridge, module_port=args.module_port,
+                         driver=args.driver) as tractor:
         drive = "hil drive " + " ".join(tractor.setup.drive_args()) + " --controller kinematic --duration 60 --out runs/x"
         info = {"bridge": tractor.setup.bridge, "position": tractor.setup.position,
                 "attitude": tractor.setup.attitude, "drive_command": drive}
         print(json.dumps(info, indent=2) if args.json else
               f"emulated tractor ({args.implement}, {args.speed} m/s) on\n  bridge   {info['bridge']}\n"
               f"  position {info['position']}\n  attitude {info['attitude']}\nsteer it with:\n  {drive}\n"
+              + ("a driver holds it on the line until the loop engages, and takes the wheel when it lets go\n"
+                 if args.driver else "") +
               f"running for {args.duration:.0f} s (Ctrl-C stops)", flush=True)
         try:
             t_end = time.monotonic() + args.duration
@@ -520,6 +523,10 @@ def build_parser() -> argparse.ArgumentParser:
     em.add_argument("--module-port", type=int, default=0, metavar="PORT",
                     help="UDP port of the emulated AgOpenGPS module (default: chosen by the system; 8888 as on "
                          "a tractor)")
+    em.add_argument("--no-driver", dest="driver", action="store_false",
+                    help="no driver: the tractor runs on its own wheel from 0.3 m off the line until hil drive "
+                         "engages (by default a driver holds it on the line until then, and takes the wheel "
+                         "whenever the autosteer lets go)")
     em.set_defaults(func=_cmd_emulate)
 
     add_drive_parser(sub)

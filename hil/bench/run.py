@@ -22,7 +22,7 @@ from identification.passlog import PassLog
 
 from hil.bench.agio_bench import AgioLockstepBench, AgioUdpBench
 from hil.bench.bridge_bench import LockstepBridge, PtyBridge
-from hil.bench.field_driver import FieldDriver
+from hil.devices.field_driver import FieldDriver, autosteer_on
 from hil.bench.field_route import RouteTruth, field_run
 from hil.truth.conditions import condition_for
 from hil.vehicle.bridge.driver import BridgeDriver
@@ -82,7 +82,7 @@ class RunSpec:
         offsets are then from the route at ``start_station`` m.
     field_driver
         On a field, a driver takes the wheel when the autosteer has let go and hands it back on
-        the line (:mod:`hil.bench.field_driver`); without one a disengaged tractor keeps its wheel.
+        the line (:mod:`hil.devices.field_driver`); without one a disengaged tractor keeps its wheel.
     """
 
     implement: str = "none"
@@ -194,7 +194,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
         driver = bench.driver
         if driver_layer is not None:
             firmware = bench.firmware
-            driver_layer.autosteer_engaged = lambda: _autosteer_on(firmware.state)
+            driver_layer.autosteer_engaged = lambda: autosteer_on(firmware.state)
         faulty = None
         if spec.link_faults:
             host = bench.port if spec.realtime else bench.host_link
@@ -241,12 +241,6 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
         meta["field"] = {**fld.describe(), "source": spec.field, "start_station_m": spec.start_station,
                          "driver_takeovers": None if driver_layer is None else driver_layer.takeovers}
     return loop.run_log(meta)
-
-
-def _autosteer_on(state) -> bool:
-    """Whether the bridge steers: the HC11 firmware's engaged flag, the steer module's motor."""
-    on = getattr(state, "engaged", None)
-    return bool(state.motor_on if on is None else on)
 
 
 def _refused(frontend: GnssFrontEnd) -> dict:

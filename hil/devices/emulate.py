@@ -16,6 +16,9 @@ from types import TracebackType
 
 import numpy as np
 
+from gnss.curve import ArcPath
+
+from hil.devices.field_driver import FieldDriver, autosteer_on
 from hil.devices.firmware import BridgeFirmware, config_for_tractor
 from hil.errors import SimulatorConfigError
 from hil.devices.steer_module import SteerModule, SteerModuleConfig, module_settings
@@ -28,6 +31,13 @@ from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
 from hil.devices.technician import two_point_calibration
+
+
+#: The driver's line (simulator frame) starts this far behind the start and ends this far beyond the run, m.
+LINE_BEHIND, LINE_AHEAD = 100.0, 100.0
+#: The driver hands back within 1 m and 0.1 rad of the line, held 0.5 s: well inside the loop's engage band
+#: (2 m, 0.35 rad), and reached against a disker's pull at 2.91 m/s (the field driver's 0.2 m is not, there).
+DRIVER_RELEASE = (1.0, 0.1, 0.5)
 
 
 @dataclass(frozen=True)
@@ -83,6 +93,14 @@ class EmulatedTractor:
         127.0.0.1:``module_port``, with the settings AgOpenGPS would have stored in it).
     module_port
         UDP port of the emulated module (0: chosen by the system; 8888 as on a tractor).
+    driver
+        A driver (:class:`~hil.devices.field_driver.FieldDriver`, ``from_start``) holds the tractor on
+        the line until the loop first engages, and takes the wheel whenever the autosteer lets go,
+        so the tractor waits on the line for ``hil drive`` instead of circling off on its held
+        wheel. While the driver steers, the bridge reads the manual override and refuses to engage;
+        it lets go after 0.5 s within 1 m and 0.1 rad of the line (:data:`DRIVER_RELEASE`) and takes the
+        wheel again 1 s later if the loop has not engaged. Off: the bench's start, the
+        tractor on its own from ``initial_cross_track``.
     """
 
     implement: str = "none"
@@ -94,12 +112,20 @@ class EmulatedTractor:
     geometry: FieldGeometry = field(default_factory=FieldGeometry)
     bridge: str = "hc11"
     module_port: int = 0
+    driver: bool = False
 
     def __enter__(self) -> "EmulatedTractor":
         if self.bridge not in ("hc11", "agopengps"):
             raise SimulatorConfigError(f"bridge must be 'hc11' or 'agopengps', got {self.bridge!r}")
+        if not isinstance(self.driver, bool):
+            raise SimulatorConfigError(f"driver must be True or False, got {self.driver!r}")
         self.plant = SimulatedTractor(condition_for(self.implement, self.speed), self.duration + 1.0, self.seed,
                                       self.params, initial={"Y": self.initial_cross_track})
+        # what the bridge drives: the plant, or the driver in front of it (the line is the simulator's x axis)
+        self.driver_layer = None if not self.driver else FieldDriver(
+            self.plant, self.plant, ArcPath.straight((-LINE_BEHIND, 0.0), (self.speed * self.duration + LINE_AHEAD, 0.0)),
+            LINE_BEHIND, from_start=True, release=DRIVER_RELEASE)
+        steered = self.driver_layer or self.plant
         self._stack = ExitStack()
         try:
             pos, att = (self._stack.enter_context(PtyPair()) for _ in range(2))
@@ -108,17 +134,19 @@ class EmulatedTractor:
             if self.bridge == "agopengps":
                 link = self._stack.enter_context(UdpLink(("127.0.0.1", self.module_port), accept_any=True))
                 settings, config = module_settings(two_point_calibration(p.sensor, p.steering), p.steering)
-                steering = SteerModule(link, self.plant, SteerModuleConfig(settings=settings, config=config))
+                steering = SteerModule(link, steered, SteerModuleConfig(settings=settings, config=config))
                 bridge_name = f"agopengps:udp:127.0.0.1:{link.local_address[1]}:0"
                 wake = [link.fileno()]
             else:
                 bridge = self._stack.enter_context(PtyPair())
-                steering, bridge_name = BridgeFirmware(bridge.device_link(), self.plant,
+                steering, bridge_name = BridgeFirmware(bridge.device_link(), steered,
                                                            config_for_tractor(p.steering)), bridge.slave_name
+            if self.driver_layer is not None:
+                self.driver_layer.autosteer_engaged = lambda: autosteer_on(steering.state)
             devices = [steering,
                        PositionReceiver(self.plant, pos.device_link(), self.geometry),
                        AttitudeReceiver(self.plant, att.device_link(), self.geometry)]
-            self.runner = RealTimeRunner(RealClock(), devices, self.plant, max_duration=self.duration, wake_fds=wake)
+            self.runner = RealTimeRunner(RealClock(), devices, steered, max_duration=self.duration, wake_fds=wake)
             self.runner.start()
             self._stack.callback(self.runner.stop)
         except BaseException:

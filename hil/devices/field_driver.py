@@ -12,8 +12,10 @@ emulated bridge firmware and the plant (as :class:`hil.devices.valve_faults.Valv
 * the driver lets go once the CG has been within :data:`RELEASE_CROSS_TRACK` m and
   :data:`RELEASE_HEADING` rad of the route for :data:`RELEASE_HOLD` s; the loop engages again
   after its own health time; the driver takes the wheel again when the autosteer lets go again,
-  or has not engaged within :data:`REGRAB` s of the hand-back (the fix is still bad). It never
-  takes over before the first engage.
+  or has not engaged within :data:`REGRAB` s of the hand-back (the fix is still bad). On the bench
+  it never takes over before the first engage (a run's start is its start); with ``from_start``
+  (``hil emulate``) it also holds the tractor on the line until the loop first engages, as an
+  operator lines the tractor up before pressing engage.
 
 The driver sees the truth (the field and the tractor), not the GPS. Runs where it took over say
 so in the metadata (``driver_takeovers``); the bench's statistics leave out the cycles the loop
@@ -59,16 +61,23 @@ class FieldDriver:
         The tractor's station at the start, m.
     autosteer_engaged
         True while the bridge firmware is engaged (set once the firmware exists).
+    from_start
+        Also steer before the autosteer has engaged once (default: only after it has let go).
+    release
+        Hand back once within this cross-track (m) and heading error (rad) of the route for this
+        long (s); default :data:`RELEASE_CROSS_TRACK`, :data:`RELEASE_HEADING`, :data:`RELEASE_HOLD`.
     """
 
     def __init__(self, inner: SteeringPlant, tractor: SimulatedTractor, path: ArcPath, station: float,
-                 autosteer_engaged: Callable[[], bool] | None = None) -> None:
+                 autosteer_engaged: Callable[[], bool] | None = None, from_start: bool = False,
+                 release: tuple[float, float, float] = (RELEASE_CROSS_TRACK, RELEASE_HEADING, RELEASE_HOLD)) -> None:
         self.inner, self.tractor, self.path = inner, tractor, path
         self.tracker = PathTracker(path, station=station)
         self.autosteer_engaged = autosteer_engaged or (lambda: True)
         self.steering = False
         self.takeovers = 0
-        self._armed = False   # the autosteer has steered once
+        self._armed = bool(from_start)   # the autosteer has steered once (or the driver need not wait for it)
+        self._release = tuple(float(v) for v in release)
         self._off_since = math.nan
         self._near_since = math.nan
         self._last_look = -math.inf
@@ -113,7 +122,7 @@ class FieldDriver:
             if self.autosteer_engaged():
                 self._off_since, self._armed = math.nan, True
                 return
-            if not self._armed:         # before the first engage the tractor is the run's start
+            if not self._armed:         # before the first engage the tractor is the run's start (bench)
                 return
             if math.isnan(self._off_since):
                 self._off_since = now
@@ -121,12 +130,13 @@ class FieldDriver:
                 return
             self.steering, self._near_since = True, math.nan
             self.takeovers += 1
-        near = abs(xte) <= RELEASE_CROSS_TRACK and abs(he) <= RELEASE_HEADING
+        near_xte, near_he, hold = self._release
+        near = abs(xte) <= near_xte and abs(he) <= near_he
         if not near:
             self._near_since = math.nan
         elif math.isnan(self._near_since):
             self._near_since = now
-        elif now - self._near_since >= RELEASE_HOLD - 1e-9:
+        elif now - self._near_since >= hold - 1e-9:
             # handed back: the driver grabs again if the autosteer has not engaged within REGRAB s
             self.steering, self._off_since = False, now + REGRAB - REACTION
             self.inner.set_valve_duty(self._firmware_duty)
@@ -137,3 +147,10 @@ class FieldDriver:
         kappa = 2.0 * math.sin(alpha) / max(math.hypot(te - x, tn - y), 1.0)
         want = max(min(math.atan(self._wheelbase * kappa), self._stop), -self._stop)
         self.inner.set_valve_duty(max(min(WHEEL_GAIN * (want - truth["wheel_angle"]), 1.0), -1.0))
+
+
+def autosteer_on(state) -> bool:
+    """Whether the bridge steers, from its firmware's state: the HC11 firmware's engaged flag, the
+    steer module's motor."""
+    on = getattr(state, "engaged", None)
+    return bool(state.motor_on if on is None else on)

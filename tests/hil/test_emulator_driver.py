@@ -63,6 +63,6 @@ def test_hil_drive_engages_on_the_emulated_tractor_after_waiting_on_the_driver(t
     assert rc == 0
     result = json.loads(capsys.readouterr().out)
     engages = [e for e in result["events"] if e["event"] == "engage"]
-    assert engages and engages[0]["t"] < 6.0                 # within a hand-back of the driver (1 s near, 1 s)
+    assert engages and engages[0]["t"] < 6.0   # within a few hand-backs of the driver (0.5 s near, then 1 s free)
     assert result["summary"]["engaged_fraction"] > 0.5
     assert abs(final["cross_track"]) < 0.5

@@ -38,6 +38,28 @@ RECORD = "estimate_schedule"
 SPEED_MAX = 20.0
 
 
+def check_bands(bands: Sequence[Any], what: str) -> tuple[tuple[float, float], ...]:
+    """Speed bands ``(low, high)``, m/s, checked and sorted: ``0 <= low < high <= SPEED_MAX`` (``high`` may
+    be ``inf``), no two overlapping; ``what`` names them in the error (``DesignInputError``)."""
+    out = []
+    for b in bands:
+        if not isinstance(b, (tuple, list)) or len(b) != 2:
+            raise DesignInputError(f"an {what} band must be (low, high) m/s, got {b!r}")
+        lo, hi = b
+        for v in (lo, hi):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v):
+                raise DesignInputError(f"an {what} band must be two speeds in m/s, got {b!r}")
+        if not (0.0 <= lo < hi and lo <= SPEED_MAX and (hi <= SPEED_MAX or math.isinf(hi))):
+            raise DesignInputError(f"an {what} band must have 0 <= low < high <= {SPEED_MAX:g} m/s "
+                                   f"(or high = inf), got {b!r}")
+        out.append((float(lo), float(hi)))
+    out.sort()
+    for (_, h0), (l1, _) in zip(out, out[1:]):
+        if l1 < h0:
+            raise DesignInputError(f"{what} bands overlap: {out!r}")
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class EstimateSchedule:
     """Speed bands in which the disturbance estimate is off (it acts at every other speed).
@@ -52,23 +74,7 @@ class EstimateSchedule:
     off: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
-        bands = []
-        for b in self.off:
-            if not isinstance(b, (tuple, list)) or len(b) != 2:
-                raise DesignInputError(f"an estimate-off band must be (low, high) m/s, got {b!r}")
-            lo, hi = b
-            for v in (lo, hi):
-                if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v):
-                    raise DesignInputError(f"an estimate-off band must be two speeds in m/s, got {b!r}")
-            if not (0.0 <= lo < hi and lo <= SPEED_MAX and (hi <= SPEED_MAX or math.isinf(hi))):
-                raise DesignInputError(f"an estimate-off band must have 0 <= low < high <= {SPEED_MAX:g} m/s "
-                                       f"(or high = inf), got {b!r}")
-            bands.append((float(lo), float(hi)))
-        bands.sort()
-        for (_, h0), (l1, _) in zip(bands, bands[1:]):
-            if l1 < h0:
-                raise DesignInputError(f"estimate-off bands overlap: {bands!r}")
-        object.__setattr__(self, "off", tuple(bands))
+        object.__setattr__(self, "off", check_bands(self.off, "estimate-off"))
 
     def acts_at(self, speed: float) -> bool:
         """True if the estimate acts at ``speed`` (m/s)."""

@@ -32,6 +32,7 @@ from identification.model import Model
 from .controller import Measurement
 from .errors import DesignInputError
 from .estimate_schedule import RECORD, EstimateSchedule
+from .files.law_schedule import RECORD as LAW_RECORD
 from .files.certificate import recorded_models
 from .files.linear import MATRICES, MEASUREMENTS, ControllerFile, LinearController
 
@@ -177,6 +178,10 @@ def export_c(spec: ControllerFile, certificate: dict, checksum: str, out: str | 
         raise DesignInputError("the file turns its disturbance estimate off at some speeds "
                                f"({EstimateSchedule.from_record(sched).off}); the C step runs one law at every "
                                "speed: export it with the estimate at every speed (design estimate-schedule FILE --out COPY, no --off)")
+    if isinstance(spec.design, dict) and spec.design.get(LAW_RECORD) is not None:
+        raise DesignInputError("the file runs other window laws at some speeds (design.law_schedule); the C step "
+                               "runs one law at every speed: export a file without a law schedule (the robust "
+                               "design's own, hil commission's controllers/trial/robust.as-designed.json)")
     name, _, plant = recorded_models(certificate)[0]
     rows = record_run(spec, plant)
     try:

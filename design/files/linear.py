@@ -47,12 +47,14 @@ from ..errors import ControllerFileError, DesignInputError
 from ..limits import DT_RANGE, MAX_COEFFICIENT, MAX_MODEL_ORDER, OUTPUT_CLIP_MAX, RATE_LIMIT_MAX, SPEED_MIN_RANGE, in_range
 from ..estimate_schedule import RECORD, EstimateSchedule, law_without_estimate
 from .certificate import check_certificate, check_estimate_schedule, recorded_latency
+from .law_schedule import RECORD as LAW_RECORD
+from .law_schedule import (MATRICES, LawSchedule, check_law_schedule, compensator_from_record, compensator_record,
+                           parse_law_schedule)
 from .envelope import SCHEMA, check_envelope, read_json, seal, write_atomically
 from .signature import check_signature
 
 MEASUREMENTS = ("cross_track", "heading_error", "wheel_angle")
 NORMALIZATIONS = ("speed", "none")
-MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec", "X0")
 TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "compensator", "limits", "design",
             "certificate", "models", "checksum")
 
@@ -150,7 +152,7 @@ class ControllerFile:
                 "outputs": [{"name": o.name, "normalization": o.normalization, "units": o.units}
                             for o in self.outputs],
                 "input": {"name": "steer_rate_cmd", "units": "rad/s"},
-                "compensator": {k: getattr(c, k).tolist() for k in MATRICES},
+                "compensator": compensator_record(c),
                 "limits": {"rate": self.rate_limit, "speed_min": self.speed_min,
                            "output_clip": list(self.output_clip)},
                 "design": dict(self.design),
@@ -199,6 +201,8 @@ def from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519PublicKey |
     check_certificate(body["certificate"], spec.compensator, "the compensator", legacy_certificate)
     check_estimate_schedule(body["design"], body["certificate"], spec.compensator, estimate_states(spec),
                             legacy_certificate)
+    check_law_schedule(body["design"], body["certificate"], spec.compensator, estimate_states(spec),
+                       legacy_certificate)
     return spec
 
 
@@ -214,37 +218,11 @@ def uncertified_from_body(body: Any, dt: float | None = 0.05,
         raise ControllerFileError(f"dt must be a finite sample time > 0 s, got {fdt!r}")
     if dt is not None and abs(fdt - dt) > 1e-9:
         raise ControllerFileError(f"sample time mismatch: the file is for dt={fdt} s, the loop runs at dt={dt} s")
-    comp_d = body["compensator"]
-    if not isinstance(comp_d, dict) or sorted(comp_d) != sorted(MATRICES):
-        got = sorted(comp_d) if isinstance(comp_d, dict) else type(comp_d).__name__
-        raise ControllerFileError(f"compensator must hold exactly {', '.join(MATRICES)}; got {got}")
-    mats = {}
-    for k in MATRICES:
-        try:
-            arr = np.array(comp_d[k], dtype=float)
-        except (TypeError, ValueError):
-            raise ControllerFileError(f"compensator {k} is not a numeric matrix") from None
-        if arr.ndim != 2 and not (arr.ndim == 1 and arr.size == 0):
-            raise ControllerFileError(f"compensator {k} must be 2-D, got shape {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise ControllerFileError(f"compensator {k} has non-finite entries")
-        mats[k] = arr
     outputs = body["outputs"]
     if not isinstance(outputs, list) or not all(isinstance(o, dict) for o in outputs):
         raise ControllerFileError("outputs must be a list of objects")
     specs = tuple(OutputSpec(o.get("name"), o.get("normalization"), str(o.get("units", ""))) for o in outputs)
-    q, nc = len(specs), mats["Ac"].shape[0] if mats["Ac"].ndim == 2 else 0
-    shapes = {"Ac": (nc, nc), "Bc": (nc, q), "Cc": (1, nc), "Dc": (1, q), "Ec": (nc, 1), "X0": (nc, q)}
-    for k, shp in shapes.items():
-        if mats[k].size == 0 and 0 in shp:
-            mats[k] = mats[k].reshape(shp)
-        if mats[k].shape != shp:
-            raise ControllerFileError(f"dimension mismatch: {k} has shape {mats[k].shape}, expected {shp} "
-                                      f"for {nc} states and {q} outputs")
-    try:
-        comp = Compensator(mats["Ac"], mats["Bc"], mats["Cc"], mats["Dc"], float(fdt), mats["Ec"], mats["X0"])
-    except DesignInputError as exc:
-        raise ControllerFileError(str(exc)) from None
+    comp = compensator_from_record(body["compensator"], float(fdt), len(specs))
     lim = body["limits"]
     if not isinstance(lim, dict) or sorted(lim) != ["output_clip", "rate", "speed_min"]:
         raise ControllerFileError(f"limits must hold exactly 'rate', 'speed_min' and 'output_clip', got {lim!r}")
@@ -302,7 +280,9 @@ class LinearController:
     unheld); unlike the integral it runs during the rest of the approach (holding it there cost 5 %
     on the disker at 1.79 m/s), and it starts at zero on every engage.
     Where the file's estimate schedule (:mod:`design.estimate_schedule`) turns it off at the measured
-    speed, the step runs the certified law without it (the estimate's filter still runs).
+    speed, the step runs the certified law without it (the estimate's filter still runs); where its law
+    schedule (:mod:`design.files.law_schedule`) names another window law for the measured speed, that
+    law runs, on the same state (:meth:`law_at`).
 
     The law acts on the measurement's deviation from its reference
     (:class:`design.curvature.Reference`): on engage, a smooth approach path from where the
@@ -333,8 +313,14 @@ class LinearController:
         # the estimate's speed schedule (design.estimate_schedule): the law without it where it is off
         rec = spec.design.get(RECORD) if acquisition and isinstance(spec.design, Mapping) else None
         self.schedule = None if rec is None else EstimateSchedule.from_record(rec)
-        self._laws = {True: c, False: c if self.schedule is None or not self.schedule.off
-                      else law_without_estimate(c, estimate_states(spec))}
+        # the window laws by speed (design.files.law_schedule): the file's own where no band holds the speed
+        laws = spec.design.get(LAW_RECORD) if acquisition and isinstance(spec.design, Mapping) else None
+        self.law_schedule: LawSchedule | None = None if laws is None else parse_law_schedule(laws, c)
+        every = (c, *(() if self.law_schedule is None else self.law_schedule.laws))
+        off = self.schedule is not None and bool(self.schedule.off)
+        self._laws = {(i, True): law for i, law in enumerate(every)}
+        self._laws.update({(i, False): law_without_estimate(law, estimate_states(spec)) if off else law
+                           for i, law in enumerate(every)})
         self._kept = np.zeros(self._integrators.size)   # the integrals at the last step, kept over a re-engage
         self._last_t = math.inf                         # time of the last step, s
         self.gate = IntegralGate()
@@ -397,7 +383,7 @@ class LinearController:
         y = self.outputs(m)
         self._far = self._cross_track_clipped(y)
         if self._fresh:
-            self._xc = self.spec.compensator.X0 @ y
+            self._xc = self.law_at(float(m.speed)).X0 @ y
             self._fresh = False
             gap = float(m.t) - self._last_t
             if self._integrators.size and integral_kept(gap):
@@ -405,7 +391,7 @@ class LinearController:
             else:
                 self._headland.forget()
         self._last_t = float(m.t)
-        law = self._laws[self.schedule is None or self.schedule.acts_at(float(m.speed))]
+        law = self.law_at(float(m.speed))
         u = float(law.Cc[0] @ self._xc + law.Dc[0] @ y)
         if not math.isfinite(u):
             self.reset()
@@ -426,6 +412,12 @@ class LinearController:
         if self._integrators.size and np.all(np.isfinite(self._xc[self._integrators])):
             self._kept = self._xc[self._integrators].copy()
         return ua
+
+    def law_at(self, speed: float) -> Compensator:
+        """The certified law that runs at ``speed`` (m/s): the law schedule's band law (the file's own
+        outside every band), without the disturbance estimate where its schedule turns it off."""
+        i = None if self.law_schedule is None else self.law_schedule.index_at(speed)
+        return self._laws[(0 if i is None else i + 1, self.schedule is None or self.schedule.acts_at(speed))]
 
     def estimate(self) -> tuple[float, ...]:
         return tuple(float(v) for v in self._xc)

@@ -52,6 +52,7 @@ from ..mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 from ..verify import model_hash
 from ..weights import OutputWeights
 from .certificate import check_certificate, check_estimate_schedule, recorded_latency
+from .law_schedule import RECORD as LAW_RECORD
 from .envelope import SCHEMA, check_envelope, read_json, seal, write_atomically
 from .linear import VELOCITY_OUTPUTS, check_coefficients, check_output_clip
 from .signature import check_signature
@@ -220,6 +221,8 @@ def mpc_from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519PublicK
         raise ControllerFileError(f"the MPC's unconstrained law cannot be formed: {exc}") from None
     check_certificate(body["certificate"], law, "the MPC's unconstrained law", legacy_certificate)
     check_estimate_schedule(body["design"], body["certificate"], law, spec.estimate_states(law), legacy_certificate)
+    if isinstance(body["design"], dict) and body["design"].get(LAW_RECORD) is not None:
+        raise ControllerFileError(f"design.{LAW_RECORD} is for linear files; an MPC file runs one law at every speed")
     return spec
 
 

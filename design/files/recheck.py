@@ -23,6 +23,8 @@ from ..errors import ControllerFileError, DesignInputError
 from ..verify import certify, compensator_hash, model_hash
 from .envelope import read_json
 from ..estimate_schedule import RECORD, law_without_estimate
+from .law_schedule import RECORD as LAW_RECORD
+from .law_schedule import parse_law_schedule
 from .linear import estimate_states, uncertified_from_body
 from .mpc import uncertified_mpc_from_body
 from .nmpc import recheck_nmpc
@@ -95,6 +97,24 @@ def recheck(path: str | Path, models: Sequence[Model]) -> dict:
             problems.append(f"the law without the estimate cannot be formed: {exc}")
         else:
             problems += [f"without the estimate: {p}" for p in _compare(off, rec.get("certificate_off"), models)[0]]
+    laws = body["design"].get(LAW_RECORD) if isinstance(body.get("design"), dict) else None
+    if laws is not None:                       # the window laws by speed, each certified on the same models
+        try:
+            schedule = parse_law_schedule(laws, comp)
+        except ControllerFileError as exc:
+            problems.append(f"the law schedule cannot be read: {exc}")
+        else:
+            for i, (law, rec_i) in enumerate(zip(schedule.laws, laws["laws"])):
+                what = f"law schedule law {i} ({schedule.sources[i]})"
+                problems += [f"{what}: {p}" for p in _compare(law, rec_i.get("certificate"), models)[0]]
+                if isinstance(rec, dict):
+                    try:
+                        off = law_without_estimate(law, _estimate_states(body, comp))
+                    except (ControllerFileError, DesignInputError) as exc:
+                        problems.append(f"{what}: the law without the estimate cannot be formed: {exc}")
+                    else:
+                        problems += [f"{what} without the estimate: {p}"
+                                     for p in _compare(off, rec_i.get("certificate_off"), models)[0]]
     return {"controller": str(path), "certificate": fresh, "problems": problems, "passed": not problems,
             "max_radius_difference_from_file": diff}
 

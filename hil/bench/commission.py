@@ -48,7 +48,7 @@ from hil.bench.estimate_trial import OFF_ABOVE, TRIAL_SEEDS, choose_schedule, ha
 from hil.bench.more_passes import identify_with_more_passes
 from hil.bench.mpc_window import own_window
 from hil.bench.mpc_window_trial import mpc_window_trial
-from hil.bench.window_trial import candidate_files, choose_window
+from hil.bench.window_trial import WINDOW_SEEDS, candidate_files, choose_window
 from hil.bench.oracle import OracleOptions, oracle_for
 from hil.bench.run import RunSpec, simulated_run
 from hil.bench.sysid import SysidPlan, make_passes
@@ -117,6 +117,9 @@ class CommissionOptions:
     estimate_trial, trial_seeds
         Choose per speed whether the estimate acts by a trial drive with and without it
         (:mod:`hil.bench.estimate_trial`), on passes with ``trial_seeds`` (apart from ``hil_seeds``).
+    window_seeds
+        Seeds of the robust controller's window trial, which chooses its window law for every speed and,
+        per speed, where another is better there (:mod:`hil.bench.window_trial`; apart from ``hil_seeds``).
     """
 
     speeds: tuple[float, ...] = tuple(GEAR_SPEEDS.values())
@@ -138,17 +141,20 @@ class CommissionOptions:
     disturbance_estimate: bool = True
     estimate_trial: bool = True
     trial_seeds: tuple[int, ...] = TRIAL_SEEDS
+    window_seeds: tuple[int, ...] = WINDOW_SEEDS
 
     def __post_init__(self) -> None:
         SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
                   duration=self.pass_duration, seed=self.seed)   # validates those
         if not self.hil_seeds or not all(isinstance(s, int) and s >= 0 for s in self.hil_seeds):
             raise SimulatorConfigError(f"hil_seeds must be integers >= 0, got {self.hil_seeds!r}")
-        if not self.trial_seeds or not all(isinstance(s, int) and s >= 0 for s in self.trial_seeds):
-            raise SimulatorConfigError(f"trial_seeds must be integers >= 0, got {self.trial_seeds!r}")
-        if set(self.trial_seeds) & set(self.hil_seeds):
-            raise SimulatorConfigError(f"trial_seeds {self.trial_seeds} must differ from hil_seeds {self.hil_seeds}: "
-                                       "the HIL comparison judges what the trial chose")
+        for name in ("trial_seeds", "window_seeds"):
+            seeds = getattr(self, name)
+            if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
+                raise SimulatorConfigError(f"{name} must be integers >= 0, got {seeds!r}")
+            if set(seeds) & set(self.hil_seeds):
+                raise SimulatorConfigError(f"{name} {seeds} must differ from hil_seeds {self.hil_seeds}: "
+                                           "the HIL comparison judges what the trial chose")
         RunSpec(duration=self.hil_duration)
         if self.weights not in WEIGHTS:
             raise SimulatorConfigError(f"weights must be one of {list(WEIGHTS)}, got {self.weights!r}")
@@ -374,10 +380,10 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
 
         def run() -> dict:
             return choose_window(robust_file, others, params, com, opts.speeds, opts.implements, ctrl / "trial",
-                                 opts.trial_seeds, opts.hil_duration, lambda d, n: tick("window trial robust", d, n))
+                                 opts.window_seeds, opts.hil_duration, lambda d, n: tick("window trial robust", d, n))
         r = steps.run("window trial robust", f"window trial (robust: the design's law and the {len(others)} its "
                       f"estimate's back-off dropped, each speed and implement, seeds "
-                      f"{', '.join(map(str, opts.trial_seeds))})", run)
+                      f"{', '.join(map(str, opts.window_seeds))}; a law per speed where another is better there)", run)
         if r is not None:
             res["window_trial"] = r
 

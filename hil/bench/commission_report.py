@@ -104,6 +104,21 @@ def _window_trial_lines(tr: dict | None) -> list[str]:
         lines.append(f"| `{c['file']}` | {'-' if scale is None else f'{scale:.3g}'} | "
                      f"{'-' if gain is None else f'{gain:g}'} | {c['geometric_mean_cm']:.2f} | "
                      f"{worst} {c['sigma_cm'][worst]:.2f} |")
+    if tr.get("per_speed"):
+        names = [c["file"] for c in tr["candidates"]]
+        lines += ["", "Per speed, the geometric mean over the implements (cm), and the law that runs there (a law "
+                  "schedule where it is not the kept one):", "",
+                  "| m/s | " + " | ".join(f"`{n}`" for n in names) + " | runs |",
+                  "|---:|" + "---:|" * len(names) + "---|"]
+        for row in tr["per_speed"]:
+            lines.append(f"| {row['speed']:g} | " + " | ".join(f"{row['geometric_mean_cm'][n]:.2f}" for n in names)
+                         + f" | `{row['chosen']}` |")
+        for name, why in tr.get("excluded", {}).items():
+            lines.append(f"\n`{name}` cannot run beside the kept law ({why}); it was not chosen per speed.")
+        if tr.get("law_schedule"):
+            lines += ["", "Law schedule: " + "; ".join(
+                f"{b['band_mps'][0]:g}-{'' if b['band_mps'][1] is None else format(b['band_mps'][1], 'g')} m/s "
+                f"`{b['file']}`" for b in tr["law_schedule"]) + "."]
     return lines
 
 

@@ -15,7 +15,8 @@ from design.cli import main as design_main
 from design.files.load import load_controller
 from hil.bench.commission_report import _window_trial_lines
 from hil.bench.estimate_trial import trial_sigma
-from hil.bench.window_trial import candidate_files, choose_window, geometric_mean, window_record
+from hil.bench.window_trial import (WINDOW_SEEDS, candidate_files, choose_window, geometric_mean, per_speed,
+                                   speed_bands, speed_means, window_record)
 from hil.truth.tractors import resolve_tractor
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "design"))
@@ -100,3 +101,52 @@ def test_records_and_folders_that_are_not_there(tmp_path):
     bad.write_text("[1, 2]")
     assert window_record(bad) == {}
     assert _window_trial_lines(None) == []
+
+
+def _row(name, cells):
+    return {"file": name, "sigma_cm": cells, "geometric_mean_cm": geometric_mean(list(cells.values()))}
+
+
+def test_the_law_per_speed_and_its_bands():
+    speeds = [1.0, 1.34, 1.79, 2.24, 2.91]
+    # the kept law (index 1) is best at the low speeds, law 2 at the two fastest, law 0 at 1.79 by a hair
+    grid = {0: [3.0, 4.0, 5.99, 9.0, 15.0], 1: [2.0, 3.0, 6.0, 8.5, 14.0], 2: [2.5, 3.5, 6.5, 8.0, 13.0]}
+    rows = [_row(f"f{i}", {f"{imp}:{v:g}": s * k for v, s in zip(speeds, grid[i]) for imp, k in
+                           (("none", 1.0), ("ripper", 1.2))}) for i in range(3)]
+    assert speed_means(rows[1], 2.91) == pytest.approx(14.0 * math.sqrt(1.2))
+    chosen = per_speed(rows, speeds, main=1, allowed={0, 2})
+    assert chosen == [1, 1, 0, 2, 2]
+    assert speed_bands(speeds, chosen, 1) == [((1.565, 2.015), 0), ((2.015, math.inf), 2)]
+    # a law that cannot run beside the kept one is not chosen; a tie keeps the kept law
+    assert per_speed(rows, speeds, main=1, allowed={2}) == [1, 1, 1, 2, 2]
+    tie = [_row("a", {"none:1": 2.0}), _row("b", {"none:1": 2.0})]
+    assert per_speed(tie, [1.0], main=1, allowed={0}) == [1]
+    assert speed_bands([1.0, 2.0], [0, 0], 0) == []
+    assert set(WINDOW_SEEDS).isdisjoint({0, 1, 2})                 # apart from the HIL comparison's seeds
+
+
+@pytest.mark.slow
+def test_the_trial_runs_the_best_law_of_each_speed_from_one_file(backed_off, tmp_path):
+    """Two speeds: the file the trial writes drives each speed exactly as the law it chose there."""
+    out, cands, _ = backed_off
+    path = tmp_path / "robust.json"
+    path.write_bytes(out.read_bytes())
+    others = candidate_files(cands, "robust")
+    params = resolve_tractor("worn-valve").params()
+    speeds = [1.0, 2.91]
+    r = choose_window(path, others, params, None, speeds, ["ripper"], tmp_path / "trial", seeds=(7,), duration=20.0)
+    gms = {c["file"]: c for c in r["candidates"]}
+    for row in r["per_speed"]:
+        v = row["speed"]
+        best = min(row["geometric_mean_cm"].values())
+        assert row["geometric_mean_cm"][row["chosen"]] == best or row["chosen"] == r["chosen"]
+        again = 100.0 * trial_sigma(path, params, None, "ripper", v, (7,), 20.0)
+        assert again == pytest.approx(gms[row["chosen"]]["sigma_cm"][f"ripper:{v:g}"], rel=1e-9)
+    # on this seed the two speeds want different laws (measured: 2.62 at 1.00 m/s, 0.92 at 2.91 m/s), so the
+    # passes above ran a file that switches law by speed
+    sched = json.loads(path.read_text())["design"].get("law_schedule")
+    assert r["law_schedule"] and sched is not None
+    assert [law["source"] for law in sched["laws"]] == [b["file"] if b["file"] != "robust.json" else
+                                                        "robust.as-designed.json" for b in r["law_schedule"]]
+    lines = "\n".join(_window_trial_lines(r))
+    assert "Per speed" in lines

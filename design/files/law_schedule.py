@@ -1,0 +1,230 @@
+"""A linear controller file's window laws by speed (``design["law_schedule"]``; issue 14).
+
+Why: on random-1 the robust window laws the estimate's back-off makes are ordered by their bandwidth
+(the window weights' scale), and the order turns over with speed: over 12 HIL seeds the law of scale
+1.48 is 0.93x the paper's method at 2.91 m/s where the law chosen for every speed (1.05) is 1.04x, and
+at 1.00 m/s the wider laws cost (docs/tractor_campaign.md, session 15). One law for every speed takes
+the middle; the window trial (:mod:`hil.bench.window_trial`) now chooses per speed, and the file
+carries the laws it chose.
+
+Layout: ``design["law_schedule"] = {"bands": [[low, high | null], ...], "laws": [law, ...]}``, band
+``i`` (m/s, ``low <= v < high``) run by ``laws[i]``; at every other speed the file's own compensator
+runs. Each law is ``{"compensator": {Ac, Bc, Cc, Dc, Ec, X0}, "certificate": {...},
+"certificate_off": {...} | null, "source": name, "window_scale": s, "estimate_scale": e}``.
+
+What the reader checks (:func:`check_law_schedule`, on every read): the bands (as an estimate schedule's:
+no overlap, within 0-20 m/s); each law of the same size as the file's compensator, with the same pure
+integrators (the loop holds them by index) and coefficients within the file limits; its certificate
+certifies exactly its matrices (:func:`design.files.certificate.check_certificate`) on every model the
+file's own certificate lists; and where the file's estimate schedule turns the estimate off, its law
+without the estimate is certified likewise (``certificate_off``). The states of every law mean the same
+(the measured window of outputs and commands, the integral, the estimate's prediction and
+disturbance), so the loop changes law at a band's edge without resetting anything.
+
+What it does not prove: each law is stable on every model, but switching between them is not covered by
+a common Lyapunov function. The loop switches only when the speed crosses a band's edge (half-way
+between two design speeds), as it does for the estimate's schedule.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ..compensator import Compensator, integrator_states
+from ..errors import ControllerFileError, DesignInputError
+from ..estimate_schedule import RECORD as ESTIMATE_RECORD
+from ..estimate_schedule import check_bands
+from ..limits import MAX_COEFFICIENT
+from .certificate import check_certificate, check_estimate_schedule, is_legacy, recorded_models
+
+#: Key of the record in a linear controller file's ``design`` object.
+RECORD = "law_schedule"
+#: Matrices of a compensator record, in order.
+MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec", "X0")
+#: Most laws a schedule may carry (one per design speed is five).
+MAX_LAWS = 8
+LAW_KEYS = ("compensator", "certificate", "certificate_off", "source", "window_scale", "estimate_scale")
+
+
+def compensator_from_record(comp_d: Any, dt: float, q: int, what: str = "compensator") -> Compensator:
+    """A compensator from its file record ``{Ac, Bc, Cc, Dc, Ec, X0}`` (nested lists), reading ``q``
+    outputs and writing one command at sample time ``dt`` (s); ``ControllerFileError`` naming ``what``
+    for a missing or extra matrix, a non-numeric or non-finite entry or a wrong dimension."""
+    if not isinstance(comp_d, dict) or sorted(comp_d) != sorted(MATRICES):
+        got = sorted(comp_d) if isinstance(comp_d, dict) else type(comp_d).__name__
+        raise ControllerFileError(f"{what} must hold exactly {', '.join(MATRICES)}; got {got}")
+    mats = {}
+    for k in MATRICES:
+        try:
+            arr = np.array(comp_d[k], dtype=float)
+        except (TypeError, ValueError):
+            raise ControllerFileError(f"{what} {k} is not a numeric matrix") from None
+        if arr.ndim != 2 and not (arr.ndim == 1 and arr.size == 0):
+            raise ControllerFileError(f"{what} {k} must be 2-D, got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ControllerFileError(f"{what} {k} has non-finite entries")
+        mats[k] = arr
+    nc = mats["Ac"].shape[0] if mats["Ac"].ndim == 2 else 0
+    shapes = {"Ac": (nc, nc), "Bc": (nc, q), "Cc": (1, nc), "Dc": (1, q), "Ec": (nc, 1), "X0": (nc, q)}
+    for k, shp in shapes.items():
+        if mats[k].size == 0 and 0 in shp:
+            mats[k] = mats[k].reshape(shp)
+        if mats[k].shape != shp:
+            raise ControllerFileError(f"dimension mismatch: {k} has shape {mats[k].shape}, expected {shp} "
+                                      f"for {nc} states and {q} outputs ({what})")
+    for k, m in mats.items():
+        big = float(np.max(np.abs(m))) if m.size else 0.0
+        if not big <= MAX_COEFFICIENT:
+            raise ControllerFileError(f"{what} {k} has an entry of magnitude {big:.3g}, above MAX_COEFFICIENT = "
+                                      f"{MAX_COEFFICIENT:g}: not a designed controller")
+    try:
+        return Compensator(mats["Ac"], mats["Bc"], mats["Cc"], mats["Dc"], float(dt), mats["Ec"], mats["X0"])
+    except DesignInputError as exc:
+        raise ControllerFileError(f"{what}: {exc}") from None
+
+
+def compensator_record(comp: Compensator) -> dict:
+    """The file record of a compensator (nested lists), as :func:`compensator_from_record` reads it."""
+    return {k: getattr(comp, k).tolist() for k in MATRICES}
+
+
+@dataclass(frozen=True)
+class LawSchedule:
+    """Window laws by speed band (module docstring).
+
+    Attributes
+    ----------
+    bands
+        ``((low, high), ...)``, m/s, not overlapping; ``high`` may be ``inf``.
+    laws
+        The law of each band.
+    sources
+        Each law's name where it came from (a candidate file's name), for reports.
+    """
+
+    bands: tuple[tuple[float, float], ...]
+    laws: tuple[Compensator, ...]
+    sources: tuple[str, ...]
+
+    def index_at(self, speed: float) -> int | None:
+        """The band holding ``speed`` (m/s), or None (the file's own law runs there)."""
+        for i, (lo, hi) in enumerate(self.bands):
+            if lo <= speed < hi:
+                return i
+        return None
+
+
+def _scale(v: Any, what: str) -> float | None:
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+        raise ControllerFileError(f"{what} must be a finite number >= 0 or null, got {v!r}")
+    return float(v)
+
+
+def parse_law_schedule(rec: Any, main: Compensator) -> LawSchedule:
+    """The schedule of a file's record, each law shaped as ``main`` (the file's compensator) is, without
+    its certificates (:func:`check_law_schedule` checks those); ``ControllerFileError`` if malformed."""
+    if not isinstance(rec, Mapping) or sorted(rec) != ["bands", "laws"]:
+        got = sorted(rec) if isinstance(rec, Mapping) else type(rec).__name__
+        raise ControllerFileError(f"design.{RECORD} must hold exactly bands and laws; got {got}")
+    bands, laws = rec["bands"], rec["laws"]
+    if not isinstance(bands, list) or not isinstance(laws, list) or len(bands) != len(laws) or not laws:
+        raise ControllerFileError(f"design.{RECORD}: bands and laws must be lists of the same length >= 1, got "
+                                  f"{type(bands).__name__} and {type(laws).__name__}")
+    if len(laws) > MAX_LAWS:
+        raise ControllerFileError(f"design.{RECORD}: {len(laws)} laws, at most {MAX_LAWS}")
+    raw = [(b[0], math.inf if b[1] is None else b[1]) if isinstance(b, list) and len(b) == 2 else b for b in bands]
+    try:
+        check_bands(raw, "law-schedule")
+    except DesignInputError as exc:
+        raise ControllerFileError(f"design.{RECORD}: {exc}") from None
+    comps, sources = [], []
+    for i, law in enumerate(laws):
+        what = f"design.{RECORD} law {i}"
+        if not isinstance(law, Mapping) or sorted(law) != sorted(LAW_KEYS):
+            got = sorted(law) if isinstance(law, Mapping) else type(law).__name__
+            raise ControllerFileError(f"{what} must hold exactly {', '.join(LAW_KEYS)}; got {got}")
+        comp = compensator_from_record(law["compensator"], main.dt, main.n_measurements, f"{what} compensator")
+        if comp.order != main.order:
+            raise ControllerFileError(f"{what} has {comp.order} states, the file's compensator {main.order}: a law "
+                                      "of the schedule must carry the same states")
+        if integrator_states(comp) != integrator_states(main):
+            raise ControllerFileError(f"{what} integrates at states {integrator_states(comp)}, the file's compensator "
+                                      f"at {integrator_states(main)}: a law of the schedule must carry the same states")
+        if not isinstance(law["source"], str) or len(law["source"]) > 200:
+            raise ControllerFileError(f"{what} source must be a name of at most 200 characters, got {law['source']!r}")
+        _scale(law["window_scale"], f"{what} window_scale")
+        _scale(law["estimate_scale"], f"{what} estimate_scale")
+        comps.append(comp)
+        sources.append(law["source"])
+    return LawSchedule(tuple((float(lo), float(hi)) for lo, hi in raw), tuple(comps), tuple(sources))
+
+
+def check_law_schedule(design: Any, cert: Any, main: Compensator, dp_states: tuple[int, ...],
+                       legacy: bool = False) -> LawSchedule | None:
+    """The file's law schedule with every law's certificates checked (module docstring); None without one.
+
+    Parameters
+    ----------
+    design, cert
+        The file's ``design`` object and certificate, as read.
+    main
+        The file's compensator.
+    dp_states
+        The file's disturbance-estimate states (() without an estimate).
+    legacy
+        As :func:`design.files.certificate.check_certificate`'s.
+
+    Raises
+    ------
+    ControllerFileError
+        Naming the law and what does not hold.
+    """
+    rec = design.get(RECORD) if isinstance(design, dict) else None
+    if rec is None:
+        return None
+    schedule = parse_law_schedule(rec, main)
+    main_models = {h for _, h, _ in recorded_models(cert)} if isinstance(cert, dict) and not is_legacy(cert) else set()
+    est = design.get(ESTIMATE_RECORD)
+    for i, (comp, law) in enumerate(zip(schedule.laws, rec["laws"])):
+        what = f"design.{RECORD} law {i} ({law['source']})"
+        try:
+            check_certificate(law["certificate"], comp, what, legacy)
+        except ControllerFileError as exc:
+            raise ControllerFileError(f"{what}: {exc}") from None
+        if not (legacy and is_legacy(law["certificate"])):
+            have = {h for _, h, _ in recorded_models(law["certificate"])}
+            if main_models - have:
+                raise ControllerFileError(f"{what} was not checked on every model of the file's certificate "
+                                          f"({len(main_models - have)} missing): choose among laws designed on the "
+                                          "same models")
+        if isinstance(est, dict):
+            try:
+                check_estimate_schedule({ESTIMATE_RECORD: {**est, "certificate_off": law["certificate_off"]}},
+                                        law["certificate"], comp, dp_states, legacy)
+            except ControllerFileError as exc:
+                raise ControllerFileError(f"{what}: {exc}") from None
+    return schedule
+
+
+def law_entry(body: Mapping[str, Any], comp: Compensator, source: str) -> dict:
+    """The schedule's record of one law: the compensator ``comp`` of a checked linear file ``body`` (its
+    certificate, the certificate of its law without the estimate, its window and estimate scales)."""
+    d = body.get("design", {})
+    est = d.get("disturbance_estimate") if isinstance(d, dict) else None
+    back = est.get("window_backoff") if isinstance(est, dict) else None
+    off = d.get(ESTIMATE_RECORD, {}).get("certificate_off") if isinstance(d.get(ESTIMATE_RECORD), dict) else None
+    return {"compensator": compensator_record(comp), "certificate": body["certificate"], "certificate_off": off,
+            "source": source[:200],
+            "window_scale": float(back["kept_scale"]) if isinstance(back, dict) and "kept_scale" in back else None,
+            "estimate_scale": float(est["scale"]) if isinstance(est, dict) and "scale" in est else None}
+
+
+def schedule_record(bands: Sequence[tuple[float, float]], laws: Sequence[dict]) -> dict:
+    """``design["law_schedule"]`` of bands (m/s) and their laws' records (:func:`law_entry`)."""
+    return {"bands": [[lo, None if math.isinf(hi) else hi] for lo, hi in bands], "laws": list(laws)}

@@ -1,0 +1,152 @@
+"""Window laws by speed in one linear controller file (design/files/law_schedule.py; issue 14): written from
+certified files, checked on every read, re-checked by ``design verify``, run by the loop on one state."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from design.cli import main as design_main
+from design.controller import Measurement
+from design.disturbance import DisturbanceSpec
+from design.errors import ControllerFileError, DesignInputError
+from design.estimate_schedule import EstimateSchedule, law_without_estimate
+from design.files.envelope import seal
+from design.files.law_schedule import RECORD
+from design.files.linear import LinearController, read_controller_file
+from design.files.load import load_controller
+from design.files.schedule import law_mismatch, set_estimate_schedule, set_law_schedule
+from design.robust import RobustSpec, design_robust, with_disturbance_estimate
+
+from design_family import family
+
+
+@pytest.fixture(scope="module")
+def laws(tmp_path_factory):
+    """Two certified window laws with the same states (the estimate's filter at 1 s and at 3 s), a law without
+    the estimate's states, and the models' files."""
+    tmp = tmp_path_factory.mktemp("laws")
+    models = family()
+    spec = RobustSpec(integral=True)
+    res = design_robust(models, spec)
+    a = with_disturbance_estimate(res, models, spec, DisturbanceSpec(tau_f=1.0)).file.save(tmp / "a.json")
+    b = with_disturbance_estimate(res, models, spec, DisturbanceSpec(tau_f=3.0)).file.save(tmp / "b.json")
+    plain = res.file.save(tmp / "plain.json")
+    paths = [str(m.save(tmp / f"m{i}.npz")) for i, m in enumerate(models)]
+    return a, b, plain, paths
+
+
+def _steps(ctrl: LinearController, speeds, seed: int = 3) -> list[float]:
+    rng = np.random.default_rng(seed)
+    return [ctrl.step(Measurement(j * 0.05, 0.04 * math.sin(j / 25) + rng.normal(0, 0.003),
+                                  0.01 * math.cos(j / 18), 0.0, v)) for j, v in enumerate(speeds)]
+
+
+def test_the_loop_runs_each_band_s_law_on_one_state(laws, tmp_path):
+    a, b, _, _ = laws
+    out = set_law_schedule(a, [((2.0, math.inf), b)], tmp_path / "s.json")
+    spec = read_controller_file(out)
+    rec = spec.design[RECORD]
+    assert rec["bands"] == [[2.0, None]] and rec["laws"][0]["source"] == "b.json"
+    ctrl = LinearController(spec)
+    la, lb = read_controller_file(a).compensator, read_controller_file(b).compensator
+    for name in ("Ac", "Bc", "Cc", "Dc", "Ec", "X0"):
+        np.testing.assert_array_equal(getattr(ctrl.law_at(1.0), name), getattr(la, name))
+        np.testing.assert_array_equal(getattr(ctrl.law_at(1.99), name), getattr(la, name))
+        np.testing.assert_array_equal(getattr(ctrl.law_at(2.0), name), getattr(lb, name))
+        np.testing.assert_array_equal(getattr(ctrl.law_at(2.91), name), getattr(lb, name))
+    # below the band the file is law a exactly; inside it from an engage, law b exactly
+    low, high = [1.34] * 200, [2.91] * 200
+    assert _steps(LinearController(spec), low) == _steps(LinearController(read_controller_file(a)), low)
+    assert _steps(LinearController(spec), high) == _steps(LinearController(read_controller_file(b)), high)
+    # crossing the band's edge changes the law, not the state: the step after the change is law b's on the
+    # state law a left (a rate command, so the wheel angle stays continuous)
+    sched = LinearController(spec)
+    _steps(sched, low[:150])
+    xc = np.array(sched.estimate())
+    plain_b = LinearController(read_controller_file(b))
+    _steps(plain_b, low[:150])                       # same inputs, law b all along: another state
+    assert not np.allclose(xc, np.array(plain_b.estimate()))
+    m = Measurement(150 * 0.05, 0.001, 0.0005, 0.0, 2.91)
+    y = sched.outputs(m)
+    u = sched.step(m)
+    assert u == pytest.approx(float(lb.Cc[0] @ xc + lb.Dc[0] @ y), abs=1e-12)
+
+
+def test_the_law_without_the_estimate_runs_where_the_estimate_schedule_says(laws, tmp_path):
+    a, b, _, _ = laws
+    out = set_law_schedule(a, [((2.0, math.inf), b)], tmp_path / "s.json")
+    set_estimate_schedule(out, EstimateSchedule(((2.5, math.inf),)), out)
+    ctrl = load_controller(out)
+    lb = read_controller_file(b).compensator
+    states = read_controller_file(b).design["disturbance_estimate"]["states"]
+    np.testing.assert_array_equal(ctrl.law_at(2.91).Cc, law_without_estimate(lb, states).Cc)
+    np.testing.assert_array_equal(ctrl.law_at(2.2).Cc, lb.Cc)
+    assert design_main(["verify", str(out), "--models", *laws[3]]) == 0
+
+
+def test_bad_schedules_are_refused_and_nothing_is_written(laws, tmp_path):
+    a, b, plain, _ = laws
+    assert law_mismatch(a, b) is None
+    assert "states" in law_mismatch(a, plain)
+    with pytest.raises(ControllerFileError, match="cannot run in"):
+        set_law_schedule(a, [((2.0, math.inf), plain)], tmp_path / "no.json")
+    with pytest.raises(ControllerFileError, match="overlap"):
+        set_law_schedule(a, [((1.0, 2.5), b), ((2.0, math.inf), b)], tmp_path / "no.json")
+    with pytest.raises(ControllerFileError, match="low < high"):
+        set_law_schedule(a, [((3.0, 2.0), b)], tmp_path / "no.json")
+    assert not (tmp_path / "no.json").exists()
+    good = json.loads(set_law_schedule(a, [((2.0, math.inf), b)], tmp_path / "s.json").read_text())
+
+    def refused(edit, match):
+        body = json.loads(json.dumps(good))
+        edit(body)
+        (tmp_path / "bad.json").write_text(json.dumps(seal(body)))
+        with pytest.raises(ControllerFileError, match=match):
+            load_controller(tmp_path / "bad.json")
+
+    def gain(body):
+        body["design"][RECORD]["laws"][0]["compensator"]["Dc"][0][0] *= 1.5
+
+    def radius(body):
+        body["design"][RECORD]["laws"][0]["certificate"]["models"][0]["spectral_radius"] *= 0.9
+
+    def fewer(body):
+        del body["design"][RECORD]["laws"][0]["certificate"]["models"][-1]
+
+    def order(body):
+        comp = body["design"][RECORD]["laws"][0]["compensator"]
+        for k in ("Ac", "Bc", "Ec", "X0"):
+            comp[k] = comp[k][:-1]
+        comp["Ac"] = [r[:-1] for r in comp["Ac"]]
+        comp["Cc"] = [comp["Cc"][0][:-1]]
+
+    refused(gain, "does not match the matrices")
+    refused(radius, "does not match the matrices")
+    refused(fewer, "not checked on every model|hash|does not match")
+    refused(order, "same states")
+    refused(lambda body: body["design"][RECORD]["laws"][0].pop("certificate_off"), "must hold exactly")
+    refused(lambda body: body["design"][RECORD].__setitem__("bands", [[2.0, None], [0.5, 1.0]]), "same length")
+    refused(lambda body: body["design"][RECORD]["laws"][0]["compensator"]["Ac"][0].__setitem__(0, "x"),
+            "not a numeric matrix")
+    refused(lambda body: body["design"][RECORD]["laws"][0].__setitem__("source", "x" * 300), "200 characters")
+    # an edited law is a problem for design verify too (it re-computes every law's certificate)
+    body = json.loads(json.dumps(good))
+    radius(body)
+    (tmp_path / "bad.json").write_text(json.dumps(seal(body)))
+    assert design_main(["verify", str(tmp_path / "bad.json"), "--models", *laws[3]]) != 0
+
+
+def test_the_c_step_runs_one_law_so_a_scheduled_file_is_not_exported(laws, tmp_path):
+    a, b, _, _ = laws
+    out = set_law_schedule(a, [((2.0, math.inf), b)], tmp_path / "s.json")
+    from design.export_c import export_c
+    body = json.loads(out.read_text())
+    with pytest.raises(DesignInputError, match="one law"):
+        export_c(read_controller_file(out), body["certificate"], body["checksum"], tmp_path / "c")
+    # no bands: the record is gone and the file is the law it was
+    again = set_law_schedule(out, [], tmp_path / "none.json")
+    assert RECORD not in json.loads(again.read_text())["design"]

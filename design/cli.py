@@ -25,9 +25,9 @@ import sys
 import numpy as np
 
 from . import cli_mpc, cli_nmpc, cli_robust
-from .errors import DesignError
+from .errors import DesignError, DesignInputError
 from .estimate_schedule import EstimateSchedule
-from .files.schedule import set_estimate_schedule
+from .files.schedule import set_estimate_schedule, set_law_schedule
 from .files.load import sign_file
 from .files.signature import key_id, keygen, load_private_key
 from .kinematic import KinematicWeights, gains_versus_speed
@@ -95,6 +95,16 @@ def _cmd_estimate_schedule(args: argparse.Namespace) -> dict:
     return {"controller": str(args.controller), "out": str(out), **schedule.to_dict()}
 
 
+def _cmd_law_schedule(args: argparse.Namespace) -> dict:
+    try:
+        choices = [(_band(band), path) for band, path in (args.law or ())]
+    except argparse.ArgumentTypeError as exc:
+        raise DesignInputError(f"--law: {exc}") from None
+    out = set_law_schedule(args.controller, choices, args.out or args.controller)
+    return {"controller": str(args.controller), "out": str(out),
+            "laws": [{"band_mps": [lo, None if math.isinf(hi) else hi], "file": str(path)} for (lo, hi), path in choices]}
+
+
 SIGNED_COMMANDS = ("robust", "lqr", "mpc", "nmpc")
 
 
@@ -136,6 +146,15 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--out", default=None, help="file to write (default: replace CONTROLLER)")
     e.add_argument("--json", action="store_true", help="print the result as JSON")
     e.set_defaults(func=_cmd_estimate_schedule)
+    w = sub.add_parser("law-schedule", help="run another certified window law at some speeds (hil commission sets "
+                       "it from its window trial)")
+    w.add_argument("controller", help="a linear file (its own law runs outside every band)")
+    w.add_argument("--law", nargs=2, action="append", metavar=("LOW:HIGH", "FILE"),
+                   help="a speed band, m/s, and the linear file whose law runs there: same states, certified on "
+                        "the same models (repeatable; none given: the file's own law at every speed)")
+    w.add_argument("--out", default=None, help="file to write (default: replace CONTROLLER)")
+    w.add_argument("--json", action="store_true", help="print the result as JSON")
+    w.set_defaults(func=_cmd_law_schedule)
     return p
 
 
@@ -174,6 +193,10 @@ def main(argv: list[str] | None = None) -> int:
     elif args.command == "estimate-schedule":
         bands = ", ".join(f"{lo:g}-{'inf' if hi is None else f'{hi:g}'} m/s" for lo, hi in result["off_speed_bands"])
         print(f"wrote {result['out']}: the disturbance estimate is off at {bands or 'no speed'}")
+    elif args.command == "law-schedule":
+        bands = "; ".join(f"{b['band_mps'][0]:g}-{'inf' if b['band_mps'][1] is None else format(b['band_mps'][1], 'g')} "
+                          f"m/s {b['file']}" for b in result["laws"])
+        print(f"wrote {result['out']}: {bands or 'its own law at every speed'}")
     else:
         print(f"{'speed m/s':>10} {'K_y':>10} {'K_psi':>10} {'K_delta':>10}")
         for row in zip(result["speeds"], result["k_cross_track"], result["k_heading"], result["k_wheel_angle"]):

@@ -150,3 +150,20 @@ def test_the_c_step_runs_one_law_so_a_scheduled_file_is_not_exported(laws, tmp_p
     # no bands: the record is gone and the file is the law it was
     again = set_law_schedule(out, [], tmp_path / "none.json")
     assert RECORD not in json.loads(again.read_text())["design"]
+
+
+def test_the_command_sets_and_clears_a_schedule(laws, tmp_path, capsys):
+    a, b, plain, paths = laws
+    out = tmp_path / "s.json"
+    assert design_main(["law-schedule", str(a), "--law", "2.0:inf", str(b), "--out", str(out)]) == 0
+    assert "2-inf m/s" in capsys.readouterr().out
+    assert load_controller(out).law_schedule.bands == ((2.0, math.inf),)
+    assert design_main(["verify", str(out), "--models", *paths]) == 0
+    capsys.readouterr()
+    assert design_main(["law-schedule", str(a), "--law", "fast", str(b), "--out", str(tmp_path / "x.json")]) == 1
+    assert design_main(["law-schedule", str(a), "--law", "2:inf", str(plain), "--out", str(tmp_path / "x.json")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("error:") == 2 and "LOW:HIGH" in err and "cannot run in" in err
+    assert not (tmp_path / "x.json").exists()
+    assert design_main(["law-schedule", str(out), "--json"]) == 0
+    assert load_controller(out).law_schedule is None

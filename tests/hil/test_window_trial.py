@@ -65,14 +65,21 @@ def test_the_back_off_keeps_the_first_law_with_the_full_estimate_and_writes_the_
     assert window_record(out)["window_scale"] == back["kept_scale"]
 
 
-@pytest.mark.slow
-def test_the_trial_keeps_the_law_with_the_lowest_geometric_mean(backed_off, tmp_path):
+def _trial(backed_off, tmp_path, speeds):
+    """The window trial on the worn valve's back-off, ripper, 20 s passes of seed 7: (file as designed, the
+    file the trial wrote, the other laws, the tractor's parameters, the trial's record)."""
     out, cands, _ = backed_off
     path = tmp_path / "robust.json"
     path.write_bytes(out.read_bytes())
     others = candidate_files(cands, "robust")
     params = resolve_tractor("worn-valve").params()
-    r = choose_window(path, others, params, None, [2.24], ["ripper"], tmp_path / "trial", seeds=(7,), duration=20.0)
+    r = choose_window(path, others, params, None, speeds, ["ripper"], tmp_path / "trial", seeds=(7,), duration=20.0)
+    return out, path, others, params, r
+
+
+@pytest.mark.slow
+def test_the_trial_keeps_the_law_with_the_lowest_geometric_mean(backed_off, tmp_path):
+    out, path, others, params, r = _trial(backed_off, tmp_path, [2.24])
     gms = [c["geometric_mean_cm"] for c in r["candidates"]]
     assert [c["file"] for c in r["candidates"]] == ["robust.json", *(f.name for f in others)]
     best = min(range(len(gms)), key=lambda i: (gms[i], i))
@@ -128,13 +135,7 @@ def test_the_law_per_speed_and_its_bands():
 @pytest.mark.slow
 def test_the_trial_runs_the_best_law_of_each_speed_from_one_file(backed_off, tmp_path):
     """Two speeds: the file the trial writes drives each speed exactly as the law it chose there."""
-    out, cands, _ = backed_off
-    path = tmp_path / "robust.json"
-    path.write_bytes(out.read_bytes())
-    others = candidate_files(cands, "robust")
-    params = resolve_tractor("worn-valve").params()
-    speeds = [1.0, 2.91]
-    r = choose_window(path, others, params, None, speeds, ["ripper"], tmp_path / "trial", seeds=(7,), duration=20.0)
+    _, path, _, params, r = _trial(backed_off, tmp_path, [1.0, 2.91])
     gms = {c["file"]: c for c in r["candidates"]}
     for row in r["per_speed"]:
         v = row["speed"]

@@ -106,13 +106,16 @@ def _window_trial_lines(tr: dict | None) -> list[str]:
                      f"{worst} {c['sigma_cm'][worst]:.2f} |")
     if tr.get("per_speed"):
         names = [c["file"] for c in tr["candidates"]]
-        lines += ["", "Per speed, the geometric mean over the implements (cm), and the law that runs there (a law "
-                  "schedule where it is not the kept one):", "",
+        lines += ["", "Per speed, the geometric mean over the implements (cm; in brackets the paired t statistic of "
+                  "the passes against the kept law, another law runs where it is below the one-sided test's bound), "
+                  "and the law that runs there:", "",
                   "| m/s | " + " | ".join(f"`{n}`" for n in names) + " | runs |",
                   "|---:|" + "---:|" * len(names) + "---|"]
         for row in tr["per_speed"]:
-            lines.append(f"| {row['speed']:g} | " + " | ".join(f"{row['geometric_mean_cm'][n]:.2f}" for n in names)
-                         + f" | `{row['chosen']}` |")
+            t = row.get("paired_t", {})
+            lines.append(f"| {row['speed']:g} | " + " | ".join(
+                f"{row['geometric_mean_cm'][n]:.2f}" + (f" ({t[n]:+.2f})" if n in t else "") for n in names)
+                + f" | `{row['chosen']}` |")
         for name, why in tr.get("excluded", {}).items():
             lines.append(f"\n`{name}` cannot run beside the kept law ({why}); it was not chosen per speed.")
         if tr.get("law_schedule"):

@@ -68,16 +68,23 @@ def has_schedule(path: str | Path) -> bool:
     return isinstance(body, dict) and isinstance(body.get("design"), dict) and isinstance(body["design"].get(RECORD), dict)
 
 
-def trial_sigma(path: Path, params, com: Commissioning | None, implement: str, speed: float, seeds: Sequence[int],
-                duration: float) -> float:
-    """Pooled 1-sigma (m) of the measured cross-track of ``path`` over closed-loop passes with ``seeds``."""
+def trial_passes(path: Path, params, com: Commissioning | None, implement: str, speed: float, seeds: Sequence[int],
+                 duration: float) -> list[dict]:
+    """The summaries (:func:`hil.vehicle.summary.summarize`, scored until the first GPS fault) of closed-loop
+    passes of ``path`` with ``seeds``, one per seed, at ``speed`` (m/s) with ``implement``."""
     from hil.bench.campaign import make_controller      # campaign imports the commissioning, which imports this
     summaries = []
     for seed in seeds:
         log = simulated_run(RunSpec(implement=implement, speed=speed, duration=duration, seed=seed),
                             make_controller(str(path)), params, commissioning=com)
         summaries.append(summarize(log, until_gps_fault=True))
-    return float(pool_passes(summaries)["sigma_m"])
+    return summaries
+
+
+def trial_sigma(path: Path, params, com: Commissioning | None, implement: str, speed: float, seeds: Sequence[int],
+                duration: float) -> float:
+    """Pooled 1-sigma (m) of the measured cross-track of ``path`` over closed-loop passes with ``seeds``."""
+    return float(pool_passes(trial_passes(path, params, com, implement, speed, seeds, duration))["sigma_m"])
 
 
 def choose_schedule(path: str | Path, params, com: Commissioning | None, speeds: Sequence[float],

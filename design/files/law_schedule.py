@@ -50,6 +50,16 @@ MAX_LAWS = 8
 LAW_KEYS = ("compensator", "certificate", "certificate_off", "source", "window_scale", "estimate_scale")
 
 
+def check_coefficients(mats: Mapping[str, np.ndarray], what: str) -> None:
+    """Refuse a matrix entry larger than :data:`design.limits.MAX_COEFFICIENT` in magnitude (``what`` names
+    the matrices in the error, ``ControllerFileError``)."""
+    for k, m in mats.items():
+        big = float(np.max(np.abs(m))) if m.size else 0.0
+        if not big <= MAX_COEFFICIENT:
+            raise ControllerFileError(f"{what} {k} has an entry of magnitude {big:.3g}, above MAX_COEFFICIENT = "
+                                      f"{MAX_COEFFICIENT:g}: not a designed controller")
+
+
 def compensator_from_record(comp_d: Any, dt: float, q: int, what: str = "compensator") -> Compensator:
     """A compensator from its file record ``{Ac, Bc, Cc, Dc, Ec, X0}`` (nested lists), reading ``q``
     outputs and writing one command at sample time ``dt`` (s); ``ControllerFileError`` naming ``what``
@@ -76,11 +86,7 @@ def compensator_from_record(comp_d: Any, dt: float, q: int, what: str = "compens
         if mats[k].shape != shp:
             raise ControllerFileError(f"dimension mismatch: {k} has shape {mats[k].shape}, expected {shp} "
                                       f"for {nc} states and {q} outputs ({what})")
-    for k, m in mats.items():
-        big = float(np.max(np.abs(m))) if m.size else 0.0
-        if not big <= MAX_COEFFICIENT:
-            raise ControllerFileError(f"{what} {k} has an entry of magnitude {big:.3g}, above MAX_COEFFICIENT = "
-                                      f"{MAX_COEFFICIENT:g}: not a designed controller")
+    check_coefficients(mats, what)
     try:
         return Compensator(mats["Ac"], mats["Bc"], mats["Cc"], mats["Dc"], float(dt), mats["Ec"], mats["X0"])
     except DesignInputError as exc:

@@ -44,12 +44,12 @@ from ..compensator import Compensator, integrator_states
 from ..curvature import Reference
 from ..controller import Measurement
 from ..errors import ControllerFileError, DesignInputError
-from ..limits import DT_RANGE, MAX_COEFFICIENT, MAX_MODEL_ORDER, OUTPUT_CLIP_MAX, RATE_LIMIT_MAX, SPEED_MIN_RANGE, in_range
+from ..limits import DT_RANGE, MAX_MODEL_ORDER, OUTPUT_CLIP_MAX, RATE_LIMIT_MAX, SPEED_MIN_RANGE, in_range
 from ..estimate_schedule import RECORD, EstimateSchedule, law_without_estimate
 from .certificate import check_certificate, check_estimate_schedule, recorded_latency
 from .law_schedule import RECORD as LAW_RECORD
-from .law_schedule import (MATRICES, LawSchedule, check_law_schedule, compensator_from_record, compensator_record,
-                           parse_law_schedule)
+from .law_schedule import (MATRICES, LawSchedule, check_coefficients, check_law_schedule, compensator_from_record,
+                           compensator_record, parse_law_schedule)
 from .envelope import SCHEMA, check_envelope, read_json, seal, write_atomically
 from .signature import check_signature
 
@@ -101,15 +101,6 @@ def check_output_clip(clip: Any, n: int) -> tuple[float | None, ...]:
             raise ControllerFileError(f"limits: output_clip {c!r} exceeds OUTPUT_CLIP_MAX = {OUTPUT_CLIP_MAX:g} "
                                       "(output units: s for y/V, rad s/m for psi/V); use null for no clip")
     return tuple(None if c is None else float(c) for c in clip)
-
-
-def check_coefficients(mats: Mapping[str, np.ndarray], what: str) -> None:
-    """Refuse a matrix entry larger than :data:`design.limits.MAX_COEFFICIENT` in magnitude."""
-    for k, m in mats.items():
-        big = float(np.max(np.abs(m))) if m.size else 0.0
-        if not big <= MAX_COEFFICIENT:
-            raise ControllerFileError(f"{what} {k} has an entry of magnitude {big:.3g}, above MAX_COEFFICIENT = "
-                                      f"{MAX_COEFFICIENT:g}: not a designed controller")
 
 
 @dataclass(frozen=True)

@@ -75,8 +75,10 @@ def law_mismatch(path: str | Path, candidate: str | Path) -> str | None:
     """Why the window law of ``candidate`` cannot run in ``path``'s law schedule (None when it can): both
     must be checked linear files with the same sample time, outputs, compensator size, integrators and
     disturbance-estimate states, certified on the same models. ``ControllerFileError`` if either is unreadable."""
-    _, main = _linear(path)
-    _, cand = _linear(candidate)
+    return _mismatch(_linear(path)[1], _linear(candidate)[1])
+
+
+def _mismatch(main: ControllerFile, cand: ControllerFile) -> str | None:
     if abs(main.compensator.dt - cand.compensator.dt) > 1e-12:
         return f"sample time {cand.compensator.dt} s, the file's {main.compensator.dt} s"
     if main.outputs != cand.outputs:
@@ -113,13 +115,13 @@ def set_law_schedule(path: str | Path, choices: Sequence[tuple[tuple[float, floa
         A file is unreadable or fails its checks, a law cannot run in the file (:func:`law_mismatch`), the
         bands are malformed or overlap; nothing is written then.
     """
-    body, _ = _linear(path)
+    body, spec = _linear(path)
     laws = []
     for _, cand in choices:
-        why = law_mismatch(path, cand)
+        cbody, cspec = _linear(cand)
+        why = _mismatch(spec, cspec)
         if why is not None:
             raise ControllerFileError(f"{cand}: its law cannot run in {path}'s law schedule: {why}")
-        cbody, cspec = _linear(cand)
         laws.append(law_entry(cbody, cspec.compensator, Path(cand).name))
     design = {k: v for k, v in body["design"].items() if k != LAW_RECORD}
     if choices:

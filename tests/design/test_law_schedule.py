@@ -126,7 +126,7 @@ def test_bad_schedules_are_refused_and_nothing_is_written(laws, tmp_path):
 
     refused(gain, "does not match the matrices")
     refused(radius, "does not match the matrices")
-    refused(fewer, "not checked on every model|hash|does not match")
+    refused(fewer, "not checked on every model")
     refused(order, "same states")
     refused(lambda body: body["design"][RECORD]["laws"][0].pop("certificate_off"), "must hold exactly")
     refused(lambda body: body["design"][RECORD].__setitem__("bands", [[2.0, None], [0.5, 1.0]]), "same length")

@@ -46,6 +46,7 @@ from ..controller import Measurement
 from ..errors import ControllerFileError, DesignInputError
 from ..limits import DT_RANGE, MAX_MODEL_ORDER, OUTPUT_CLIP_MAX, RATE_LIMIT_MAX, SPEED_MIN_RANGE, in_range
 from ..estimate_schedule import RECORD, EstimateSchedule, law_without_estimate
+from ..speed_latch import SpeedLatch
 from .certificate import check_certificate, check_estimate_schedule, recorded_latency
 from .law_schedule import RECORD as LAW_RECORD
 from .law_schedule import (MATRICES, LawSchedule, check_coefficients, check_law_schedule, compensator_from_record,
@@ -273,7 +274,8 @@ class LinearController:
     Where the file's estimate schedule (:mod:`design.estimate_schedule`) turns it off at the measured
     speed, the step runs the certified law without it (the estimate's filter still runs); where its law
     schedule (:mod:`design.files.law_schedule`) names another window law for the measured speed, that
-    law runs, on the same state (:meth:`law_at`).
+    law runs, on the same state (:meth:`law_at`). Between them it switches with hysteresis and a dwell time
+    (:class:`design.speed_latch.SpeedLatch`): a speed on a band's edge does not switch laws every cycle.
 
     The law acts on the measurement's deviation from its reference
     (:class:`design.curvature.Reference`): on engage, a smooth approach path from where the
@@ -312,6 +314,7 @@ class LinearController:
         self._laws = {(i, True): law for i, law in enumerate(every)}
         self._laws.update({(i, False): law_without_estimate(law, estimate_states(spec)) if off else law
                            for i, law in enumerate(every)})
+        self.latch = SpeedLatch(self._key_at)            # the scheduled law, switched with hysteresis and a dwell
         self._kept = np.zeros(self._integrators.size)   # the integrals at the last step, kept over a re-engage
         self._last_t = math.inf                         # time of the last step, s
         self.gate = IntegralGate()
@@ -324,6 +327,7 @@ class LinearController:
         self._xc = np.zeros(self.spec.compensator.order)
         self._fresh = True
         self._far = False
+        self.latch.reset()
         self.gate.reset()
         self.reference.reset()
 
@@ -373,8 +377,9 @@ class LinearController:
             m, ff = self.reference.track(m)
         y = self.outputs(m)
         self._far = self._cross_track_clipped(y)
+        law = self._laws[self.latch.at(float(m.speed), float(m.t))]
         if self._fresh:
-            self._xc = self.law_at(float(m.speed)).X0 @ y
+            self._xc = law.X0 @ y
             self._fresh = False
             gap = float(m.t) - self._last_t
             if self._integrators.size and integral_kept(gap):
@@ -382,7 +387,6 @@ class LinearController:
             else:
                 self._headland.forget()
         self._last_t = float(m.t)
-        law = self.law_at(float(m.speed))
         u = float(law.Cc[0] @ self._xc + law.Dc[0] @ y)
         if not math.isfinite(u):
             self.reset()
@@ -404,11 +408,16 @@ class LinearController:
             self._kept = self._xc[self._integrators].copy()
         return ua
 
-    def law_at(self, speed: float) -> Compensator:
-        """The certified law that runs at ``speed`` (m/s): the law schedule's band law (the file's own
-        outside every band), without the disturbance estimate where its schedule turns it off."""
+    def _key_at(self, speed: float) -> tuple[int, bool]:
         i = None if self.law_schedule is None else self.law_schedule.index_at(speed)
-        return self._laws[(0 if i is None else i + 1, self.schedule is None or self.schedule.acts_at(speed))]
+        return (0 if i is None else i + 1, self.schedule is None or self.schedule.acts_at(speed))
+
+    def law_at(self, speed: float) -> Compensator:
+        """The certified law of ``speed`` (m/s): the law schedule's band law (the file's own outside every
+        band), without the disturbance estimate where its schedule turns it off. A step runs the law of its
+        measured speed on engage, and another only past :class:`design.speed_latch.SpeedLatch`'s hysteresis
+        and dwell (:attr:`latch`)."""
+        return self._laws[self._key_at(speed)]
 
     def estimate(self) -> tuple[float, ...]:
         return tuple(float(v) for v in self._xc)

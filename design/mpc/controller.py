@@ -30,6 +30,7 @@ from ..controller import Measurement
 from ..curvature import PREVIEW_MAX, Reference
 from ..errors import DesignInputError
 from ..estimate_schedule import EstimateSchedule
+from ..speed_latch import SpeedLatch
 from .backends import SolverSettings, make_backend
 from .problem import MPCProblem
 
@@ -135,6 +136,8 @@ class MPCController:
         self.problem = problem
         #: Where the disturbance estimate acts (:mod:`design.estimate_schedule`; None: at every speed).
         self.schedule = schedule
+        #: Whether the estimate acts, switched with hysteresis and a dwell (:class:`design.speed_latch.SpeedLatch`).
+        self.latch = SpeedLatch(lambda v: schedule is None or schedule.acts_at(v))
         self.settings = settings or SolverSettings()
         self.backend = make_backend(problem, self.settings)
         self.name = f"mpc:{name}"
@@ -262,6 +265,7 @@ class MPCController:
         self._s = np.zeros(self.problem.layout.n_outputs)
         self._dp = np.zeros(self._dist.size)
         self._fresh = True
+        self.latch.reset()
         self.backend.reset()
         self.gate.reset()
         self.reference.reset()
@@ -298,7 +302,7 @@ class MPCController:
             self._headland.forget()
         self._last_t = float(m.t)
         zq = z
-        if self._dist.size and self.schedule is not None and not self.schedule.acts_at(float(m.speed)):
+        if self._dist.size and not self.latch.at(float(m.speed), float(m.t)):
             zq = z.copy()
             zq[self._dist] = 0.0             # the estimate off at this speed: the QP does not see it (it still runs)
         info = self.solve_qp(zq, rate_ref, wheel_ref)

@@ -149,4 +149,16 @@ def test_the_mpc_runs_its_law_without_the_estimate_where_the_schedule_says(tmp_p
         xs["xc"] = law.Ac @ xc + law.Bc @ y
         assert abs(u) < 0.3
         assert u_mpc == pytest.approx(u, abs=1e-6)
-    assert ctrl.fallbacks == 0
+    assert ctrl.fallbacks == 0 and ctrl.latch.switches == 1
+    # engaged at 1.9 m/s, then the receiver's speed noise on the schedule's edge (1.955 m/s): the estimate acts
+    # throughout (design.speed_latch), as the law with it on the same measurements
+    edge = read_mpc_file(path).controller(approach=False)
+    xc = None
+    for j, v in enumerate([1.9] + list(1.955 + rng.uniform(-0.04, 0.04, 99))):
+        m = Measurement(j * 0.05, 0.004 * np.sin(j / 7) + rng.normal(0, 5e-4), 0.002 * np.cos(j / 5), 0.0, v)
+        u_mpc = edge.step(m)
+        y = edge.outputs(m)
+        xc = full.X0 @ y if xc is None else xc
+        assert u_mpc == pytest.approx(float(full.Cc[0] @ xc + full.Dc[0] @ y), abs=1e-6)
+        xc = full.Ac @ xc + full.Bc @ y
+    assert edge.latch.switches == 0

@@ -76,6 +76,23 @@ def test_the_loop_runs_each_band_s_law_on_one_state(laws, tmp_path):
     assert u == pytest.approx(float(lb.Cc[0] @ xc + lb.Dc[0] @ y), abs=1e-12)
 
 
+def test_a_speed_on_a_band_s_edge_keeps_the_law_it_engaged_with(laws, tmp_path):
+    # the receiver's speed noise on the edge of a band (2.0 m/s): the law of the engage runs throughout
+    # (design.speed_latch), where the band of each cycle's speed would have switched laws every few cycles
+    a, b, _, _ = laws
+    spec = read_controller_file(set_law_schedule(a, [((2.0, math.inf), b)], tmp_path / "s.json"))
+    rng = np.random.default_rng(11)
+    noisy = [1.99] + list(2.0 + rng.uniform(-0.04, 0.04, 399))
+    assert sum((u < 2.0) != (v < 2.0) for u, v in zip(noisy, noisy[1:])) > 100
+    sched = LinearController(spec)
+    assert _steps(sched, noisy) == _steps(LinearController(read_controller_file(a)), noisy)
+    assert sched.latch.switches == 0
+    # past the hysteresis it switches, once
+    sched = LinearController(spec)
+    _steps(sched, noisy[:200] + [2.06] * 40)
+    assert sched.latch.switches == 1
+
+
 def test_the_law_without_the_estimate_runs_where_the_estimate_schedule_says(laws, tmp_path):
     a, b, _, _ = laws
     out = set_law_schedule(a, [((2.0, math.inf), b)], tmp_path / "s.json")

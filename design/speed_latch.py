@@ -8,8 +8,9 @@ noise, would otherwise switch on every cycle. :class:`SpeedLatch` keeps the law 
 another runs only once the measured speed is at least :data:`HYSTERESIS_MPS` inside that
 law's band (the band of ``v - h`` and of ``v + h`` both name it) and the current law has run
 for at least :data:`DWELL_S`. On engage (after :meth:`SpeedLatch.reset`) the law of the
-measured speed runs at once. At the design speeds, which are at least 0.17 m/s from every
-band edge (the edges lie half-way between them), nothing changes.
+measured speed runs at once. At the bench's five design speeds, at least 0.17 m/s from every
+band edge (the edges lie half-way between them), nothing changes; design speeds closer than twice
+the hysteresis would keep a law over the neighbouring speed's band after a change of speed.
 """
 
 from __future__ import annotations

@@ -150,28 +150,35 @@ def test_ctrl_c_exits_130_with_one_line_and_no_partial_file(tmp_path):
     for imp in ("none", "disker", "ripper"):
         for i in range(2):
             synthetic_pass(rng, imp, "9th", 1.79, duration=30.0).save(logs / f"{imp}{i}.npz")
-    out = tmp_path / "models"
     exe = Path(sys.executable).parent / "identification"
-    err_path = tmp_path / "stderr.txt"
-    with open(err_path, "wb") as err_file:
-        proc = subprocess.Popen([str(exe), "okid", str(logs), "--out", str(out), "--order", "4",
-                                 "--acceptance", "warn"], stdout=subprocess.DEVNULL, stderr=err_file)
-        deadline = time.monotonic() + 120
-        # the progress bar appears when the first of the 7 models is done: well inside the run
-        while time.monotonic() < deadline and b"identifying" not in err_path.read_bytes() \
-                and proc.poll() is None:
-            time.sleep(0.01)
-        assert proc.poll() is None, "the run ended before it could be interrupted"
-        proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=60)
-    err = err_path.read_bytes()
-    assert proc.returncode == 130
-    lines = [ln for ln in err.decode().replace("\r", "\n").splitlines() if ln.strip()
-             and not ln.startswith("identifying")]
-    assert lines == ["identification okid: interrupted; no partial file was written"]
-    assert not list(out.glob("*.part"))
-    for f in out.glob("*.npz"):
-        Model.load(f)
+    # The run has 2-3 s of work left after its progress bar appears (measured on an idle host). A test worker
+    # stalled that long on a loaded host (it happened once in CI, session 17) sends its Ctrl-C to a process that
+    # is already exiting, which ends with 0 and every file whole: that race lost is tried again; any other end fails.
+    for attempt in range(3):
+        out, err_path = tmp_path / f"models{attempt}", tmp_path / f"stderr{attempt}.txt"
+        with open(err_path, "wb") as err_file:
+            proc = subprocess.Popen([str(exe), "okid", str(logs), "--out", str(out), "--order", "4",
+                                     "--acceptance", "warn"], stdout=subprocess.DEVNULL, stderr=err_file)
+            deadline = time.monotonic() + 120
+            # the progress bar appears when the first of the 7 models is done: well inside the run
+            while time.monotonic() < deadline and b"identifying" not in err_path.read_bytes() \
+                    and proc.poll() is None:
+                time.sleep(0.01)
+            assert proc.poll() is None, "the run ended before it could be interrupted"
+            proc.send_signal(signal.SIGINT)
+            proc.wait(timeout=60)
+        err = err_path.read_bytes()
+        for f in out.glob("*.npz"):
+            Model.load(f)
+        assert not list(out.glob("*.part"))
+        if proc.returncode == 0 and len(list(out.glob("*.npz"))) == 7:
+            continue                                  # finished before the signal reached it: the race lost
+        assert proc.returncode == 130
+        lines = [ln for ln in err.decode().replace("\r", "\n").splitlines() if ln.strip()
+                 and not ln.startswith("identifying")]
+        assert lines == ["identification okid: interrupted; no partial file was written"]
+        return
+    pytest.fail("three runs ended before their Ctrl-C reached them")
 
 
 # -- item 6: silently accepted nonsense -----------------------------------------------------------

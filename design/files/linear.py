@@ -51,8 +51,9 @@ from .certificate import check_certificate, check_estimate_schedule, recorded_la
 from .law_schedule import RECORD as LAW_RECORD
 from .law_schedule import (MATRICES, LawSchedule, check_coefficients, check_law_schedule, compensator_from_record,
                            compensator_record, parse_law_schedule)
-from .envelope import SCHEMA, check_envelope, read_json, seal, write_atomically
-from .signature import check_signature
+from .binding import bind, check_bound
+from .envelope import SCHEMA, read_json, seal, write_atomically
+from .header import check_header
 
 MEASUREMENTS = ("cross_track", "heading_error", "wheel_angle")
 NORMALIZATIONS = ("speed", "none")
@@ -150,7 +151,7 @@ class ControllerFile:
                 "design": dict(self.design),
                 "certificate": None if self.certificate is None else dict(self.certificate),
                 "models": [dict(m) for m in self.models]}
-        return seal(body)
+        return seal(bind(body))
 
     def save(self, path: str | Path) -> Path:
         """Write the file atomically."""
@@ -195,6 +196,7 @@ def from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519PublicKey |
                             legacy_certificate)
     check_law_schedule(body["design"], body["certificate"], spec.compensator, estimate_states(spec),
                        legacy_certificate)
+    check_bound(body, legacy_certificate)
     return spec
 
 
@@ -202,14 +204,7 @@ def uncertified_from_body(body: Any, dt: float | None = 0.05,
                           public_key: Ed25519PublicKey | None = None) -> ControllerFile:
     """Every check of :func:`from_body` but the certificate's: for ``design verify`` only, which
     re-computes the certificate and reports on it (:mod:`design.files.recheck`)."""
-    check_envelope(body, "linear", TOP_KEYS)
-    if public_key is not None:
-        check_signature(body, public_key)
-    fdt = body["dt"]
-    if isinstance(fdt, bool) or not isinstance(fdt, (int, float)) or not math.isfinite(fdt) or fdt <= 0:
-        raise ControllerFileError(f"dt must be a finite sample time > 0 s, got {fdt!r}")
-    if dt is not None and abs(fdt - dt) > 1e-9:
-        raise ControllerFileError(f"sample time mismatch: the file is for dt={fdt} s, the loop runs at dt={dt} s")
+    fdt = check_header(body, "linear", TOP_KEYS, dt, public_key)
     outputs = body["outputs"]
     if not isinstance(outputs, list) or not all(isinstance(o, dict) for o in outputs):
         raise ControllerFileError("outputs must be a list of objects")

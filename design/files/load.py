@@ -1,23 +1,55 @@
-"""Any controller file, read, checked and made ready for the vehicle loop; signing a checked file."""
+"""Any controller file, read, checked and made ready for the vehicle loop; signing a checked file.
+
+The module of a file's kind is imported when a file of that kind is read (:data:`KIND_MODULES`),
+so the vehicle that runs a linear file loads numpy and the linear reader only: the MPC's
+solver back-ends and the NMPC's casadi are loaded only with a file that needs them.
+"""
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, Callable
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
 from ..errors import ControllerFileError
-from ..mpc.controller import MPCController
-from ..nmpc import NonlinearMPC
 from .envelope import read_json, write_atomically
-from .linear import LinearController, from_body
-from .mpc import mpc_from_body
-from .nmpc import nmpc_from_body
 from .signature import sign_body
+
+if TYPE_CHECKING:                                   # for the annotations only
+    from ..mpc.controller import MPCController
+    from ..nmpc import NonlinearMPC
+    from .linear import LinearController
+
+#: Module of each file kind and its checking reader (``body, dt, public_key, legacy -> contents``).
+KIND_MODULES = {"linear": ("design.files.linear", "from_body"), "mpc": ("design.files.mpc", "mpc_from_body"),
+                "nmpc": ("design.files.nmpc", "nmpc_from_body")}
+
+
+def kind_reader(body: Any) -> tuple[str, ModuleType, Callable[..., Any]]:
+    """The kind of a parsed file, its module (imported now) and its checking reader.
+
+    A body that is not an object or states no known kind is read as ``"linear"``, whose
+    envelope check then says what is wrong.
+    """
+    kind = body.get("kind") if isinstance(body, dict) else None
+    kind = kind if isinstance(kind, str) and kind in KIND_MODULES else "linear"
+    name, reader = KIND_MODULES[kind]
+    module = importlib.import_module(name)
+    return kind, module, getattr(module, reader)
+
+
+def _checked(body: Any, dt: float | None, public_key: Ed25519PublicKey | None, legacy: bool) -> tuple[str, Any, Any]:
+    kind, module, reader = kind_reader(body)
+    if kind == "nmpc":                              # an NMPC file has no legacy certificates
+        return kind, module, reader(body, dt, public_key)
+    return kind, module, reader(body, dt, public_key, legacy)
 
 
 def load_controller(path: str | Path, dt: float | None = 0.05, public_key: Ed25519PublicKey | None = None,
-                    legacy_certificate: bool = False) -> LinearController | MPCController | NonlinearMPC:
+                    legacy_certificate: bool = False) -> "LinearController | MPCController | NonlinearMPC":
     """Read, check and instantiate a controller file for the vehicle loop.
 
     A file of kind ``"linear"`` gives a :class:`~design.files.linear.LinearController`,
@@ -25,7 +57,8 @@ def load_controller(path: str | Path, dt: float | None = 0.05, public_key: Ed255
     :class:`design.nmpc.NonlinearMPC` (:mod:`design.files.nmpc`). Every check of
     :func:`~design.files.linear.read_controller_file` /
     :func:`~design.files.mpc.read_mpc_file` applies, the certificate's included: a
-    file whose certificate is missing, failed or made for other matrices is refused.
+    file whose certificate is missing, failed, made for other matrices or for another
+    law (:mod:`design.files.binding`) is refused.
 
     Parameters
     ----------
@@ -48,12 +81,8 @@ def load_controller(path: str | Path, dt: float | None = 0.05, public_key: Ed255
     """
     body = read_json(path)
     try:
-        if isinstance(body, dict) and body.get("kind") == "mpc":
-            spec = mpc_from_body(body, dt, public_key, legacy_certificate)
-            return spec.controller()
-        if isinstance(body, dict) and body.get("kind") == "nmpc":
-            return nmpc_from_body(body, dt, public_key).controller()
-        return LinearController(from_body(body, dt, public_key, legacy_certificate))
+        kind, module, spec = _checked(body, dt, public_key, legacy_certificate)
+        return module.LinearController(spec) if kind == "linear" else spec.controller()
     except (ControllerFileError, ValueError) as exc:
         raise ControllerFileError(f"{path}: {exc}") from None
 
@@ -72,12 +101,11 @@ def sign_file(path: str | Path, key: Ed25519PrivateKey, out: str | Path | None =
     """
     body = read_json(path)
     try:
-        if isinstance(body, dict) and body.get("kind") == "mpc":
-            mpc_from_body(body, dt=None)
-        elif isinstance(body, dict) and body.get("kind") == "nmpc":
-            nmpc_from_body(body, dt=None)
-        else:
-            from_body(body, dt=None)
+        _checked(body, None, None, False)
     except (ControllerFileError, ValueError) as exc:
         raise ControllerFileError(f"{path}: {exc}; not signed") from None
-    return write_atomically(path if out is None else out, sign_body(body, key))
+    try:
+        return write_atomically(path if out is None else out, sign_body(body, key))
+    except OSError as exc:
+        raise ControllerFileError(f"{path}: cannot write the signed file {out or path} ({exc.strerror or exc}); "
+                                  "nothing was changed") from None

@@ -53,9 +53,10 @@ from ..verify import model_hash
 from ..weights import OutputWeights
 from .certificate import check_certificate, check_estimate_schedule, recorded_latency
 from .law_schedule import RECORD as LAW_RECORD
-from .envelope import SCHEMA, check_envelope, read_json, seal, write_atomically
+from .binding import bind, check_bound
+from .envelope import SCHEMA, read_json, seal, write_atomically
+from .header import check_header
 from .linear import VELOCITY_OUTPUTS, check_coefficients, check_output_clip
-from .signature import check_signature
 
 TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "model", "estimator", "horizon", "weights", "limits",
             "solver", "fallback", "design", "certificate", "models", "checksum")
@@ -183,7 +184,7 @@ class MPCFile:
                 "design": dict(self.design),
                 "certificate": None if self.certificate is None else dict(self.certificate),
                 "models": [dict(x) for x in self.models]}
-        return seal(body)
+        return seal(bind(body))
 
     def save(self, path: str | Path) -> Path:
         """Write the file atomically."""
@@ -223,6 +224,7 @@ def mpc_from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519PublicK
     check_estimate_schedule(body["design"], body["certificate"], law, spec.estimate_states(law), legacy_certificate)
     if isinstance(body["design"], dict) and body["design"].get(LAW_RECORD) is not None:
         raise ControllerFileError(f"design.{LAW_RECORD} is for linear files; an MPC file runs one law at every speed")
+    check_bound(body, legacy_certificate)
     return spec
 
 
@@ -230,14 +232,7 @@ def uncertified_mpc_from_body(body: Any, dt: float | None = 0.05,
                               public_key: Ed25519PublicKey | None = None) -> MPCFile:
     """Every check of :func:`mpc_from_body` but the certificate's: for ``design verify`` only, which
     re-computes the certificate and reports on it (:mod:`design.files.recheck`)."""
-    check_envelope(body, "mpc", TOP_KEYS)
-    if public_key is not None:
-        check_signature(body, public_key)
-    fdt = _number(body["dt"], "dt")
-    if fdt <= 0:
-        raise ControllerFileError(f"dt must be a sample time > 0 s, got {fdt!r}")
-    if dt is not None and abs(fdt - dt) > 1e-9:
-        raise ControllerFileError(f"sample time mismatch: the file is for dt={fdt} s, the loop runs at dt={dt} s")
+    fdt = check_header(body, "mpc", TOP_KEYS, dt, public_key)
     outs = body["outputs"]
     expect = [{"name": o.name, "normalization": o.normalization, "units": o.units} for o in VELOCITY_OUTPUTS]
     if outs != expect:

@@ -75,8 +75,9 @@ from ..nmpc_law import y_max_at
 from ..nmpc_observer import ObserverSettings, observed_law
 from ..verify import Certificate, check_model, model_hash
 from .certificate import check_stated_radius, recorded_models
-from .envelope import SCHEMA, canonical_bytes, check_envelope, read_json, seal, write_atomically
-from .signature import check_signature
+from .binding import bind, check_bound
+from .envelope import SCHEMA, canonical_bytes, read_json, seal, write_atomically
+from .header import check_header
 
 TOP_KEYS = ("schema", "kind", "name", "dt", "settings", "design", "certificate", "models", "checksum")
 SETTING_KEYS = ("horizon", "weights", "rate_limit", "wheel_limit", "slack_weight", "wheelbase", "d2", "solver",
@@ -375,7 +376,7 @@ class NMPCFile:
                 "settings": settings_to_dict(self.settings), "design": dict(self.design),
                 "certificate": None if self.certificate is None else dict(self.certificate),
                 "models": [dict(m) for m in self.models]}
-        return seal(body)
+        return seal(bind(body))
 
     def save(self, path: str | Path) -> Path:
         """Write the file atomically."""
@@ -391,15 +392,8 @@ class NMPCFile:
 def uncertified_nmpc_from_body(body: Any, dt: float | None = 0.05,
                                public_key: Ed25519PublicKey | None = None) -> NMPCFile:
     """Every check of :func:`nmpc_from_body` but the certificate's (for ``design verify``)."""
-    check_envelope(body, "nmpc", TOP_KEYS)
-    if public_key is not None:
-        check_signature(body, public_key)
-    fdt = body["dt"]
-    if isinstance(fdt, bool) or not isinstance(fdt, (int, float)) or not math.isfinite(fdt) or fdt <= 0:
-        raise ControllerFileError(f"dt must be a finite sample time > 0 s, got {fdt!r}")
-    if dt is not None and abs(fdt - dt) > 1e-9:
-        raise ControllerFileError(f"sample time mismatch: the file is for dt={fdt} s, the loop runs at dt={dt} s")
-    settings = settings_from_dict(body["settings"], float(fdt))
+    fdt = check_header(body, "nmpc", TOP_KEYS, dt, public_key)
+    settings = settings_from_dict(body["settings"], fdt)
     if not isinstance(body["design"], dict) or not isinstance(body["models"], list):
         raise ControllerFileError("design must be an object and models a list")
     return NMPCFile(str(body["name"]), settings, body["design"], body["certificate"], tuple(body["models"]))
@@ -409,6 +403,7 @@ def nmpc_from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519Public
     """Check a parsed NMPC file and return its contents (the certificate recomputed)."""
     spec = uncertified_nmpc_from_body(body, dt, public_key)
     check_nmpc_certificate(body["certificate"], spec.settings)
+    check_bound(body)
     return spec
 
 

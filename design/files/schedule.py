@@ -5,7 +5,8 @@ The file must have been designed with the estimate (``design robust/mpc --distur
 its ``design["estimate_schedule"]`` then carries the certificate of the law without the estimate
 (:mod:`design.estimate_schedule`), so changing where the estimate acts changes no certified law. The
 file is rewritten with a new checksum (a signature is dropped: sign it again) and read back with every
-check the vehicle applies before it is written.
+check the vehicle applies before it is written; the certificate's digests of the law's fields
+(:mod:`design.files.binding`) are recorded anew, the schedule's own certificates being checked.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from ..compensator import integrator_states
 from ..errors import ControllerFileError
 from ..estimate_schedule import RECORD, EstimateSchedule
 from .certificate import recorded_models
+from .binding import bind
 from .envelope import read_json, seal, write_atomically
 from .law_schedule import RECORD as LAW_RECORD
 from .law_schedule import law_entry
@@ -48,7 +50,7 @@ def set_estimate_schedule(path: str | Path, schedule: EstimateSchedule, out: str
     if not isinstance(rec, dict):
         raise ControllerFileError(f"{path}: the file has no design.{RECORD} record: design it again with "
                                   "--disturbance-estimate on")
-    new = seal({**body, "design": {**body["design"], RECORD: {**rec, **schedule.to_dict()}}})
+    new = seal(bind({**body, "design": {**body["design"], RECORD: {**rec, **schedule.to_dict()}}}))
     try:
         check(new, None)
     except (ControllerFileError, ValueError) as exc:
@@ -126,7 +128,7 @@ def set_law_schedule(path: str | Path, choices: Sequence[tuple[tuple[float, floa
     design = {k: v for k, v in body["design"].items() if k != LAW_RECORD}
     if choices:
         design[LAW_RECORD] = law_schedule_record([b for b, _ in choices], laws)
-    new = seal({**body, "design": design})
+    new = seal(bind({**body, "design": design}))
     try:
         from_body(new, None)
     except (ControllerFileError, ValueError) as exc:

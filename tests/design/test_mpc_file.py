@@ -9,6 +9,7 @@ import pytest
 
 from design.cli import main as design_main
 from design.controller import Measurement
+from design.files.binding import bind
 from design.files.load import load_controller
 from design.errors import ControllerFileError, DesignInputError, VerificationError
 from design.mpc import MPCController, MPCLimits, SolverSettings
@@ -70,7 +71,8 @@ def test_loop_dt_mismatch_and_tampering_are_refused(saved):
     (lambda b: b["fallback"].__setitem__("gain", [[1.0, 2.0]]), r"fallback gain must be a finite \(1, 8\)"),
     (lambda b: b["fallback"].__setitem__("law", "pid"), "fallback law must be one of"),
     (lambda b: b["solver"].__setitem__("backend", "cvxpy"), "backend must be one of"),
-    (lambda b: b["solver"].__setitem__("options", {"daqp": {"bogus": 1}}), "casadi refused"),
+    (lambda b: (b["solver"].__setitem__("options", {"daqp": {"bogus": 1}}),      # certified as if designed so
+                b.__setitem__("certificate", bind(b)["certificate"])), "casadi refused"),
     (lambda b: b.__setitem__("horizon", 0), "horizon must be an integer >= 1"),
     (lambda b: b.__setitem__("horizon", 2.5), "horizon must be an integer"),
     (lambda b: b.__setitem__("extra", 1), r"unknown keys \['extra'\]"),

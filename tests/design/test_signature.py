@@ -66,7 +66,8 @@ def test_a_tampered_file_is_refused_even_with_its_checksum_recomputed(keys, sign
     (_, pub), _ = keys
     rewrite(signed, lambda b: b["limits"].__setitem__("rate", 0.3))     # checksum re-sealed, signature kept
     assert "signature" in json.loads(signed.read_text())
-    load_controller(signed)                                              # the checksum alone cannot tell
+    with pytest.raises(ControllerFileError, match="certificate does not cover this law: field 'limits'"):
+        load_controller(signed)                                          # the certificate's digest tells
     with pytest.raises(ControllerFileError, match="signature does not match the content"):
         load_controller(signed, public_key=load_public_key(pub))
 

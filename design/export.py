@@ -6,7 +6,9 @@ The C header holds plain ``static const double`` arrays in row-major order with
 their dimensions, the sample time, the normalisation of each output and the file's
 checksum in comments; the CSV lists one matrix entry per row (``matrix,row,col,value``)
 after ``#`` comment lines with the same information. Numbers are written with 17
-significant digits so they read back exactly.
+significant digits so they read back exactly. Text from the file (its name, the outputs'
+units) is checked before it is written (:func:`comment_text`); every output is written
+atomically.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 
 from .errors import ControllerFileError, DesignInputError
 from .export_c import export_c, safe_name
+from .files.atomic import write_text_atomically
 from .files.envelope import read_json
 from .files.linear import ControllerFile, from_body
 from .files.mpc import mpc_from_body
@@ -32,17 +35,34 @@ def _ident(name: str) -> str:
     return s if s and not s[0].isdigit() else f"C_{s}"
 
 
+def comment_text(line: str) -> str:
+    """``line`` if it can stand in a C block comment and a CSV ``#`` line: printable ASCII without
+    ``*/``, ``/*`` or a line break. Every text of the file that reaches an export passes through
+    here, after the readers' own checks (:data:`design.files.linear.UNITS_PATTERN`, :func:`safe_name`).
+
+    Raises
+    ------
+    ControllerFileError
+        Naming the text; nothing is exported.
+    """
+    if not all(" " <= ch <= "~" for ch in line) or "*/" in line or "/*" in line:
+        raise ControllerFileError(f"text {line[:80]!r} cannot be exported: expected printable ASCII without "
+                                  "'*/', '/*' or a line break; correct the controller file")
+    return line
+
+
 def _header_lines(spec: ControllerFile, checksum: str) -> list[str]:
     c = spec.compensator
     outs = ", ".join(f"{o.name}{'/speed' if o.normalization == 'speed' else ''} [{o.units}]" for o in spec.outputs)
-    return [f"controller {safe_name(spec.name)}: linear compensator, schema design-controller/1",
+    return [comment_text(line) for line in (
+            f"controller {safe_name(spec.name)}: linear compensator, schema design-controller/1",
             f"checksum {checksum}",
             f"dt = {c.dt!r} s; states nc = {c.order}; outputs q = {c.n_measurements}; commands m = 1",
             f"y (in order) = {outs}; speed floored at {spec.speed_min!r} m/s",
             "then y clipped to +-(" + ", ".join("none" if c is None else repr(c) for c in spec.output_clip) + ")",
             "u = steering-rate command [rad/s], clipped to +-" + repr(spec.rate_limit),
             "xc[k+1] = Ac xc[k] + Bc y[k] + Ec (u_applied[k] - u[k]);  u[k] = Cc xc[k] + Dc y[k]",
-            "on the first step after an engage: xc = X0 y[k] (bumpless engage)"]
+            "on the first step after an engage: xc = X0 y[k] (bumpless engage)")]
 
 
 def to_c_header(spec: ControllerFile, checksum: str) -> str:
@@ -111,8 +131,7 @@ def export_controller(path: str | Path, fmt: str, out: str | Path | None = None)
                                    "compensator only")
         _checked(path, lambda: mpc_from_body(body, dt=None))
         text = json.dumps(body, indent=1) + "\n"          # as read and checked (a signature kept)
-        if out is not None:
-            Path(out).write_text(text)
+        _write(out, text)
         return text
     spec = _checked(path, lambda: from_body(body, dt=None))
     checksum = body["checksum"]
@@ -127,6 +146,15 @@ def export_controller(path: str | Path, fmt: str, out: str | Path | None = None)
         text = to_c_header(spec, checksum)
     else:
         text = to_csv(spec, checksum)
-    if out is not None:
-        Path(out).write_text(text)
+    _write(out, text)
     return text
+
+
+def _write(out: str | Path | None, text: str) -> None:
+    """Write ``text`` to ``out`` atomically (unless None): the old file or the new one, never a part."""
+    if out is None:
+        return
+    try:
+        write_text_atomically(out, text)
+    except OSError as exc:
+        raise DesignInputError(f"cannot write {out} ({exc.strerror or exc}); it was left as it was") from None

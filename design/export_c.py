@@ -32,6 +32,7 @@ from identification.model import Model
 from .controller import Measurement
 from .errors import DesignInputError
 from .estimate_schedule import RECORD, EstimateSchedule
+from .files.atomic import check_replaceable, replace_directory
 from .files.law_schedule import RECORD as LAW_RECORD
 from .files.certificate import recorded_models
 from .files.linear import MATRICES, MEASUREMENTS, ControllerFile, LinearController
@@ -45,6 +46,8 @@ C_SOURCES = ("autosteer_step.h", "autosteer_step.c", "autosteer_test.c")
 C_DIR = Path(__file__).with_name("c")
 DATA_HEADER = "controller_data.h"
 VECTORS = "test_vectors.csv"
+#: Every file an export writes (an existing ``--out`` may hold these only).
+OWNED = (DATA_HEADER, VECTORS, *C_SOURCES)
 VECTOR_COLUMNS = ("reset", "cross_track", "heading_error", "wheel_angle", "speed", "u")
 
 
@@ -163,7 +166,8 @@ def export_c(spec: ControllerFile, certificate: dict, checksum: str, out: str | 
     checksum
         The file's checksum (named in the data header).
     out
-        Directory (created; existing files of the same names are replaced).
+        Directory, written whole beside its place and swapped in (:func:`design.files.atomic.replace_directory`):
+        an existing one must hold only the files of an earlier export, and is replaced as a whole.
 
     Returns
     -------
@@ -171,8 +175,7 @@ def export_c(spec: ControllerFile, certificate: dict, checksum: str, out: str | 
         The files written.
     """
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise DesignInputError(f"--out {out} is a file; --format c writes a directory of C sources")
+    check_replaceable(out, OWNED)
     sched = spec.design.get(RECORD) if isinstance(spec.design, dict) else None
     if sched is not None and EstimateSchedule.from_record(sched).off:
         raise DesignInputError("the file turns its disturbance estimate off at some speeds "
@@ -184,14 +187,17 @@ def export_c(spec: ControllerFile, certificate: dict, checksum: str, out: str | 
                                "design's own, hil commission's controllers/trial/robust.as-designed.json)")
     name, _, plant = recorded_models(certificate)[0]
     rows = record_run(spec, plant)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        written = [out / DATA_HEADER, out / VECTORS]
-        (out / DATA_HEADER).write_text(data_header(spec, checksum))
-        (out / VECTORS).write_text(vectors_text(rows, spec, name))
+    header = data_header(spec, checksum)
+    vectors = vectors_text(rows, spec, name)
+
+    def fill(new: Path) -> list[Path]:
+        (new / DATA_HEADER).write_text(header)
+        (new / VECTORS).write_text(vectors)
         for src in C_SOURCES:
-            shutil.copyfile(C_DIR / src, out / src)
-            written.append(out / src)
+            shutil.copyfile(C_DIR / src, new / src)
+        return [new / DATA_HEADER, new / VECTORS, *(new / src for src in C_SOURCES)]
+    try:
+        return replace_directory(out, fill, OWNED)
     except OSError as exc:
-        raise DesignInputError(f"cannot write the C export under {out} ({exc.strerror or exc})") from None
-    return written
+        raise DesignInputError(f"cannot write the C export under {out} ({exc.strerror or exc}); it was left as it "
+                               "was") from None

@@ -73,6 +73,27 @@ def write_text_atomically(path: str | Path, text: str, mode: int | None = None) 
     return write_bytes_atomically(path, text.encode("utf-8"), mode)
 
 
+def check_replaceable(out: str | Path, owned: Iterable[str]) -> None:
+    """Refuse ``out`` unless it is missing or a directory holding only files named in ``owned``.
+
+    Raises
+    ------
+    DesignInputError
+        ``out`` is a file, or a directory that holds anything else (one line naming it).
+    """
+    out = Path(out)
+    owned = set(owned)
+    if out.exists() and not out.is_dir():
+        raise DesignInputError(f"--out {out} is a file; expected a directory for the exported files (give a new "
+                               "directory)")
+    if out.is_dir():
+        others = sorted(p.name for p in out.iterdir() if p.name not in owned or not p.is_file())
+        if others:
+            raise DesignInputError(f"--out {out} holds files the export does not write ({', '.join(others[:5])}"
+                                   f"{', ...' if len(others) > 5 else ''}); it is replaced as a whole: give a new "
+                                   "directory or an earlier export's own")
+
+
 def replace_directory(out: str | Path, fill: Callable[[Path], Iterable[Path]], owned: Iterable[str]) -> list[Path]:
     """Write a directory of files atomically: ``fill`` writes them into a new directory beside ``out``,
     which then takes ``out``'s place.
@@ -99,17 +120,9 @@ def replace_directory(out: str | Path, fill: Callable[[Path], Iterable[Path]], o
     OSError
         Writing or renaming failed; ``out`` is left as it was and the new directory is removed.
     """
-    out = Path(out)
-    owned = set(owned)
-    if out.exists() and not out.is_dir():
-        raise DesignInputError(f"--out {out} is a file; expected a directory for the exported files (give a new "
-                               "directory)")
-    if out.is_dir():
-        others = sorted(p.name for p in out.iterdir() if p.name not in owned or not p.is_file())
-        if others:
-            raise DesignInputError(f"--out {out} holds files the export does not write ({', '.join(others[:5])}"
-                                   f"{', ...' if len(others) > 5 else ''}); it is replaced as a whole: give a new "
-                                   "directory or an earlier export's own")
+    given = Path(out)
+    check_replaceable(given, owned)
+    out = Path(os.path.abspath(given))          # "." or "x/.." have no name of their own
     out.parent.mkdir(parents=True, exist_ok=True)
     new = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".new", dir=out.parent))
     old: Path | None = None
@@ -133,4 +146,4 @@ def replace_directory(out: str | Path, fill: Callable[[Path], Iterable[Path]], o
         raise
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
-    return [out / p.relative_to(new) for p in written]
+    return [given / p.relative_to(new) for p in written]

@@ -31,6 +31,7 @@ the signature (:mod:`design.files.signature`).
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -61,6 +62,15 @@ TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "compensator", "
             "certificate", "models", "checksum")
 
 
+#: Units an output may state: unit symbols joined by ``*`` or ``/``, each with an optional integer power
+#: (``s``, ``rad*s/m``, ``m^-1``), or nothing. The text reaches the exported C header and CSV
+#: (:mod:`design.export`), so nothing else (no spaces, quotes, newlines, comment marks) is accepted.
+UNITS_PATTERN = re.compile(r"(?:[A-Za-z][A-Za-z0-9]{0,7}(?:\^-?[0-9])?(?:[*/][A-Za-z][A-Za-z0-9]{0,7}(?:\^-?[0-9])?){0,4})?")
+#: The command every file writes.
+INPUT = {"name": "steer_rate_cmd", "units": "rad/s"}
+OUTPUT_KEYS = ("name", "normalization", "units")
+
+
 @dataclass(frozen=True)
 class OutputSpec:
     """One measured output the compensator reads: a :class:`Measurement` field and its normalisation."""
@@ -70,6 +80,9 @@ class OutputSpec:
     units: str
 
     def __post_init__(self) -> None:
+        if not isinstance(self.units, str) or UNITS_PATTERN.fullmatch(self.units) is None:
+            raise ControllerFileError(f"output {self.name!r}: units must be unit symbols joined by * or / (such as "
+                                      f"'s', 'rad*s/m', 'm^-1'), got {self.units!r}; correct the file's outputs")
         if self.name not in MEASUREMENTS:
             raise ControllerFileError(f"output name must be one of {MEASUREMENTS}, got {self.name!r}")
         if self.normalization not in NORMALIZATIONS:
@@ -144,7 +157,7 @@ class ControllerFile:
         body = {"schema": SCHEMA, "kind": "linear", "name": self.name, "dt": c.dt,
                 "outputs": [{"name": o.name, "normalization": o.normalization, "units": o.units}
                             for o in self.outputs],
-                "input": {"name": "steer_rate_cmd", "units": "rad/s"},
+                "input": dict(INPUT),
                 "compensator": compensator_record(c),
                 "limits": {"rate": self.rate_limit, "speed_min": self.speed_min,
                            "output_clip": list(self.output_clip)},
@@ -206,9 +219,12 @@ def uncertified_from_body(body: Any, dt: float | None = 0.05,
     re-computes the certificate and reports on it (:mod:`design.files.recheck`)."""
     fdt = check_header(body, "linear", TOP_KEYS, dt, public_key)
     outputs = body["outputs"]
-    if not isinstance(outputs, list) or not all(isinstance(o, dict) for o in outputs):
-        raise ControllerFileError("outputs must be a list of objects")
-    specs = tuple(OutputSpec(o.get("name"), o.get("normalization"), str(o.get("units", ""))) for o in outputs)
+    if not isinstance(outputs, list) or not all(isinstance(o, dict) and sorted(o) == sorted(OUTPUT_KEYS)
+                                                for o in outputs):
+        raise ControllerFileError(f"outputs must be a list of objects each with exactly {', '.join(OUTPUT_KEYS)}")
+    if body["input"] != INPUT:
+        raise ControllerFileError(f"input must be {INPUT}, got {body['input']!r}")
+    specs = tuple(OutputSpec(o["name"], o["normalization"], o["units"]) for o in outputs)
     comp = compensator_from_record(body["compensator"], float(fdt), len(specs))
     lim = body["limits"]
     if not isinstance(lim, dict) or sorted(lim) != ["output_clip", "rate", "speed_min"]:

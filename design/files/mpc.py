@@ -56,7 +56,7 @@ from .law_schedule import RECORD as LAW_RECORD
 from .binding import bind, check_bound
 from .envelope import SCHEMA, read_json, seal, write_atomically
 from .header import check_header
-from .linear import VELOCITY_OUTPUTS, check_coefficients, check_output_clip
+from .linear import INPUT, VELOCITY_OUTPUTS, check_coefficients, check_output_clip
 
 TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "model", "estimator", "horizon", "weights", "limits",
             "solver", "fallback", "design", "certificate", "models", "checksum")
@@ -167,7 +167,7 @@ class MPCFile:
         body = {"schema": SCHEMA, "kind": "mpc", "name": self.name, "dt": m.dt,
                 "outputs": [{"name": o.name, "normalization": o.normalization, "units": o.units}
                             for o in VELOCITY_OUTPUTS],
-                "input": {"name": "steer_rate_cmd", "units": "rad/s"},
+                "input": dict(INPUT),
                 "model": {**{k: getattr(m, k).tolist() for k in ("A", "B", "C", "D", "K")},
                           "name": str(m.meta.get("name", "model")), "hash": model_hash(m)},
                 "estimator": {"kind": "measured-window", "past": self.past, "integral": [0]} if self.disturbance is None
@@ -237,6 +237,8 @@ def uncertified_mpc_from_body(body: Any, dt: float | None = 0.05,
     expect = [{"name": o.name, "normalization": o.normalization, "units": o.units} for o in VELOCITY_OUTPUTS]
     if outs != expect:
         raise ControllerFileError(f"outputs must be the velocity-normalised {expect}, got {outs!r}")
+    if body["input"] != INPUT:
+        raise ControllerFileError(f"input must be {INPUT}, got {body['input']!r}")
     md = _object(body, "model", ("A", "B", "C", "D", "K", "name", "hash"))
     mats = {}
     for k in ("A", "B", "C", "D", "K"):

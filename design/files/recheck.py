@@ -6,8 +6,8 @@ certificate is computed afresh (:func:`design.verify.certify`) on the given
 models and compared with the file's, row by row for each model of the same hash:
 spectral radius, gain, phase, disk and delay margins, the latency the model file states
 and its validation fits. Every difference, every model the file lists that was not
-given, every loop that is not stable and a certificate that is missing, failed or made
-for other matrices is a *problem*; ``design verify`` exits non-zero when there is one.
+given, every loop that is not stable, a certificate that is missing, empty, failed, made
+for other matrices or for other law fields (:mod:`design.files.binding`) is a *problem*; ``design verify`` exits non-zero when there is one.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from identification.model import Model
 from ..compensator import Compensator
 from ..errors import ControllerFileError, DesignInputError
 from ..verify import certify, compensator_hash, model_hash
+from .binding import check_bound
 from .envelope import read_json
 from ..estimate_schedule import RECORD, law_without_estimate
 from .law_schedule import RECORD as LAW_RECORD
@@ -80,6 +81,7 @@ def recheck(path: str | Path, models: Sequence[Model]) -> dict:
             fresh, problems = recheck_nmpc(body, models)
         except ControllerFileError as exc:
             raise ControllerFileError(f"{path}: {exc}") from None
+        problems += _binding_problems(body)
         for r in fresh["models"]:
             r.pop("model", None)
         return {"controller": str(path), "certificate": fresh, "problems": problems, "passed": not problems,
@@ -115,8 +117,18 @@ def recheck(path: str | Path, models: Sequence[Model]) -> dict:
                     else:
                         problems += [f"{what} without the estimate: {p}"
                                      for p in _compare(off, rec_i.get("certificate_off"), models)[0]]
+    problems += _binding_problems(body)
     return {"controller": str(path), "certificate": fresh, "problems": problems, "passed": not problems,
             "max_radius_difference_from_file": diff}
+
+
+def _binding_problems(body: dict) -> list[str]:
+    """The file's fields against the digests its certificate records (:mod:`design.files.binding`)."""
+    try:
+        check_bound(body)
+    except ControllerFileError as exc:
+        return [str(exc)]
+    return []
 
 
 def _estimate_states(body: dict, comp: Compensator) -> tuple[int, ...]:
@@ -132,17 +144,20 @@ def _compare(comp: Compensator, stored: Any, models: Sequence[Model]) -> tuple[l
     cert = certify(comp, models)
     fresh = cert.to_dict()
     problems: list[str] = []
-    if stored is None:
-        problems.append("the file's certificate is missing (null)")
+    if stored is None or not isinstance(stored, dict):
+        problems.append("the file's certificate is missing (null)" if stored is None else
+                        f"the file's certificate is not an object ({type(stored).__name__})")
         stored = {}
-    elif not isinstance(stored, dict):
-        problems.append(f"the file's certificate is not an object ({type(stored).__name__})")
-        stored = {}
-    if stored and stored.get("passed") is not True:
-        problems.append("the file's certificate says it failed")
-    if stored and stored.get("compensator_hash") != compensator_hash(comp):
-        problems.append(f"the file's certificate was made for compensator {stored.get('compensator_hash')!r}, its "
-                        f"matrices give {compensator_hash(comp)!r}")
+    else:
+        if not stored:
+            problems.append("the file's certificate is empty ({}): the law was never verified")
+        if stored.get("passed") is not True:
+            problems.append(f"the file's certificate does not say it passed (passed = {stored.get('passed')!r})")
+        if stored.get("compensator_hash") != compensator_hash(comp):
+            problems.append(f"the file's certificate was made for compensator {stored.get('compensator_hash')!r}, its "
+                            f"matrices give {compensator_hash(comp)!r}")
+        if not isinstance(stored.get("models"), list) or not stored["models"]:
+            problems.append("the file's certificate lists no model it was checked on")
     for c in cert.checks:
         if not c.stable:
             problems.append(f"not stable on {c.name} (spectral radius {c.spectral_radius:.6f}, expected < 1)")

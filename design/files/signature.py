@@ -18,6 +18,7 @@ import base64
 import binascii
 import hashlib
 import os
+import stat
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -32,7 +33,8 @@ ALGORITHM = "ed25519"
 PRIVATE_NAME = "controller-signing.key"
 PUBLIC_NAME = "controller-signing.pub"
 SIGNATURE_KEYS = ("algorithm", "key_id", "value")
-_MAX_KEY_BYTES = 16 * 1024
+#: Largest key file read, bytes (a PEM Ed25519 key is about 120 bytes).
+MAX_KEY_BYTES = 16 * 1024
 
 
 def key_id(public: Ed25519PublicKey) -> str:
@@ -70,20 +72,39 @@ def keygen(out_dir: str | Path) -> tuple[Path, Path]:
     return priv_path, pub_path
 
 
-def _read_key_file(path: str | Path) -> bytes:
+def _read_key_file(path: str | Path, private: bool = False) -> bytes:
+    """The bytes of a key file, at most :data:`MAX_KEY_BYTES` read whatever the file is (a device or a
+    pipe that never ends is refused once that much came). A private key must be a regular file that
+    neither the group nor others may read or write (mode 0600 or stricter)."""
     p = Path(path)
     try:
-        if p.stat().st_size > _MAX_KEY_BYTES:
-            raise DesignInputError(f"{p}: {p.stat().st_size} bytes is not a PEM key file")
-        return p.read_bytes()
+        with open(p, "rb") as fh:
+            st = os.fstat(fh.fileno())
+            if private and not stat.S_ISREG(st.st_mode):
+                raise DesignInputError(f"{p}: a private key must be a regular file, got "
+                                       f"{'a device' if stat.S_ISCHR(st.st_mode) else 'no regular file'}")
+            if private and st.st_mode & 0o077:
+                raise DesignInputError(f"{p}: the private key is readable or writable by others (mode "
+                                       f"{stat.S_IMODE(st.st_mode):04o}, expected 0600): chmod 600 {p}")
+            raw = fh.read(MAX_KEY_BYTES + 1)
     except OSError as exc:
         raise DesignInputError(f"{p}: cannot read the key ({exc.strerror or exc})") from None
+    if len(raw) > MAX_KEY_BYTES:
+        raise DesignInputError(f"{p}: more than {MAX_KEY_BYTES} bytes, expected a PEM key file of under 1 kB")
+    return raw
 
 
 def load_private_key(path: str | Path) -> Ed25519PrivateKey:
-    """An Ed25519 private key from a PEM file (as :func:`keygen` writes)."""
+    """An Ed25519 private key from a PEM file (as :func:`keygen` writes: mode 0600).
+
+    Raises
+    ------
+    DesignInputError
+        The file is not a regular file, others may read or write it (fix: ``chmod 600``), it is
+        larger than a key file, or it holds no unencrypted Ed25519 private key.
+    """
     try:
-        key = serialization.load_pem_private_key(_read_key_file(path), password=None)
+        key = serialization.load_pem_private_key(_read_key_file(path, private=True), password=None)
     except (ValueError, TypeError) as exc:
         raise DesignInputError(f"{path}: not an unencrypted PEM private key ({exc})") from None
     if not isinstance(key, Ed25519PrivateKey):

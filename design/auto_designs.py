@@ -23,14 +23,15 @@ from .iostate import observable_past
 from .mpc.law import unconstrained_law
 from .mpc_design import MPCDesign, MPCSpec, design_mpc, fallback_from_file
 from .mpc.problem import mpc_problem
-from .robust import RobustResult, RobustSpec, _model_names, design_robust, resolved_past
+from .family import as_family, model_names
+from .robust import RobustResult, RobustSpec, design_robust, resolved_past
 from .specs import Specifications, resolve_latency
 from .weights import OutputWeights
 
 
 def spec_names(models: Sequence[Model], validate_on: Sequence[Model]) -> list[str]:
     """Design models' names, then ``validation:<name>`` for each validation model."""
-    return [*_model_names(models), *(f"validation:{n}" for n in _model_names(validate_on))]
+    return [*model_names(models), *(f"validation:{n}" for n in model_names(validate_on))]
 
 
 def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications,
@@ -57,6 +58,7 @@ def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications
         Even the gentlest weights fail a specification with every window (the first window's
         error, naming what was achieved).
     """
+    models = as_family(models)
     windows = window_candidates(models, spec)
     found, tried, first_error = [], [], None
 

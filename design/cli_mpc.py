@@ -1,4 +1,4 @@
-"""Sub-command ``design mpc`` (thin layer over :mod:`design.mpc_design`).
+"""Sub-command ``design mpc`` (parse, call :mod:`design.recipes`, print).
 
     design mpc --models models/*.npz --horizon N [--backend casadi|osqp] [--solver daqp|qpoases|...]
                [--fallback controllers/robust.json] --out controllers/mpc.json [--json]
@@ -10,95 +10,33 @@ the unconstrained law is checked closed around every other model given.
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
 
 from identification.model import Model
 
-from .auto_designs import auto_mpc, spec_names
-from .cli_robust import _load_models, _weights, certificate_table, spec_lines
-from .cli_specs import (add_disturbance_arguments, add_spec_arguments, latency_of, parse_past, progress_of, refuse_mixed,
-                        search_of, specs_of,
-                        warn_relaxed)
-from .disturbance import DisturbanceSpec
-from .iostate import observable_past
-from .mpc.law import unconstrained_law
-from .specs import check_specs
-from .errors import DesignInputError
+from .cli_robust import _weights, certificate_table, spec_lines
+from .cli_specs import (add_disturbance_arguments, add_spec_arguments, disturbance_of, parse_past, progress_of,
+                        refuse_mixed, warn_relaxed, weight_search_of)
 from .mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
-from .mpc_design import MPCSpec, design_mpc, fallback_from_file, prediction_model, read_controller_file
-from .mpc.problem import TERMINALS, MPCLimits, MPCWeights, mpc_problem
+from .mpc.problem import TERMINALS, MPCLimits, MPCWeights
+from .recipes import MPCOptions, design_mpc_controller, load_models
 
 
 def cmd_mpc(args: argparse.Namespace) -> dict:
     refuse_mixed(args)
-    models = _load_models(args.models)
-    validate = _load_models(args.validate_on) if args.validate_on else []
-    if args.central:
-        central = Model.load(args.central)
-        others = models
-    else:
-        centrals = [m for m in models if m.meta.get("kind") == "central"]
-        if len(centrals) != 1:
-            raise DesignInputError(f"expected exactly one model of kind 'central' among --models, found "
-                                   f"{len(centrals)}; name the prediction model with --central")
-        central = centrals[0]
-        others = [m for m in models if m is not central]
-    past = args.past
-    if past is None:
-        past = fallback_past(args.fallback) if args.fallback else observable_past([central])
-    predicting, truncation = prediction_model(central, past)
-    if truncation is not None:                  # the window is too short for the central model as given:
-        others = [central, *others]             # predict with its design model, certify on it as given too
-        central = predicting
-    weights = MPCWeights(_weights(args), args.slack_weight, args.slack_weight * 1e-2, args.terminal)
-    limits = MPCLimits(args.rate_limit, args.wheel_angle_limit)
-    settings = SolverSettings(args.backend, args.solver, args.max_iter, args.time_budget_ms * 1e-3)
-    disturbance = DisturbanceSpec(args.disturbance_tau, args.estimate_tau) if args.disturbance_estimate == "on" else None
-    spec = MPCSpec(args.horizon, weights, limits, settings, past,
-                   tuple(None if c <= 0 else c for c in args.output_clip), args.speed_min, args.name, disturbance)
-    family = [central, *others, *validate]
-    latency = latency_of(args, family)
-    specs = specs_of(args, latency, args.rate_limit, True)
-    checked = None
-    if args.weights == "auto":
-        res, _search = auto_mpc(central, others, spec, specs, validate, search_of(args), args.fallback,
-                                require=not args.allow_unstable, progress=progress_of(args))
-        weights = res.file.weights
-        warn_relaxed(res.file.design.get("auto_weights"))
-    else:
-        gain = None
-        if args.fallback:
-            gain = fallback_from_file(args.fallback, mpc_problem(central, args.horizon, weights, limits, past,
-                                                                 disturbance))
-        res = design_mpc(central, others, spec, gain, require=not args.allow_unstable)
-        if latency is not None:
-            comp = unconstrained_law(res.problem, res.unconstrained_gain)
-            names = spec_names([central, *others], validate)
-            checked = {"specifications": specs.to_dict(),
-                       "achieved": check_specs(comp, family, specs, latency, names).to_dict()}
-            res = replace(res, file=replace(res.file, design={**res.file.design, "specifications_check": checked}))
-    if truncation is not None:
-        res = replace(res, file=replace(res.file, design={**res.file.design, "prediction_truncated": truncation}))
-    res.file.save(args.out)
-    f = res.file
-    return {"out": str(args.out), "horizon": f.horizon, "dt": f.dt, "prediction_model": f.design["design_model"],
-            "past": f.past,
-            "weights": {**f.design["weights"], "slack_linear": weights.slack_linear,
-                        "slack_quadratic": weights.slack_quadratic, "terminal": weights.terminal},
-            "limits": {"rate": limits.rate, "wheel_angle": limits.wheel_angle},
-            "solver": settings.to_dict(), "fallback": f.fallback_law,
-            "unconstrained_gain": f.design["unconstrained_gain"], "certificate": dict(f.certificate),
-            "auto_weights": f.design.get("auto_weights"), "specifications_check": checked,
-            "disturbance_estimate": f.design.get("disturbance_estimate")}
-
-
-def fallback_past(path: str) -> int:
-    """The measured window (``past``) of a robust controller file, so the MPC's state is the fallback's."""
-    d = read_controller_file(path, dt=None).design
-    past = d.get("past")
-    if isinstance(past, bool) or not isinstance(past, int) or past < 1:
-        raise DesignInputError(f"{path}: the design records no measured window (past = {past!r}); give --past")
-    return past
+    models = load_models(args.models)
+    validate = load_models(args.validate_on) if args.validate_on else []
+    central = Model.load(args.central) if args.central else None
+    options = MPCOptions(args.horizon, MPCWeights(_weights(args), args.slack_weight, args.slack_weight * 1e-2,
+                                                  args.terminal),
+                         MPCLimits(args.rate_limit, args.wheel_angle_limit),
+                         SolverSettings(args.backend, args.solver, args.max_iter, args.time_budget_ms * 1e-3),
+                         args.past, tuple(None if c <= 0 else c for c in args.output_clip), args.speed_min, args.name,
+                         disturbance_of(args), weight_search_of(args), args.fallback,
+                         require_stable=not args.allow_unstable)
+    res = design_mpc_controller(models, options, central, validate, progress_of(args))
+    warn_relaxed(res.file.design.get("auto_weights"))
+    res.save(args.out)
+    return {"out": str(args.out), **res.summary()}
 
 
 def add_parser(sub: argparse._SubParsersAction, number) -> None:

@@ -16,7 +16,8 @@ from __future__ import annotations
 import argparse
 import math
 
-from .cli_robust import _load_models, certificate_table
+from .cli_robust import certificate_table
+from .recipes import load_models
 from .files.nmpc import design_nmpc
 from .kinematic import KinematicWeights
 from .nmpc import SOLVERS, NMPCSettings
@@ -24,7 +25,7 @@ from .nmpc_observer import ObserverSettings
 
 
 def cmd_nmpc(args: argparse.Namespace) -> dict:
-    models = _load_models(args.models)
+    models = load_models(args.models)
     w = KinematicWeights(y_max=args.y_max, psi_max=math.radians(args.psi_max_deg),
                          delta_max=math.radians(args.delta_max_deg), u_max=args.u_max)
     settings = NMPCSettings(horizon=args.horizon, weights=w, rate_limit=args.rate_limit, wheel_limit=args.wheel_limit,

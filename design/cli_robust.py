@@ -1,36 +1,20 @@
-"""Sub-commands ``design robust``, ``design lqr`` and ``design verify`` (thin layer over :mod:`design.robust`)."""
+"""Sub-commands ``design robust``, ``design lqr`` and ``design verify`` (parse, call :mod:`design.recipes`, print)."""
 
 from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import replace
-from pathlib import Path
 
 from identification.model import Model
 
 from .files.recheck import recheck
 from .export import FORMATS, export_controller
-from .autotune import scaled_weights
-from .errors import DesignError, DesignInputError, VerificationError
-from .auto_designs import auto_robust, spec_names
-from .cli_specs import (add_disturbance_arguments, add_spec_arguments, latency_of, parse_past, progress_of,
-                        refuse_mixed, search_of, specs_of,
-                        warn_relaxed)
-from .disturbance import DisturbanceSpec
-from .robust import RobustSpec, design_lqr, design_robust, with_disturbance_estimate
-from .specs import check_specs
+from .errors import VerificationError
+from .cli_specs import (add_disturbance_arguments, add_spec_arguments, disturbance_of, parse_past, progress_of,
+                        refuse_mixed, warn_relaxed, weight_search_of)
+from .recipes import RobustOptions, design_robust_controller, load_models
+from .robust import RobustSpec, design_lqr
 from .weights import OutputWeights
-
-
-def _load_models(paths: list[str]) -> list[Model]:
-    files: list[Path] = []
-    for p in paths:
-        path = Path(p)
-        files.extend(sorted(path.glob("*.npz")) if path.is_dir() else [path])
-    if not files:
-        raise DesignInputError(f"no model files in {paths}")
-    return [Model.load(f) for f in files]
 
 
 def _weights(args: argparse.Namespace) -> OutputWeights:
@@ -91,141 +75,26 @@ def spec_lines(result: dict) -> list[str]:
 
 def cmd_robust(args: argparse.Namespace) -> dict:
     refuse_mixed(args)
-    models = _load_models(args.models)
-    validate = _load_models(args.validate_on) if args.validate_on else []
+    models = load_models(args.models)
+    validate = load_models(args.validate_on) if args.validate_on else []
     nominal = Model.load(args.nominal) if args.nominal else None
     spec = RobustSpec(_weights(args), args.formulation, args.solver, args.pole_radius, args.rate_limit,
                       tuple(args.initial_errors), args.integral, args.past, args.command_limit, name=args.name,
                       structure=args.structure, nominal=nominal,
                       output_clip=tuple(None if c <= 0 else c for c in args.output_clip), method=args.method,
-                      backend=args.backend, refine=args.refine, reduce={"truncated": "always", "as-given": "never"}.get(args.design_models, "if-needed"))
-    latency = latency_of(args, [*models, *validate])
-    specs = specs_of(args, latency, args.command_limit, args.integral)
-    checked = None
-    if args.weights == "auto":
-        res, _search = auto_robust(models, spec, specs, validate, search_of(args), progress_of(args))
-        warn_relaxed(res.file.design.get("auto_weights"))
-    else:
-        res = design_robust(models, spec)
-        if latency is not None:
-            checked = check_specs(res.file.compensator, [*models, *validate], specs, latency,
-                                  spec_names(models, validate)).to_dict()
-            res = replace(res, file=replace(res.file, design={**res.file.design, "specifications_check": {
-                "specifications": specs.to_dict(), "achieved": checked}}))
-    if args.disturbance_estimate == "on":
-        res = _with_estimate(res, models, validate, spec, specs, latency, args)
-    res.file.save(args.out)
-    d = res.file.design
-    return {"out": str(args.out), "disturbance_estimate": d.get("disturbance_estimate"), "certificate": dict(res.file.certificate), "guaranteed_cost": d["guaranteed_cost"],
-            "implausible_models": d["implausible_models"],
-            "conservatism": d["conservatism"], "times_s": d["times_s"], "formulation": spec.formulation,
-            "synthesis_bound": d["synthesis_bound"], "refine_steps": d["refine_steps"],
-            "solver": spec.solver, "past": d["past"], "weights": d["weights"],
-            "auto_weights": d.get("auto_weights"), "specifications_check": checked and d["specifications_check"]}
-
-
-def _with_estimate(res, models, validate, spec: RobustSpec, specs, latency, args: argparse.Namespace):
-    """The design with the disturbance estimate (:func:`design.robust.with_disturbance_estimate`), its gain
-    scaled back until it meets every specification the window law met, with the latency, on the models
-    and the validation models (only stability when no latency is known)."""
-    if args.structure != "window":
-        raise DesignInputError("--disturbance-estimate on needs --structure window (or give --disturbance-estimate off)")
-    family, names = [*models, *validate], spec_names(models, validate)
-    accept = None
-    if latency is not None:
-        first = check_specs(res.file.compensator, family, specs, latency, names)
-        eff = specs
-        if not first.passed:          # hold the estimate to what the window law itself achieved
-            wst = first.worst()
-            eff = replace(specs, disk_margin=min(specs.disk_margin, 0.999 * wst["disk_margin"]),
-                          delay_reserve=min(specs.delay_reserve, wst["delay_reserve_s"]),
-                          rate_limit=max(specs.rate_limit, 1.001 * float(wst["peak_rate"])))
-
-        def accept(comp) -> bool:
-            return check_specs(comp, family, eff, latency, names).passed
-    dspec = DisturbanceSpec(args.disturbance_tau, args.estimate_tau)
-    out = with_disturbance_estimate(res, models, spec, dspec, accept, latency)
-    auto = res.file.design.get("auto_weights")
-    made = [out]
-    if auto and latency is not None and out.file.design["disturbance_estimate"]["scale"] < 1.0:
-        out, made = _backed_off(out, res, models, spec, dspec, accept, latency, float(auto["chosen_scale"]))
-
-    def finish(o):
-        d = dict(o.file.design)
-        if latency is not None:
-            after = check_specs(o.file.compensator, family, specs, latency, names).to_dict()
-            d["disturbance_estimate"] = {**d["disturbance_estimate"], "specifications_achieved": after}
-            if "specifications_check" in d:
-                d["specifications_check"] = {**d["specifications_check"], "achieved": after}
-        return replace(o, file=replace(o.file, design=d))
-
-    if getattr(args, "window_candidates", None):
-        _write_candidates([finish(o) for o in made if o is not out], args.window_candidates, Path(args.out).stem)
-    return finish(out)
-
-
-#: Gentler window weights tried, as fractions of the automatic weights' scale, when the estimate does not
-#: fit at its full gain beside the window law the search chose (that law sits at a specification's edge:
-#: on the worn valve its delay reserve was exactly the 0.1 s asked, and any estimate gain took it below).
-BACKOFF = (0.7, 0.5, 0.35)
-
-
-def _backed_off(out, res, models, spec: RobustSpec, dspec, accept, latency, chosen: float):
-    """The first gentler window law (:data:`BACKOFF`) beside which the estimate keeps its full gain, else the
-    one with the largest estimate scale (``out`` if none is larger); recorded in the estimate's record.
-
-    Returns the kept design and every design made (``out`` first, then the gentler ones in the order tried),
-    each with the record naming its own window scale as ``kept_scale``: the candidates that a trial drive on
-    the tractor may choose among (``--window-candidates``; :mod:`hil.bench.window_trial`)."""
-    d0 = res.file.design
-    best, best_scale, tried = out, out.file.design["disturbance_estimate"]["scale"], []
-    made = [(chosen, out)]
-    base = replace(spec, integral=bool(d0["integral"]), past=d0["past"],
-                   reduce="always" if d0.get("design_models") is not None else spec.reduce)
-    for f in BACKOFF:
-        try:
-            r2 = design_robust(models, replace(base, weights=scaled_weights(chosen * f)))
-            o2 = with_disturbance_estimate(r2, models, base, dspec, accept, latency)
-        except DesignError as exc:
-            tried.append({"scale": chosen * f, "error": str(exc)})
-            continue
-        s2 = o2.file.design["disturbance_estimate"]["scale"]
-        tried.append({"scale": chosen * f, "estimate_scale": s2})
-        made.append((chosen * f, o2))
-        if s2 > best_scale:
-            best, best_scale = o2, s2
-        if s2 >= 1.0:
-            break
-
-    def recorded(scale: float, o):
-        d = dict(o.file.design)
-        d["disturbance_estimate"] = {**d["disturbance_estimate"], "window_backoff": {
-            "search_scale": chosen, "estimate_scale_at_search_weights": out.file.design["disturbance_estimate"]["scale"],
-            "tried": tried, "kept_scale": float(scale)}}
-        d["auto_weights"] = d0["auto_weights"]
-        return replace(o, file=replace(o.file, design=d))
-
-    kept = [recorded(sc, o) for sc, o in made]
-    return kept[next(i for i, (_, o) in enumerate(made) if o is best)], kept
-
-
-def _write_candidates(designs, folder: str, stem: str) -> None:
-    """Each window law the estimate's back-off made but did not keep, as a controller file in ``folder``
-    (``<stem>.window-<scale>.json``; the folder is made). The folder's earlier ``<stem>.window-*.json`` are
-    removed first, so that it holds this design's candidates only (none when nothing was backed off): a
-    re-run into the same folder must not offer laws designed on other models."""
-    path = Path(folder)
-    path.mkdir(parents=True, exist_ok=True)
-    for old in path.glob(f"{stem}.window-*.json"):
-        old.unlink()
-    for o in designs:
-        scale = o.file.design["disturbance_estimate"]["window_backoff"]["kept_scale"]
-        o.file.save(path / f"{stem}.window-{scale:.4g}.json")
+                      backend=args.backend, refine=args.refine,
+                      reduce={"truncated": "always", "as-given": "never"}.get(args.design_models, "if-needed"))
+    options = RobustOptions(spec, weight_search_of(args), disturbance_of(args),
+                            candidates=bool(getattr(args, "window_candidates", None)))
+    res = design_robust_controller(models, options, validate, progress_of(args))
+    warn_relaxed(res.file.design.get("auto_weights"))
+    res.save(args.out, args.window_candidates)
+    return {"out": str(args.out), **res.summary()}
 
 
 def cmd_lqr(args: argparse.Namespace) -> dict:
     model = Model.load(args.model)
-    others = _load_models(args.verify_on) if args.verify_on else []
+    others = load_models(args.verify_on) if args.verify_on else []
     file, cert = design_lqr(model, others, _weights(args), name=args.name, command_limit=args.command_limit,
                             require=not args.allow_unstable)
     file.save(args.out)
@@ -235,7 +104,7 @@ def cmd_lqr(args: argparse.Namespace) -> dict:
 def cmd_verify(args: argparse.Namespace) -> dict:
     """Re-check the file's certificate (:func:`design.files.recheck.recheck`); any problem makes
     ``design verify`` exit 1."""
-    res = recheck(args.controller, _load_models(args.models))
+    res = recheck(args.controller, load_models(args.models))
     if res["problems"]:
         print(json.dumps(res, indent=2) if args.json else render(res))
         raise VerificationError(f"{args.controller}: {len(res['problems'])} problem(s): " + "; ".join(res["problems"]))

@@ -14,13 +14,11 @@ import argparse
 import sys
 from typing import Callable
 
-from identification.model import Model
-
 from .autotune import SearchOptions
+from .disturbance import DisturbanceSpec
 from .errors import DesignInputError
-from .specs import Specifications, latency_from_logs, latency_from_models
-
-WEIGHT_MODES = ("explicit", "auto")
+from .recipes import WEIGHT_MODES, WeightSearch
+from .specs import Specifications
 
 
 def parse_past(text: str) -> int | None:
@@ -69,7 +67,6 @@ def add_spec_arguments(p: argparse.ArgumentParser, number: Callable[[str], float
 
 def add_disturbance_arguments(p: argparse.ArgumentParser, number: Callable[[str], float], what: str) -> None:
     """``--disturbance-estimate on|off``, ``--disturbance-tau`` and ``--estimate-tau`` (design.disturbance)."""
-    from .disturbance import DisturbanceSpec
     p.add_argument("--disturbance-estimate", choices=("on", "off"), default="off",
                    help=f"estimate the soil's pull from the one-step prediction error and {what} "
                         "(design.disturbance; docs/disturbance_estimate.md)")
@@ -79,34 +76,18 @@ def add_disturbance_arguments(p: argparse.ArgumentParser, number: Callable[[str]
                    help="time constant of the disturbance estimate's filter, s")
 
 
-def latency_of(args: argparse.Namespace, models: list[Model]) -> tuple[float, ...] | None:
-    """The latency (s per output): ``--latency``, else ``--latency-from-logs``, else the models' metadata."""
-    q = models[0].n_outputs
-    if args.latency is not None and args.latency_from_logs:
-        raise DesignInputError("give the latency either with --latency or with --latency-from-logs, not both")
-    if args.latency is not None:
-        lat = list(args.latency)
-        if len(lat) == 1:
-            lat = [lat[0]] * min(2, q) + [0.0] * max(q - 2, 0)
-        if len(lat) != q:
-            raise DesignInputError(f"--latency takes 1 or {q} values (s), got {len(lat)}")
-        return tuple(lat)
-    if args.latency_from_logs:
-        return latency_from_logs(args.latency_from_logs, q)
-    return latency_from_models(models)
+def weight_search_of(args: argparse.Namespace) -> WeightSearch:
+    """The :class:`~design.recipes.WeightSearch` of the options."""
+    return WeightSearch(args.weights, args.disk_margin, args.delay_reserve, args.actuator_rate,
+                        tuple(args.tracking_errors), None if args.latency is None else tuple(args.latency),
+                        tuple(args.latency_from_logs or ()),
+                        SearchOptions(args.scale_range[0], args.scale_range[1], args.scan, args.search_steps,
+                                      relax=not args.strict_specifications))
 
 
-def specs_of(args: argparse.Namespace, latency: tuple[float, ...] | None, default_rate: float,
-             integral: bool) -> Specifications:
-    """The :class:`Specifications` of the options."""
-    rate = args.actuator_rate if args.actuator_rate is not None else default_rate
-    return Specifications(args.disk_margin, args.delay_reserve, latency, rate, tuple(args.tracking_errors), integral)
-
-
-def search_of(args: argparse.Namespace) -> SearchOptions:
-    """The :class:`SearchOptions` of the options."""
-    return SearchOptions(args.scale_range[0], args.scale_range[1], args.scan, args.search_steps,
-                         relax=not args.strict_specifications)
+def disturbance_of(args: argparse.Namespace) -> DisturbanceSpec | None:
+    """The disturbance estimate of the options (None: off)."""
+    return DisturbanceSpec(args.disturbance_tau, args.estimate_tau) if args.disturbance_estimate == "on" else None
 
 
 def warn_relaxed(record: dict | None) -> None:

@@ -23,7 +23,7 @@ from .estimate_schedule import RECORD, schedule_record, trailing_states
 from .files.linear import read_controller_file
 from .files.mpc import MPCFile
 from .iostate import window_to_state
-from .limits import check_model_order
+from .family import as_family
 from .reduction import design_model
 from .verify import Certificate, certify, model_hash, require_stable
 from .mpc.backends import SolverSettings
@@ -56,11 +56,6 @@ class MPCDesign:
     problem: MPCProblem
     certificate: Certificate
     unconstrained_gain: np.ndarray
-
-
-def _model_names(models: Sequence[Model]) -> list[str]:
-    names = [str(m.meta.get("name", f"model {i}")) for i, m in enumerate(models)]
-    return names if len(set(names)) == len(names) else [f"{n}#{i}" for i, n in enumerate(names)]
 
 
 def fallback_from_file(path: str | Path, problem: MPCProblem) -> np.ndarray:
@@ -130,11 +125,10 @@ def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | No
         first move from a small state: its settings are wrong.
     """
     spec = spec or MPCSpec()
-    check_model_order([model, *verify_on])
+    family = as_family([model, *verify_on])
     problem = mpc_problem(model, spec.horizon, spec.weights, spec.limits, spec.past, spec.disturbance)
     k = unconstrained_gain(problem)
-    family = [model, *verify_on]
-    names = _model_names(family)
+    names = list(family.names)
     ulaw = unconstrained_law(problem, k)
     cert = certify(ulaw, family, names)
     require_stable(cert if require else Certificate(cert.checks[:1]))

@@ -25,7 +25,7 @@ from .disturbance import DisturbanceSpec, design_estimate
 from .errors import DesignInputError, SynthesisError
 from .estimate_schedule import RECORD, schedule_record
 from .files.linear import ControllerFile, outputs_for
-from .limits import check_model_order
+from .family import as_family, model_names
 from .iostate import IOStateLayout, feedback_compensator, io_state_model, observable_past
 from .lmi import (LMIOptions, StateFeedbackDesign, closed_loop_cost, robust_state_feedback,
                   robust_state_feedback_rounds)
@@ -151,31 +151,9 @@ class RobustResult:
         return self.synthesis.bound / max(self.lqr_costs)
 
 
-def _model_names(models: Sequence[Model]) -> list[str]:
-    names = [str(m.meta.get("name", f"model {i}")) for i, m in enumerate(models)]
-    if len(set(names)) != len(names):
-        names = [f"{n}#{i}" for i, n in enumerate(names)]
-    return names
-
-
-def _check_family(models: Sequence[Model]) -> None:
-    if not models:
-        raise DesignInputError("no models given")
-    m0 = models[0]
-    for i, m in enumerate(models):
-        if (m.n_inputs, m.n_outputs) != (m0.n_inputs, m0.n_outputs) or abs(m.dt - m0.dt) > 1e-12:
-            raise DesignInputError(f"model {i} ({m.meta.get('name')}) has m={m.n_inputs}, q={m.n_outputs}, "
-                                   f"dt={m.dt}; expected m={m0.n_inputs}, q={m0.n_outputs}, dt={m0.dt} like the first")
-        if m.meta.get("normalization", "velocity") != m0.meta.get("normalization", "velocity"):
-            raise DesignInputError(f"model {i} has normalization {m.meta.get('normalization')!r}, "
-                                   f"the first has {m0.meta.get('normalization')!r}")
-    if m0.n_inputs != 1:
-        raise DesignInputError(f"the tractor has one input (steering rate); the models have {m0.n_inputs}")
-
-
 def design_problem(models: Sequence[Model], spec: RobustSpec) -> tuple[IOStateLayout, list, list, dict]:
     """The synthesis data: layout, ``A_z``/``B_z`` per model, and ``Q, R, Bw, scale`` (dict)."""
-    _check_family(models)
+    models = as_family(models)
     q = models[0].n_outputs
     w = spec.weights
     if spec.structure == "observer":
@@ -206,7 +184,7 @@ def design_problem(models: Sequence[Model], spec: RobustSpec) -> tuple[IOStateLa
 def _anchored_problem(models: Sequence[Model], spec: RobustSpec) -> tuple[IOStateLayout, list, list, dict]:
     w = spec.weights
     q = models[0].n_outputs
-    _check_family([*models, spec.nominal])
+    as_family([*models, spec.nominal])
     j = best_anchor([*models, spec.nominal])
     channels = (0,) if spec.integral else ()
     a_list, b_list = [], []
@@ -284,7 +262,7 @@ def resolved_past(models: Sequence[Model], spec: RobustSpec) -> int:
     singular values about 1e-5 of the first, so no truncation measure would keep it; the design
     must see it.
     """
-    _check_family(models)
+    models = as_family(models)
     if spec.past is not None:
         return spec.past
     if spec.reduce != "never" and not any(holds_delay(m) for m in models):
@@ -303,7 +281,7 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
         The exported compensator is not stable on some model (names it).
     """
     spec = spec or RobustSpec()
-    check_model_order(models)
+    models = as_family(models)
     if spec.structure != "window" or spec.reduce == "never":
         if spec.structure == "window":
             spec = replace(spec, past=resolved_past(models, spec))
@@ -326,7 +304,7 @@ def design_robust(models: Sequence[Model], spec: RobustSpec | None = None) -> Ro
 def _design_robust(models: Sequence[Model], spec: RobustSpec, synth_models: Sequence[Model],
                    reduced: list[dict] | None) -> RobustResult:
     """The design on ``synth_models`` (``models`` or their design models), certified on ``models``."""
-    names = _model_names(models)
+    names = model_names(models)
     layout, a_list, b_list, d = design_problem(synth_models, spec)
     e0 = None
     if spec.rate_limit is not None:
@@ -413,7 +391,7 @@ def with_disturbance_estimate(result: RobustResult, models: Sequence[Model], spe
     k = np.asarray(d["gain_K"], dtype=float)
     comp, record = design_estimate(k, result.file.compensator, layout, list(zip(a_list, b_list)), data["Q"],
                                    data["R"], dspec, accept, latency)
-    names = _model_names(models)
+    names = model_names(models)
     cert = certify(comp, models, names)
     require_stable(cert)
     file = replace(result.file, compensator=comp, certificate=cert.to_dict(),
@@ -440,10 +418,9 @@ def design_lqr(model: Model, verify_on: Sequence[Model] = (), weights: OutputWei
         not guaranteed on every condition; this is how to show it).
     """
     w = weights or OutputWeights()
-    check_model_order([model, *verify_on])
+    family = as_family([model, *verify_on])
     comp: Compensator = lqg_compensator(model, w)
-    family = [model, *verify_on]
-    names = _model_names(family)
+    names = list(family.names)
     cert = certify(comp, family, names)
     if require:
         require_stable(cert)

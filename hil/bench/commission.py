@@ -1,4 +1,4 @@
-"""The commissioning recipe end to end on a bench tractor (issue 14 item 7): ``hil commission``.
+"""The commissioning recipe end to end on a bench tractor: ``hil commission``.
 
 For one tractor (a tractor file or a name of the family, :mod:`hil.truth.tractors`), every output
 under one directory:
@@ -13,12 +13,12 @@ under one directory:
    identification again, as the refusal's fix says (:mod:`hil.bench.more_passes`, at most
    :attr:`CommissionOptions.more_passes` rounds);
 4. **designs** -- the paper's central LQR (certified on the central model, as the paper's), the
-   robust controller and the MPC (certified on every local model) through the
-   ``design`` commands (``controllers/``, each with its certificate), their command limits set to
-   the valve's measured rate; the weights are the design's defaults or, when ``design`` offers
-   them, chosen from specifications (``--weights auto``, :attr:`CommissionOptions.weights`; when no
-   weights meet the specifications the step is recorded as failed and, with ``auto-if-available``,
-   the design is made again with the defaults); when the MPC's automatic weights had to relax a
+   robust controller and the MPC (certified on every local model) through the design library
+   (:mod:`design.recipes`, :mod:`hil.bench.commission_designs`; ``controllers/``, each with its
+   certificate), their command limits set to the valve's measured rate; the weights are chosen
+   from specifications (:attr:`CommissionOptions.weights`; when no weights meet the specifications
+   the step is recorded as failed and, with ``auto-if-available``, the design is made again with
+   the defaults) or the designs' defaults; when the MPC's automatic weights had to relax a
    specification on the robust controller's window, the MPC gets its own window
    (:mod:`hil.bench.mpc_window`);
 5. **HIL** -- closed-loop passes of those three and of the oracle on the tractor, through the
@@ -31,8 +31,6 @@ need their output are skipped, so a tractor the recipe cannot commission says wh
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import math
 import os
@@ -44,6 +42,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from hil.bench.commission_designs import Designer, DesignTry
 from hil.bench.estimate_trial import OFF_ABOVE, TRIAL_SEEDS, choose_schedule, has_schedule
 from hil.bench.more_passes import identify_with_more_passes
 from hil.bench.mpc_window import own_window
@@ -59,7 +58,7 @@ from hil.truth.tractors import Tractor
 from hil.vehicle.commissioning import Commissioning, save_commissioning
 from hil.vehicle.summary import engaged_max_abs, first_gps_fault, pool_passes, summarize
 
-__all__ = ["CommissionOptions", "commission", "options_dict", "hil_ratios", "CONTROLLERS", "DIVERGED_M"]
+__all__ = ["CommissionOptions", "Steps", "commission", "options_dict", "hil_ratios", "CONTROLLERS", "DIVERGED_M"]
 
 #: Controllers of the HIL comparison, in the report's order: file stem (or ``oracle``) -> label.
 CONTROLLERS = {"central-lqr": "paper's method", "robust": "robust", "mpc": "MPC", "oracle": "oracle"}
@@ -89,9 +88,9 @@ class CommissionOptions:
     hil_conditions
         Conditions of the HIL comparison (default: all of the passes').
     weights
-        ``"auto"``: the designs choose their weights from specifications (``design ... --weights auto``);
-        ``"default"``: the design commands' default weights; ``"auto-if-available"``: auto when the
-        installed ``design`` offers it.
+        ``"auto"``: the designs choose their weights from specifications (:class:`design.recipes.WeightSearch`);
+        ``"default"``: the designs' default weights; ``"auto-if-available"``: automatic weights, and the
+        defaults when no automatic design is found.
     order, markov
         Identification's order and Markov-parameter choice (``identify_logs``); the order is chosen
         by held-out multi-step prediction by default (``"validate"``: on the worn valve ``"auto"``
@@ -175,37 +174,12 @@ class CommissionOptions:
         return all_conditions(tuple(self.speeds), tuple(self.implements))
 
 
-def _design(argv: list[str]) -> dict:
-    """Run one ``design`` command in-process; its JSON result, or raise with its error message."""
-    from design.cli import main as design_main
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        status = design_main([*argv, "--json"])
-    if status != 0:   # its error line (the progress lines before it are not the reason)
-        errors = [line for line in err.getvalue().splitlines() if "error:" in line]
-        raise RuntimeError(errors[-1] if errors else err.getvalue().strip() or f"design {argv[0]} exited with {status}")
-    return json.loads(out.getvalue())
+class Steps:
+    """Runs the recipe's steps, timing them, recording failures, reporting progress.
 
-
-def _design_offers(command: str, option: str) -> bool:
-    """Whether the installed ``design COMMAND`` has an option (the automatic weights are being added)."""
-    from design.cli import build_parser
-    sub = next(a for a in build_parser()._actions if a.dest == "command")
-    return option in sub.choices[command]._option_string_actions   # type: ignore[union-attr]
-
-
-def _auto_weights(options: CommissionOptions) -> bool:
-    if options.weights == "default":
-        return False
-    offered = _design_offers("robust", "--weights") and _design_offers("mpc", "--weights")
-    if options.weights == "auto" and not offered:
-        raise SimulatorConfigError("weights='auto' needs `design robust/mpc --weights auto`, which this "
-                                   "installation does not offer; use weights='default'")
-    return offered
-
-
-class _Steps:
-    """Runs the recipe's steps, timing them, recording failures, reporting progress."""
+    ``run(name, what, fn)`` says ``what``, calls ``fn`` and returns its value; when it raises, the step is
+    recorded as failed with the error (in :attr:`record`) and ``None`` is returned, so the recipe goes on
+    where it can."""
 
     def __init__(self, say: Callable[[str], None]) -> None:
         self.say = say
@@ -259,7 +233,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
     tick = progress or (lambda step, done, total: None)
     params = tractor.params()
-    steps = _Steps(say)
+    steps = Steps(say)
     res: dict = {"tractor": tractor.to_dict(), "options": options_dict(opts)}
 
     def valve() -> Commissioning:
@@ -299,75 +273,55 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
 
     ctrl = out / "controllers"
 
-    def recipe_weights() -> tuple[list[str], list[tuple[list[str], str]]]:
-        """The weights options of the designs, and what to try in order: the weights asked for, then
-        (auto-if-available) the defaults; each with the window from observability, then with the longer
-        windows of ``robust_past`` (the robust LMIs over models of mixed orders were infeasible with the
-        shortest window on the heavy tractor, feasible with 6)."""
-        limit = f"{com.valve.max_rate:.6g}"
-        auto = _auto_weights(opts)
-        weights = ["--weights", "auto"] if auto else []
-        if auto and _design_offers("robust", "--latency-from-logs"):
-            weights += ["--latency-from-logs", str(out / "logs")]   # the latency the margins must cover
-        if auto and _design_offers("robust", "--actuator-rate"):
-            weights += ["--actuator-rate", limit]                    # the valve's measured rate
+    def attempts() -> list[DesignTry]:
+        """What to try in order: the weights asked for, each with the window from observability, then with
+        the longer windows of ``robust_past`` (the robust LMIs over models of mixed orders were infeasible
+        with the shortest window on the heavy tractor, feasible with 6); then (auto-if-available) the same
+        with the designs' default weights."""
+        auto = opts.weights != "default"
         res["weights"] = "auto (from specifications)" if auto else "the design commands' defaults"
-        tries = [(weights, "auto")] + [(weights, str(k)) for k in opts.robust_past]
+        tries = [DesignTry(auto)] + [DesignTry(auto, k) for k in opts.robust_past]
         if auto and opts.weights == "auto-if-available":
-            tries += [([], "auto")] + [([], str(k)) for k in opts.robust_past]
-        return weights, tries
+            tries += [DesignTry(False)] + [DesignTry(False, k) for k in opts.robust_past]
+        return tries
 
-    def mpc_argv(models_dir: Path, w: list[str], past: str, fallback: Path | None = None,
-                 out_file: Path | None = None) -> list[str]:
-        """``fallback``: the robust file whose law is the MPC's fall-back (default ``robust.json``)."""
-        window = [] if past == "auto" else ["--past", past]
-        fb = fallback if fallback is not None else ctrl / "robust.json"
-        return ["mpc", "--models", str(models_dir), "--fallback", str(fb), *w, *window,
-                *(["--disturbance-estimate", "on"] if opts.disturbance_estimate else []), "--rate-limit",
-                f"{com.valve.max_rate:.6g}", "--out", str(out_file if out_file is not None else ctrl / "mpc.json")]
+    def designer() -> Designer:
+        # the valve's measured rate limits every command; the logs' latency is what the margins must cover
+        return Designer(com.valve.max_rate, out / "logs", opts.integral, opts.disturbance_estimate)
 
-    def window_argvs(models_dir: Path, w: list[str], argv_for: Callable[..., list[str]]):
-        """The MPC's command line on a window (no fall-back: the weights search alone) and the robust
-        fall-back's, for :mod:`hil.bench.mpc_window` and :mod:`hil.bench.mpc_window_trial`."""
-        def search_argv(fallback: Path | None, past: int, out_file: Path) -> list[str]:
-            argv = mpc_argv(models_dir, w, str(past), fallback, out_file)
-            if fallback is None:                       # the weights search alone: no fall-back law yet
-                i = argv.index("--fallback")
-                del argv[i:i + 2]
-            return argv
+    def window_designers(models_dir: Path, auto: bool):
+        """The MPC's design on a window (automatic weights as the recipe's) and its robust fall-back's, for
+        :mod:`hil.bench.mpc_window` and :mod:`hil.bench.mpc_window_trial`."""
+        d = designer()
 
-        def fallback_argv(past: int, out_file: Path) -> list[str]:
-            argv = argv_for("robust", w, str(past))
-            argv[argv.index("--out") + 1] = str(out_file)
-            if "--window-candidates" in argv:          # the fall-back law is the design's own, no trial
-                i = argv.index("--window-candidates")
-                del argv[i:i + 2]
-            return argv
-        return search_argv, fallback_argv
+        def mpc_design(fallback: Path | None, past: int, out_file: Path) -> dict:
+            return d.mpc(models_dir, DesignTry(auto, past), out_file, fallback)
 
-    def mpc_window_search(models_dir: Path, w: list[str], argv_for: Callable[..., list[str]],
-                          designs: dict[str, dict]) -> None:
+        def robust_design(past: int, out_file: Path) -> dict:
+            return d.robust(models_dir, DesignTry(auto, past), out_file)   # the fall-back law only: no candidates
+        return mpc_design, robust_design
+
+    def mpc_window_search(models_dir: Path, auto: bool, designs: dict[str, dict]) -> None:
         """The MPC on its own window when the robust controller's left it short of a specification
         (:mod:`hil.bench.mpc_window`), then the window a trial drive finds best among those that meet as
         much (:mod:`hil.bench.mpc_window_trial`); updates ``designs["mpc"]`` in place."""
-        search_argv, fallback_argv = window_argvs(models_dir, w, argv_for)
-        rec = own_window(steps.run, _design, search_argv, fallback_argv, Path(designs["mpc"]["file"]),
-                         ctrl / "windows")
+        mpc_design, robust_design = window_designers(models_dir, auto)
+        rec = own_window(steps.run, mpc_design, robust_design, Path(designs["mpc"]["file"]), ctrl / "windows")
         mpc = designs["mpc"]
-        mpc["window_search"] = {k: v for k, v in rec.items() if k not in ("result", "command")}
-        if "command" in rec:
-            mpc.update(result=rec["result"], command=rec["command"],
+        mpc["window_search"] = {k: v for k, v in rec.items() if k not in ("result", "settings")}
+        if "settings" in rec:
+            mpc.update(result=rec["result"], settings=rec["settings"],
                        weights=f"{mpc['weights']}; the MPC's own window {rec['kept']} (with the robust controller's "
                                f"window {rec['tries'][0]['past']} it relaxed {'; '.join(rec['tries'][0]['relaxed'])}), "
                                f"its fall-back a robust law on that window")
         if not opts.estimate_trial or com is None:
             return
-        trial = mpc_window_trial(steps.run, _design, search_argv, fallback_argv, Path(mpc["file"]), ctrl / "windows",
+        trial = mpc_window_trial(steps.run, mpc_design, robust_design, Path(mpc["file"]), ctrl / "windows",
                                  params, com, opts.speeds, opts.implements, opts.trial_seeds, opts.hil_duration,
                                  lambda d, n: tick("mpc window trial", d, n))
-        mpc["window_trial"] = {k: v for k, v in trial.items() if k not in ("result", "command")}
-        if "command" in trial:
-            mpc.update(result=trial["result"], command=trial["command"],
+        mpc["window_trial"] = {k: v for k, v in trial.items() if k not in ("result", "settings")}
+        if "settings" in trial:
+            mpc.update(result=trial["result"], settings=trial["settings"],
                        weights=f"{mpc['weights']}; window {trial['kept']} by the window trial (it drove best), "
                                f"its fall-back a robust law on that window")
 
@@ -389,63 +343,41 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
 
     def design_all(models_dir: Path, with_lqr: bool) -> dict[str, dict]:
         designs: dict[str, dict] = {}
-        local = sorted(str(p) for p in models_dir.glob("local_*.npz"))
-        limit = f"{com.valve.max_rate:.6g}"
-        _, tries = recipe_weights()
-
-        def argv_for(name: str, w: list[str], past: str) -> list[str]:
-            window = [] if past == "auto" else ["--past", past]
-            return {
-                # the paper's method: one LQR on the central model, certified on that model only (as in the
-                # paper; a certificate failed on the local models would make the loader refuse the reference)
-                "central-lqr": ["lqr", "--model", str(models_dir / "central.npz"), "--command-limit", limit,
-                                "--out", str(ctrl / "central-lqr.json")],
-                "robust": ["robust", "--models", *local, *(["--integral"] if opts.integral else []), *w, *window,
-                           *(["--disturbance-estimate", "on"] if opts.disturbance_estimate else []),
-                           *(["--window-candidates", str(ctrl / "windows" / "robust")]
-                             if w and opts.disturbance_estimate and opts.estimate_trial else []),
-                           "--command-limit", limit, "--out", str(ctrl / "robust.json")],
-                "mpc": mpc_argv(models_dir, w, past),
-            }[name]
-
-        r = steps.run("design central-lqr", "design lqr (the paper's method)",
-                      lambda: _design(argv_for("central-lqr", [], "auto"))) if with_lqr else None
-        if r is not None:
-            argv = argv_for("central-lqr", [], "auto")
-            designs["central-lqr"] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": "default",
-                                      "command": "design " + " ".join(argv)}
-        for w, past in tries:
-            argv = argv_for("robust", w, past)
-            label = f"weights {'auto' if w else 'default'}, past {past}"
-            r = steps.run(f"design robust ({label})", f"design robust ({label})", lambda argv=argv: _design(argv))
+        d = designer()
+        if with_lqr:
+            r = steps.run("design central-lqr", "design lqr (the paper's method)",
+                          lambda: d.lqr(models_dir, ctrl / "central-lqr.json"))
+            if r is not None:
+                designs["central-lqr"] = {**r, "weights": "default"}
+        candidates = ctrl / "windows" / "robust" if opts.disturbance_estimate and opts.estimate_trial else None
+        for attempt in attempts():
+            label = attempt.label
+            r = steps.run(f"design robust ({label})", f"design robust ({label})",
+                          lambda a=attempt: d.robust(models_dir, a, ctrl / "robust.json", candidates))
             if r is None:
                 continue
-            designs["robust"] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": label,
-                                 "command": "design " + " ".join(argv)}
+            designs["robust"] = {**r, "weights": label}
             window_trial(designs["robust"]["file"])
-            argv = argv_for("mpc", w, past)
-            r = steps.run(f"design mpc ({label})", f"design mpc ({label})", lambda argv=argv: _design(argv))
+            r = steps.run(f"design mpc ({label})", f"design mpc ({label})",
+                          lambda a=attempt: d.mpc(models_dir, a, ctrl / "mpc.json", ctrl / "robust.json"))
             if r is not None:
-                designs["mpc"] = {"file": argv[argv.index("--out") + 1], "result": r, "weights": label,
-                                  "command": "design " + " ".join(argv)}
-                if w and past == "auto":             # automatic weights and window: the MPC's own window
-                    mpc_window_search(models_dir, w, argv_for, designs)
+                designs["mpc"] = {**r, "weights": label}
+                if attempt.auto and attempt.past is None:   # automatic weights and window: the MPC's own window
+                    mpc_window_search(models_dir, attempt.auto, designs)
             break
         return designs
 
     def design_mpc_only(models_dir: Path) -> dict[str, dict]:
         """The MPC on ``models_dir`` with the robust file already made as its fall-back (same tries)."""
         robust_label = designs["robust"]["weights"]
-        for w, past in recipe_weights()[1]:
-            label = f"weights {'auto' if w else 'default'}, past {past}"
-            argv = mpc_argv(models_dir, w, past)
+        d = designer()
+        for attempt in attempts():
+            label = attempt.label
             r = steps.run(f"design mpc on order-{opts.fallback_order} models ({label})",
                           f"design mpc on order-{opts.fallback_order} models ({label}; the robust law: {robust_label})",
-                          lambda argv=argv: _design(argv))
+                          lambda a=attempt: d.mpc(models_dir, a, ctrl / "mpc.json", ctrl / "robust.json"))
             if r is not None:
-                return {"mpc": {"file": argv[argv.index("--out") + 1], "result": r,
-                                "weights": f"{label}, order-{opts.fallback_order} models",
-                                "command": "design " + " ".join(argv)}}
+                return {"mpc": {**r, "weights": f"{label}, order-{opts.fallback_order} models"}}
         return {}
 
     designs: dict[str, dict] = {}

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hil.bench.commission_designs import settings_text
 from hil.vehicle.valve_map import ValveCurve
 
 __all__ = ["write_commission_report"]
@@ -205,7 +206,7 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
                 lines += [f"No robust design was found on the identified models; the robust controller and the MPC "
                           f"below are designed on models identified again at order {orders} (`models_order*/`).", ""]
         for name, d in res["designs"].items():
-            lines.append(f"- `{name}` (weights: {d.get('weights', '')}): `{d['command']}`")
+            lines.append(f"- `{name}` (weights: {d.get('weights', '')}): {settings_text(d.get('settings', {}))}")
         search = (res["designs"].get("mpc") or {}).get("window_search")
         if search and len(search.get("tries", [])) > 1:
             lines += ["", "The MPC's automatic weights relaxed a specification on the robust controller's window, so "

@@ -29,6 +29,13 @@ from typing import Callable, Sequence
 WINDOWS = (1, 2, 3)
 
 Run = Callable[[str, str, Callable[[], object]], object | None]
+#: ``mpc_design(fallback, past, out)``: designs the MPC with automatic weights on that window, with the robust law
+#: of ``fallback`` as its fall-back (``None``: none, the weights search alone), writes it to ``out`` and returns its
+#: record (``file``, ``result``, ``settings``: :class:`hil.bench.commission_designs.Designer`); raises when no
+#: design is found.
+MPCDesigner = Callable[[Path | None, int, Path], dict]
+#: ``robust_design(past, out)``: the robust law on that window, written to ``out``; its record, or raises.
+RobustDesigner = Callable[[int, Path], dict]
 
 
 def auto_record(path: str | Path) -> tuple[int, list[str], float]:
@@ -64,9 +71,7 @@ def best_window(tries: Sequence[dict]) -> int | None:
     return min(done, key=lambda t: (len(t["relaxed"]), -t["scale"], t["past"]))["past"]
 
 
-def own_window(run: Run, design: Callable[[list[str]], dict],
-               mpc_argv: Callable[[Path | None, int, Path], list[str]],
-               robust_argv: Callable[[int, Path], list[str]], current: Path, work: Path,
+def own_window(run: Run, mpc_design: MPCDesigner, robust_design: RobustDesigner, current: Path, work: Path,
                windows: Sequence[int] = WINDOWS) -> dict:
     """Search the MPC's weights on the other windows and redesign it on the best one (module docstring).
 
@@ -74,13 +79,8 @@ def own_window(run: Run, design: Callable[[list[str]], dict],
     ----------
     run
         Runs one named step and returns its value, or ``None`` if it failed (the recipe's step runner).
-    design
-        Runs one ``design`` command line (without ``design``), returns its JSON result or raises.
-    mpc_argv
-        ``mpc_argv(fallback, past, out)``: the MPC's command line with that fall-back file (``None``: none,
-        for the search alone), window and output.
-    robust_argv
-        ``robust_argv(past, out)``: the robust design's command line with that window and output.
+    mpc_design, robust_design
+        Design the MPC and the robust law on a window (:data:`MPCDesigner`, :data:`RobustDesigner`).
     current
         The MPC file designed on the robust controller's window; replaced only by a successful design.
     work
@@ -92,7 +92,7 @@ def own_window(run: Run, design: Callable[[list[str]], dict],
     -------
     dict
         ``tries`` (per window: ``past``, ``relaxed``, ``scale`` or ``error``), ``kept`` (the MPC's window
-        now), and when it changed ``fallback`` (the fall-back's file), ``result`` and ``command`` of the
+        now), and when it changed ``fallback`` (the fall-back's file), ``result`` and ``settings`` of the
         MPC's design; ``note`` when a better window was found but its designs failed.
     """
     past, relaxed, scale = auto_record(current)
@@ -100,16 +100,15 @@ def own_window(run: Run, design: Callable[[list[str]], dict],
     rec: dict = {"tries": tries, "kept": past, "windows": list(windows)}
     if not relaxed:
         return rec
-    tries += search_windows(run, design, mpc_argv, past, work, windows, "mpc",
+    tries += search_windows(run, mpc_design, past, work, windows, "mpc",
                             "", f" (with {past} it relaxed {'; '.join(relaxed)})")
     best = best_window(tries)
     if best is None or best == past:
         return rec
-    return {**rec, **redesign_on(run, design, mpc_argv, robust_argv, current, work, best, "suits the MPC better")}
+    return {**rec, **redesign_on(run, mpc_design, robust_design, current, work, best, "suits the MPC better")}
 
 
-def search_windows(run: Run, design: Callable[[list[str]], dict],
-                   mpc_argv: Callable[[Path | None, int, Path], list[str]], past: int, work: Path,
+def search_windows(run: Run, mpc_design: MPCDesigner, past: int, work: Path,
                    windows: Sequence[int], name: str, label: str, why: str) -> list[dict]:
     """The MPC's weights searched alone (no fall-back) on each of ``windows`` but ``past``, into
     ``work/<name>-past<W>.json``; per window ``past``, ``relaxed``, ``scale`` and ``file``, or ``error``.
@@ -119,9 +118,8 @@ def search_windows(run: Run, design: Callable[[list[str]], dict],
         if w == past:
             continue
         out = work / f"{name}-past{w}.json"
-        argv = mpc_argv(None, w, out)
         if run(f"design mpc (window {w}{label})", f"design mpc with a window of {w} samples{why}",
-               lambda argv=argv: design(argv)) is None:
+               lambda w=w, out=out: mpc_design(None, w, out)) is None:
             tries.append({"past": w, "error": "design failed (see its step)"})
             continue
         _, rel, sc = auto_record(out)
@@ -129,26 +127,23 @@ def search_windows(run: Run, design: Callable[[list[str]], dict],
     return tries
 
 
-def redesign_on(run: Run, design: Callable[[list[str]], dict], mpc_argv: Callable[[Path | None, int, Path], list[str]],
-                robust_argv: Callable[[int, Path], list[str]], current: Path, work: Path, window: int,
-                why: str) -> dict:
+def redesign_on(run: Run, mpc_design: MPCDesigner, robust_design: RobustDesigner, current: Path, work: Path,
+                window: int, why: str) -> dict:
     """A robust law on ``window`` as the MPC's fall-back (``work/robust-past<W>.json``), then the MPC there with it,
     written over ``current``.
 
     Returns
     -------
     dict
-        ``kept`` (the window), ``fallback``, ``result`` and ``command`` of the MPC's design; or ``note`` (why
+        ``kept`` (the window), ``fallback``, ``result`` and ``settings`` of the MPC's design; or ``note`` (why
         ``current`` was left as it was: "window W <why>, but ...").
     """
     fallback = work / f"robust-past{window}.json"
-    argv = robust_argv(window, fallback)
     if run(f"design robust (window {window}, the MPC's fall-back)", f"design robust with a window of {window} "
-           "samples, the MPC's fall-back law", lambda: design(argv)) is None:
+           "samples, the MPC's fall-back law", lambda: robust_design(window, fallback)) is None:
         return {"note": f"window {window} {why}, but no robust fall-back law was found there"}
-    argv = mpc_argv(fallback, window, current)
-    result = run(f"design mpc (window {window})", f"design mpc with a window of {window} samples and that fall-back",
-                 lambda: design(argv))
-    if result is None:
+    rec = run(f"design mpc (window {window})", f"design mpc with a window of {window} samples and that fall-back",
+              lambda: mpc_design(fallback, window, current))
+    if rec is None:
         return {"note": f"window {window} {why}, but its design with the fall-back failed"}
-    return {"kept": window, "fallback": str(fallback), "result": result, "command": "design " + " ".join(argv)}
+    return {"kept": window, "fallback": str(fallback), "result": rec["result"], "settings": rec["settings"]}

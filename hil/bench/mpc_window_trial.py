@@ -24,14 +24,12 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from hil.bench.estimate_trial import TRIAL_SEEDS
-from hil.bench.mpc_window import WINDOWS, Run, auto_record, redesign_on, search_windows
+from hil.bench.mpc_window import WINDOWS, MPCDesigner, RobustDesigner, Run, auto_record, redesign_on, search_windows
 from hil.bench.window_trial import lowest, trial_files
 from hil.vehicle.commissioning import Commissioning
 
 
-def mpc_window_trial(run: Run, design: Callable[[list[str]], dict],
-                     mpc_argv: Callable[[Path | None, int, Path], list[str]],
-                     robust_argv: Callable[[int, Path], list[str]], current: Path, work: Path,
+def mpc_window_trial(run: Run, mpc_design: MPCDesigner, robust_design: RobustDesigner, current: Path, work: Path,
                      params, com: Commissioning | None, speeds: Sequence[float], implements: Sequence[str],
                      seeds: Sequence[int] = TRIAL_SEEDS, duration: float = 60.0,
                      progress: Callable[[int, int], None] | None = None, windows: Sequence[int] = WINDOWS) -> dict:
@@ -39,7 +37,7 @@ def mpc_window_trial(run: Run, design: Callable[[list[str]], dict],
 
     Parameters
     ----------
-    run, design, mpc_argv, robust_argv, current, work, windows
+    run, mpc_design, robust_design, current, work, windows
         As :func:`hil.bench.mpc_window.own_window`.
     params, com
         The tractor's simulator parameters and its commissioning (the loop of ``hil commission``).
@@ -52,13 +50,13 @@ def mpc_window_trial(run: Run, design: Callable[[list[str]], dict],
         ``tries`` (per window: ``past``, ``relaxed``, ``scale``, ``file``, or ``error``), ``trial`` (per file
         driven: the 1-sigma per cell, cm, and their geometric mean; ``None`` when no window was a
         candidate), ``kept`` (the MPC's window now), and when it changed ``fallback``, ``result`` and
-        ``command`` of the MPC's design; ``note`` when the winner's designs with the fall-back failed.
+        ``settings`` of the MPC's design; ``note`` when the winner's designs with the fall-back failed.
     """
     past, relaxed, scale = auto_record(current)
     tries: list[dict] = [{"past": past, "relaxed": relaxed, "scale": scale, "file": current.name}]
     rec: dict = {"tries": tries, "kept": past, "windows": list(windows), "trial": None}
     work.mkdir(parents=True, exist_ok=True)
-    tries += search_windows(run, design, mpc_argv, past, work, windows, "mpc-trial", ", trial",
+    tries += search_windows(run, mpc_design, past, work, windows, "mpc-trial", ", trial",
                             ", a candidate of the window trial")
     candidates = [(t["past"], work / t["file"]) for t in tries[1:]
                   if "error" not in t and len(t["relaxed"]) <= len(relaxed)]
@@ -77,4 +75,4 @@ def mpc_window_trial(run: Run, design: Callable[[list[str]], dict],
     best = lowest(rows)
     if best == 0:
         return rec
-    return {**rec, **redesign_on(run, design, mpc_argv, robust_argv, current, work, rows[best]["past"], "drove best")}
+    return {**rec, **redesign_on(run, mpc_design, robust_design, current, work, rows[best]["past"], "drove best")}

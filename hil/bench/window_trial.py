@@ -4,7 +4,7 @@
 the estimate, then adds the estimate at the largest gain that keeps every specification. Where the
 searched law sits at a specification's edge, no estimate gain fits beside it, and the design backs the
 window law off (0.7, 0.5, 0.35 of the searched scale) until the estimate keeps its full gain
-(:data:`design.cli_robust.BACKOFF`). That order of preference, the estimate's gain before the window
+(:data:`design.recipes.BACKOFF`). That order of preference, the estimate's gain before the window
 law's bandwidth, is a guess the models cannot settle: the estimate acts on the soil's pull, which the
 identified models do not hold.
 

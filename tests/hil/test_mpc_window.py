@@ -9,11 +9,13 @@ from pathlib import Path
 
 import pytest
 
-from hil.bench.commission import _design, _Steps
+from hil.bench.commission import Steps
+from hil.bench.commission_designs import Designer, DesignTry
 from hil.bench.mpc_window import WINDOWS, auto_record, best_window, own_window
 
 MODELS = Path(__file__).resolve().parents[1] / "data" / "random19_models"
-SPECS = ["--weights", "auto", "--latency", "0.173", "0.067", "0.01", "--actuator-rate", "0.268058"]
+#: random-19's latency (s per output) and valve rate (rad/s), the recipe's specifications
+RECIPE = Designer(0.268058, latency=(0.173, 0.067, 0.01))
 
 
 def test_the_window_with_the_fewest_relaxed_specifications_then_the_largest_scale_is_kept():
@@ -38,17 +40,13 @@ def test_a_file_without_automatic_weights_is_refused(tmp_path):
         auto_record(path)
 
 
-def _argv(models: Path, work: Path, specs: list[str] = SPECS):
-    """The MPC's and the robust fall-back's command lines on random-19's five models, with ``specs``."""
-    local = sorted(str(p) for p in models.glob("local_*.npz"))
+def _designers(models: Path, designer: Designer = RECIPE):
+    """The MPC's and the robust fall-back's designs on random-19's five models (automatic weights)."""
+    def mpc(fallback: Path | None, past: int, out: Path) -> dict:
+        return designer.mpc(models, DesignTry(True, past), out, fallback)
 
-    def mpc(fallback: Path | None, past: int, out: Path) -> list[str]:
-        return ["mpc", "--models", str(models), *specs, "--past", str(past), "--disturbance-estimate", "on",
-                "--rate-limit", "0.268058", *(["--fallback", str(fallback)] if fallback else []), "--out", str(out)]
-
-    def robust(past: int, out: Path) -> list[str]:
-        return ["robust", "--models", *local, "--integral", *specs, "--past", str(past), "--disturbance-estimate",
-                "on", "--command-limit", "0.268058", "--out", str(out)]
+    def robust(past: int, out: Path) -> dict:
+        return designer.robust(models, DesignTry(True, past), out)
     return mpc, robust
 
 
@@ -57,14 +55,14 @@ def _argv(models: Path, work: Path, specs: list[str] = SPECS):
 def test_the_mpc_short_of_its_specifications_on_one_sample_gets_the_window_that_meets_them(tmp_path):
     models = tmp_path / "models"
     shutil.copytree(MODELS, models, ignore=shutil.ignore_patterns("*.txt"))
-    mpc, robust = _argv(models, tmp_path)
+    mpc, robust = _designers(models)
     current = tmp_path / "mpc.json"
-    _design(mpc(None, 1, current))                        # the MPC on the robust controller's one-sample window
+    mpc(None, 1, current)                        # the MPC on the robust controller's one-sample window
     past, relaxed, scale = auto_record(current)
     assert past == 1 and relaxed and scale < 1.0         # relaxed delay reserve and disk margin (0.62 here)
     lines: list[str] = []
-    steps = _Steps(lines.append)
-    rec = own_window(steps.run, _design, mpc, robust, current, tmp_path / "windows")
+    steps = Steps(lines.append)
+    rec = own_window(steps.run, mpc, robust, current, tmp_path / "windows")
     assert [t["past"] for t in rec["tries"]] == list(WINDOWS)
     assert rec["kept"] == 3 and rec["tries"][2]["relaxed"] == [] and "note" not in rec
     past, relaxed, scale = auto_record(current)          # the MPC file is now the window-3 design
@@ -72,17 +70,17 @@ def test_the_mpc_short_of_its_specifications_on_one_sample_gets_the_window_that_
     body = json.loads(current.read_text())
     fb = json.loads(Path(rec["fallback"]).read_text())
     assert fb["design"]["past"] == 3 and body["fallback"]          # its fall-back: a robust law on that window
-    assert rec["command"].startswith("design mpc ") and "--fallback" in rec["command"]
+    assert rec["settings"]["design"] == "mpc" and rec["settings"]["fallback"] == rec["fallback"]
     assert all(s["ok"] for s in steps.record) and len(steps.record) == 4   # windows 2, 3, the fall-back, the MPC
 
 
 def test_an_mpc_that_relaxed_nothing_is_left_alone(tmp_path):
     models = tmp_path / "models"
     shutil.copytree(MODELS, models, ignore=shutil.ignore_patterns("*.txt"))
-    mpc, robust = _argv(models, tmp_path)
+    mpc, robust = _designers(models)
     current = tmp_path / "mpc.json"
-    _design(mpc(None, 3, current))
+    mpc(None, 3, current)
     before = current.read_bytes()
-    steps = _Steps(lambda line: None)
-    rec = own_window(steps.run, _design, mpc, robust, current, tmp_path / "windows")
+    steps = Steps(lambda line: None)
+    rec = own_window(steps.run, mpc, robust, current, tmp_path / "windows")
     assert rec["kept"] == 3 and len(rec["tries"]) == 1 and steps.record == [] and current.read_bytes() == before

@@ -30,6 +30,8 @@ from .atomic import write_text_atomically
 
 SCHEMA = "design-controller/1"
 UNSEALED = ("checksum", "signature")          # keys the checksum does not cover
+#: Bytes scanned at once by :func:`nesting_depth` (its arrays stay in the processor's cache).
+SCAN_BLOCK = 1 << 15
 _QUOTE, _BACKSLASH, _OPENS, _CLOSES = ord('"'), ord("\\"), (ord("["), ord("{")), (ord("]"), ord("}"))
 
 
@@ -69,27 +71,38 @@ def _reject_constant(token: str) -> float:
 def nesting_depth(text: str) -> int:
     """Deepest nesting of JSON arrays and objects in ``text`` (brackets inside strings ignored).
 
-    One pass of array operations, linear in ``len(text)``: a quote is escaped when an odd
-    run of backslashes ends just before it; the bytes from an unescaped quote to the next
-    are inside a string; the depth is the running sum of the opening minus the closing
-    brackets outside strings. On text that is not JSON the number may be anything; the
-    parser refuses such text.
+    One pass of array operations over blocks of :data:`SCAN_BLOCK` bytes, linear in
+    ``len(text)``: a quote is escaped when an odd run of backslashes ends just before it; the
+    bytes from an unescaped quote to the next are inside a string; the depth is the running sum
+    of the opening minus the closing brackets outside strings. Each block starts from the state
+    the previous one left (depth, inside a string or not, a pending escape). On text that is not
+    JSON the number may be anything; the parser refuses such text.
     """
     raw = np.frombuffer(text.encode("utf-8", "surrogatepass"), dtype=np.uint8)
-    if raw.size == 0:
-        return 0
-    backslash = raw == _BACKSLASH
-    quote = raw == _QUOTE
-    if backslash.any():
-        index = np.arange(raw.size, dtype=np.int32)
-        last_other = np.maximum.accumulate(np.where(backslash, -1, index))  # last non-backslash up to here
+    depth = deepest = 0
+    in_string = escape = 0           # inside a string; the block's first byte escaped by the last one's run
+    for start in range(0, raw.size, SCAN_BLOCK):
+        block = raw[start:start + SCAN_BLOCK]
+        index = np.arange(block.size, dtype=np.int32)
+        backslash = block == _BACKSLASH
+        # the last byte that is not a backslash, up to each byte (a run carried in counts as its parity)
+        last_other = np.maximum.accumulate(np.where(backslash, -1 - escape, index))
         odd_run = backslash & ((index - last_other) & 1).astype(bool)       # ends an odd run of backslashes
+        quote = block == _QUOTE
         quote[1:] &= ~odd_run[:-1]
-    outside = (np.cumsum(quote, dtype=np.int32) & 1) == 0
-    step = ((raw == _OPENS[0]) | (raw == _OPENS[1])).astype(np.int32)
-    step -= (raw == _CLOSES[0]) | (raw == _CLOSES[1])
-    step *= outside
-    return max(int(np.cumsum(step).max()), 0)
+        if escape:
+            quote[0] = False
+        quotes = np.cumsum(quote, dtype=np.int32)
+        outside = ((quotes + in_string) & 1) == 0
+        step = ((block == _OPENS[0]) | (block == _OPENS[1])).astype(np.int32)
+        step -= (block == _CLOSES[0]) | (block == _CLOSES[1])
+        step *= outside
+        level = np.cumsum(step)
+        deepest = max(deepest, depth + int(level.max()))
+        depth += int(level[-1])
+        in_string = (in_string + int(quotes[-1])) & 1
+        escape = int(odd_run[-1])
+    return deepest
 
 
 def parse_json(text: str, where: str = "controller file") -> Any:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 
 from design.cli import main as design_main
 from design.errors import ControllerFileError, DesignInputError
+from design.files.envelope import nesting_depth, parse_json
 from design.files.load import load_controller
 from design.limits import MAX_FILE_BYTES, MAX_HORIZON, MAX_MODEL_ORDER, MAX_NESTING
 from design.mpc_design import MPCSpec, design_mpc
@@ -62,6 +64,60 @@ def test_json_nested_100000_deep_is_refused_with_the_limit_not_a_recursion_error
     p.write_text('{"a": "' + "[" * 100 + '"}')                 # brackets inside a string do not nest
     with pytest.raises(ControllerFileError, match="expected a JSON object|unsupported schema"):
         load_controller(p)
+
+
+def _check_seconds(text: str, times: int) -> float:
+    """Least time of three runs of ``times`` calls of the reader's checks (size, nesting, parse) on ``text``, s."""
+    best = float("inf")
+    for _ in range(3):
+        t0 = time.perf_counter()
+        for _ in range(times):
+            with pytest.raises(ControllerFileError):
+                parse_json(text)
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+@pytest.mark.parametrize("unit", ['"\\', "[1],", '"a\\"]",'])
+def test_the_nesting_check_is_linear_in_the_file_size(unit):
+    # '"\\' repeated: a string that never ends, with an escaped quote every two characters; the old
+    # regular expression re-scanned to the end from every quote (20 kB 2.2 s, 40 kB 6.2 s, 80 kB 22.8 s).
+    # Eight checks of a file against one check of a file eight times larger: the same work if linear.
+    small, large = "[" + unit * 2048, "[" + unit * (8 * 2048)
+    assert nesting_depth(small) <= 2 and nesting_depth(large) <= 2
+    ratio = _check_seconds(large, 1) / _check_seconds(small, 8)
+    assert ratio < 4, f"one check of 8x the input took {ratio:.1f}x eight of the input: not linear"  # quadratic: 8
+
+
+def _depth(value) -> int:
+    if isinstance(value, list):
+        return 1 + max(map(_depth, value), default=0)
+    if isinstance(value, dict):
+        return 1 + max(map(_depth, value.values()), default=0)
+    return 0
+
+
+ALPHABET = np.frombuffer(b'[]{}"\\ab', dtype=np.uint8)
+
+
+def _random_json(rng: np.random.Generator, depth: int):
+    """Nested lists and objects whose strings are full of brackets, quotes and backslashes, some of them
+    long enough to span the scanner's blocks."""
+    if depth == 0 or rng.random() < 0.2:
+        n = int(rng.choice([0, 3, 40, 50_000]))
+        return ALPHABET[rng.integers(0, ALPHABET.size, n)].tobytes().decode()
+    items = [_random_json(rng, depth - 1) for _ in range(int(rng.integers(1, 4)))]
+    return items if rng.random() < 0.5 else {f'k{i}]"\\': v for i, v in enumerate(items)}
+
+
+def test_the_nesting_depth_ignores_brackets_in_strings_and_counts_escapes():
+    assert nesting_depth('[{"a":[1,"]]]\\"[[[["]}]') == 3         # an escaped quote inside a string
+    assert nesting_depth('["\\\\"[[]]') == 3                    # an escaped backslash ends the string
+    assert nesting_depth("") == 0 and nesting_depth('"[[["') == 0
+    rng = np.random.default_rng(20261204)
+    for _ in range(40):
+        value = _random_json(rng, int(rng.integers(1, 9)))
+        assert nesting_depth(json.dumps(value)) == _depth(value)
 
 
 def test_a_file_over_the_size_limit_is_refused_before_it_is_read(tmp_path):

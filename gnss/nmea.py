@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+import re
+
 from pynmeagps import NMEAReader
 
 from .errors import ChecksumError, NMEAParseError
@@ -33,6 +35,7 @@ NMEA_MAX_LENGTH = 255
 
 _TWO_PI = 2.0 * math.pi
 _HEX_DIGITS = frozenset(b"0123456789ABCDEFabcdef")   # the checksum's two characters (as byte values)
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)")   # an NMEA number: no exponent, nan or inf
 _MIN_FIELDS = {"GGA": 14, "VTG": 8, "RMC": 11, "GST": 8, "HDT": 2, "THS": 2}
 
 
@@ -125,9 +128,23 @@ def split_sentence(sentence: bytes, *, check: bool = True) -> tuple[str, list[st
 
 
 def _opt(v: object) -> float | None:
+    """An optional numeric field: None when empty; a finite float, or NMEAParseError.
+
+    NMEA numbers are decimal digits with an optional sign and point: Python's ``float`` would also take
+    ``nan``, ``inf``, ``1e3`` and ``1_0``, which no receiver sends and which must not reach a loop. A
+    refused field raises ValueError, as ``float`` does; :func:`parse_nmea` turns it into NMEAParseError
+    naming the sentence.
+    """
     if v == "" or v is None:
         return None
-    return float(v)  # type: ignore[arg-type]
+    if isinstance(v, str):
+        if _NUMBER.fullmatch(v) is None:
+            raise ValueError(f"expected an NMEA number (digits, optional sign and point), got {v[:20]!r}")
+        return float(v)
+    x = float(v)  # type: ignore[arg-type]   # a value pynmeagps already converted
+    if not math.isfinite(x):
+        raise ValueError(f"expected a finite NMEA number, got {v!r}")
+    return x
 
 
 def _opt_int(v: object) -> int | None:
@@ -165,6 +182,8 @@ def _time_field(text: str) -> float | None:
         return None
     if len(text) < 6 or not text[:6].isdigit():
         raise NMEAParseError(f"expected a UTC time hhmmss.ss, got {text!r}")
+    if _NUMBER.fullmatch(text) is None:
+        raise NMEAParseError(f"expected a UTC time hhmmss.ss, got {text!r}")
     h, m, s = int(text[0:2]), int(text[2:4]), float(text[4:])
     if h > 23 or m > 59 or not 0.0 <= s < 61.0:
         raise NMEAParseError(f"expected a UTC time hhmmss.ss within one day, got {text!r}")
@@ -182,6 +201,8 @@ def _latlon(value: str, hemi: str, width: int) -> float | None:
         raise NMEAParseError(
             f"expected {'ddmm.mm,N|S' if width == 2 else 'dddmm.mm,E|W'}, got {value!r},{hemi!r}"
         )
+    if _NUMBER.fullmatch(value) is None or value[0] in "+-":
+        raise NMEAParseError(f"expected {'ddmm.mm' if width == 2 else 'dddmm.mm'} (digits and a point), got {value!r}")
     deg = int(value[:width])
     minutes = float(value[width:])
     if minutes >= 60.0 or deg > (90 if width == 2 else 180):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Protocol, runtime_checkable
 
-__all__ = ["ByteLink", "TimedByteLink"]
+__all__ = ["ByteLink", "TimedByteLink", "read_bounded"]
 
 
 @runtime_checkable
@@ -41,3 +41,43 @@ class TimedByteLink(ByteLink, Protocol):
     def write_paced(self, data: bytes, first: float, spacing: float) -> int:
         """Queue ``data``; byte ``k`` becomes readable at ``first + k * spacing``, s."""
         ...
+
+
+def read_bounded(link: ByteLink, budget: int, chunk: int = 1 << 16) -> tuple[bytes, int]:
+    """Read at most ``budget`` bytes of what is waiting on ``link``; drop the older excess.
+
+    A reader calls this once per cycle: however much arrived, the cycle costs at most what is waiting
+    now (read in ``chunk``-byte pieces and dropped) and hands on the newest ``budget`` bytes, so a flood
+    cannot make the reader fall further and further behind.
+
+    Parameters
+    ----------
+    link
+        Any byte link (``in_waiting`` / ``read``).
+    budget
+        Most bytes returned, bytes (> 0).
+    chunk
+        Size of the pieces read to drop the excess, bytes.
+
+    Returns
+    -------
+    (bytes, int)
+        The bytes read (at most ``budget``) and the number of bytes dropped before them.
+
+    Raises
+    ------
+    OSError
+        The link failed (as its ``in_waiting`` / ``read`` raise it).
+    """
+    n = link.in_waiting
+    if n <= 0:
+        return b"", 0
+    dropped = 0
+    excess = n - budget
+    while excess > 0:   # at most n / chunk reads: only what was waiting when asked
+        got = len(link.read(min(chunk, excess)))
+        if not got:
+            break
+        dropped += got
+        excess -= got
+    return link.read(budget), dropped

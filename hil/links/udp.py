@@ -6,6 +6,12 @@ Datagrams from an address other than the peer are dropped and counted unless the
 sender (``accept_any=True``, the module's side when AgIO broadcasts). The socket is non-blocking;
 nothing here sleeps.
 
+Input is bounded whatever the peer sends: one call takes at most ``MAX_DATAGRAMS_PER_DRAIN``
+datagrams from the socket (the kernel's buffer holds, and drops, the rest), and the queue of unread
+bytes holds at most ``max_queued`` bytes; when a datagram would overflow it, the oldest queued
+datagrams are dropped and counted (``datagrams_dropped``, ``bytes_dropped``). A flood costs data,
+never an exception or an unbounded wait.
+
 On the bench both ends are on loopback (127.0.0.1) with ports chosen by the system (port 0); on a
 tractor the host binds port 9999 and sends to the module at 192.168.5.126:8888.
 """
@@ -19,11 +25,15 @@ from types import TracebackType
 
 from hil.links.errors import LinkClosedError, LinkConfigError
 
-__all__ = ["UdpLink", "udp_loopback_pair", "MAX_DATAGRAM"]
+__all__ = ["UdpLink", "udp_loopback_pair", "MAX_DATAGRAM", "MAX_DATAGRAMS_PER_DRAIN", "MAX_QUEUED"]
 
 MAX_DATAGRAM = 2048
 """Largest datagram read, bytes (AgOpenGPS frames are at most 261 bytes)."""
-_MAX_QUEUED = 1 << 20
+MAX_QUEUED = 1 << 18
+"""Default bound of the unread bytes a link holds, bytes (256 KiB: a second of AgOpenGPS traffic many
+times over; more means the reader fell behind, and the oldest bytes are the ones to lose)."""
+MAX_DATAGRAMS_PER_DRAIN = 256
+"""Most datagrams taken from the socket in one call (a bounded cost per call under a flood)."""
 
 
 def _address(name: str, value: object) -> tuple[str, int]:
@@ -51,6 +61,8 @@ class UdpLink:
         Accept datagrams from any sender (default False: only from ``peer``).
     broadcast : bool, optional
         Allow sending to a broadcast address (AgIO's 192.168.5.255).
+    max_queued : int, optional
+        Most unread bytes held, bytes (default :data:`MAX_QUEUED`); older datagrams are dropped for newer.
 
     Raises
     ------
@@ -61,8 +73,12 @@ class UdpLink:
     """
 
     def __init__(self, local: tuple[str, int], peer: tuple[str, int] | None = None, accept_any: bool = False,
-                 broadcast: bool = False) -> None:
+                 broadcast: bool = False, max_queued: int = MAX_QUEUED) -> None:
         local = _address("local", local)
+        if isinstance(max_queued, bool) or not isinstance(max_queued, int) or max_queued < MAX_DATAGRAM:
+            raise LinkConfigError(f"max_queued must be an int of at least {MAX_DATAGRAM} bytes (one datagram), "
+                                  f"got {max_queued!r}")
+        self.max_queued = max_queued
         self.peer = None if peer is None else _address("peer", peer)
         self.accept_any = bool(accept_any)
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -80,6 +96,8 @@ class UdpLink:
         self.datagrams_sent = 0
         self.datagrams_received = 0
         self.foreign_datagrams = 0
+        self.datagrams_dropped = 0
+        self.bytes_dropped = 0
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -100,7 +118,8 @@ class UdpLink:
             raise LinkClosedError("this UDP link is closed")
 
     def _drain(self) -> None:
-        for _ in range(10_000):   # bounded: at most this many datagrams per call
+        rx = self._rx
+        for _ in range(MAX_DATAGRAMS_PER_DRAIN):   # bounded: the kernel's buffer holds (and drops) the rest
             try:
                 data, sender = self._sock.recvfrom(MAX_DATAGRAM)
             except (BlockingIOError, InterruptedError):
@@ -112,9 +131,12 @@ class UdpLink:
             if not self.accept_any and (self.peer is None or sender[:2] != self.peer):
                 self.foreign_datagrams += 1
                 continue
-            if self._queued + len(data) > _MAX_QUEUED:
-                raise LinkConfigError(f"UDP link holds {self._queued} unread bytes; the reader is not reading")
-            self._rx.append(data)
+            while rx and self._queued + len(data) > self.max_queued:   # the reader fell behind: lose the oldest
+                old = rx.popleft()
+                self._queued -= len(old)
+                self.datagrams_dropped += 1
+                self.bytes_dropped += len(old)
+            rx.append(data)
             self._queued += len(data)
             self.datagrams_received += 1
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 from pathlib import Path
@@ -28,11 +29,14 @@ from hil.vehicle.summary import summarize
 
 
 def parse_float(text: str) -> float:
-    """argparse type: one number."""
+    """argparse type: one finite number ('nan' and 'inf' are refused)."""
     try:
-        return float(text)
+        value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
 
 
 def parse_floats(n: int):
@@ -58,7 +62,8 @@ def _vehicle_spec(text: str) -> str:
 
 
 def _cmd_drive(args: argparse.Namespace) -> dict:
-    from hil.vehicle.drive import DriveConfig, drive
+    from hil.vehicle.drive import DriveConfig, check_run_labels, drive
+    check_run_labels(args.duration, args.implement, args.speed)   # before anything is opened or driven
     a, b = args.line[:2], args.line[2:]
     cfg = DriveConfig(bridge_port=args.bridge, position_port=args.position, attitude_port=args.attitude,
                       line_a=a, line_b=b, height=args.height, lever_arm=args.lever_arm,
@@ -77,6 +82,9 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
     if solver:              # the MPC's / NMPC's solve times (wall and, for the NMPC, CPU) apart from the loop's
         result["solver"] = solver
     write_text_atomic(out / "summary.json", json.dumps(result, indent=2) + "\n")
+    if log.meta.get("aborted"):
+        raise HilError(f"the run was aborted ({log.meta['aborted']}); the loop disengaged and its log is in "
+                       f"{out / 'run_log.npz'}")
     return result
 
 

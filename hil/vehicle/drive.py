@@ -5,15 +5,22 @@ real clock, with pyserial ports. The guidance line is given by two WGS-84
 points A and B (A is also the origin of the local ENU frame); the antenna's
 lever arm and the wheel-angle calibration are the vehicle's own.
 
-Stopping: after ``duration`` seconds, or on Ctrl-C (the loop disengages the
-bridge first). The run log is returned either way.
+Stopping: after ``duration`` seconds, on Ctrl-C or on SIGTERM (both end the run after the current
+cycle; the loop disengages the bridge first), or when something fails mid-run (a link that dies, an
+error in the loop: the loop disengages as far as the link still allows). The run log is returned on
+every one of these paths; ``meta["aborted"]`` holds the failure, ``meta["interrupted"]`` the signal.
+The labels (``implement``, ``nominal_speed``) and the duration are checked before a port is opened,
+so a run is never driven and then refused.
 """
 
 from __future__ import annotations
 
 import math
+import signal
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 import serial
@@ -22,7 +29,9 @@ from design.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
 from gnss.geodesy import LocalFrame
 from gnss.guidance import ABLine
-from identification.passlog import PassLog
+from identification.errors import OptionError
+from identification.outputs import check_name
+from identification.passlog import MAX_NOMINAL_SPEED, PassLog
 
 from hil.vehicle.agio.driver import ANGLE_CALIBRATION, AgioDriver, AgioDriverConfig, module_loop_config
 from hil.vehicle.agio.spec import open_agio_link, parse_bridge
@@ -106,56 +115,145 @@ class DriveConfig:
         return origin, ABLine(np.zeros(2), np.asarray(b[:2], dtype=float))
 
 
-def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: str = "unknown",
-          nominal_speed: float = 0.0, progress: Callable[[float, float], None] | None = None,
-          open_port: Callable[..., serial.Serial] = serial.Serial) -> PassLog:
-    """Run the vehicle loop on the vehicle's serial ports for ``duration`` seconds (or until Ctrl-C).
-
-    ``implement`` and ``nominal_speed`` [m/s] only label the run log.
+def check_run_labels(duration: float, implement: str, nominal_speed: float) -> None:
+    """Refuse, before anything is driven, a duration or label the run log could not carry.
 
     Raises
     ------
+    VehicleConfigError
+        ``duration`` is not a finite number of seconds > 0, ``implement`` is not a plain name
+        (letters, digits, ``_``, ``-``), or ``nominal_speed`` is not a finite speed 0-30 m/s.
+    """
+    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not (math.isfinite(duration)
+                                                                                    and duration > 0):
+        raise VehicleConfigError(f"duration must be a finite number of seconds > 0, got {duration!r}")
+    try:
+        check_name(implement, "the implement label (--implement)")
+    except OptionError as exc:
+        raise VehicleConfigError(str(exc)) from None
+    v = nominal_speed
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v)
+                                                                      and 0 <= v <= MAX_NOMINAL_SPEED):
+        raise VehicleConfigError(f"the nominal speed (--speed) must be a finite number 0-{MAX_NOMINAL_SPEED:g} m/s, "
+                                 f"got {v!r}")
+
+
+class _StopRequest:
+    """Set by SIGINT / SIGTERM during a drive: the loop ends after its cycle (a second signal raises
+    KeyboardInterrupt, for a loop that no longer cycles)."""
+
+    def __init__(self) -> None:
+        self.reason: str | None = None
+
+    def __call__(self) -> str | None:
+        return self.reason
+
+    def handle(self, signum: int, _frame: object) -> None:
+        if self.reason is not None:
+            raise KeyboardInterrupt
+        self.reason = f"interrupted by the operator ({signal.Signals(signum).name})"
+
+
+@contextmanager
+def _stop_on_signals(request: _StopRequest) -> Iterator[None]:
+    """SIGINT and SIGTERM set ``request`` for the block (main thread only; elsewhere nothing changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, request.handle) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: str = "unknown",
+          nominal_speed: float = 0.0, progress: Callable[[float, float], None] | None = None,
+          open_port: Callable[..., serial.Serial] = serial.Serial) -> PassLog:
+    """Run the vehicle loop on the vehicle's serial ports for ``duration`` seconds (or until Ctrl-C / SIGTERM).
+
+    ``implement`` and ``nominal_speed`` [m/s] only label the run log; they are checked first. Once the
+    loop runs, the run log is returned whatever ends it: ``meta["interrupted"]`` says a signal ended it,
+    ``meta["aborted"]`` (None on a clean run) names the error that did.
+
+    Raises
+    ------
+    VehicleConfigError
+        A bad duration or label (nothing opened, nothing driven).
     HilError
         A port cannot be opened (nothing is sent then).
     """
+    check_run_labels(duration, implement, nominal_speed)
     origin, line = cfg.geometry()
     ports: list[serial.Serial] = []
-    try:
+    request = _StopRequest()
+    interrupted: str | None = None
+    aborted: str | None = None
+    with _stop_on_signals(request):
         try:
-            spec = parse_bridge(cfg.bridge_port)
-            agio = spec.kind == "agopengps"
-            bridge = (open_agio_link(spec, open_port, cfg.bridge_baud) if agio
-                      else open_port(spec.device, baudrate=cfg.bridge_baud, timeout=0))
-            ports.append(bridge)
-            sources = [open_port(cfg.position_port, baudrate=cfg.gnss_baud, timeout=0)]
-            ports.append(sources[0])
-            if cfg.attitude_port and cfg.attitude_port != cfg.position_port:
-                sources.append(open_port(cfg.attitude_port, baudrate=cfg.gnss_baud, timeout=0))
-                ports.append(sources[1])
-        except (serial.SerialException, OSError) as exc:
-            raise HilError(f"cannot open a serial port: {exc}") from None
-        clock = RealClock()
-        driver = AgioDriver(bridge, clock, cfg.agio) if agio else BridgeDriver(bridge, clock)
-        frontend = GnssFrontEnd(FrontEndConfig(origin=origin, lever_arm=cfg.lever_arm), sources=sources,
-                                clock=clock.now)
-        if agio:   # the module takes the ground speed in PGN 254 and reports its angle in 0.01 degree
-            driver.set_speed_source(lambda: frontend.solution(clock.now()).speed)
-        loop = VehicleLoop(clock, driver, frontend, line, controller,
-                           ANGLE_CALIBRATION if agio else WheelAngleCalibration(*cfg.wheel_calibration),
-                           module_loop_config(cfg.loop) if agio else cfg.loop)
-        interrupted = False
-        try:
-            loop.run(duration, start=clock.now(), progress=progress)
-        except KeyboardInterrupt:
-            interrupted = True
-            loop.stop("interrupted by the operator")
-        stats = driver.stats()
-    finally:
-        for p in ports:
-            p.close()
+            try:
+                spec = parse_bridge(cfg.bridge_port)
+                agio = spec.kind == "agopengps"
+                bridge = (open_agio_link(spec, open_port, cfg.bridge_baud) if agio
+                          else open_port(spec.device, baudrate=cfg.bridge_baud, timeout=0))
+                ports.append(bridge)
+                sources = [open_port(cfg.position_port, baudrate=cfg.gnss_baud, timeout=0)]
+                ports.append(sources[0])
+                if cfg.attitude_port and cfg.attitude_port != cfg.position_port:
+                    sources.append(open_port(cfg.attitude_port, baudrate=cfg.gnss_baud, timeout=0))
+                    ports.append(sources[1])
+            except (serial.SerialException, OSError) as exc:
+                raise HilError(f"cannot open a serial port: {exc}") from None
+            clock = RealClock()
+            driver = AgioDriver(bridge, clock, cfg.agio) if agio else BridgeDriver(bridge, clock)
+            frontend = GnssFrontEnd(FrontEndConfig(origin=origin, lever_arm=cfg.lever_arm), sources=sources,
+                                    clock=clock.now)
+            if agio:   # the module takes the ground speed in PGN 254 and reports its angle in 0.01 degree
+                driver.set_speed_source(lambda: frontend.solution(clock.now()).speed)
+            loop = VehicleLoop(clock, driver, frontend, line, controller,
+                               ANGLE_CALIBRATION if agio else WheelAngleCalibration(*cfg.wheel_calibration),
+                               module_loop_config(cfg.loop) if agio else cfg.loop)
+            try:
+                loop.run(duration, start=clock.now(), progress=progress, stop_request=request)
+                interrupted = request.reason
+            except KeyboardInterrupt:
+                interrupted = request.reason or "interrupted by the operator (SIGINT)"
+                _stop_quietly(loop, interrupted)
+            except Exception as exc:  # noqa: BLE001 - whatever ended the run, disengage and keep its log
+                aborted = f"{type(exc).__name__}: {exc}"
+                _stop_quietly(loop, f"run aborted: {aborted}")
+            stats = driver.stats()
+        finally:
+            for p in ports:
+                try:
+                    p.close()
+                except (OSError, serial.SerialException):
+                    pass
     meta = {"implement": implement, "nominal_speed": nominal_speed, "source": "hil.vehicle.drive (real serial ports)",
-            "mode": "vehicle", "interrupted": interrupted,
+            "mode": "vehicle", "interrupted": bool(interrupted), "stop_reason": interrupted, "aborted": aborted,
             "ports": {"bridge": cfg.bridge_port, "position": cfg.position_port, "attitude": cfg.attitude_port},
             "line": {"a": list(cfg.line_a), "b": list(cfg.line_b)}, "lever_arm": list(cfg.lever_arm),
-            "bridge_stats": {k: v for k, v in stats.__dict__.items() if k != "ping_rtts"}}
+            "bridge_stats": {k: v for k, v in stats.__dict__.items() if k != "ping_rtts"},
+            "link_stats": _link_stats(bridge)}
+    if loop.cycles < 2:   # ended (a failure) before the loop had a record to keep
+        raise HilError(f"the run ended after {loop.cycles} cycle(s), too few for a run log: "
+                       f"{aborted or interrupted or 'no reason recorded'}")
     return loop.run_log(meta)
+
+
+def _stop_quietly(loop: VehicleLoop, reason: str) -> None:
+    """Disengage (the frame is sent if the link still takes it) and record ``reason``; a link that fails
+    now is recorded in the reason, never raised over the error that ended the run."""
+    try:
+        loop.stop(reason)
+    except Exception as exc:  # noqa: BLE001 - the run is over; the log must still be built
+        loop.engaged = False
+        loop.events.append({"t": loop.clock.now(), "event": "disengage",
+                            "reason": f"{reason} (disengage failed: {type(exc).__name__}: {exc})"})
+
+
+def _link_stats(link: object) -> dict[str, int]:
+    """The counters a link keeps itself (a UDP link's dropped and foreign datagrams), where it has them."""
+    names = ("datagrams_sent", "datagrams_received", "foreign_datagrams", "datagrams_dropped", "bytes_dropped")
+    return {k: int(getattr(link, k)) for k in names if isinstance(getattr(link, k, None), int)}

@@ -54,15 +54,19 @@ from gnss.guidance import ABLine, TrackErrors
 from gnss.integrity import IntegrityState
 from identification.passlog import PassLog
 
+from hil.vehicle.agio.errors import AgioLinkError
 from hil.vehicle.bridge.driver import BridgeDriver, BridgeLinkError
 from hil.vehicle.errors import VehicleConfigError
 from hil.links.clock import Clock, RealClock
 from hil.links.realtime import collector_held
 from hil.vehicle.calibration import WheelAngleCalibration
+from hil.vehicle.plausibility import Plausibility
 
 INTEGRITY_CODES = {"RTK_FIXED": 0, "RTK_FLOAT": 1, "DEGRADED": 2, "STALE": 3, "LOST": 4}
 # by id(): hashing an Enum member runs Python code (Enum.__hash__), id() does not
 _INTEGRITY_BY_ID = {id(s): float(INTEGRITY_CODES.get(s.name, 9)) for s in IntegrityState}
+#: What a bridge driver raises when its link fails (the HC11 board's or the AgOpenGPS module's)
+LINK_ERRORS = (BridgeLinkError, AgioLinkError)
 
 
 @dataclass(frozen=True)
@@ -92,6 +96,31 @@ class LoopConfig:
         Wheel-angle stop, rad: a command that pushes a wheel within 0.02 rad of it further is
         not counted by the steering-response monitor (a wheel at full lock cannot follow it;
         on a headland turn that is no fault).
+    wheel_margin
+        A reported wheel angle beyond ``wheel_stop + wheel_margin`` is impossible (a fault), rad: the
+        margin covers the angle calibration's error and the sensor's noise (the simulated tractor's
+        potentiometer reads 0.08 rad past the stop at full lock through its two-point calibration).
+    max_wheel_rate
+        Fastest plausible wheel motion between two reports, rad/s; 0 (the default) means twice
+        ``max_rate`` (the valve's full rate with a margin; a commissioning that sets ``max_rate`` from the
+        measured valve moves it too).
+    wheel_step
+        Wheel motion allowed between two reports on top of ``max_wheel_rate x dt``, rad (the sensor's
+        noise and quantisation: 5 counts of the HC11 potentiometer).
+    report_max_age
+        Oldest bridge report the loop acts on, s (a backstop to the driver's own report timeout).
+    gnss_max_age
+        Oldest position fix the loop acts on, s (a backstop to the front-end's integrity limit).
+    position_jump
+        Control-point motion allowed between two cycles with a healthy fix on top of
+        ``speed_max x dt``, m; more is a jump (a fault).
+    max_cross_track
+        Engaged with a cross-track error beyond this is a fault, m (the loop engages within
+        ``engage_cross_track`` and holds centimetres: ten metres off the line means the guidance or the
+        steering is wrong; a wheel held at full lock for seconds drives a circle of about 7 m).
+    plausible_hold
+        After an impossible measurement (non-finite, out of range, too fast, a jump) the inputs must be
+        plausible for this long before the loop counts them healthy again, s (``engage_after`` follows).
     """
 
     rate: float = 20.0
@@ -106,6 +135,14 @@ class LoopConfig:
     response_min_command: float = 0.12
     response_min_ratio: float = 0.15
     wheel_stop: float = 0.61
+    wheel_margin: float = 0.15
+    max_wheel_rate: float = 0.0
+    wheel_step: float = 0.03
+    report_max_age: float = 0.2
+    gnss_max_age: float = 0.35
+    position_jump: float = 0.3
+    max_cross_track: float = 10.0
+    plausible_hold: float = 1.0
 
     def __post_init__(self) -> None:
         for k, v in asdict(self).items():
@@ -113,6 +150,17 @@ class LoopConfig:
                 raise VehicleConfigError(f"LoopConfig.{k} must be a finite number >= 0, got {v!r}")
         if self.rate <= 0 or self.max_rate <= 0 or self.speed_max <= self.speed_min:
             raise VehicleConfigError("LoopConfig: need rate > 0, max_rate > 0 and speed_max > speed_min")
+        for k in ("wheel_step", "report_max_age", "gnss_max_age", "position_jump", "max_cross_track"):
+            if getattr(self, k) <= 0:
+                raise VehicleConfigError(f"LoopConfig.{k} must be > 0, got {getattr(self, k)!r}")
+
+    def plausibility(self) -> Plausibility:
+        """The plausibility checks of these settings (:class:`~hil.vehicle.plausibility.Plausibility`)."""
+        return Plausibility(wheel_limit=self.wheel_stop + self.wheel_margin,
+                            wheel_rate=self.max_wheel_rate or 2.0 * self.max_rate, wheel_step=self.wheel_step,
+                            report_max_age=self.report_max_age, speed_max=self.speed_max,
+                            position_jump=self.position_jump, gnss_max_age=self.gnss_max_age,
+                            hold=self.plausible_hold)
 
 
 #: Codes of the route's part kinds in the ``part_kind`` channel (-1: outside every tagged part).
@@ -141,7 +189,7 @@ class PathFollower(Protocol):
 
 _COLUMNS = ("t", "cross_track", "heading_error", "wheel_angle", "speed", "steer_rate_cmd", "engaged",
             "healthy", "gps_valid", "bridge_valid", "integrity", "fix_quality", "compute_time", "lateness",
-            "deadline_miss", "adc_counts")
+            "deadline_miss", "adc_counts", "plausible")
 
 
 class VehicleLoop:
@@ -217,6 +265,7 @@ class VehicleLoop:
         self._response: deque[tuple[float, float]] = deque(maxlen=max(2, round(self.config.response_window
                                                                             * self.config.rate) + 1))
         self._response_u: deque[float] = deque(maxlen=self._response.maxlen)   # the u of each _response entry
+        self._plausibility = self.config.plausibility()
 
     # -- one cycle ------------------------------------------------------------------
     def cycle(self, t_due: float) -> None:
@@ -229,7 +278,7 @@ class VehicleLoop:
         link_ok = True
         try:
             self.driver.poll()
-        except BridgeLinkError as exc:
+        except LINK_ERRORS as exc:
             link_ok = False
             reasons.append(f"bridge link error: {exc}")
         rep = self.driver.latest
@@ -261,6 +310,20 @@ class VehicleLoop:
             reasons.append(f"gps {integrity.state.name.lower()}: {integrity.reason}")
         if not cfg.speed_min <= speed <= cfg.speed_max:
             reasons.append(f"speed {speed:.2f} m/s outside {cfg.speed_min}-{cfg.speed_max} m/s")
+        plausibility = self._plausibility
+        held = plausibility.fault
+        if rep is not None:
+            angle, received_at = (float(rep.adc_counts) - self._center) * self._rad_per_count, rep.received_at
+        else:
+            angle, received_at = 0.0, math.nan
+        implausible = plausibility.check(now, angle, received_at, east, north, yaw, nav.speed, nav.t_arrival,
+                                         integrity.healthy)
+        if implausible is not None:
+            reasons.append(implausible)
+            if held is None and plausibility.fault is not None:   # a violation begins (recorded once)
+                self.events.append({"t": now, "event": "implausible", "reason": plausibility.fault})
+        if self.engaged and abs(xte) > cfg.max_cross_track:
+            reasons.append(f"cross-track {xte:.2f} m beyond {cfg.max_cross_track:.2f} m")
         if rep is not None and rep.manual_override:
             reasons.append("manual override")
         if self.latched:
@@ -318,7 +381,7 @@ class VehicleLoop:
                 self._response_u.append(0.0 if u * delta > 0.0 and abs(delta) >= self._stop else u)
                 try:
                     self.driver.send_rate(u)
-                except BridgeLinkError as exc:
+                except LINK_ERRORS as exc:
                     self._disengage(now, f"bridge link error: {exc}", False)
                     u = 0.0
         self._last = (xte, he, delta, speed)
@@ -328,12 +391,18 @@ class VehicleLoop:
         # _COLUMNS order; bools and ints become floats in run_log's one array conversion
         self._rows.append((now, xte, he, delta, speed, u, self.engaged, healthy, gps_valid, bridge_valid,
                            _INTEGRITY_BY_ID.get(id(integrity.state), 9.0), int(nav.fix), compute, late,
-                           done - t_due > 1.0 / cfg.rate, rep.adc_counts if rep else -1.0))
+                           done - t_due > 1.0 / cfg.rate, rep.adc_counts if rep else -1.0,
+                           plausibility.fault is None))
         self._estimates.append(tuple(self.controller.estimate()))
         if path is not None:
             self._path_rows.append((self._station, self._kappa, *part))
         if self.truth is not None:
             self._truths.append(self.truth())
+
+    @property
+    def cycles(self) -> int:
+        """Cycles run and recorded so far."""
+        return len(self._rows)
 
     def _part_at(self, station: float) -> tuple[float, float]:
         """``(pass index, kind code)`` of the route part holding ``station``; ``(-1, -1)`` outside all."""
@@ -360,7 +429,7 @@ class VehicleLoop:
         self.controller.reset()
         try:
             self.driver.engage()
-        except BridgeLinkError as exc:
+        except LINK_ERRORS as exc:
             self.events.append({"t": now, "event": "engage failed", "reason": str(exc)})
             return
         self.engaged, self._engaged_at, self._confirmed = True, now, False
@@ -377,17 +446,20 @@ class VehicleLoop:
         if link_ok:
             try:
                 self.driver.disengage()
-            except BridgeLinkError:
+            except LINK_ERRORS:
                 reason += " (disengage frame not sent: link error)"
         self.events.append({"t": now, "event": "disengage", "reason": reason})
 
     # -- whole runs ----------------------------------------------------------------------
     def run(self, duration: float, start: float | None = None,
-            progress: Callable[[float, float], None] | None = None) -> None:
+            progress: Callable[[float, float], None] | None = None,
+            stop_request: Callable[[], str | None] | None = None) -> None:
         """Run cycles for ``duration`` seconds from ``start`` (default: the clock now), then disengage.
 
-        On a :class:`~hil.links.clock.RealClock` the garbage collector's full collections are held
-        off for the run (:func:`hil.links.realtime.collector_held`) and run once after it.
+        ``stop_request``, asked after every cycle, ends the run early when it returns a reason (an
+        operator's Ctrl-C or a SIGTERM), which the disengage records. On a
+        :class:`~hil.links.clock.RealClock` the garbage collector's full collections are held off for
+        the run (:func:`hil.links.realtime.collector_held`) and run once after it.
         """
         if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
             raise VehicleConfigError(f"duration must be a finite number of seconds > 0, got {duration!r}")
@@ -396,11 +468,16 @@ class VehicleLoop:
         n = int(math.floor(duration * self.config.rate + 1e-9))
         # on the wall clock a full garbage collection (100 ms and more) would miss deadlines: held off
         with collector_held() if isinstance(self.clock, RealClock) else nullcontext():
+            reason = None
             for k in range(1, n + 1):
                 self.cycle(t0 + k * period)
                 if progress is not None and k % 100 == 0:
                     progress(k * period, duration)
-            self.stop("end of run")
+                if stop_request is not None and k >= 2:   # two cycles at least: a run log needs them
+                    reason = stop_request()
+                    if reason:
+                        break
+            self.stop(reason or "end of run")
 
     def stop(self, reason: str) -> None:
         """Disengage now if engaged (sending the disengage frame) and record ``reason``."""
@@ -417,7 +494,7 @@ class VehicleLoop:
         std = ("cross_track", "heading_error", "wheel_angle", "speed", "steer_rate_cmd")
         extra_units = {"engaged": "1", "healthy": "1", "gps_valid": "1", "bridge_valid": "1",
                        "integrity": "code", "fix_quality": "1", "compute_time": "s", "lateness": "s",
-                       "deadline_miss": "1", "adc_counts": "counts"}
+                       "deadline_miss": "1", "adc_counts": "counts", "plausible": "1"}
         chans = {k: r[k] for k in std}
         extra = {}
         for k, unit in extra_units.items():

@@ -54,6 +54,12 @@ def summarize(log: PassLog, settle: float = 5.0, until_gps_fault: bool = False) 
             out[f"{name}_bias_m"] = float(x.mean())
             out[f"{name}_sigma_m"] = float(x.std())
             out[f"{name}_max_abs_m"] = float(np.abs(x).max())
+    # what the loop refused or lost: impossible measurements, bytes dropped from a flooded link
+    out["implausible_events"] = sum(1 for e in events if e["event"] == "implausible")
+    if "plausible" in ch:
+        out["implausible_cycles"] = int((ch["plausible"] < 0.5).sum())
+    dropped = [(log.meta.get(k) or {}).get("bytes_dropped", 0) for k in ("bridge_stats", "link_stats")]
+    out["bytes_dropped"] = int(sum(v for v in dropped if isinstance(v, (int, float)) and not isinstance(v, bool)))
     ct = ch["compute_time"] * 1e3
     out.update({"deadline_misses": int(ch["deadline_miss"].sum()),
                 "loop_time_ms_p50": float(np.percentile(ct, 50)), "loop_time_ms_p99": float(np.percentile(ct, 99)),

@@ -30,7 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields
 
 from hil.links.clock import Clock
-from hil.links.link import ByteLink
+from hil.links.link import ByteLink, read_bounded
 from hil.vehicle.agio.errors import AgioConfigError, AgioLinkError
 from hil.vehicle.agio.framing import PgnStreamDecoder
 from hil.vehicle.agio.protocol import (
@@ -205,6 +205,8 @@ class AgioDriverStats:
         Reports dropped because nobody polled.
     setpoints_limited : int
         Commands whose setpoint was limited (angle, rate or lead).
+    bytes_dropped : int
+        Bytes read and dropped unparsed because more than ``read_chunk`` were waiting at once (a flood).
     """
 
     frames_sent: int
@@ -223,6 +225,7 @@ class AgioDriverStats:
     bytes_discarded: int
     reports_overflowed: int
     setpoints_limited: int
+    bytes_dropped: int = 0
 
     @property
     def bad_frames(self) -> int:
@@ -231,7 +234,7 @@ class AgioDriverStats:
 
 
 _OWN = ("frames_sent", "bytes_sent", "commands_sent", "keepalives_sent", "frames_received", "reports_received",
-        "unexpected_frames", "reports_overflowed", "setpoints_limited")
+        "unexpected_frames", "reports_overflowed", "setpoints_limited", "bytes_dropped")
 
 
 class AgioDriver:
@@ -351,11 +354,12 @@ class AgioDriver:
         return self._latest.angle if self._latest is not None else 0.0
 
     def _pump(self) -> None:
-        try:
-            n = self._link.in_waiting
-            data = self._link.read(min(n, self.config.read_chunk)) if n > 0 else b""
+        try:   # at most read_chunk bytes a call: a flood is dropped (oldest first) and counted, never queued
+            data, dropped = read_bounded(self._link, self.config.read_chunk)
         except OSError as err:
             raise AgioLinkError(f"reading from the steer module failed: {err}") from err
+        if dropped:
+            self._n["bytes_dropped"] += dropped
         if not data:
             return
         now = self._clock.now()

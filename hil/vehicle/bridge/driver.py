@@ -35,7 +35,7 @@ from hil.vehicle.bridge.protocol import (
     frame_packer,
 )
 from hil.links.clock import Clock, RealClock
-from hil.links.link import ByteLink
+from hil.links.link import ByteLink, read_bounded
 
 __all__ = ["BridgeLinkError", "BridgeReport", "DriverStats", "BridgeDriver"]
 
@@ -104,6 +104,8 @@ class DriverStats:
         Reports dropped because nobody polled.
     timeouts : int
         Blocking calls that timed out.
+    bytes_dropped : int
+        Bytes read and dropped unparsed because more than ``read_chunk`` were waiting at once (a flood).
     ping_rtts : tuple of float
         Round-trip times of answered pings, s.
     """
@@ -124,6 +126,7 @@ class DriverStats:
     reports_overflowed: int
     timeouts: int
     ping_rtts: tuple[float, ...]
+    bytes_dropped: int = 0
 
     @property
     def bad_frames(self) -> int:
@@ -166,7 +169,7 @@ class BridgeDriver:
         self._last_bridge_seq: int | None = None
         self._fileno = getattr(link, "fileno", None) if isinstance(clock, RealClock) else None
         self._n = dict(frames_sent=0, bytes_sent=0, frames_received=0, reports_received=0, pongs_received=0,
-                       unexpected_frames=0, report_gaps=0, reports_overflowed=0, timeouts=0)
+                       unexpected_frames=0, report_gaps=0, reports_overflowed=0, timeouts=0, bytes_dropped=0)
         self._rtts: list[float] = []
 
     # -- sending ---------------------------------------------------------------------------
@@ -228,11 +231,12 @@ class BridgeDriver:
 
     # -- receiving -------------------------------------------------------------------------
     def _pump(self) -> None:
-        try:
-            n = self._link.in_waiting
-            data = self._link.read(min(n, self.config.read_chunk)) if n > 0 else b""
+        try:   # at most read_chunk bytes a call: a flood is dropped (oldest first) and counted, never queued
+            data, dropped = read_bounded(self._link, self.config.read_chunk)
         except OSError as err:
             raise BridgeLinkError(f"reading from the bridge failed: {err}") from err
+        if dropped:
+            self._n["bytes_dropped"] += dropped
         if not data:
             return
         now = self._clock.now()

@@ -62,8 +62,7 @@ def _vehicle_spec(text: str) -> str:
 
 
 def _cmd_drive(args: argparse.Namespace) -> dict:
-    from hil.vehicle.drive import DriveConfig, check_run_labels, drive
-    check_run_labels(args.duration, args.implement, args.speed)   # before anything is opened or driven
+    from hil.vehicle.drive import DriveConfig, drive
     a, b = args.line[:2], args.line[2:]
     cfg = DriveConfig(bridge_port=args.bridge, position_port=args.position, attitude_port=args.attitude,
                       line_a=a, line_b=b, height=args.height, lever_arm=args.lever_arm,
@@ -157,12 +156,15 @@ def print_run_result(result: dict) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``hil drive ...`` (``argv`` without the leading ``drive``). Exit 0, 1 (refused value) or 2 (usage)."""
+    """``hil drive ...`` (``argv`` without the leading ``drive``). Exit 0 (also after Ctrl-C or SIGTERM: the loop
+    disengaged and the log is saved), 1 (refused value; or a run that aborted, its log saved) or 2 (usage)."""
     parser = argparse.ArgumentParser(prog="hil", description="The vehicle loop on a tractor.")
     sub = parser.add_subparsers(dest="command", required=True)
     add_drive_parser(sub)
     args = parser.parse_args(["drive", *(sys.argv[2:] if argv is None else argv)])
     try:
+        from hil.vehicle.drive import check_run_labels
+        check_run_labels(args.duration, args.implement, args.speed)   # before anything is created or driven
         prepare_out_dir(args.out)
         result = args.func(args)
     except (HilError, PassLogError, ValueError) as exc:

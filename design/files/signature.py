@@ -72,10 +72,10 @@ def keygen(out_dir: str | Path) -> tuple[Path, Path]:
     return priv_path, pub_path
 
 
-def _read_key_file(path: str | Path, private: bool = False) -> bytes:
-    """The bytes of a key file, at most :data:`MAX_KEY_BYTES` read whatever the file is (a device or a
-    pipe that never ends is refused once that much came). A private key must be a regular file that
-    neither the group nor others may read or write (mode 0600 or stricter)."""
+def _read_key_file(path: str | Path, private: bool = False) -> tuple[bytes, int]:
+    """The bytes of a key file and its permission bits, at most :data:`MAX_KEY_BYTES` read whatever the
+    file is (a device or a pipe that never ends is refused once that much came). A private key must be
+    a regular file."""
     p = Path(path)
     try:
         with open(p, "rb") as fh:
@@ -83,15 +83,12 @@ def _read_key_file(path: str | Path, private: bool = False) -> bytes:
             if private and not stat.S_ISREG(st.st_mode):
                 raise DesignInputError(f"{p}: a private key must be a regular file, got "
                                        f"{'a device' if stat.S_ISCHR(st.st_mode) else 'no regular file'}")
-            if private and st.st_mode & 0o077:
-                raise DesignInputError(f"{p}: the private key is readable or writable by others (mode "
-                                       f"{stat.S_IMODE(st.st_mode):04o}, expected 0600): chmod 600 {p}")
             raw = fh.read(MAX_KEY_BYTES + 1)
     except OSError as exc:
         raise DesignInputError(f"{p}: cannot read the key ({exc.strerror or exc})") from None
     if len(raw) > MAX_KEY_BYTES:
         raise DesignInputError(f"{p}: more than {MAX_KEY_BYTES} bytes, expected a PEM key file of under 1 kB")
-    return raw
+    return raw, stat.S_IMODE(st.st_mode)
 
 
 def load_private_key(path: str | Path) -> Ed25519PrivateKey:
@@ -103,19 +100,24 @@ def load_private_key(path: str | Path) -> Ed25519PrivateKey:
         The file is not a regular file, others may read or write it (fix: ``chmod 600``), it is
         larger than a key file, or it holds no unencrypted Ed25519 private key.
     """
+    raw, mode = _read_key_file(path, private=True)
     try:
-        key = serialization.load_pem_private_key(_read_key_file(path, private=True), password=None)
+        key = serialization.load_pem_private_key(raw, password=None)
     except (ValueError, TypeError) as exc:
         raise DesignInputError(f"{path}: not an unencrypted PEM private key ({exc})") from None
     if not isinstance(key, Ed25519PrivateKey):
         raise DesignInputError(f"{path}: expected an Ed25519 private key, got {type(key).__name__}")
+    if mode & 0o077:
+        raise DesignInputError(f"{path}: the private key is readable or writable by others (mode {mode:04o}, "
+                               f"expected 0600): chmod 600 {path}")
     return key
 
 
 def load_public_key(path: str | Path) -> Ed25519PublicKey:
     """An Ed25519 public key from a PEM file (as :func:`keygen` writes)."""
+    raw, _ = _read_key_file(path)
     try:
-        key = serialization.load_pem_public_key(_read_key_file(path))
+        key = serialization.load_pem_public_key(raw)
     except (ValueError, TypeError) as exc:
         raise DesignInputError(f"{path}: not a PEM public key ({exc})") from None
     if not isinstance(key, Ed25519PublicKey):

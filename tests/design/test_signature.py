@@ -5,6 +5,8 @@ from __future__ import annotations
 import base64
 import json
 import stat
+import subprocess
+import sys
 
 import pytest
 
@@ -140,3 +142,27 @@ def test_an_mpc_file_signs_and_loads_with_its_key(keys, tmp_path):
     assert load_controller(p, public_key=load_public_key(pub)).name == "mpc:mpc"
     with pytest.raises(ControllerFileError, match="but the required key is"):
         load_controller(p, public_key=load_public_key(other_pub))
+
+
+def test_a_private_key_others_can_read_is_refused_with_the_fix(keys, tmp_path):
+    (priv, _), _ = keys
+    loose = tmp_path / "loose.key"
+    loose.write_bytes(priv.read_bytes())
+    loose.chmod(0o644)
+    with pytest.raises(DesignInputError, match=rf"readable or writable by others \(mode 0644, expected 0600\): "
+                                               rf"chmod 600 {loose}") as err:
+        load_private_key(loose)
+    assert "\n" not in str(err.value)
+    loose.chmod(0o600)
+    assert load_private_key(loose).public_key() is not None
+
+
+def test_a_key_file_that_never_ends_is_read_only_up_to_the_limit(tmp_path):
+    # /dev/zero states a size of 0 and never ends: run in a child, so a read without a limit fails the test
+    code = ("from design.files.signature import load_public_key, load_private_key\n"
+            "for load in (load_public_key, load_private_key):\n"
+            "    try:\n        load('/dev/zero')\n"
+            "    except ValueError as exc:\n        print('refused:', exc)\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "refused: /dev/zero: more than 16384 bytes, expected a PEM key file" in done.stdout, done.stderr
+    assert "refused: /dev/zero: a private key must be a regular file, got a device" in done.stdout, done.stderr

@@ -12,7 +12,11 @@ Layout (schema ``design-controller/1``, ``kind: "linear"``)::
      "signature": {...}}                                    # optional (design sign)
 
 The certificate (:mod:`design.files.certificate`) records the models the compensator
-was checked on, with their matrices, and the compensator's hash.
+was checked on, with their matrices, and the compensator's hash; it also records the digest
+of every field that changes the law (outputs, input, limits, sample time, the design's
+schedules and estimate: :mod:`design.files.binding`), so an edited field is refused even
+with the checksum recomputed. Each output's ``units`` must match :data:`UNITS_PATTERN`
+(the text reaches exported code).
 
 ``xc[k+1] = Ac xc + Bc y + Ec (u_applied - u)``, ``u = Cc xc + Dc y`` (and ``xc = X0 y``
 on the first step after a reset) with ``y`` the
@@ -24,8 +28,8 @@ steering can deliver; inside it the compensator is exactly the certified linear 
 :func:`read_controller_file` refuses a file that fails the envelope (schema, keys,
 checksum, size and nesting: :mod:`design.files.envelope`), the dimensions, finiteness,
 the stated limits (:mod:`design.limits`: coefficients, rate, speed floor, clips, sample
-time), the certificate (:mod:`design.files.certificate`) or, when a public key is given,
-the signature (:mod:`design.files.signature`).
+time), the certificate (:mod:`design.files.certificate`, :mod:`design.files.binding`) or, when
+a public key is given, the signature (:mod:`design.files.signature`).
 """
 
 from __future__ import annotations

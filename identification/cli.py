@@ -12,8 +12,9 @@ import math
 import sys
 from pathlib import Path
 
-from .errors import IdentificationError
-from .outputs import output_file
+from .bounded import parse_json
+from .errors import IdentificationError, OptionError
+from .outputs import output_file, write_stdout
 from .passlog import PassLog, check_physical
 
 
@@ -39,7 +40,7 @@ its own time base (a multi-rate log, as exported by this tool).
 def _convert(args: argparse.Namespace) -> dict:
     src, dst = Path(args.src), Path(args.dst)
     output_file(dst, (".npz", ".csv"), "output")
-    meta = json.loads(args.meta) if args.meta else None
+    meta = parse_json(args.meta, "--meta", OptionError) if args.meta else None
     if meta is not None and not isinstance(meta, dict):
         raise IdentificationError("--meta must be a JSON object")
     if src.suffix == ".npz":
@@ -271,12 +272,14 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     text = result.pop("_text", None)
     if args.json:
-        print(json.dumps(result, indent=2))
-    elif text is not None:
-        print(text)
-    else:
-        for k, v in result.items():
-            print(f"{k:>14}: {v}")
+        text = json.dumps(result, indent=2)
+    elif text is None:
+        text = "\n".join(f"{k:>14}: {v}" for k, v in result.items())
+    try:
+        write_stdout(text, f"identification {args.command}")
+    except IdentificationError as exc:
+        print(_one_line(exc), file=sys.stderr)
+        return 1
     return 0
 
 

@@ -17,16 +17,21 @@ sample time is what the identification assumes).
 from __future__ import annotations
 
 import csv
+import io
+from collections import Counter
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
+from .bounded import read_text
 from .data import IOData
 from .errors import DataError
 
 #: Largest relative deviation of a time step from the median step.
 DT_TOLERANCE = 0.01
+#: Largest CSV record read, bytes.
+MAX_FILE_BYTES = 64 * 2**20
 
 
 def read_csv(path: str | Path, inputs: Sequence[str], outputs: Sequence[str], dt: float | None = None,
@@ -45,11 +50,11 @@ def read_csv(path: str | Path, inputs: Sequence[str], outputs: Sequence[str], dt
         Column whose value changes where a new experiment begins.
     """
     path = Path(path)
+    text = read_text(path, MAX_FILE_BYTES, "CSV record", DataError)
     try:
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(line for line in fh if not line.startswith("#")))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"{path}: cannot read CSV ({exc})") from None
+        rows = list(csv.reader(line for line in io.StringIO(text, newline="") if not line.startswith("#")))
+    except csv.Error as exc:
+        raise DataError(f"{path}: not a readable CSV ({exc}); expected one number per field") from None
     if not rows:
         raise DataError(f"{path}: empty file; expected a header row and data")
     header = [h.strip() for h in rows[0]]
@@ -63,7 +68,7 @@ def read_csv(path: str | Path, inputs: Sequence[str], outputs: Sequence[str], dt
     missing = [c for c in wanted if c not in header]
     if missing:
         raise DataError(f"{path}: no column(s) {missing}; the header has {header}")
-    dup = sorted({h for h in header if header.count(h) > 1})
+    dup = sorted(h for h, k in Counter(header).items() if k > 1)
     if dup:
         raise DataError(f"{path}: the header names column(s) {dup} more than once")
     body = [(i, r) for i, r in enumerate(rows[1:], start=2) if r]

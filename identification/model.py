@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import json
 import math
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -26,6 +25,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .bounded import parse_json, read_npz
 from .errors import ModelFileError, OptionError
 from .outputs import atomic_write, check_name
 
@@ -34,6 +34,10 @@ KINDS = ("local", "velocity-invariant", "central", "generic")
 ARRAYS = ("A", "B", "C", "D", "K")
 NORMALIZATIONS = ("velocity", "none")
 MAX_SPEED = 30.0   # m/s, the pass logs' bound on a nominal speed
+#: Largest model file read, bytes (an order-50 model with 3 outputs is about 30 kB).
+MAX_FILE_BYTES = 16 * 2**20
+#: Longest sample time, s (the identification command's own bound on ``--dt``).
+MAX_DT = 1e6
 
 
 def _speed(value: Any, what: str) -> None:
@@ -122,8 +126,9 @@ class Model:
                 raise ModelFileError(f"{name} has shape {mats[name].shape}, expected {shp} "
                                      f"for n={n} states, m={m} inputs, q={q} outputs")
         dt = self.dt
-        if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not math.isfinite(dt) or dt <= 0:
-            raise ModelFileError(f"dt must be a finite sample time > 0 s, got {dt!r}")
+        if (isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not math.isfinite(dt)
+                or not 0 < dt <= MAX_DT):
+            raise ModelFileError(f"dt must be a finite sample time > 0 s and at most {MAX_DT:g} s, got {dt!r}")
         if n:
             rho = float(np.max(np.abs(np.linalg.eigvals(a - k @ c))))
             if rho >= 1.0:
@@ -192,53 +197,28 @@ class Model:
 
     @classmethod
     def load(cls, path: str | Path) -> "Model":
-        """Read a model file with ``allow_pickle=False``; refuse anything malformed."""
+        """Read a model file (bounded: :data:`MAX_FILE_BYTES`, no pickle); refuse anything malformed."""
         path = Path(path)
-        try:
-            with open(path, "rb") as fh:
-                magic = fh.read(4)
-        except FileNotFoundError:
-            raise ModelFileError(f"{path}: no such model file") from None
-        except OSError as exc:
-            raise ModelFileError(f"{path}: cannot read ({exc})") from None
-        if magic[:2] != b"PK":
-            raise ModelFileError(f"{path}: not a readable .npz model file (expected a zip archive, "
-                                 f"got leading bytes {magic!r})")
-        try:
-            with np.load(path, allow_pickle=False) as npz:
-                missing = [k for k in (*ARRAYS, "dt", "meta") if k not in npz.files]
-                if missing:
-                    raise ModelFileError(f"{path}: missing {missing}; expected arrays {list(ARRAYS)}, "
-                                         "'dt' and 'meta'")
-                arrays = {k: npz[k] for k in ARRAYS}
-                dt_arr = npz["dt"]
-                meta_arr = npz["meta"]
-        except ModelFileError:
-            raise
-        except FileNotFoundError:
-            raise ModelFileError(f"{path}: no such model file") from None
-        except ValueError as exc:
-            if "pickle" in str(exc).lower():
-                raise ModelFileError(f"{path}: contains pickled objects; refusing to load it "
-                                     "(model files are read with allow_pickle=False)") from None
-            raise ModelFileError(f"{path}: not a readable .npz model file ({exc})") from None
-        except (OSError, zipfile.BadZipFile, EOFError) as exc:
-            raise ModelFileError(f"{path}: not a readable .npz model file ({exc})") from None
+        arrays = read_npz(path, MAX_FILE_BYTES, MAX_FILE_BYTES, "model file", ModelFileError)
+        missing = [k for k in (*ARRAYS, "dt", "meta") if k not in arrays]
+        if missing:
+            raise ModelFileError(f"{path}: missing {missing}; expected arrays {list(ARRAYS)}, 'dt' and 'meta'")
+        dt_arr, meta_arr = arrays["dt"], arrays["meta"]
         if dt_arr.shape != () or dt_arr.dtype.kind not in "fi":
             raise ModelFileError(f"{path}: 'dt' must be a scalar number, got shape {dt_arr.shape} "
                                  f"dtype {dt_arr.dtype}")
         if meta_arr.shape != () or meta_arr.dtype.kind != "U":
             raise ModelFileError(f"{path}: 'meta' must be a JSON string, got dtype {meta_arr.dtype}")
-        try:
-            meta = json.loads(str(meta_arr[()]))
-        except json.JSONDecodeError as exc:
-            raise ModelFileError(f"{path}: 'meta' is not valid JSON ({exc})") from None
+        meta = parse_json(str(meta_arr[()]), f"{path}: 'meta'", ModelFileError)
         if not isinstance(meta, dict):
             raise ModelFileError(f"{path}: 'meta' must be a JSON object, got {type(meta).__name__}")
-        for k, v in arrays.items():
-            if v.dtype.kind not in "fi":
-                raise ModelFileError(f"{path}: {k} has dtype {v.dtype}, expected floating point")
+        for k in ARRAYS:
+            if arrays[k].dtype.kind not in "fi":
+                raise ModelFileError(f"{path}: {k} has dtype {arrays[k].dtype}, expected floating point")
+        if arrays["A"].size == 0:
+            raise ModelFileError(f"{path}: A has shape {arrays['A'].shape}: the model has no states; expected "
+                                 "a model of order >= 1 (identify it again)")
         try:
-            return cls(**arrays, dt=float(dt_arr), meta=meta)
+            return cls(**{k: arrays[k] for k in ARRAYS}, dt=float(dt_arr), meta=meta)
         except ModelFileError as exc:
             raise ModelFileError(f"{path}: {exc}") from None

@@ -6,19 +6,23 @@ pattern, :data:`NAME_PATTERN`; every output path built from such a name is
 resolved and must stay under the output folder the user gave. Output folders
 and files are checked before any work starts, so that a run is never lost to an
 unwritable path at its end, and written files appear whole or not at all
-(:func:`atomic_write`).
+(:func:`atomic_write`, the one atomic writer of the toolkit's files). Results
+printed to standard output go through :func:`write_stdout`, so a closed pipe or
+a full disk is one line, not a traceback.
 """
 
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import re
+import sys
 import tempfile
 from pathlib import Path
 from typing import IO, Iterator
 
-from .errors import OptionError
+from .errors import OptionError, OutputError
 
 #: Names that may become part of a file name: a letter or digit, then letters, digits, ``_``
 #: or ``-``; at most 64 characters (no dots, slashes, spaces or control characters).
@@ -103,21 +107,96 @@ def output_file(path: str | Path, suffixes: tuple[str, ...], what: str = "output
     return p
 
 
+def _umask() -> int:
+    """The process's file-creation mask (read from /proc where it can be, so it is never changed)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def atomic_write(path: str | Path, mode: str = "wb") -> Iterator[IO]:
-    """Open ``<path>.part`` for writing and move it onto ``path`` only when the block ends normally.
+    """Write ``path`` whole or not at all: a block writes a temporary file that replaces ``path`` at its end.
 
-    On any exception, a ``KeyboardInterrupt`` included, the partial file is
-    removed and ``path`` is left as it was.
+    The temporary file has a unique name in ``path``'s folder (``.<name>.<random>.part``, made by
+    :func:`tempfile.mkstemp`), so two writers of the same path never share it: each writes its own
+    file, and ``path`` holds one of them whole. When the block ends normally the data are flushed
+    and synced to disk and the file is moved onto ``path`` with :func:`os.replace` (atomic on one
+    file system); on any exception, ``KeyboardInterrupt`` included, the temporary file is removed
+    and ``path`` is left as it was. The file gets the permissions a new file would (``0o666`` less
+    the umask), or those of the file it replaces.
+
+    Parameters
+    ----------
+    path
+        The file to write; its folder is created if missing.
+    mode
+        ``"wb"`` (bytes) or ``"w"`` (text, UTF-8, no newline translation).
+
+    Yields
+    ------
+    file object
+        Open for writing; do not close it inside the block.
     """
+    if mode not in ("wb", "w"):
+        raise OptionError(f"atomic_write mode must be 'wb' or 'w', got {mode!r}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".part")
     try:
-        with open(tmp, mode, **({} if "b" in mode else {"newline": ""})) as fh:
+        perms = path.stat().st_mode & 0o7777
+    except OSError:
+        perms = 0o666 & ~_umask()
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:100]}.", suffix=".part")
+    tmp = Path(name)
+    try:
+        with (open(fd, "wb") if mode == "wb" else open(fd, "w", encoding="utf-8", newline="")) as fh:
+            os.fchmod(fh.fileno(), perms)
             yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+    with contextlib.suppress(OSError):   # make the rename itself durable; not every file system can
+        dfd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+
+
+def write_stdout(text: str, what: str) -> None:
+    """Print ``text`` (and a newline) to standard output and flush it.
+
+    A reader that closed the pipe, or a full disk behind a redirection, raises
+    :class:`OutputError` with one line instead of a traceback; standard output is then pointed
+    at the null device so that the interpreter's own flush at exit does not fail again.
+
+    Parameters
+    ----------
+    text
+        What to print.
+    what
+        The command, for the message (``"identification convert"``): the message reads
+        ``"<what>: error: cannot write the result to standard output (<reason>); <fix>"``.
+    """
+    try:
+        sys.stdout.write(text + "\n")
+        sys.stdout.flush()
+    except OSError as exc:
+        with contextlib.suppress(OSError, ValueError, AttributeError, io.UnsupportedOperation):
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, sys.stdout.fileno())
+            os.close(null)
+        raise OutputError(f"{what}: error: cannot write the result to standard output ({exc.strerror or exc}); "
+                          "the reader closed the pipe or the disk is full: keep the reader open or "
+                          "redirect to a file on a disk with room") from None

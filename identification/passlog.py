@@ -37,7 +37,7 @@ import hashlib
 import io
 import json
 import math
-import zipfile
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -45,6 +45,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .bounded import parse_json, read_npz, read_text
 from .errors import OptionError, PassLogError
 from .outputs import atomic_write, check_name
 
@@ -72,6 +73,15 @@ RANGES: Mapping[str, tuple[float, float]] = MappingProxyType({
 })
 TIME_RANGE: tuple[float, float] = (-1e6, 1e6)        # s since the start of the pass (11.6 days)
 MAX_NOMINAL_SPEED = 30.0                             # m/s
+#: Largest pass-log file read, bytes, ``.npz`` or CSV (a 3 h pass at 20 Hz is about 20 MB), and the
+#: largest ``meta`` JSON string, characters.
+MAX_FILE_BYTES = 64 * 2**20
+MAX_META_CHARS = 2**20
+#: A log's median ground speed may differ from its declared nominal speed by at most this fraction of
+#: the nominal speed plus :data:`SPEED_TOLERANCE_ABS` (m/s): a speed logged in mph (2.24 times m/s)
+#: or km/h is refused, the few per cent a tractor's speed wanders around its gear's are not.
+SPEED_TOLERANCE_REL = 0.25
+SPEED_TOLERANCE_ABS = 0.25                           # m/s
 
 #: Metadata key listing the time bases a single-rate log leaves out (their channels are on ``t``).
 ON_T = "time_bases_on_t"
@@ -86,6 +96,9 @@ def _in_range(arr: np.ndarray, name: str, lo: float, hi: float, unit: str) -> No
 
 
 def _readonly(a: Any, name: str) -> np.ndarray:
+    kind = getattr(a, "dtype", np.dtype(float)).kind
+    if kind not in "fiu":
+        raise PassLogError(f"channel {name!r}: stored as {a.dtype}; expected real numbers (float64, SI units)")
     try:
         arr = np.array(a, dtype=np.float64, copy=True)
     except (TypeError, ValueError) as exc:
@@ -222,44 +235,23 @@ class PassLog:
 
     @classmethod
     def load(cls, path: str | Path) -> "PassLog":
-        """Read a ``.npz`` pass log with ``allow_pickle=False``; refuse anything malformed."""
+        """Read a ``.npz`` pass log (bounded: :data:`MAX_FILE_BYTES`, no pickle); refuse anything malformed."""
         path = Path(path)
-        try:
-            with open(path, "rb") as fh:
-                magic = fh.read(4)
-        except FileNotFoundError:
-            raise PassLogError(f"{path}: no such file") from None
-        except OSError as exc:
-            raise PassLogError(f"{path}: cannot read ({exc.strerror or exc})") from None
-        if magic[:2] != b"PK":
-            raise PassLogError(f"{path}: not a .npz pass log (expected a zip archive, got leading bytes "
-                               f"{magic!r}); a CSV log is read with 'identification convert'")
-        try:
-            with np.load(path, allow_pickle=False) as npz:
-                keys = list(npz.files)
-                if "meta" not in keys:
-                    raise PassLogError(f"{path}: no 'meta' entry; not a pass log ({SCHEMA})")
-                raw = npz["meta"]  # raises ValueError on pickled (object) content
-                if raw.dtype.kind != "U" or raw.shape != ():
-                    raise PassLogError(f"{path}: 'meta' must be one JSON string, got {raw.dtype} {raw.shape}")
-                try:
-                    meta = json.loads(str(raw[()]))
-                except ValueError as exc:
-                    raise PassLogError(f"{path}: 'meta' is not a JSON string ({exc})") from None
-                if not isinstance(meta, dict):
-                    raise PassLogError(f"{path}: 'meta' must be a JSON object")
-                arrays = {k: npz[k] for k in keys if k != "meta"}
-        except PassLogError:
-            raise
-        except FileNotFoundError:
-            raise PassLogError(f"{path}: no such file") from None
-        except ValueError as exc:
-            if "pickle" in str(exc).lower() or "object arrays" in str(exc).lower():
-                raise PassLogError(f"{path}: contains pickled objects; refusing to load it "
-                                   "(pass logs are read with allow_pickle=False)") from None
-            raise PassLogError(f"{path}: not a readable .npz pass log ({exc})") from None
-        except (OSError, zipfile.BadZipFile, EOFError) as exc:
-            raise PassLogError(f"{path}: not a readable .npz pass log ({exc})") from None
+        arrays = read_npz(path, MAX_FILE_BYTES, MAX_FILE_BYTES, "pass log", PassLogError)
+        if "meta" not in arrays:
+            raise PassLogError(f"{path}: no 'meta' entry; not a pass log ({SCHEMA})")
+        raw = arrays.pop("meta")
+        if raw.dtype.kind != "U" or raw.shape != ():
+            raise PassLogError(f"{path}: 'meta' must be one JSON string, got {raw.dtype} {raw.shape}")
+        if len(str(raw[()])) > MAX_META_CHARS:
+            raise PassLogError(f"{path}: 'meta' holds {len(str(raw[()]))} characters; expected at most "
+                               f"{MAX_META_CHARS}")
+        meta = parse_json(str(raw[()]), f"{path}: 'meta'", PassLogError, expected="a JSON string")
+        if not isinstance(meta, dict):
+            raise PassLogError(f"{path}: 'meta' must be a JSON object")
+        for k, v in arrays.items():
+            if v.dtype.kind not in "fiu":
+                raise PassLogError(f"{path}: {k!r} is stored as {v.dtype}; expected numbers (float64, SI units)")
         times = {k: v for k, v in arrays.items() if k in TIME_BASES}
         chans = {k: v for k, v in arrays.items() if k not in TIME_BASES}
         try:
@@ -307,32 +299,32 @@ class PassLog:
             at least ``implement`` and ``nominal_speed`` [m/s] must be known.
         """
         path = Path(path)
-        try:
-            text = path.read_text()
-        except (OSError, UnicodeDecodeError) as exc:
-            raise PassLogError(f"{path}: cannot read CSV ({exc})") from None
+        text = read_text(path, MAX_FILE_BYTES, "CSV pass log", PassLogError)
         lines = text.splitlines()
         file_meta: dict[str, Any] = {}
         if lines and lines[0].startswith("#"):
             head = lines.pop(0)[1:].strip()
             if not head.startswith(SCHEMA + " meta="):
                 raise PassLogError(f"{path}: first line is a comment but not '# {SCHEMA} meta=<JSON>'")
-            try:
-                file_meta = json.loads(head[len(SCHEMA) + 6:])
-            except json.JSONDecodeError as exc:
-                raise PassLogError(f"{path}: metadata line is not valid JSON ({exc})") from None
+            file_meta = parse_json(head[len(SCHEMA) + 6:], f"{path}: metadata line", PassLogError)
             if not isinstance(file_meta, dict):
                 raise PassLogError(f"{path}: metadata must be a JSON object")
         merged = {**file_meta, **(dict(meta) if meta else {})}
-        reader = csv.reader(io.StringIO("\n".join(lines)))
         try:
-            header = next(reader)
-        except StopIteration:
-            raise PassLogError(f"{path}: empty CSV, expected a header row") from None
+            rows = list(csv.reader(io.StringIO("\n".join(lines))))
+        except csv.Error as exc:
+            raise PassLogError(f"{path}: not a readable CSV ({exc}); expected one number per field") from None
+        if not rows:
+            raise PassLogError(f"{path}: empty CSV, expected a header row")
+        header, body = rows[0], rows[1:]
         if not header or header[0] not in ("time", "t"):
             raise PassLogError(f"{path}: first column must be 'time' (s since the start of the pass), "
                                f"got {header[:1]}")
         names = header[1:]
+        twice = sorted(n for n, k in Counter(header).items() if k > 1)
+        if twice:
+            raise PassLogError(f"{path}: the header names column(s) {twice} more than once; expected each "
+                               "channel in one column")
         try:
             bases = _channel_bases(_check_meta(merged))
         except PassLogError as exc:
@@ -342,7 +334,7 @@ class PassLog:
             raise PassLogError(f"{path}: column(s) {extra} are not known channels; declare them in "
                                "meta['extra_channels']")
         cols: dict[str, list[tuple[float, float]]] = {n: [] for n in names}
-        for lineno, row in enumerate(reader, start=3 if file_meta else 2):
+        for lineno, row in enumerate(body, start=3 if file_meta else 2):
             if len(row) != len(header):
                 raise PassLogError(f"{path}:{lineno}: {len(row)} fields, expected {len(header)}")
             try:
@@ -393,9 +385,18 @@ def check_physical(log: PassLog, where: str = "") -> None:
             _in_range(log.channels[name], name, lo, hi, CHANNELS[name][1])
     except PassLogError as exc:
         raise PassLogError(prefix + str(exc)) from None
-    if not np.any(log.channels["speed"] != 0.0):
+    speed = log.channels["speed"]
+    if not np.any(speed != 0.0):
         raise PassLogError(f"{prefix}speed is 0 m/s on every sample; a pass for identification must "
                            "move (expected a ground speed > 0 on at least part of the pass)")
+    nominal = float(log.meta["nominal_speed"])
+    median = float(np.median(np.abs(speed)))
+    allowed = SPEED_TOLERANCE_REL * nominal + SPEED_TOLERANCE_ABS
+    if abs(median - nominal) > allowed:
+        raise PassLogError(f"{prefix}median speed {median:.3g} m/s differs from the declared nominal speed "
+                           f"{nominal:g} m/s by more than {allowed:.3g} m/s ({SPEED_TOLERANCE_REL:.0%} + "
+                           f"{SPEED_TOLERANCE_ABS:g} m/s); speed must be m/s (convert mph or km/h), or "
+                           "declare the nominal speed the pass was driven at")
 
 
 def _check_meta(meta: Mapping[str, Any]) -> dict[str, Any]:

@@ -19,6 +19,7 @@ from typing import Sequence
 import numpy as np
 
 from .model import Model
+from .outputs import atomic_write
 from .validation import ValidationResult
 
 #: Conversion of SI output units to the paper's display units.
@@ -119,6 +120,6 @@ def table1(model: Model, result: ValidationResult) -> list[dict]:
 def save(fig, path: str | Path) -> Path:
     """Save a figure (PNG or SVG by suffix) and return its path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    with atomic_write(path) as fh:
+        fig.savefig(fh, dpi=120, format=path.suffix.lstrip(".").lower() or "png")
     return path

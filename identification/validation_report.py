@@ -15,6 +15,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .acceptance import REFUSE_FIT, WARN_FIT
+from .outputs import atomic_write
 
 
 def table_rows(results: Sequence[Any]) -> list[dict]:
@@ -96,7 +97,9 @@ def write_validation_report(results: Sequence[Any], out_dir: str | Path) -> dict
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = table_rows(results)
     md = out_dir / "validation.md"
-    md.write_text(markdown(rows))
+    with atomic_write(md, "w") as fh:
+        fh.write(markdown(rows))
     png = out_dir / "validation_prediction.png"
-    plot(results).savefig(png, dpi=120)
+    with atomic_write(png) as fh:
+        plot(results).savefig(fh, dpi=120, format="png")
     return {"table": str(md), "figure": str(png), "rows": rows}

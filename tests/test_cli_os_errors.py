@@ -1,13 +1,19 @@
-"""OS errors and unwritable plots end in one line and exit 1, never a traceback (#18 item 5)."""
+"""OS errors, unwritable plots and a standard output that cannot be written end in one line and exit 1.
+
+Never a traceback (#18 item 5).
+"""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
 import design.cli
 import gnss.cli
 
 DATA = Path(__file__).resolve().parent / "data" / "gnss"
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _one_line(capsys) -> str:
@@ -31,3 +37,31 @@ def test_gnss_replay_refuses_a_plot_it_cannot_write_before_decoding(tmp_path, ca
     blocker.write_text("x")
     assert gnss.cli.main(["replay", str(capture), "--plot", str(blocker / "x.png")]) == 1
     _one_line(capsys)
+
+
+def _convert_argv(tmp_path: Path) -> list[str]:
+    src = tmp_path / "in.csv"
+    src.write_text("time,wheel_angle,steer_rate_cmd,cross_track,heading_error,speed\n"
+                   + "".join(f"{i * 0.05:g},0,0,0,0,1.8\n" for i in range(40)))
+    return [sys.executable, "-m", "identification.cli", "convert", str(src), str(tmp_path / "out.npz"),
+            "--meta", '{"implement": "none", "nominal_speed": 1.79}']
+
+
+def test_identification_prints_one_line_when_stdout_is_a_full_disk(tmp_path):
+    with open("/dev/full", "w") as full:
+        done = subprocess.run(_convert_argv(tmp_path), stdout=full, stderr=subprocess.PIPE, text=True,
+                              cwd=ROOT, timeout=120)
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.strip().splitlines() == [
+        "identification convert: error: cannot write the result to standard output (No space left on "
+        "device); the reader closed the pipe or the disk is full: keep the reader open or redirect to a "
+        "file on a disk with room"]
+
+
+def test_identification_prints_one_line_when_the_reader_closed_the_pipe(tmp_path):
+    proc = subprocess.Popen(_convert_argv(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=ROOT)
+    proc.stdout.close()              # the reader is gone before the command prints its result
+    err = proc.stderr.read()
+    assert proc.wait(timeout=120) == 1 and "Traceback" not in err and "Exception ignored" not in err, err
+    assert len(err.strip().splitlines()) == 1 and "(Broken pipe)" in err, err

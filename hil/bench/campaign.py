@@ -19,6 +19,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
+from identification.outputs import atomic_write
+
 from hil.truth.conditions import Condition, all_conditions
 from hil.errors import SimulatorConfigError
 from hil.truth.params import SimParams
@@ -162,10 +164,8 @@ class Campaign:
         key = RunKey(**{f: result[f] for f in RunKey.__dataclass_fields__ if f != "controller"},
                      controller=result["controller_spec"])
         path = self._path(key, str(result.get("mode", "")).startswith("realtime"))
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".part")
-        tmp.write_text(json.dumps(result, indent=2) + "\n")
-        tmp.replace(path)
+        with atomic_write(path, "w") as fh:
+            fh.write(json.dumps(result, indent=2) + "\n")
 
     def results(self) -> list[dict]:
         """Every finished run's result, in campaign order."""

@@ -21,6 +21,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from identification.outputs import atomic_write
 from identification.passlog import PassLog
 
 from hil.bench.field_metrics import field_metrics
@@ -202,9 +203,8 @@ class FieldComparison:
 
     def _save(self, key: FieldKey, result: dict) -> None:
         path = self._path(key)
-        tmp = path.with_suffix(".part")
-        tmp.write_text(json.dumps(result, indent=2) + "\n")
-        tmp.replace(path)
+        with atomic_write(path, "w") as fh:
+            fh.write(json.dumps(result, indent=2) + "\n")
 
     def run(self, workers: int | None = None, progress: Callable[[int, int], None] | None = None) -> list[dict]:
         """Run what is pending (``workers`` processes; 1: in this process) and return every result."""

@@ -21,9 +21,13 @@ from a seed. ``docs/tractors.md`` is :func:`tractors_markdown` (kept equal by a 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
+import os
+import re
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -40,6 +44,9 @@ FORMAT = "tractor-autosteer tractor"
 VERSION = 1
 TRACTOR_DIR = Path(__file__).with_name("tractor_files")
 _KEYS = {"format", "version", "name", "description", "source", "parameters"}
+#: Largest tractor file read, bytes (one is about 1 kB), and its deepest JSON nesting.
+MAX_FILE_BYTES = 2**20
+MAX_JSON_DEPTH = 64
 _G = 9.80665
 
 
@@ -149,25 +156,71 @@ class Tractor:
                    source=d.get("source", "assumption"))
 
 
+# hil.truth imports nothing of the toolkit (.importlinter), so the tractor file's bounded read and
+# atomic write are done here with the same rules as identification.bounded.read_json and
+# identification.outputs.atomic_write: a size limit before parsing, the JSON nesting depth checked in
+# one pass before json.loads, a uniquely named temporary file synced and renamed into place.
+_JSON_STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"?', re.S)
+
+
+def _json_depth(text: str) -> int:
+    """Deepest nesting of arrays and objects in JSON ``text`` (strings skipped), in one pass."""
+    codes = np.frombuffer(_JSON_STRING.sub("", text).encode("utf-8", "replace"), np.uint8)
+    steps = np.isin(codes, (91, 123)).astype(np.int64) - np.isin(codes, (93, 125)).astype(np.int64)
+    return int(np.cumsum(steps).max(initial=0))
+
+
+def _read_json(path: Path) -> Any:
+    where = f"tractor file {str(path)!r}"
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise SimulatorConfigError(f"{where}: cannot be read ({exc.strerror or exc}); expected a tractor "
+                                   "file (JSON)") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise SimulatorConfigError(f"{where}: larger than the {MAX_FILE_BYTES} bytes a tractor file may hold; "
+                                   "expected a tractor file (JSON, a few kB): is this the right file?")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SimulatorConfigError(f"{where}: not UTF-8 text at byte {exc.start}; expected JSON") from None
+    depth = _json_depth(text)
+    if depth > MAX_JSON_DEPTH:
+        raise SimulatorConfigError(f"{where}: JSON nested {depth} deep; expected at most {MAX_JSON_DEPTH} "
+                                   "levels (the file is damaged or not a tractor file)")
+    try:
+        return json.loads(text)
+    except ValueError as exc:
+        raise SimulatorConfigError(f"{where} is not valid JSON: {' '.join(str(exc).split())}") from None
+
+
 def save_tractor(tractor: Tractor, path: str | Path) -> Path:
-    """Write a tractor file (JSON, sorted groups as given); returns the path."""
+    """Write a tractor file (JSON, sorted groups as given) whole or not at all; returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(tractor.to_dict(), indent=2) + "\n")
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:100]}.", suffix=".part")
+    try:
+        with open(fd, "w", encoding="utf-8") as fh:
+            os.fchmod(fh.fileno(), 0o644)
+            fh.write(json.dumps(tractor.to_dict(), indent=2) + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(name, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(name)
+        raise
     return path
 
 
 def load_tractor(path: str | Path) -> Tractor:
-    """Read and validate a tractor file."""
+    """Read (at most :data:`MAX_FILE_BYTES`, nesting at most :data:`MAX_JSON_DEPTH`) and validate a tractor file."""
     path = Path(path)
-    try:
-        d = json.loads(path.read_text())
-    except FileNotFoundError:
+    if not path.exists():
         raise SimulatorConfigError(f"tractor file {str(path)!r} does not exist; give a file or one of "
-                                   f"{sorted(builtin_tractors())}") from None
-    except json.JSONDecodeError as exc:
-        raise SimulatorConfigError(f"tractor file {str(path)!r} is not valid JSON: {exc}") from None
-    return Tractor.from_dict(d, where=f"tractor file {str(path)!r}")
+                                   f"{sorted(builtin_tractors())}")
+    return Tractor.from_dict(_read_json(path), where=f"tractor file {str(path)!r}")
 
 
 def builtin_tractors() -> dict[str, Tractor]:

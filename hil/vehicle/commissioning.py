@@ -7,7 +7,8 @@ checked, and free-text notes::
     {"format": "tractor-autosteer commissioning", "version": 1, "tractor": "heavy-11t",
      "valve": {"full_scale": 0.35, "deadband": 0.12, ...}, "linearity": {...} | null, "notes": "..."}
 
-Reading validates every field and refuses unknown keys. :func:`loop_settings` turns the measured
+Reading is bounded (:data:`MAX_FILE_BYTES`, a JSON nesting depth) and validates every field and
+refuses unknown keys. :func:`loop_settings` turns the measured
 actuator into the vehicle loop's settings (rate limit and steering-response monitor) instead of
 the constants of :class:`~hil.vehicle.loop.LoopConfig`; :class:`MappedBridge` applies the
 inverse map where the loop's rate command becomes what the bridge turns into a duty.
@@ -22,6 +23,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
+from identification.bounded import read_json
+from identification.outputs import atomic_write
+
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.vehicle.errors import VehicleConfigError
 from hil.vehicle.loop import LoopConfig
@@ -33,6 +37,8 @@ __all__ = ["Commissioning", "load_commissioning", "save_commissioning", "loop_se
 FORMAT = "tractor-autosteer commissioning"
 VERSION = 1
 _KEYS = {"format", "version", "tractor", "valve", "linearity", "notes"}
+#: Largest commissioning file read, bytes (one is about 2 kB; free-text notes included, 1 MiB is ample).
+MAX_FILE_BYTES = 2**20
 _LINEARITY_KEYS = {"wanted", "measured", "max_error", "max_error_fraction"}
 
 #: The response monitor trips when the wheel moved less than this fraction of the commanded motion
@@ -132,21 +138,18 @@ def _check_linearity(lin: Any) -> dict[str, Any]:
 def save_commissioning(c: Commissioning, path: str | Path) -> Path:
     """Write the commissioning file (JSON); returns the path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(c.to_dict(), indent=2) + "\n")
+    with atomic_write(path, "w") as fh:
+        fh.write(json.dumps(c.to_dict(), indent=2) + "\n")
     return path
 
 
 def load_commissioning(path: str | Path) -> Commissioning:
     """Read and validate a commissioning file."""
     path = Path(path)
-    try:
-        d = json.loads(path.read_text())
-    except FileNotFoundError:
+    if not path.exists():
         raise VehicleConfigError(f"commissioning file {str(path)!r} does not exist; make one with "
-                                 "`hil commission` (or the valve characterisation)") from None
-    except json.JSONDecodeError as exc:
-        raise VehicleConfigError(f"commissioning file {str(path)!r} is not valid JSON: {exc}") from None
+                                 "`hil commission` (or the valve characterisation)")
+    d = read_json(path, MAX_FILE_BYTES, "commissioning file", VehicleConfigError)
     return Commissioning.from_dict(d, where=f"commissioning file {str(path)!r}")
 
 

@@ -69,7 +69,7 @@ def test_malformed_files_are_refused(tmp_path, change, message):
 def test_not_a_zip_and_missing_file(tmp_path):
     p = tmp_path / "junk.npz"
     p.write_bytes(b"hello")
-    with pytest.raises(ModelFileError, match="not a readable"):
+    with pytest.raises(ModelFileError, match="not a .npz model file .expected a zip archive"):
         Model.load(p)
     with pytest.raises(ModelFileError, match="no such"):
         Model.load(tmp_path / "none.npz")

@@ -17,7 +17,7 @@ sample time or a swapped certificate. The margins are re-computed by ``design ve
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from identification.errors import ModelFileError
 from identification.model import Model
@@ -26,6 +26,9 @@ from ..compensator import Compensator, closed_loop_matrix, spectral_radius
 from ..errors import ControllerFileError, DesignInputError
 from ..limits import check_model_order
 from ..verify import compensator_hash, model_hash
+
+if TYPE_CHECKING:                                   # for the annotation only
+    from ..estimate_schedule import EstimateSchedule
 
 MODEL_KEYS = ("A", "B", "C", "D", "K", "dt")
 RADIUS_TOLERANCE = 1e-9

@@ -132,8 +132,12 @@ def validate_csv(model: str | Path, data: str | Path, inputs: Sequence[str], out
     m = Model.load(model)
     io = read_csv(data, inputs, outputs, dt if dt is not None else m.dt, experiment_column)
     if not np.isclose(io.dt, m.dt):
-        raise DataError(f"the data are sampled at dt={io.dt:g} s but the model at {m.dt:g} s")
-    res = validate(m.A, m.B, m.C, m.D, m.K, io)
+        raise DataError(f"{data}: sampled at dt={io.dt:g} s but the model {model} at {m.dt:g} s; expected "
+                        "one sample time (resample the record, or give --dt)")
+    try:
+        res = validate(m.A, m.B, m.C, m.D, m.K, io)
+    except DataError as exc:
+        raise DataError(f"model {model} on {data}: {exc}") from None
     text = (f"{model} on {data}: free-run fit % {_fmt(res.free_run_fit)}   "
             f"one-step fit % {_fmt(res.one_step_fit)}")
     return {**res.as_dict(), "_text": text}

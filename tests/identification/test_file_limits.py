@@ -259,3 +259,17 @@ def test_written_files_get_the_usual_permissions(tmp_path):
     path.chmod(0o600)
     _model().save(path)
     assert path.stat().st_mode & 0o777 == 0o600
+
+
+def test_validate_names_the_model_and_the_record_in_its_errors(tmp_path):
+    from identification.workflow import validate_csv
+
+    model = _model().save(tmp_path / "m.npz")
+    rec = tmp_path / "rec.csv"
+    rec.write_text("t,u,y\n" + "".join(f"{i * 0.1:g},{i % 3},{i % 5}\n" for i in range(60)))
+    with pytest.raises(DataError, match="sampled at dt=0.1 s but the model") as exc:
+        validate_csv(model, rec, ["u"], ["y"], dt=0.1)
+    _one_line(exc, rec, str(model))
+    with pytest.raises(DataError, match="model has 1 input") as exc:
+        validate_csv(model, rec, ["u"], ["y"])
+    _one_line(exc, rec, str(model))

@@ -43,8 +43,9 @@ _NPY_HEADER_MAX = 10_000     # bytes of one .npy header (numpy's own default lim
 # A JSON string (escapes included), or an unterminated one up to the end of the text: matched in
 # one pass without backtracking, so a text full of quotes stays linear.
 _JSON_STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"?', re.S)
-_OPEN = np.frombuffer(b"[{", np.uint8)
-_CLOSE = np.frombuffer(b"]}", np.uint8)
+_STEP = np.zeros(256, np.int64)      # +1 for '[' and '{', -1 for ']' and '}', by byte value
+_STEP[[ord("["), ord("{")]] = 1
+_STEP[[ord("]"), ord("}")]] = -1
 
 
 def _mib(n: int) -> str:
@@ -97,9 +98,7 @@ def json_depth(text: str) -> int:
     brackets), so the cost is linear in the length whatever the text holds.
     """
     bare = _JSON_STRING.sub("", text).encode("utf-8", "replace")
-    codes = np.frombuffer(bare, np.uint8)
-    steps = np.isin(codes, _OPEN).astype(np.int64) - np.isin(codes, _CLOSE).astype(np.int64)
-    return int(np.cumsum(steps).max(initial=0))
+    return int(np.cumsum(_STEP[np.frombuffer(bare, np.uint8)]).max(initial=0))
 
 
 def parse_json(text: str, where: str, error: type[Exception] = FileReadError,

@@ -165,9 +165,11 @@ _JSON_STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"?', re.S)
 
 def _json_depth(text: str) -> int:
     """Deepest nesting of arrays and objects in JSON ``text`` (strings skipped), in one pass."""
-    codes = np.frombuffer(_JSON_STRING.sub("", text).encode("utf-8", "replace"), np.uint8)
-    steps = np.isin(codes, (91, 123)).astype(np.int64) - np.isin(codes, (93, 125)).astype(np.int64)
-    return int(np.cumsum(steps).max(initial=0))
+    step = np.zeros(256, np.int64)        # +1 for '[' and '{', -1 for ']' and '}', by byte value
+    step[[ord("["), ord("{")]] = 1
+    step[[ord("]"), ord("}")]] = -1
+    bare = _JSON_STRING.sub("", text).encode("utf-8", "replace")
+    return int(np.cumsum(step[np.frombuffer(bare, np.uint8)]).max(initial=0))
 
 
 def _read_json(path: Path) -> Any:

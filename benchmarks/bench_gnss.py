@@ -8,7 +8,7 @@
 2. Decoding the Trimble NMEA capture with ``gnss.reader`` versus ``pynmeagps.NMEAReader`` alone.
 3. Cross-track of N points: vectorised ``ABLine.errors`` / ``CurvedLine.errors`` versus a scalar
    Python loop over the points.
-4. Hostile input (issue 18): streams made of one repeated unit (``$``, ``$``-lines, UBX and RTCM 3 headers
+4. Hostile input: streams made of one repeated unit (``$``, ``$``-lines, UBX and RTCM 3 headers
    that announce long frames) decoded by ``gnss.reader``, against the clean Trimble capture repeated to
    the same size: the ratio is what line noise or a hostile file costs over a real receiver's bytes.
 5. One point from ENU to geodetic and back (what the emulated receiver and the front-end do at 5 Hz):

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
-"""HIL bench speed, before and after in the same run (issue 17 item 3), and real-time behaviour.
+"""HIL bench speed, before and after in the same run, and real-time behaviour.
 
-1. Before vs after: the reference commit's code (:data:`REFERENCE_COMMIT`, the code before issue 17's
-   one-copy work, exported with ``git archive`` into a temporary directory; or ``--reference DIR``) and
+1. Before vs after: the reference commit's code (:data:`REFERENCE_COMMIT`, the code before the simulator kept one copy of each
+   equation, exported with ``git archive`` into a temporary directory; or ``--reference DIR``) and
    this tree's, each measured in its own process with one BLAS thread, one after the other:
    (c) the full byte-level lockstep pass (bridge and receivers encoded and decoded every cycle, GNSS
        front-end, guidance, kinematic LQR, recording), x real time by the process's CPU time (the
@@ -48,7 +48,7 @@ from hil.bench.run import RunSpec, simulated_run  # noqa: E402
 from hil.vehicle.summary import summarize  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-#: The code before issue 17's one-copy work (the reference of tests/data/hil_reference too).
+#: The code before the simulator had one copy of each equation (the reference of tests/data/hil_reference too).
 REFERENCE_COMMIT = "2e63b1ef4b162526b4cd84fa041d7720ee666d30"
 CONTROLLERS = ROOT / "tests" / "data" / "hil_reference" / "controllers"
 LOCKSTEP_FLOOR = 250.0     # x real time, full byte-level pass, one core

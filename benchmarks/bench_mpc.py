@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""MPC per-tick time and exactness (issue 7's benchmark).
+"""MPC per-tick time and exactness.
 
 1. Linear MPC, horizons 20 / 50 / 100: the project's backends and peers solving the
    *identical* QP (same A, B, Q, R, P, limits, horizon and slack weights, from

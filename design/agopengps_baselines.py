@@ -1,6 +1,6 @@
 """AgOpenGPS's own pure pursuit and Stanley, as it runs them, as controllers of the loop's interface.
 
-These are the baselines of issue 15 item 5: the laws and default settings of AgOpenGPS
+These are the AgOpenGPS baselines: the laws and default settings of AgOpenGPS
 (``farmerbriantee/AgOpenGPS``), next to the project's tuned laws in :mod:`design.baselines`.
 Every formula and default below was read in the AgOpenGPS sources (stored versions named by
 commit; the search tool's copies):

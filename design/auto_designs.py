@@ -46,10 +46,10 @@ def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications
     window): the specifications are the same, so that window's law tracks with the widest
     bandwidth they allow. When no candidate meets every specification, the longer windows of
     :data:`EXTRA_WINDOWS` are searched too, shortest first, until one does. Measured on random-1's
-    validated models (orders 4-10, session 10, before the order choice skipped sampling artefacts):
+    validated models (orders 4-10 before the order choice skipped sampling artefacts):
     the one-sample window met them up to a scale of 0.147, the observable window (3) up to 2.27, and
     closed-loop 1-sigma at 2.91 m/s went from 13.1 to 10.4 cm (none) and 15.9 to 12.0 cm (ripper);
-    on its artefact-free models (session 12) the one-sample window reaches 2.11.
+    on its artefact-free models the one-sample window reaches 2.11.
     Every window's search is recorded in ``design["auto_weights"]["windows"]``.
 
     Raises
@@ -100,9 +100,9 @@ def auto_robust(models: Sequence[Model], spec: RobustSpec, specs: Specifications
 
 
 #: Longer windows (samples) searched, shortest first, when no window of :func:`window_candidates` meets
-#: every specification. With the models free of sampling artefacts (``identification.modes``, session 12)
+#: every specification. With the models free of sampling artefacts (``identification.modes``)
 #: the observable window is one sample on most tractors; on random-11 the one-sample law relaxed the delay
-#: reserve to 0.05 s at every scale (chosen 0.17; 0/15 HIL cells within issue 14's bounds).
+#: reserve to 0.05 s at every scale (chosen 0.17; 0/15 HIL cells within the commissioning bounds).
 EXTRA_WINDOWS = (2, 3)
 
 

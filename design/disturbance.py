@@ -1,6 +1,6 @@
 """A disturbance estimate beside the robust window law: the soil's pull seen in the one-step prediction.
 
-Why (issue 14, docs/tractor_gap.md): the oracle's advantage on the random tractors is its
+Why (docs/tractor_gap.md): the oracle's advantage on the random tractors is its
 Kalman filter's disturbance states (a lateral force and a yaw moment of the soil and the
 implement, first order with about 2 s); without them it is no better than the identified
 controllers. The window law ``u = K z`` of :mod:`design.iostate` has only the integral of

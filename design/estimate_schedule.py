@@ -1,4 +1,4 @@
-"""Where the disturbance estimate acts: a speed schedule between two certified laws (issue 14).
+"""Where the disturbance estimate acts: a speed schedule between two certified laws.
 
 Why: on the heavy tractor (slow valve, 0.15 s latency) the estimate of :mod:`design.disturbance`
 takes 5-10 % off the 1-sigma at 1.00-2.24 m/s, but at 2.91 m/s it drives the command into the

@@ -1,4 +1,4 @@
-"""Stated limits of the design tools and of the controller files they write (issue 18, item 3).
+"""Stated limits of the design tools and of the controller files they write.
 
 Every limit has a name, a value and a reason; the checks raise an error that names the
 limit, says what came and what to do. The numbers are generous for a steering loop

@@ -78,7 +78,7 @@ __all__ = ["FallbackEvent", "NMPCSettings", "NMPCSolution", "NonlinearMPC", "lin
 
 SOLVERS = ("gauss-newton", "sqp", "ipopt")
 _DEFAULT_ITER = {"gauss-newton": 2, "sqp": 10, "ipopt": 50}
-#: The issue's deadline for a solve, s: solves slower than it are counted (``over_budget``), not refused.
+#: The deadline for a solve, s: solves slower than it are counted (``over_budget``), not refused.
 SOLVE_BUDGET_S = 0.003
 #: Fallback events kept for the record (the counters count them all).
 KEEP_EVENTS = 1000

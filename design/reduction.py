@@ -1,6 +1,6 @@
 """Design models the measured window can see: shifted balanced truncation of weakly observed states.
 
-Why (measured on the worn-valve tractor's 15 validated local models, orders 4-10; issue 14):
+Why (measured on the worn-valve tractor's 15 validated local models, orders 4-10):
 the states beyond the fourth have Hankel singular values 0.2-1.3 % of the first, and the
 window of the robust design sees them only through an ill-conditioned observability
 matrix (its smallest-to-largest singular value ratio at two output samples: 0.08-0.26 for

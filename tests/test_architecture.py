@@ -30,12 +30,12 @@ def test_every_hil_sub_package_has_a_contract_and_a_line_in_the_readme_map():
     sources = {m.strip() for sec in cfg.sections() if sec.startswith("importlinter:contract:")
                for m in cfg[sec].get("source_modules", "").split()}
     subs = sorted(p.parent.name for p in (ROOT / "hil").glob("*/__init__.py"))
-    assert subs == ["bench", "calibration", "devices", "links", "truth", "vehicle"]
+    assert subs == ["bench", "calibration", "commissioning", "devices", "links", "truth", "vehicle"]
     readme = (ROOT / "README.md").read_text()
     section = readme.split("## Map of the code", 1)[1].split("\n## ", 1)[0]
     for sub in subs:
         assert re.search(rf"^\| `hil/{sub}/` \|", section, re.M), f"README map has no line for hil/{sub}/"
-    for sub in ("truth", "links", "vehicle", "devices", "bench"):
+    for sub in ("truth", "links", "vehicle", "devices", "commissioning", "bench"):
         assert f"hil.{sub}" in sources, f"no contract constrains hil.{sub}"
 
 

@@ -2,7 +2,7 @@
 
 What it is
 ----------
-A constrained alternative to the robust LQR (issue 7). The prediction model is the
+A constrained alternative to the robust LQR. The prediction model is the
 central model in the robust design's measured coordinates (:mod:`design.iostate`:
 present and past normalised outputs, past commands, the integral of y/V), so the
 state is measured (no estimator, the same state as the robust gain's) and the

@@ -104,7 +104,7 @@ class MPCController:
         Look-ahead of the wheel-angle feed-forward, s (:class:`design.curvature.Reference`:
         the QP acts on deviations from the reference, the curve's steady state and, on every
         engage and after a headland turn, the approach path to the line that the linear
-        controllers follow; its integral is held until the path's end). Before session 11 the MPC
+        controllers follow; its integral is held until the path's end). Before that, the MPC
         had no approach path: from 0.3 m off at 1.00 m/s it was still 10-15 cm off the line when
         the scoring starts (5 s after engage), which cost 1.00-1.04x the paper's method there
         (random-5, none/disker/ripper 2.26/2.39/2.26 cm; with the path 1.80/1.84/1.80 cm). A

@@ -1,4 +1,4 @@
-"""Issue 15's comparison table: the same kind of controller through the HC11 bridge and through an
+"""The bridge comparison table: the same kind of controller through the HC11 bridge and through an
 AgOpenGPS steer module, with AgOpenGPS's own laws beside them, from two ``hil compare`` reports.
 
     python -m hil.bench.agio_results HC11_REPORT_DIR MODULE_REPORT_DIR [--json]
@@ -25,7 +25,7 @@ from hil.errors import SimulatorConfigError
 __all__ = ["RATIO_BOUND", "CellRow", "read_cells", "bridge_table", "markdown", "main"]
 
 RATIO_BOUND = 1.15
-"""Issue 15: robust and MPC through the module within 1.15x of their HC11-bridge figures."""
+"""Target: robust and MPC through the module within 1.15x of their HC11-bridge figures."""
 OURS = ("robust", "mpc")
 AGIO_LAWS = ("aog-pure-pursuit", "aog-stanley")
 _MAX_ROWS = 10_000

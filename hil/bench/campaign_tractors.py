@@ -1,4 +1,4 @@
-"""Many tractors commissioned one after the other (issue 14's acceptance): ``hil commission-campaign``.
+"""Many tractors commissioned one after the other (the commissioning acceptance): ``hil commission-campaign``.
 
 Every tractor is commissioned by :func:`hil.bench.commission.commission` under ``OUT/<tractor>/``;
 after each tractor the aggregate (``campaign.json``, ``campaign.md``, ``campaign_ratios.png``,
@@ -25,7 +25,9 @@ from typing import Callable, Sequence
 
 from identification.outputs import check_name
 
-from hil.bench.commission import CONTROLLERS, CommissionOptions, commission, options_dict
+from hil.bench.campaign_tractors_report import summarise_tractor, write_campaign_report
+from hil.bench.commission import CommissionOptions, commission, options_dict
+from hil.bench.commission_table import CONTROLLERS
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import IMPLEMENTS
 from hil.truth.tractors import Tractor
@@ -161,7 +163,6 @@ def commission_campaign(tractors: Sequence[Tractor], out: str | Path, options: C
     dict
         The aggregate (``campaign.json``): one row per tractor, the overall line, the files.
     """
-    from hil.bench.campaign_tractors_report import summarise_tractor, write_campaign_report
     opts = options or CommissionOptions()
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
     names = [check_name(t.name, "tractor name") for t in tractors]

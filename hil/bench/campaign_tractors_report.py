@@ -1,10 +1,10 @@
 """The aggregate of a tractor campaign (:mod:`hil.bench.campaign_tractors`): its table, overall line and figure.
 
 Read from the tractors' ``result.json`` (already validated by
-:func:`hil.bench.campaign_tractors.load_result`); nothing is re-run here. Issue 14's bounds: the
+:func:`hil.bench.campaign_tractors.load_result`); nothing is re-run here. The commissioning bounds: the
 robust controller's and the MPC's 1-sigma at most :data:`ORACLE_BOUND` x the oracle's and at most
 :data:`PAPER_BOUND` x the paper's method's in every cell; 0 diverging passes
-(:data:`hil.bench.commission.DIVERGED_M`); a robust controller and an MPC for every tractor.
+(:data:`hil.bench.commission_table.DIVERGED_M`); a robust controller and an MPC for every tractor.
 """
 
 from __future__ import annotations
@@ -16,7 +16,8 @@ from pathlib import Path
 from statistics import median
 from typing import Sequence
 
-from hil.bench.commission import DIVERGED_M, CommissionOptions, hil_ratios, options_dict
+from hil.bench.commission import CommissionOptions, options_dict
+from hil.bench.commission_table import DIVERGED_M, hil_ratios
 
 __all__ = ["summarise_tractor", "write_campaign_report", "ORACLE_BOUND", "PAPER_BOUND"]
 

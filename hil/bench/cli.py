@@ -5,6 +5,7 @@
     hil params [--tractor NAME|FILE] [--set group.name=value ...]
     hil tractors [--markdown] [--random SEED ... --out DIR]
     hil commission --tractor NAME|FILE --out DIR [--passes N] [--duration S] [--hil-seeds N] ...
+    hil commission --logs DIR --commissioning FILE --out DIR [--latency auto|valid-time|declared|identified]
     hil calibrate --out out/calibration [--controller central-lqr.json] [--budget 30] [--seeds 2]
     hil run --controller kinematic --implement none --speed 1.79 --duration 60 --out runs/NAME
         [--realtime] [--seed N] [--fault KIND:START-END ...]
@@ -580,6 +581,8 @@ def _print_human(command: str, result: dict) -> None:
     elif command == "commission":
         for st in result["steps"]:
             print(f"{st['step']:<20} {'ok' if st['ok'] else 'FAILED: ' + st['error']}")
+        if result.get("driving_s"):
+            print(f"driving in the logs: {result['driving_s']['total'] / 60:.1f} min")
         print(f"report: {result['files'][0]}")
     elif command == "sysid":
         print(f"wrote {result['passes']} pass logs of {result['duration_s']:.0f} s to {result['out']}")

@@ -17,7 +17,9 @@ import sys
 from tqdm import tqdm
 
 from hil.bench.campaign_tractors import commission_campaign
-from hil.bench.commission import WEIGHTS, CommissionOptions, commission
+from hil.bench.commission import CommissionOptions, commission
+from hil.commissioning.designs import WEIGHTS
+from hil.commissioning.from_logs import LATENCY_SOURCES, LogOptions, commission_from_logs
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for
 from hil.truth.tractors import Tractor, random_tractor, resolve_tractor
@@ -105,13 +107,20 @@ def _seed_ranges(text: str) -> list[int]:
     return seeds
 
 
-def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> None:
+def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> argparse.ArgumentParser:
     """Add ``commission`` and ``commission-campaign`` to the bench's sub-commands (``number``/``override``: the
-    CLI's value parsers)."""
-    c = sub.add_parser("commission", help="commission a bench tractor end to end: valve, passes, identification, "
-                       "designs, certificate, HIL comparison and a report, all under --out")
-    c.add_argument("--tractor", required=True, metavar="NAME|FILE.json",
-                   help="the tractor (a tractor file, a name of the family or random-SEED; see `hil tractors`)")
+    CLI's value parsers); returns the ``commission`` parser."""
+    c = sub.add_parser("commission", help="commission a tractor: from the passes and valve test recorded on it "
+                       "(--logs, --commissioning: identification, designs, certificates, report), or a bench "
+                       "tractor end to end (--tractor: valve, passes, identification, designs, HIL comparison)")
+    c.add_argument("--tractor", metavar="NAME|FILE.json",
+                   help="a bench tractor (a tractor file, a name of the family or random-SEED; see `hil tractors`)")
+    c.add_argument("--logs", metavar="DIR", help="pass logs recorded on the tractor (instead of --tractor)")
+    c.add_argument("--commissioning", metavar="FILE", help="with --logs: the commissioning file of the tractor's "
+                   "valve test")
+    c.add_argument("--latency", choices=LATENCY_SOURCES, default="auto",
+                   help="with --logs: where the GPS latency comes from (default auto: the receivers' valid times, "
+                        "else the logs' declaration, else identified from the data)")
     c.add_argument("--set", action="append", type=override, metavar="GROUP.NAME=VALUE",
                    help="override a parameter of that tractor; repeatable")
     c.add_argument("--out", required=True, help="directory for every output (commissioning.json, logs/, models/, "
@@ -129,6 +138,7 @@ def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> 
                    "campaign.json, campaign_ratios.png)")
     _add_recipe_options(m, number)
     m.set_defaults(func=run_commission_campaign)
+    return c
 
 
 def _options(args: argparse.Namespace) -> CommissionOptions:
@@ -167,8 +177,21 @@ def _reporters(quiet: bool):
     return say, progress, close
 
 
+#: Options of the bench's recipe that recorded logs do not take (they drive or evaluate on the simulator).
+BENCH_ONLY = ("speeds", "implements", "passes", "duration", "seed", "hil_seeds", "hil_duration", "hil_conditions",
+              "more_passes", "estimate_trial", "set")
+
+
 def run_commission(args: argparse.Namespace) -> dict:
-    """The command: build the options, run the recipe with progress on stderr, return a summary."""
+    """The command: build the options, run the recipe (a bench tractor) or the commissioning from recorded logs
+    with progress on stderr, return a summary."""
+    if (args.tractor is None) == (args.logs is None):
+        raise SimulatorConfigError("give either --tractor (a bench tractor) or --logs DIR --commissioning FILE "
+                                   "(passes recorded on a tractor)")
+    if args.logs is not None:
+        return _run_from_logs(args)
+    if args.commissioning is not None or args.latency != "auto":
+        raise SimulatorConfigError("--commissioning and --latency go with --logs; a bench tractor makes its own")
     base = resolve_tractor(args.tractor)
     tractor = base
     if args.set:
@@ -184,6 +207,30 @@ def run_commission(args: argparse.Namespace) -> dict:
     close()
     return {"out": args.out, "tractor": tractor.name, "steps": res["steps"], "files": res["files"],
             "valve": res.get("valve"), "hil": res["hil"]}
+
+
+def _run_from_logs(args: argparse.Namespace) -> dict:
+    defaults = build_defaults()
+    given = [f"--{k.replace('_', '-')}" for k in BENCH_ONLY if getattr(args, k, None) != defaults.get(k)]
+    if given:
+        raise SimulatorConfigError(f"{', '.join(given)} drive or evaluate on the bench and do not go with --logs; "
+                                   "drop them")
+    if args.commissioning is None:
+        raise SimulatorConfigError("--logs needs --commissioning FILE (the tractor's valve test)")
+    opts = LogOptions(order=args.order, markov=args.markov, acceptance=args.acceptance, latency=args.latency,
+                      weights=args.weights, disturbance_estimate=args.disturbance_estimate == "on")
+    say, progress, close = _reporters(args.quiet)
+    res = commission_from_logs(args.logs, args.commissioning, args.out, opts, say=say, progress=progress)
+    close()
+    return {"out": args.out, "tractor": res["tractor"], "steps": res["steps"], "files": res["files"],
+            "valve": res["valve"], "hil": [], "driving_s": res["driving_s"]}
+
+
+def build_defaults() -> dict:
+    """The defaults of ``hil commission``'s bench-only options (dest -> default)."""
+    sub = argparse.ArgumentParser().add_subparsers(dest="command")
+    c = add_commission_parser(sub, float, lambda t: t)
+    return {k: c.get_default(k) for k in BENCH_ONLY}
 
 
 def run_commission_campaign(args: argparse.Namespace) -> dict:

@@ -14,13 +14,13 @@ under one directory:
    :attr:`CommissionOptions.more_passes` rounds);
 4. **designs** -- the paper's central LQR (certified on the central model, as the paper's), the
    robust controller and the MPC (certified on every local model) through the design library
-   (:mod:`design.recipes`, :mod:`hil.bench.commission_designs`; ``controllers/``, each with its
+   (:mod:`design.recipes`, :mod:`hil.commissioning.designs`; ``controllers/``, each with its
    certificate), their command limits set to the valve's measured rate; the weights are chosen
    from specifications (:attr:`CommissionOptions.weights`; when no weights meet the specifications
    the step is recorded as failed and, with ``auto-if-available``, the design is made again with
    the defaults) or the designs' defaults; when the MPC's automatic weights had to relax a
    specification on the robust controller's window, the MPC gets its own window
-   (:mod:`hil.bench.mpc_window`);
+   (:mod:`hil.commissioning.mpc_window`);
 5. **HIL** -- closed-loop passes of those three and of the oracle on the tractor, through the
    commissioned loop (inverse map and thresholds), ``hil/`` and the report's table;
 6. **report** -- ``report.md`` and figures (:mod:`hil.bench.commission_report`).
@@ -35,37 +35,29 @@ import json
 import math
 import os
 import sys
-import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable
 
-import numpy as np
 
-from hil.bench.commission_designs import Designer, DesignTry
+from hil.commissioning.designs import WEIGHTS, DesignHooks, Designer, attempts, design_with_fallback
+from hil.commissioning.steps import Steps
 from hil.bench.estimate_trial import OFF_ABOVE, TRIAL_SEEDS, choose_schedule, has_schedule
 from hil.bench.more_passes import identify_with_more_passes
-from hil.bench.mpc_window import own_window
 from hil.bench.mpc_window_trial import mpc_window_trial
 from hil.bench.window_trial import WINDOW_SEEDS, candidate_files, choose_window
-from hil.bench.oracle import OracleOptions, oracle_for
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.commission_table import hil_table
+from hil.bench.commission_report import write_commission_report
+from hil.bench.run import RunSpec
 from hil.bench.sysid import SysidPlan, make_passes
 from hil.bench.valve_bench import characterise_on_bench, linearity_on_bench
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, Condition, all_conditions
 from hil.truth.tractors import Tractor
 from hil.vehicle.commissioning import Commissioning, save_commissioning
-from hil.vehicle.summary import engaged_max_abs, first_gps_fault, pool_passes, summarize
 
-__all__ = ["CommissionOptions", "Steps", "commission", "options_dict", "hil_ratios", "CONTROLLERS", "DIVERGED_M"]
+__all__ = ["CommissionOptions", "commission", "options_dict"]
 
-#: Controllers of the HIL comparison, in the report's order: file stem (or ``oracle``) -> label.
-CONTROLLERS = {"central-lqr": "paper's method", "robust": "robust", "mpc": "MPC", "oracle": "oracle"}
-#: A HIL pass *diverges* when the true cross-track goes beyond this, m, at any moment of the pass (it
-#: starts 0.3 m off the line), or when the pass does not run to its end (an error).
-DIVERGED_M = 2.0
-WEIGHTS = ("auto-if-available", "auto", "default")
 
 
 @dataclass(frozen=True)
@@ -174,32 +166,6 @@ class CommissionOptions:
         return all_conditions(tuple(self.speeds), tuple(self.implements))
 
 
-class Steps:
-    """Runs the recipe's steps, timing them, recording failures, reporting progress.
-
-    ``run(name, what, fn)`` says ``what``, calls ``fn`` and returns its value; when it raises, the step is
-    recorded as failed with the error (in :attr:`record`) and ``None`` is returned, so the recipe goes on
-    where it can."""
-
-    def __init__(self, say: Callable[[str], None]) -> None:
-        self.say = say
-        self.record: list[dict] = []
-
-    def run(self, name: str, what: str, fn: Callable[[], object]) -> object | None:
-        self.say(f"[{len(self.record) + 1}] {what} ...")
-        t0 = time.perf_counter()
-        try:
-            value = fn()
-        except Exception as exc:  # noqa: BLE001 - a step that fails is reported, the recipe goes on where it can
-            self.record.append({"step": name, "ok": False, "seconds": time.perf_counter() - t0,
-                                "error": f"{type(exc).__name__}: {exc}"})
-            self.say(f"    {name} failed: {type(exc).__name__}: {exc}")
-            return None
-        self.record.append({"step": name, "ok": True, "seconds": time.perf_counter() - t0})
-        self.say(f"    done in {time.perf_counter() - t0:.1f} s")
-        return value
-
-
 def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | None = None,
                say: Callable[[str], None] | None = None,
                progress: Callable[[str, int, int], None] | None = None) -> dict:
@@ -224,9 +190,6 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         What ``result.json`` holds: the steps, the measured valve, identification and design
         summaries, the HIL table (per condition and controller) and the report's files.
     """
-    from identification.workflow import identify_logs
-
-    from hil.bench.commission_report import write_commission_report
     opts = options or CommissionOptions()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -273,50 +236,13 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
 
     ctrl = out / "controllers"
 
-    def attempts() -> list[DesignTry]:
-        """What to try in order: the weights asked for, each with the window from observability, then with
-        the longer windows of ``robust_past`` (the robust LMIs over models of mixed orders were infeasible
-        with the shortest window on the heavy tractor, feasible with 6); then (auto-if-available) the same
-        with the designs' default weights."""
-        auto = opts.weights != "default"
-        res["weights"] = "auto (from specifications)" if auto else "the design commands' defaults"
-        tries = [DesignTry(auto)] + [DesignTry(auto, k) for k in opts.robust_past]
-        if auto and opts.weights == "auto-if-available":
-            tries += [DesignTry(False)] + [DesignTry(False, k) for k in opts.robust_past]
-        return tries
-
-    def designer() -> Designer:
-        # the valve's measured rate limits every command; the logs' latency is what the margins must cover
-        return Designer(com.valve.max_rate, out / "logs", opts.integral, opts.disturbance_estimate)
-
-    def window_designers(models_dir: Path, auto: bool):
-        """The MPC's design on a window (automatic weights as the recipe's) and its robust fall-back's, for
-        :mod:`hil.bench.mpc_window` and :mod:`hil.bench.mpc_window_trial`."""
-        d = designer()
-
-        def mpc_design(fallback: Path | None, past: int, out_file: Path) -> dict:
-            return d.mpc(models_dir, DesignTry(auto, past), out_file, fallback)
-
-        def robust_design(past: int, out_file: Path) -> dict:
-            return d.robust(models_dir, DesignTry(auto, past), out_file)   # the fall-back law only: no candidates
-        return mpc_design, robust_design
-
-    def mpc_window_search(models_dir: Path, auto: bool, designs: dict[str, dict]) -> None:
-        """The MPC on its own window when the robust controller's left it short of a specification
-        (:mod:`hil.bench.mpc_window`), then the window a trial drive finds best among those that meet as
-        much (:mod:`hil.bench.mpc_window_trial`); updates ``designs["mpc"]`` in place."""
-        mpc_design, robust_design = window_designers(models_dir, auto)
-        rec = own_window(steps.run, mpc_design, robust_design, Path(designs["mpc"]["file"]), ctrl / "windows")
-        mpc = designs["mpc"]
-        mpc["window_search"] = {k: v for k, v in rec.items() if k not in ("result", "settings")}
-        if "settings" in rec:
-            mpc.update(result=rec["result"], settings=rec["settings"],
-                       weights=f"{mpc['weights']}; the MPC's own window {rec['kept']} (with the robust controller's "
-                               f"window {rec['tries'][0]['past']} it relaxed {'; '.join(rec['tries'][0]['relaxed'])}), "
-                               f"its fall-back a robust law on that window")
+    def mpc_window_trial_hook(designs: dict[str, dict], pair) -> None:
+        """The MPC's window a trial drive finds best among those that meet as much
+        (:mod:`hil.bench.mpc_window_trial`); updates ``designs["mpc"]`` in place."""
         if not opts.estimate_trial or com is None:
             return
-        trial = mpc_window_trial(steps.run, mpc_design, robust_design, Path(mpc["file"]), ctrl / "windows",
+        mpc = designs["mpc"]
+        trial = mpc_window_trial(steps.run, pair[0], pair[1], Path(mpc["file"]), ctrl / "windows",
                                  params, com, opts.speeds, opts.implements, opts.trial_seeds, opts.hil_duration,
                                  lambda d, n: tick("mpc window trial", d, n))
         mpc["window_trial"] = {k: v for k, v in trial.items() if k not in ("result", "settings")}
@@ -341,66 +267,19 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         if r is not None:
             res["window_trial"] = r
 
-    def design_all(models_dir: Path, with_lqr: bool) -> dict[str, dict]:
-        designs: dict[str, dict] = {}
-        d = designer()
-        if with_lqr:
-            r = steps.run("design central-lqr", "design lqr (the paper's method)",
-                          lambda: d.lqr(models_dir, ctrl / "central-lqr.json"))
-            if r is not None:
-                designs["central-lqr"] = {**r, "weights": "default"}
-        candidates = ctrl / "windows" / "robust" if opts.disturbance_estimate and opts.estimate_trial else None
-        for attempt in attempts():
-            label = attempt.label
-            r = steps.run(f"design robust ({label})", f"design robust ({label})",
-                          lambda a=attempt: d.robust(models_dir, a, ctrl / "robust.json", candidates))
-            if r is None:
-                continue
-            designs["robust"] = {**r, "weights": label}
-            window_trial(designs["robust"]["file"])
-            r = steps.run(f"design mpc ({label})", f"design mpc ({label})",
-                          lambda a=attempt: d.mpc(models_dir, a, ctrl / "mpc.json", ctrl / "robust.json"))
-            if r is not None:
-                designs["mpc"] = {**r, "weights": label}
-                if attempt.auto and attempt.past is None:   # automatic weights and window: the MPC's own window
-                    mpc_window_search(models_dir, attempt.auto, designs)
-            break
-        return designs
-
-    def design_mpc_only(models_dir: Path) -> dict[str, dict]:
-        """The MPC on ``models_dir`` with the robust file already made as its fall-back (same tries)."""
-        robust_label = designs["robust"]["weights"]
-        d = designer()
-        for attempt in attempts():
-            label = attempt.label
-            r = steps.run(f"design mpc on order-{opts.fallback_order} models ({label})",
-                          f"design mpc on order-{opts.fallback_order} models ({label}; the robust law: {robust_label})",
-                          lambda a=attempt: d.mpc(models_dir, a, ctrl / "mpc.json", ctrl / "robust.json"))
-            if r is not None:
-                return {"mpc": {**r, "weights": f"{label}, order-{opts.fallback_order} models"}}
-        return {}
-
     designs: dict[str, dict] = {}
     if ident is not None and com is not None:
-        designs = design_all(models_dir, True)
-        # the robust LMIs over models of mixed orders (chosen by validation) were infeasible on the heavy and
-        # worn tractors, feasible over order-4 models: identify again at that order and design on those; when
-        # only the MPC is missing (its central model of the validated order admits no weights that meet the
-        # specifications), the MPC alone on those, with the robust law found as its fall-back
-        missing = "robust" if "robust" not in designs else ("mpc" if "mpc" not in designs else None)
-        if missing is not None and opts.fallback_order is not None:
-            fallback_dir = out / f"models_order{opts.fallback_order}"
-
-            def identify_again() -> dict:
-                r = identify_logs([str(out / "logs")], fallback_dir, order=opts.fallback_order, markov=opts.markov,
-                                  latency="auto", acceptance="warn", progress=lambda d, n: tick("identification", d, n))
-                return {k: v for k, v in r.items() if k != "_text"}
-            why = "no robust design having been found" if missing == "robust" else "for the MPC"
-            again = steps.run(f"identification (order {opts.fallback_order})", f"identification again at order "
-                              f"{opts.fallback_order}, {why}", identify_again)
-            if again is not None:
-                res["identification_fallback"] = again if missing == "robust" else {**again, "for": "mpc"}
-                designs.update(design_all(fallback_dir, False) if missing == "robust" else design_mpc_only(fallback_dir))
+        res["weights"] = "auto (from specifications)" if opts.weights != "default" else "the designs' defaults"
+        # the valve's measured rate limits every command; the logs' latency is what the margins must cover
+        designer = Designer(rate_limit=com.valve.max_rate, logs=out / "logs", integral=opts.integral,
+                            estimate=opts.disturbance_estimate)
+        designs, again = design_with_fallback(
+            steps, designer, out / "logs", models_dir, out, attempts(opts.weights, opts.robust_past),
+            opts.fallback_order, opts.markov, candidates=opts.disturbance_estimate and opts.estimate_trial,
+            hooks=DesignHooks(after_robust=window_trial, after_mpc=mpc_window_trial_hook),
+            progress=lambda d, n: tick("identification", d, n))
+        if again is not None:
+            res["identification_fallback"] = again
     res["designs"] = designs
 
     # where the disturbance estimate acts: a trial drive per speed, with it and without it (both laws certified)
@@ -417,7 +296,8 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             res.setdefault("estimate_trial", {})[name] = r
 
     def hil() -> list[dict]:
-        return _hil_table(params, com, designs, opts, lambda d, n: tick("hil", d, n))
+        return hil_table(params, com, designs, opts.conditions(), opts.hil_seeds, opts.hil_duration,
+                         lambda d, n: tick("hil", d, n))
     table = steps.run("hil", f"HIL comparison on the tractor ({len(opts.conditions())} conditions, "
                       f"{len(opts.hil_seeds)} seed(s), {opts.hil_duration:g} s, commissioned loop)",
                       hil) if com is not None else None
@@ -443,72 +323,3 @@ def options_dict(o: CommissionOptions) -> dict:
     d = asdict(o)
     d["hil_conditions"] = None if o.hil_conditions is None else [c.name for c in o.hil_conditions]
     return d
-
-
-def _hil_table(params, com: Commissioning, designs: dict[str, dict], opts: CommissionOptions,
-               progress: Callable[[int, int], None]) -> list[dict]:
-    """Closed-loop passes of every designed controller and the oracle, commissioned loop, per condition."""
-    from hil.bench.campaign import make_controller
-    names = [n for n in CONTROLLERS if n == "oracle" or n in designs]
-    conds = opts.conditions()
-    total, done = len(names) * len(conds) * len(opts.hil_seeds), 0
-    rows = []
-    for cond in conds:
-        for name in names:
-            summaries, dis, errors, worst, diverging, reasons, reacquired = [], 0, [], 0.0, 0, {}, 0.0
-            for seed in opts.hil_seeds:
-                try:
-                    if name == "oracle":
-                        ctrl = oracle_for(cond.implement, cond.speed, params,
-                                          OracleOptions(invert_valve=False, host_map=True))
-                    else:
-                        ctrl = make_controller(designs[name]["file"])
-                    log = simulated_run(RunSpec(implement=cond.implement, speed=cond.speed,
-                                                duration=opts.hil_duration, seed=seed), ctrl, params,
-                                        commissioning=com)
-                    fault = first_gps_fault(log)
-                    s = summarize(log, until_gps_fault=True)
-                    dis += s["disengagements"]
-                    for e in log.meta.get("events", []):   # what disengaged the loop: "gps stale", "steering ..."
-                        if e["event"] == "disengage" and e["reason"] != "end of run":
-                            head = str(e["reason"]).split(":")[0][:40]
-                            reasons[head] = reasons.get(head, 0) + 1
-                    far = engaged_max_abs(log, stop=fault)    # after a disengagement it is not steering
-                    worst = max(worst, far)
-                    diverging += int(not far <= DIVERGED_M)   # also a NaN cross-track
-                    reacquired = max(reacquired, engaged_max_abs(log, start=fault))
-                    summaries.append(s)
-                except Exception as exc:  # noqa: BLE001 - one failing pass is a cell's result, not the end
-                    errors.append(f"{type(exc).__name__}: {exc}")
-                    diverging += 1            # a pass that did not run to its end counts as diverging
-                done += 1
-                progress(done, total)
-            pooled = pool_passes(summaries)
-            rows.append({"implement": cond.implement, "speed": cond.speed, "controller": name,
-                         "sigma_m": pooled["sigma_m"], "bias_m": pooled["bias_m"],
-                         "samples": pooled["samples"],
-                         "disengagements": dis, "passes": len(opts.hil_seeds), "errors": errors,
-                         "max_abs_cross_track_m": worst, "diverging": diverging, "disengage_reasons": reasons,
-                         "max_abs_after_fault_m": reacquired})
-    return rows
-
-
-def hil_ratios(rows: Sequence[dict]) -> list[dict]:
-    """Per condition: 1-sigma of robust and MPC over the oracle's and the paper's method's."""
-    by = {(r["implement"], r["speed"], r["controller"]): r for r in rows}
-    out = []
-    for imp, speed in sorted({(r["implement"], r["speed"]) for r in rows}, key=lambda k: (IMPLEMENTS.index(k[0]), k[1])):
-        cell = {"implement": imp, "speed": speed}
-        for c in CONTROLLERS:
-            r = by.get((imp, speed, c))
-            cell[c] = r["sigma_m"] if r else math.nan
-            cell[f"{c}_disengagements"] = r["disengagements"] if r else None
-            cell[f"{c}_diverging"] = r.get("diverging") if r else None
-            cell[f"{c}_gps_disengagements"] = (sum(n for k, n in r.get("disengage_reasons", {}).items()
-                                                   if k.startswith("gps")) if r and "disengage_reasons" in r else None)
-        for c in ("robust", "mpc"):
-            cell[f"{c}_over_oracle"] = cell[c] / cell["oracle"] if cell["oracle"] > 0 else math.nan
-            cell[f"{c}_over_paper"] = cell[c] / cell["central-lqr"] if cell["central-lqr"] > 0 else math.nan
-        out.append(cell)
-    return out
-

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hil.bench.commission_designs import settings_text
+from hil.commissioning.designs import settings_text
+from hil.bench.commission_table import CONTROLLERS, hil_ratios
 from hil.vehicle.valve_map import ValveCurve
 
 __all__ = ["write_commission_report"]
@@ -67,7 +68,6 @@ def _sigma_figure(cells: list[dict], path: Path) -> Path:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from hil.bench.commission import CONTROLLERS
     imps = sorted({c["implement"] for c in cells})
     fig, axes = plt.subplots(1, len(imps), figsize=(4 * len(imps), 3.5), squeeze=False)
     for ax, imp in zip(axes[0], imps):
@@ -148,7 +148,6 @@ def _mpc_window_trial_lines(tr: dict | None) -> list[str]:
 
 def write_commission_report(res: dict, out: Path) -> list[str]:
     """Write ``report.md`` and its figures under ``out``; returns the files written."""
-    from hil.bench.commission import hil_ratios
     files: list[str] = []
     t = res["tractor"]
     lines = [f"# Commissioning of `{t['name']}`", "", t["description"], "",
@@ -210,7 +209,7 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
         search = (res["designs"].get("mpc") or {}).get("window_search")
         if search and len(search.get("tries", [])) > 1:
             lines += ["", "The MPC's automatic weights relaxed a specification on the robust controller's window, so "
-                      "they were searched on other windows (hil/bench/mpc_window.py); kept: window "
+                      "they were searched on other windows (hil/commissioning/mpc_window.py); kept: window "
                       f"{search.get('kept')}." + (f" {search['note']}." if search.get("note") else ""), "",
                       "| window, samples | scale | relaxed specifications |", "|---:|---:|---|"]
             for t in search["tries"]:

@@ -1,4 +1,4 @@
-"""The trial drive that chooses, per speed, whether a file's disturbance estimate acts (issue 14).
+"""The trial drive that chooses, per speed, whether a file's disturbance estimate acts.
 
 A file designed with the estimate carries two certified laws, with and without it
 (:mod:`design.estimate_schedule`). Which is better at a speed depends on the tractor: on
@@ -9,8 +9,8 @@ a short closed-loop drive at each speed with each implement, once with the estim
 without, scored on the GPS cross-track the vehicle sees (no truth, no oracle: what a tractor
 has). The estimate is turned off at a speed when the law without it has the lower 1-sigma by the
 geometric mean over the implements of the ratio with / without (each 1-sigma pooled over the trial's
-passes), so that each implement's cell counts alike, as issue 14's per-cell bounds do. Until session 11
-the rule was the RMS of the 1-sigmas over the implements, which the implement with the largest 1-sigma
+passes), so that each implement's cell counts alike, as the per-cell bounds do. An earlier
+rule was the RMS of the 1-sigmas over the implements, which the implement with the largest 1-sigma
 decides: on random-19 at 1.79 m/s one disker figure (23.6 cm with the estimate, 17.9 without) turned it
 off although it took 36 % and 31 % off without an implement and with the ripper; the HIL comparison
 (seeds 0-2) then had the robust controller 1.22-1.42x the oracle in the three 1.79 m/s cells, and with
@@ -21,7 +21,7 @@ result.
 The MPC's estimate is turned off only when the trial has it costing more than 10 % (:data:`OFF_ABOVE`). The
 MPC bounds the steering-rate command (a hard constraint of its problem), so the mechanism the trial is there
 for, the estimate driving a slow valve into a rate limit that a linear law does not know, is not the MPC's; and
-the trial's two seeds are not precise enough for less. Measured in session 14 on the campaign's 22 tractors
+the trial's two seeds are not precise enough for less. Measured on the campaign's 22 tractors
 (docs/tractor_campaign.md): the MPC's trial had turned the estimate off in three speed bands, at 1.016-1.077;
 with it on there the HIL comparison (seeds 0-2) was lower or equal in all three (geometric mean on / off
 0.974-0.986), and random-19's disker cell at 2.24 m/s came within both bounds (1.05x -> 0.91x the paper's
@@ -41,6 +41,7 @@ from design.estimate_schedule import RECORD, EstimateSchedule, bands_for
 from design.files.envelope import read_json
 from design.files.schedule import set_estimate_schedule
 
+from hil.bench.campaign import make_controller
 from hil.bench.run import RunSpec, simulated_run
 from hil.vehicle.commissioning import Commissioning
 from hil.vehicle.summary import pool_passes, summarize
@@ -72,7 +73,6 @@ def trial_passes(path: Path, params, com: Commissioning | None, implement: str, 
                  duration: float) -> list[dict]:
     """The summaries (:func:`hil.vehicle.summary.summarize`, scored until the first GPS fault) of closed-loop
     passes of ``path`` with ``seeds``, one per seed, at ``speed`` (m/s) with ``implement``."""
-    from hil.bench.campaign import make_controller      # campaign imports the commissioning, which imports this
     summaries = []
     for seed in seeds:
         log = simulated_run(RunSpec(implement=implement, speed=speed, duration=duration, seed=seed),

@@ -1,7 +1,7 @@
 """The oracle on a field's route: the truth-model LQG on the passes, a turn law over the headlands.
 
 :class:`hil.bench.oracle.OracleLQG` is designed about a straight line; on a field it is the bound
-that the pass-to-pass spacing of the other controllers is measured against (issue 16). On a
+that the pass-to-pass spacing of the other controllers is measured against. On a
 route it gets the path's curvature exactly as the linear controllers get it
 (:class:`design.curvature.Reference`: the cross-track, heading error and wheel angle relative
 to the kinematic equilibrium on the curvature at the nearest point, the reference wheel angle's

@@ -7,7 +7,7 @@ the conditions the refused models were identified from (a local model: its one c
 velocity-invariant model: its implement's speeds; the central model: all of them), with new random
 streams (pass indices after the ones already driven, :attr:`hil.bench.sysid.SysidPlan.first_index`),
 and identifies again on every log. On random-19 the order chosen by validation made two disker
-models that predicted psi/V at 40.4 % and 49.2 % from three passes (session 9).
+models that predicted psi/V at 40.4 % and 49.2 % from three passes.
 """
 
 from __future__ import annotations

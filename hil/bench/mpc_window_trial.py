@@ -1,20 +1,20 @@
-"""The MPC's measured window, chosen by a trial drive on the tractor (issue 14).
+"""The MPC's measured window, chosen by a trial drive on the tractor.
 
 The MPC takes the robust controller's window, or its own when it relaxed a specification there
-(:mod:`hil.bench.mpc_window`). Among windows that meet the specifications alike, the design cannot
+(:mod:`hil.commissioning.mpc_window`). Among windows that meet the specifications alike, the design cannot
 tell which tracks better: the largest aggressiveness scale is a proxy, and it was wrong both ways on
-the family. On heavy-11t (session 9) window 3 took the MPC to 1.30x the oracle with the ripper at
-2.91 m/s where window 1 held 1.15x; on random-3 (session 12) window 1 (scale 6.2) held 13/15 cells
-within issue 14's bounds, 1.34x the oracle at 2.91 m/s, and window 3 (scale 8.89) 15/15, worst 1.298x.
+the family. On heavy-11t window 3 took the MPC to 1.30x the oracle with the ripper at
+2.91 m/s where window 1 held 1.15x; on random-3 window 1 (scale 6.2) held 13/15 cells
+within the commissioning bounds, 1.34x the oracle at 2.91 m/s, and window 3 (scale 8.89) 15/15, worst 1.298x.
 
 So the recipe measures it, as it measures where the disturbance estimate acts
 (:mod:`hil.bench.estimate_trial`): the MPC's weights are searched on each other window of
-:data:`hil.bench.mpc_window.WINDOWS`; each that relaxes no more specifications than the MPC as
+:data:`hil.commissioning.mpc_window.WINDOWS`; each that relaxes no more specifications than the MPC as
 designed is a candidate; every candidate drives each speed with each implement on the trial's seeds
 (:func:`hil.bench.window_trial.trial_files`, scored on the measured cross-track), and the lowest
 geometric mean of the cells' 1-sigma wins (the design's own on a tie). When another window wins, a
 robust law on that window is designed as the MPC's fall-back and the MPC designed there with it
-(``controllers/windows/``), as :func:`hil.bench.mpc_window.own_window` does. The candidates drive
+(``controllers/windows/``), as :func:`hil.commissioning.mpc_window.own_window` does. The candidates drive
 with their own LQR fall-back (the law used only when a solve fails).
 """
 
@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from hil.bench.estimate_trial import TRIAL_SEEDS
-from hil.bench.mpc_window import WINDOWS, MPCDesigner, RobustDesigner, Run, auto_record, redesign_on, search_windows
+from hil.commissioning.mpc_window import WINDOWS, MPCDesigner, RobustDesigner, Run, auto_record, redesign_on, search_windows
 from hil.bench.window_trial import lowest, trial_files
 from hil.vehicle.commissioning import Commissioning
 
@@ -38,7 +38,7 @@ def mpc_window_trial(run: Run, mpc_design: MPCDesigner, robust_design: RobustDes
     Parameters
     ----------
     run, mpc_design, robust_design, current, work, windows
-        As :func:`hil.bench.mpc_window.own_window`.
+        As :func:`hil.commissioning.mpc_window.own_window`.
     params, com
         The tractor's simulator parameters and its commissioning (the loop of ``hil commission``).
     speeds, implements, seeds, duration

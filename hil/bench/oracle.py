@@ -1,7 +1,7 @@
 """The oracle: for one condition, an LQG designed on the truth simulator's own linearisation.
 
 It answers "how well could a linear controller steer *this* condition if it knew the
-simulator exactly?" (issue 8 item 2, the practical limit). It knows every parameter, the
+simulator exactly?" (the practical limit). It knows every parameter, the
 condition, the disturbance statistics and the sensors, but sees only what every controller
 sees (:class:`design.controller.Measurement`) and steers through the same clip, bridge and valve.
 

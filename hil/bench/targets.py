@@ -1,6 +1,6 @@
 """The comparison's targets, checked cell by cell on a campaign's cells.
 
-The issue's targets for a candidate controller (the robust LQR, the MPC), on the
+The comparison's targets for a candidate controller (the robust LQR, the MPC), on the
 calibrated bench, in every one of the 15 cells:
 
 * ``|bias| <= 1 cm`` (measured cross-track, as the paper measured it);

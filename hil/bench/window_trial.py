@@ -1,4 +1,4 @@
-"""The trial drive that chooses the robust controller's window law among the estimate's back-off (issue 14).
+"""The trial drive that chooses the robust controller's window law among the estimate's back-off.
 
 ``design robust --weights auto --disturbance-estimate on`` searches the window law's weights without
 the estimate, then adds the estimate at the largest gain that keeps every specification. Where the
@@ -8,21 +8,21 @@ window law off (0.7, 0.5, 0.35 of the searched scale) until the estimate keeps i
 law's bandwidth, is a guess the models cannot settle: the estimate acts on the soil's pull, which the
 identified models do not hold.
 
-On random-1 (session 13) it cost the cells at 2.91 m/s. The search reached scale 2.11, where no estimate
-gain fitted; the design kept 0.74 with the full gain, and held 13/15 cells within both of issue 14's
+On random-1 it cost the cells at 2.91 m/s. The search reached scale 2.11, where no estimate
+gain fitted; the design kept 0.74 with the full gain, and held 13/15 cells within both commissioning
 bounds (none 2.91 m/s at 1.07x the paper's method). On the same HIL seeds the searched law (2.11, no
 estimate) held 10/15 cells, and a law between the two (an explicit 1.2 with 0.7 of the estimate's gain)
 15/15 (worst 0.97x the paper's method, 1.24x the oracle). No rule on the models picks the middle, so
 it is measured the way :mod:`hil.bench.estimate_trial` measures where the estimate acts: each
 candidate drives every speed with every implement on the trial's seeds (apart from the HIL
 comparison's), scored on the GPS cross-track the vehicle sees, and the one with the lowest geometric
-mean of the cells' 1-sigma is kept (each cell counts alike, as the issue's per-cell bounds do). The
+mean of the cells' 1-sigma is kept (each cell counts alike, as the per-cell bounds do). The
 design's own choice stays unless another candidate is strictly lower. On random-1 the trial chose 1.05
 with 0.7 of the gain among the back-off's laws (0.74, 1.05, 1.48, 2.11): 15/15, worst 0.985x.
 
-Per speed (issue 14, session 16). Which law is best turns over with speed: at 2.91 m/s on random-1 the
+Per speed. Which law is best turns over with speed: at 2.91 m/s on random-1 the
 wider laws hold (1.48: 0.93x the paper's method over 12 HIL seeds, the chosen 1.05: 1.04x, two cells
-beyond issue 14's bound in the from-scratch campaign), at 1.00 m/s they cost; one law for every speed
+beyond the commissioning bound in the from-scratch campaign), at 1.00 m/s they cost; one law for every speed
 takes the middle. So the law with the lowest geometric mean over all cells runs at every speed, and at
 each design speed where another law is better on the trial's passes there, that law runs in the
 speed's band (half-way to the neighbouring design speeds): the file's law schedule
@@ -55,12 +55,12 @@ from hil.vehicle.commissioning import Commissioning
 
 #: Seeds of the window trial's passes (apart from the HIL comparison's 0-2). Six, not the estimate trial's two:
 #: on random-1 two seeds had the laws of scale 1.05 and 1.48 at 12.94 and 13.01 cm at 2.91 m/s, six seeds at
-#: 14.92 and 14.34 cm, and twelve HIL seeds at 1.04x and 0.93x the paper's method there (session 15).
+#: 14.92 and 14.34 cm, and twelve HIL seeds at 1.04x and 0.93x the paper's method there.
 WINDOW_SEEDS = (100, 101, 102, 103, 104, 105)
 
 
 #: Confidence of the one-sided paired t-test by which another law runs at a speed (:func:`per_speed`): on random-1
-#: (session 16) the law the trial's geometric mean put at 1.79 m/s, 0.987x the kept one there over 18 passes
+#: the law the trial's geometric mean put at 1.79 m/s, 0.987x the kept one there over 18 passes
 #: (t = -0.87), was 1.05x in HIL and put a cell at 1.303x the oracle; the one at 2.91 m/s (0.960x, t = -2.55) took two
 #: cells inside the paper's method (1.018 -> 0.925, 1.025 -> 0.930).
 SWITCH_LEVEL = 0.95

@@ -151,7 +151,7 @@ class CalibrationOptions:
         leaves the tractor to drift undriven and then measures the re-engage, which Table 2 does
         not; the passes left out are counted in the record (``passes_excluded``).
     band
-        Score the 1-sigma by the issue's target first: the fraction of cells outside the
+        Score the 1-sigma by the calibration target first: the fraction of cells outside the
         +-30 % band, plus their squared distance outside it (in ln), plus
         :data:`BAND_INSIDE_WEIGHT` times the plain ``ln(ratio)^2``. The plain term alone trades
         cells in the band for a closer fit of the others (on the paper's non-monotonic ripper

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from hil.bench.cli_commission import _options, add_commission_parser
-from hil.bench.commission import CommissionOptions, commission, hil_ratios
+from hil.bench.commission import CommissionOptions, commission
+from hil.bench.commission_table import hil_ratios
 from hil.truth.conditions import condition_for
 from hil.truth.tractors import resolve_tractor
 

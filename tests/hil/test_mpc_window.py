@@ -1,5 +1,5 @@
 """The MPC's own measured window when the robust controller's leaves it short of its specifications
-(hil.bench.mpc_window, issue 14)."""
+(hil.commissioning.mpc_window, issue 14)."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from hil.bench.commission import Steps
-from hil.bench.commission_designs import Designer, DesignTry
-from hil.bench.mpc_window import WINDOWS, auto_record, best_window, own_window
+from hil.commissioning.steps import Steps
+from hil.commissioning.designs import Designer, DesignTry
+from hil.commissioning.mpc_window import WINDOWS, auto_record, best_window, own_window
 
 MODELS = Path(__file__).resolve().parents[1] / "data" / "random19_models"
 #: random-19's latency (s per output) and valve rate (rad/s), the recipe's specifications

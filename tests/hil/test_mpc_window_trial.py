@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from hil.bench.commission import Steps
+from hil.commissioning.steps import Steps
 from hil.bench.commission_report import _mpc_window_trial_lines
-from hil.bench.mpc_window import WINDOWS, auto_record
+from hil.commissioning.mpc_window import WINDOWS, auto_record
 from hil.bench.mpc_window_trial import mpc_window_trial
 from hil.bench.window_trial import lowest
 from hil.truth.tractors import resolve_tractor

@@ -1,12 +1,12 @@
-"""The MPC's own measured window, when the robust controller's leaves it short of its specifications (issue 14).
+"""The MPC's own measured window, when the robust controller's leaves it short of its specifications.
 
 ``hil commission`` designs the robust controller first (``design robust --weights auto --past auto``
 keeps the window that reaches the most aggressive weights *of the robust law*) and then the MPC on
 that window, since the MPC's fall-back law must be a robust design on the same measured state. On
-random-19 (session 12, artefact-free models) the robust search kept the one-sample window (scale
+random-19 (artefact-free models) the robust search kept the one-sample window (scale
 4.33; 4.03 with two samples), where no MPC weights meet the specifications: the MPC's search relaxed
 the delay reserve to 0 s and the disk margin to 0.45, chose scale 0.62, and that MPC held 6 of 15
-HIL cells within issue 14's bounds (worst 1.78x the oracle). With a window of three samples the MPC
+HIL cells within the commissioning bounds (worst 1.78x the oracle). With a window of three samples the MPC
 meets every specification at scale 2.27.
 
 So when the MPC's automatic weights relaxed a specification, the recipe searches them again with the
@@ -31,7 +31,7 @@ WINDOWS = (1, 2, 3)
 Run = Callable[[str, str, Callable[[], object]], object | None]
 #: ``mpc_design(fallback, past, out)``: designs the MPC with automatic weights on that window, with the robust law
 #: of ``fallback`` as its fall-back (``None``: none, the weights search alone), writes it to ``out`` and returns its
-#: record (``file``, ``result``, ``settings``: :class:`hil.bench.commission_designs.Designer`); raises when no
+#: record (``file``, ``result``, ``settings``: :class:`hil.commissioning.designs.Designer`); raises when no
 #: design is found.
 MPCDesigner = Callable[[Path | None, int, Path], dict]
 #: ``robust_design(past, out)``: the robust law on that window, written to ``out``; its record, or raises.

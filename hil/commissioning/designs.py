@@ -1,0 +1,305 @@
+"""The designs of a commissioning, made through the design library (:mod:`design.recipes`).
+
+A :class:`Designer` holds what every design of one tractor shares: the valve's measured rate (the
+command limit and the actuator's rate in the specifications), the pass logs whose latency the
+margins must cover, integral action and the disturbance estimate. Each of its methods designs one
+controller, writes its file and returns the record ``result.json`` keeps: ``file``, ``result`` (what
+``design ... --json`` prints for the same design) and ``settings`` (what it was designed with).
+
+A :class:`DesignTry` is one attempt of the recipe's sequence: automatic or default weights, the
+window from observability (``past=None``) or a given one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+from design.disturbance import DisturbanceSpec
+from design.mpc.problem import MPCLimits
+from design.recipes import (MPCOptions, RobustOptions, WeightSearch, design_mpc_controller, design_robust_controller,
+                            load_models)
+from design.robust import RobustSpec, design_lqr
+from design.specs import Specifications
+from identification.model import Model
+from identification.workflow import identify_logs
+
+from hil.commissioning.mpc_window import own_window
+from hil.commissioning.steps import Steps
+
+__all__ = ["DesignTry", "Designer", "settings_text", "attempts", "DesignHooks", "design_controllers",
+           "design_with_fallback"]
+
+WEIGHTS = ("auto-if-available", "auto", "default")
+
+
+@dataclass(frozen=True)
+class DesignTry:
+    """One attempt: automatic weights or the design's defaults, and the measured window (None: automatic)."""
+
+    auto: bool
+    past: int | None = None
+
+    @property
+    def label(self) -> str:
+        """``weights auto, past 6``: how the report names the attempt."""
+        return f"weights {'auto' if self.auto else 'default'}, past {'auto' if self.past is None else self.past}"
+
+
+@dataclass(frozen=True)
+class Designer:
+    """The recipe's designs for one tractor.
+
+    Attributes
+    ----------
+    rate_limit
+        The valve's measured steering-rate limit, rad/s: every design's command limit, and with automatic
+        weights the actuator's rate of the specifications.
+    logs
+        Pass logs whose recorded latency the automatic weights' margins must cover (None: the models').
+    latency
+        The latency per output, s, when it is known otherwise (it then replaces the logs').
+    disk_margin, delay_reserve
+        The automatic weights' specifications (:class:`design.specs.Specifications`; delay reserve in s).
+    integral
+        Integral action in the robust design.
+    estimate
+        The disturbance estimate in the robust controller and the MPC.
+    """
+
+    rate_limit: float
+    logs: Path | None = None
+    latency: tuple[float, ...] | None = None
+    disk_margin: float = Specifications.disk_margin
+    delay_reserve: float = Specifications.delay_reserve
+    integral: bool = True
+    estimate: bool = True
+
+    def search(self, attempt: DesignTry) -> WeightSearch:
+        """The weights' mode and specifications of ``attempt``."""
+        if not attempt.auto:
+            return WeightSearch()
+        if self.latency is not None:
+            source = {"latency": self.latency}
+        else:
+            source = {"latency_from_logs": (self.logs,) if self.logs is not None else ()}
+        return WeightSearch(mode="auto", disk_margin=self.disk_margin, delay_reserve=self.delay_reserve,
+                            actuator_rate=self.rate_limit, **source)
+
+    def _settings(self, kind: str, models: str, attempt: DesignTry | None, **more) -> dict:
+        rec = {"design": kind, "models": models, "command_limit_rad_s": self.rate_limit}
+        if attempt is not None:
+            rec.update(weights="auto" if attempt.auto else "default",
+                       past="auto" if attempt.past is None else attempt.past)
+            if attempt.auto:
+                rec["latency"] = (f"{', '.join(f'{v:g}' for v in self.latency)} s" if self.latency is not None else
+                                  f"from the logs in {self.logs}" if self.logs is not None else "from the models")
+        return {**rec, **more}
+
+    def lqr(self, models_dir: Path, out: Path) -> dict:
+        """The paper's method: one LQR on the central model, certified on that model only (as in the paper; a
+        certificate failed on the local models would make the loader refuse the reference)."""
+        model = Model.load(models_dir / "central.npz")
+        file, cert = design_lqr(model, (), command_limit=self.rate_limit, require=True)
+        file.save(out)
+        return {"file": str(out), "result": {"out": str(out), "certificate": cert.to_dict()},
+                "settings": self._settings("lqr", "central.npz", None)}
+
+    def robust(self, models_dir: Path, attempt: DesignTry, out: Path, candidates_dir: Path | None = None,
+               progress: Callable[[str], None] | None = None) -> dict:
+        """The robust controller on the local models of ``models_dir``; with ``candidates_dir`` (automatic
+        weights and the estimate) the window laws its back-off made and did not keep are written there."""
+        local = sorted(models_dir.glob("local_*.npz"))
+        keep = candidates_dir is not None and attempt.auto and self.estimate
+        options = RobustOptions(RobustSpec(integral=self.integral, past=attempt.past, command_limit=self.rate_limit),
+                                self.search(attempt), DisturbanceSpec() if self.estimate else None, candidates=keep)
+        res = design_robust_controller(load_models(local), options, progress=progress)
+        res.save(out, candidates_dir if keep else None)
+        return {"file": str(out), "result": {"out": str(out), **res.summary()},
+                "settings": self._settings("robust", f"{models_dir.name}/local_*.npz", attempt,
+                                           integral=self.integral, disturbance_estimate=self.estimate)}
+
+    def mpc(self, models_dir: Path, attempt: DesignTry, out: Path, fallback: Path | None,
+            progress: Callable[[str], None] | None = None) -> dict:
+        """The MPC on the models of ``models_dir`` (the central one predicts), with the robust law of
+        ``fallback`` as its fall-back (None: none, for a search of the weights alone)."""
+        options = MPCOptions(limits=MPCLimits(rate=self.rate_limit), past=attempt.past,
+                             disturbance=DisturbanceSpec() if self.estimate else None, search=self.search(attempt),
+                             fallback=fallback)
+        res = design_mpc_controller(load_models([models_dir]), options, progress=progress)
+        res.save(out)
+        return {"file": str(out), "result": {"out": str(out), **res.summary()},
+                "settings": self._settings("mpc", f"{models_dir.name}/*.npz", attempt,
+                                           fallback=None if fallback is None else str(fallback),
+                                           disturbance_estimate=self.estimate)}
+
+
+def settings_text(settings: dict) -> str:
+    """One line of a design's settings for the report: ``design robust on models/local_*.npz: weights auto, ...``."""
+    rest = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in settings.items() if k not in ("design", "models"))
+    return f"design {settings.get('design')} on {settings.get('models')}: {rest}"
+
+
+def attempts(weights: str, robust_past: Sequence[int]) -> list[DesignTry]:
+    """What to try in order: the weights asked for (:data:`WEIGHTS`), each with the window from observability,
+    then with the longer windows of ``robust_past`` (the robust LMIs over models of mixed orders were
+    infeasible with the shortest window on a heavy tractor, feasible with 6); then, with
+    ``auto-if-available``, the same with the designs' default weights."""
+    if weights not in WEIGHTS:
+        raise ValueError(f"weights must be one of {list(WEIGHTS)}, got {weights!r}")
+    auto = weights != "default"
+    tries = [DesignTry(auto)] + [DesignTry(auto, k) for k in robust_past]
+    if auto and weights == "auto-if-available":
+        tries += [DesignTry(False)] + [DesignTry(False, k) for k in robust_past]
+    return tries
+
+
+#: ``mpc_design(fallback, past, out)`` and ``robust_design(past, out)`` on one model folder (see
+#: :mod:`hil.commissioning.mpc_window`).
+WindowDesigners = tuple[Callable[[Path | None, int, Path], dict], Callable[[int, Path], dict]]
+
+
+@dataclass(frozen=True)
+class DesignHooks:
+    """What a procedure adds between the designs (the bench's trial drives); each may be None.
+
+    Attributes
+    ----------
+    after_robust
+        Called with the robust controller's file once it is designed, before the MPC takes its law as
+        the fall-back.
+    after_mpc
+        Called with the designs (the MPC's record may be updated in place) and the window designers of
+        the models the MPC was designed on, after the MPC's own window search.
+    """
+
+    after_robust: Callable[[str], None] | None = None
+    after_mpc: Callable[[dict[str, dict], WindowDesigners], None] | None = None
+
+
+def window_designers(designer: Designer, models_dir: Path, auto: bool) -> WindowDesigners:
+    """The MPC's design on a window and its robust fall-back's (no window candidates: the fall-back's law is
+    the design's own), on ``models_dir``."""
+    def mpc_design(fallback: Path | None, past: int, out_file: Path) -> dict:
+        return designer.mpc(models_dir, DesignTry(auto, past), out_file, fallback)
+
+    def robust_design(past: int, out_file: Path) -> dict:
+        return designer.robust(models_dir, DesignTry(auto, past), out_file)
+    return mpc_design, robust_design
+
+
+def design_controllers(steps: Steps, designer: Designer, models_dir: Path, ctrl: Path, tries: Sequence[DesignTry],
+                       with_lqr: bool = True, candidates: bool = False,
+                       hooks: DesignHooks = DesignHooks()) -> dict[str, dict]:
+    """The paper's LQR (``with_lqr``), the robust controller and the MPC on the models of ``models_dir``, into
+    ``ctrl`` (``central-lqr.json``, ``robust.json``, ``mpc.json``), each a step of ``steps``.
+
+    The robust controller is tried with each of ``tries`` until one is found; the MPC is then designed with
+    the same attempt, the robust law as its fall-back. With automatic weights and window, when the MPC's
+    weights had to relax a specification on the robust controller's window, its weights are searched on the
+    other windows and it is designed again on the best (:func:`hil.commissioning.mpc_window.own_window`,
+    ``ctrl/windows/``). With ``candidates`` the window laws the robust design's estimate back-off made are
+    kept in ``ctrl/windows/robust/``.
+
+    Returns
+    -------
+    dict
+        Per design made (``central-lqr``, ``robust``, ``mpc``): ``file``, ``result``, ``settings``, ``weights``
+        (the attempt's label), and for the MPC ``window_search``.
+    """
+    designs: dict[str, dict] = {}
+    if with_lqr:
+        r = steps.run("design central-lqr", "design lqr (the paper's method)",
+                      lambda: designer.lqr(models_dir, ctrl / "central-lqr.json"))
+        if r is not None:
+            designs["central-lqr"] = {**r, "weights": "default"}
+    keep = ctrl / "windows" / "robust" if candidates else None
+    for attempt in tries:
+        label = attempt.label
+        r = steps.run(f"design robust ({label})", f"design robust ({label})",
+                      lambda a=attempt: designer.robust(models_dir, a, ctrl / "robust.json", keep))
+        if r is None:
+            continue
+        designs["robust"] = {**r, "weights": label}
+        if hooks.after_robust is not None:
+            hooks.after_robust(designs["robust"]["file"])
+        r = steps.run(f"design mpc ({label})", f"design mpc ({label})",
+                      lambda a=attempt: designer.mpc(models_dir, a, ctrl / "mpc.json", ctrl / "robust.json"))
+        if r is not None:
+            designs["mpc"] = {**r, "weights": label}
+            if attempt.auto and attempt.past is None:   # automatic weights and window: the MPC's own window
+                pair = window_designers(designer, models_dir, attempt.auto)
+                _own_window(steps, designs["mpc"], pair, ctrl / "windows")
+                if hooks.after_mpc is not None:
+                    hooks.after_mpc(designs, pair)
+        break
+    return designs
+
+
+def _own_window(steps: Steps, mpc: dict, pair: WindowDesigners, work: Path) -> None:
+    """The MPC on its own window when the robust controller's left it short of a specification; updates
+    ``mpc`` (its record) in place."""
+    rec = own_window(steps.run, pair[0], pair[1], Path(mpc["file"]), work)
+    mpc["window_search"] = {k: v for k, v in rec.items() if k not in ("result", "settings")}
+    if "settings" in rec:
+        mpc.update(result=rec["result"], settings=rec["settings"],
+                   weights=f"{mpc['weights']}; the MPC's own window {rec['kept']} (with the robust controller's "
+                           f"window {rec['tries'][0]['past']} it relaxed {'; '.join(rec['tries'][0]['relaxed'])}), "
+                           f"its fall-back a robust law on that window")
+
+
+def _design_mpc_alone(steps: Steps, designer: Designer, models_dir: Path, ctrl: Path, tries: Sequence[DesignTry],
+                      order: int, robust_label: str) -> dict[str, dict]:
+    """The MPC on ``models_dir`` with the robust file already made as its fall-back (the same tries)."""
+    for attempt in tries:
+        label = attempt.label
+        r = steps.run(f"design mpc on order-{order} models ({label})",
+                      f"design mpc on order-{order} models ({label}; the robust law: {robust_label})",
+                      lambda a=attempt: designer.mpc(models_dir, a, ctrl / "mpc.json", ctrl / "robust.json"))
+        if r is not None:
+            return {"mpc": {**r, "weights": f"{label}, order-{order} models"}}
+    return {}
+
+
+def design_with_fallback(steps: Steps, designer: Designer, logs: Path, models_dir: Path, out: Path,
+                         tries: Sequence[DesignTry], fallback_order: int | None, markov: int | str = "auto",
+                         candidates: bool = False, hooks: DesignHooks = DesignHooks(),
+                         progress: Callable[[int, int], None] | None = None) -> tuple[dict[str, dict], dict | None]:
+    """:func:`design_controllers` on the identified models, then, when the robust controller or the MPC is
+    missing and ``fallback_order`` is given, identification again at that order (``out/models_order<N>/``,
+    acceptance ``warn``) and the missing designs on those models.
+
+    The robust LMIs over models of mixed orders (chosen by validation) were infeasible on a heavy and a worn
+    tractor, feasible over order-4 models; when only the MPC is missing (its central model of the validated
+    order admits no weights that meet the specifications), the MPC alone is designed on those, with the
+    robust law found as its fall-back.
+
+    Returns
+    -------
+    tuple
+        The designs (:func:`design_controllers`) and the fall-back identification's summary (``None`` when
+        it did not run; with ``"for": "mpc"`` when it was for the MPC alone).
+    """
+    ctrl = out / "controllers"
+    designs = design_controllers(steps, designer, models_dir, ctrl, tries, True, candidates, hooks)
+    missing = "robust" if "robust" not in designs else ("mpc" if "mpc" not in designs else None)
+    if missing is None or fallback_order is None:
+        return designs, None
+    fallback_dir = out / f"models_order{fallback_order}"
+
+    def identify_again() -> dict:
+        r = identify_logs([str(logs)], fallback_dir, order=fallback_order, markov=markov, latency="auto",
+                          acceptance="warn", progress=progress)
+        return {k: v for k, v in r.items() if k != "_text"}
+    why = "no robust design having been found" if missing == "robust" else "for the MPC"
+    again = steps.run(f"identification (order {fallback_order})", f"identification again at order {fallback_order}, "
+                      f"{why}", identify_again)
+    if again is None:
+        return designs, None
+    if missing == "robust":
+        designs.update(design_controllers(steps, designer, fallback_dir, ctrl, tries, False, candidates, hooks))
+        return designs, again
+    designs.update(_design_mpc_alone(steps, designer, fallback_dir, ctrl, tries, fallback_order,
+                                     designs["robust"]["weights"]))
+    return designs, {**again, "for": "mpc"}

@@ -1,0 +1,219 @@
+"""Commission a tractor from its recorded pass logs and commissioning file: ``hil commission --logs``.
+
+What was recorded on the tractor (the valve test's commissioning file and the identification passes)
+becomes, with no simulator and no truth:
+
+1. **identification** -- :func:`identification.workflow.identify_logs` (``models/``, ``validation.md``):
+   local, velocity-invariant and central models, each validated by multi-step prediction on held-out
+   passes; a model that does not predict stops the procedure with the fix (drive more passes of its
+   conditions) unless ``acceptance="warn"``;
+2. **designs** -- the paper's central LQR, the robust controller certified on every local model and the
+   MPC (:func:`hil.commissioning.designs.design_with_fallback`), their command limits the valve's
+   measured rate, the automatic weights' margins covering the latency identification measured;
+3. **report** -- ``report.md`` and ``result.json``: the logs and the minutes of driving they hold, the
+   latency and where it came from, the models and their fits, the designs and their certificates.
+
+No trial drive chooses among laws here: the designs are made from the models alone.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Callable
+
+from identification.errors import IdentificationError
+from identification.outputs import atomic_write
+from identification.passlog import PassLog
+from identification.workflow import expand_logs, identify_logs
+
+from hil.commissioning.designs import WEIGHTS, Designer, attempts, design_with_fallback, settings_text
+from hil.commissioning.steps import Steps
+from hil.vehicle.commissioning import Commissioning, load_commissioning
+from hil.vehicle.errors import VehicleConfigError
+
+__all__ = ["LogOptions", "CommissioningError", "commission_from_logs", "driving_seconds"]
+
+LATENCY_SOURCES = ("auto", "valid-time", "declared", "identified")
+
+
+class CommissioningError(VehicleConfigError):
+    """The logs or the commissioning file cannot be commissioned from (the message says the fix)."""
+
+
+@dataclass(frozen=True)
+class LogOptions:
+    """Settings of :func:`commission_from_logs`.
+
+    Attributes
+    ----------
+    order, markov
+        Identification's order and Markov-parameter choice (:func:`identification.workflow.identify_logs`;
+        the order chosen by held-out multi-step prediction by default).
+    acceptance
+        ``"refuse"``: a model that does not predict stops the procedure; ``"warn"``: go on, with a warning.
+    latency
+        Where the GPS latency comes from: ``"auto"`` (the receivers' valid times, else the logs'
+        declaration, else identified from the data), ``"valid-time"`` (refuse logs without them),
+        ``"declared"`` or ``"identified"``.
+    weights
+        ``"auto"`` (from specifications), ``"default"`` or ``"auto-if-available"`` (auto, then the defaults).
+    integral, disturbance_estimate
+        Integral action in the robust design; the disturbance estimate in the robust controller and the MPC.
+    robust_past
+        Longer measured windows tried, in order, when the design with the window from observability fails.
+    fallback_order
+        When no robust design (or no MPC) is found on the identified models, identify again at this order
+        and design on those (None: do not).
+    """
+
+    order: int | str = "validate"
+    markov: int | str = "auto"
+    acceptance: str = "refuse"
+    latency: str = "auto"
+    weights: str = "auto-if-available"
+    integral: bool = True
+    disturbance_estimate: bool = True
+    robust_past: tuple[int, ...] = (6,)
+    fallback_order: int | None = 4
+
+    def __post_init__(self) -> None:
+        if self.acceptance not in ("refuse", "warn"):
+            raise CommissioningError(f"acceptance must be 'refuse' or 'warn', got {self.acceptance!r}")
+        if self.latency not in LATENCY_SOURCES:
+            raise CommissioningError(f"latency must be one of {list(LATENCY_SOURCES)}, got {self.latency!r}")
+        if self.weights not in WEIGHTS:
+            raise CommissioningError(f"weights must be one of {list(WEIGHTS)}, got {self.weights!r}")
+        if not all(isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= 20 for k in self.robust_past):
+            raise CommissioningError(f"robust_past must be window lengths 1..20, got {self.robust_past!r}")
+        if self.fallback_order is not None and (isinstance(self.fallback_order, bool)
+                                                or not isinstance(self.fallback_order, int) or self.fallback_order < 1):
+            raise CommissioningError(f"fallback_order must be None or an order >= 1, got {self.fallback_order!r}")
+
+
+def driving_seconds(logs: list[PassLog]) -> dict:
+    """Seconds of driving the logs hold: ``total`` and per implement (each log's first to last sample)."""
+    per: dict[str, float] = {}
+    for log in logs:
+        imp = str(log.meta.get("implement", "unknown"))
+        per[imp] = per.get(imp, 0.0) + float(log.duration)
+    return {"passes": sum(per.values()), "per_implement": per, "total": sum(per.values())}
+
+
+def _load_inputs(logs: Path, commissioning: Path) -> tuple[Commissioning, list[Path], list[PassLog]]:
+    """The commissioning file and every pass log, each checked; one line naming the file on a refusal."""
+    com = load_commissioning(commissioning)
+    try:
+        files = expand_logs([logs])
+    except IdentificationError as exc:
+        raise CommissioningError(f"{exc}; record identification passes into {logs} first") from None
+    passes = []
+    for f in files:
+        try:
+            passes.append(PassLog.load(f))
+        except (IdentificationError, ValueError, OSError) as exc:
+            raise CommissioningError(f"pass log {str(f)!r}: {exc}; remove it from {logs} or record the pass "
+                                     "again") from None
+    return com, files, passes
+
+
+def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str | Path,
+                         options: LogOptions | None = None, say: Callable[[str], None] | None = None,
+                         progress: Callable[[str, int, int], None] | None = None) -> dict:
+    """Commission the tractor whose passes are in ``logs`` and whose valve test is ``commissioning``.
+
+    Parameters
+    ----------
+    logs
+        Folder of pass logs (``*.npz``) recorded on the tractor.
+    commissioning
+        The commissioning file of its valve test.
+    out
+        Output folder: ``models/``, ``controllers/``, ``report.md``, ``result.json``.
+    options
+        Identification and design settings.
+    say, progress
+        One line per step (default: stderr); ``progress(step, done, total)`` inside long steps.
+
+    Returns
+    -------
+    dict
+        What ``result.json`` holds.
+
+    Raises
+    ------
+    CommissioningError
+        No pass log, a pass log or commissioning file that cannot be read (before anything is written).
+    """
+    opts = options or LogOptions()
+    logs, out = Path(logs), Path(out)
+    say = say or (lambda line: print(line, file=sys.stderr, flush=True))
+    tick = progress or (lambda step, done, total: None)
+    com, files, passes = _load_inputs(logs, Path(commissioning))
+    out.mkdir(parents=True, exist_ok=True)
+    steps = Steps(say)
+    res: dict = {"tractor": com.tractor, "logs": [str(f) for f in files], "commissioning": str(commissioning),
+                 "options": asdict(opts), "valve": com.valve.to_dict(), "driving_s": driving_seconds(passes)}
+    models_dir = out / "models"
+
+    def identify() -> dict:
+        r = identify_logs([str(logs)], models_dir, order=opts.order, markov=opts.markov, latency=opts.latency,
+                          acceptance=opts.acceptance, progress=lambda d, n: tick("identification", d, n))
+        return {k: v for k, v in r.items() if k != "_text"}
+    ident = steps.run("identification", f"identification of {len(files)} pass logs (OKID/ERA, validation on "
+                      "held-out passes)", identify)
+    designs: dict[str, dict] = {}
+    if ident is not None:
+        res["identification"] = ident
+        designer = Designer(rate_limit=com.valve.max_rate, integral=opts.integral, estimate=opts.disturbance_estimate)
+        designs, again = design_with_fallback(steps, designer, logs, models_dir, out,
+                                              attempts(opts.weights, opts.robust_past), opts.fallback_order,
+                                              opts.markov, progress=lambda d, n: tick("identification", d, n))
+        if again is not None:
+            res["identification_fallback"] = again
+    res["designs"] = designs
+    res["steps"] = steps.record
+    res["files"] = [str(out / "report.md"), str(out / "result.json")]
+    with atomic_write(out / "result.json", "w") as fh:          # first: a report that fails loses nothing
+        fh.write(json.dumps(res, indent=2, default=_jsonable) + "\n")
+    with atomic_write(out / "report.md", "w") as fh:
+        fh.write(report_text(res))
+    return res
+
+
+def _jsonable(o: object) -> object:
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    return str(o)
+
+
+def report_text(res: dict) -> str:
+    """``report.md`` of :func:`commission_from_logs`."""
+    drv = res["driving_s"]
+    lines = [f"# Commissioning of {res['tractor']} from its recorded passes", "",
+             f"{len(res['logs'])} pass logs, {drv['total'] / 60:.1f} min of driving ("
+             + ", ".join(f"{imp} {s / 60:.1f} min" for imp, s in sorted(drv['per_implement'].items()))
+             + f"); valve: full-scale rate {res['valve']['full_scale']:g} rad/s, deadband {res['valve']['deadband']:g} "
+               "duty.", "", "## Steps", "", "| step | ok | seconds | error |", "|---|---|---:|---|"]
+    for s in res["steps"]:
+        lines.append(f"| {s['step']} | {'yes' if s['ok'] else 'NO'} | {s['seconds']:.1f} | {s.get('error', '')} |")
+    ident = res.get("identification")
+    if ident:
+        lines += ["", "## Models", "", "| model | kind | order | prediction fit % | acceptance |", "|---|---|---:|---|---|"]
+        for m in ident.get("models", []):
+            fit = ", ".join(f"{k} {v:.1f}" for k, v in (m.get("prediction_fit") or {}).items())
+            lines.append(f"| {m['name']} | {m['kind']} | {m['order']} | {fit} | {m.get('acceptance', '')} |")
+    if res["designs"]:
+        lines += ["", "## Controllers", ""]
+        for name, d in res["designs"].items():
+            cert = d["result"]["certificate"]
+            lines.append(f"- `{name}` ({d['file']}): {'stable on every model' if cert.get('passed') else 'NOT STABLE'}"
+                         f", worst spectral radius {cert.get('max_spectral_radius', float('nan')):.4f} "
+                         f"({cert.get('worst', '')}); weights {d.get('weights', '')}; "
+                         f"{settings_text(d.get('settings', {}))}")
+    else:
+        lines += ["", "No controller was designed: see the failed steps above."]
+    return "\n".join(lines) + "\n"

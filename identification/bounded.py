@@ -17,7 +17,9 @@ from __future__ import annotations
 import io
 import json
 import math
+import os
 import re
+import stat
 import zipfile
 import zlib
 from pathlib import Path
@@ -53,12 +55,15 @@ def _mib(n: int) -> str:
 
 
 def read_bytes(path: str | Path, limit: int, what: str, error: type[Exception] = FileReadError) -> bytes:
-    """The content of ``path``, at most ``limit`` bytes; a longer file is refused unread.
+    """The content of ``path``, at most ``limit`` bytes; a longer file is refused.
+
+    A regular file larger than ``limit`` is refused unread (from its size); from anything else
+    (a device such as ``/dev/zero``, a pipe) at most ``limit + 1`` bytes are read.
 
     Parameters
     ----------
     path
-        File to read (a regular file, or a device or pipe: at most ``limit + 1`` bytes are read).
+        File to read.
     limit
         Largest size accepted, bytes.
     what
@@ -69,14 +74,16 @@ def read_bytes(path: str | Path, limit: int, what: str, error: type[Exception] =
     path = Path(path)
     try:
         with open(path, "rb") as fh:
-            data = fh.read(limit + 1)
+            info = os.fstat(fh.fileno())
+            size = info.st_size if stat.S_ISREG(info.st_mode) else 0
+            data = b"" if size > limit else fh.read(limit + 1)
     except FileNotFoundError:
         raise error(f"{path}: no such file; expected a {what}") from None
     except IsADirectoryError:
         raise error(f"{path}: is a folder; expected a {what}") from None
     except OSError as exc:
         raise error(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
-    if len(data) > limit:
+    if size > limit or len(data) > limit:
         raise error(f"{path}: larger than the {_mib(limit)} a {what} may hold; expected a {what} "
                     f"of at most {limit} bytes (is this the right file?)")
     return data

@@ -273,3 +273,12 @@ def test_validate_names_the_model_and_the_record_in_its_errors(tmp_path):
     with pytest.raises(DataError, match="model has 1 input") as exc:
         validate_csv(model, rec, ["u"], ["y"])
     _one_line(exc, rec, str(model))
+
+
+def test_a_sparse_file_larger_than_the_limit_is_refused_from_its_size(tmp_path):
+    path = tmp_path / "huge.npz"
+    with open(path, "wb") as fh:
+        fh.truncate(2**40)            # 1 TiB, no blocks on disk: reading it would take hours
+    with pytest.raises(PassLogError, match="larger than the 64 MiB a .npz pass log may hold") as exc:
+        PassLog.load(path)
+    _one_line(exc, path)

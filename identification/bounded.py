@@ -146,7 +146,7 @@ def _member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path, what: str, m
             raise error(f"{path}: {key!r} is a .npy of format version {version}; expected 1.0 or 2.0")
         if dtype.hasobject:
             raise error(f"{path}: {key!r} contains pickled objects; refusing to load it ({what}s hold "
-                        "numbers and one JSON string, and are read with allow_pickle=False)")
+                        "numbers and one JSON string, and are never unpickled)")
         if dtype.kind not in NPZ_KINDS or dtype.fields is not None:
             kind = _KIND_NAMES.get(dtype.kind, "not a number")
             shown = str(dtype) if kind in str(dtype) else f"{dtype} ({kind})"

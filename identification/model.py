@@ -2,7 +2,8 @@
 
 A model file ``models/<name>.npz`` holds the arrays ``A``, ``B``, ``C``, ``D``,
 ``K`` (steady-state Kalman predictor gain), the scalar ``dt`` [s] and ``meta``,
-a JSON string. It is read with ``allow_pickle=False``; anything pickled,
+a JSON string. It is read by :func:`identification.bounded.read_npz` (never
+unpickled, at most :data:`MAX_FILE_BYTES`, each array checked from its header); anything pickled,
 missing, mis-shaped, non-finite or of another schema is refused.
 
 ``meta`` keys (schema ``identification-model/1``): ``schema``, ``kind``

@@ -26,7 +26,8 @@ Further channels (``fix_quality``, truth channels ``truth_*`` of a simulated pas
 base and unit.
 
 The canonical file is ``.npz`` (arrays named as above plus ``meta``, a JSON
-string) and is always read with ``allow_pickle=False``. CSV export and import
+string) and is read by :func:`identification.bounded.read_npz` (never unpickled, at
+most :data:`MAX_FILE_BYTES`, each array checked from its header). CSV export and import
 are provided for logs that come from elsewhere.
 """
 

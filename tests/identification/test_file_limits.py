@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from hostile_files import DEEP, broken_deflate, huge_member
 
 from hil.errors import SimulatorConfigError
@@ -282,3 +284,30 @@ def test_a_sparse_file_larger_than_the_limit_is_refused_from_its_size(tmp_path):
     with pytest.raises(PassLogError, match="larger than the 64 MiB a .npz pass log may hold") as exc:
         PassLog.load(path)
     _one_line(exc, path)
+
+
+@settings(max_examples=60, deadline=None, database=None)
+@given(text=st.text(alphabet='[]{}"\\ ,:a1', max_size=200))
+def test_the_tractor_files_depth_check_agrees_with_the_one_reader(text):
+    # hil.truth may not import identification (.importlinter), so it keeps a copy of the check
+    assert tractors._json_depth(text) == bounded.json_depth(text)
+
+
+def _depth(value) -> int:
+    if isinstance(value, list):
+        return 1 + max(map(_depth, value), default=0)
+    if isinstance(value, dict):
+        return 1 + max(map(_depth, value.values()), default=0)
+    return 0
+
+
+_JSON = st.recursive(st.none() | st.booleans() | st.floats(allow_nan=False) | st.text(alphabet='[]{}"\\a'),
+                     lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(alphabet='[]{}"\\a'),
+                                                                                 inner, max_size=3),
+                     max_leaves=20)
+
+
+@settings(max_examples=80, deadline=None, database=None)
+@given(value=_JSON)
+def test_the_depth_check_counts_the_nesting_of_any_json_document(value):
+    assert bounded.json_depth(json.dumps(value)) == _depth(value)

@@ -201,10 +201,11 @@ def save_tractor(tractor: Tractor, path: str | Path) -> Path:
     """Write a tractor file (JSON, sorted groups as given) whole or not at all; returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    perms = path.stat().st_mode & 0o7777 if path.exists() else 0o644   # a file read by all, as before
     fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:100]}.", suffix=".part")
     try:
         with open(fd, "w", encoding="utf-8") as fh:
-            os.fchmod(fh.fileno(), 0o644)
+            os.fchmod(fh.fileno(), perms)
             fh.write(json.dumps(tractor.to_dict(), indent=2) + "\n")
             fh.flush()
             os.fsync(fh.fileno())

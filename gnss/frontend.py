@@ -219,6 +219,7 @@ class GnssFrontEnd:
         self._yaw_rate = 0.0
         self._rate_yaw, self._rate_tv = math.nan, -math.inf
         self._att_tv = self._att_ta = -math.inf
+        self.refused_values = 0   #: messages dropped for a non-finite position, velocity or attitude
 
     # ---------------------------------------------------------------- ingest
     def _valid_time(self, tag: float | None, clock: TagClock, t_arr: float) -> float:
@@ -226,12 +227,20 @@ class GnssFrontEnd:
             return t_arr - self.config.receiver_latency
         return clock.host_time(tag, t_arr, self.config.receiver_latency)
 
+    # A non-finite value (a decoder that let 'nan' through, a message built in code) is dropped as if the
+    # message had not come: the state keeps its last finite value and ages, so integrity goes stale.
     def _set_position(self, lat: float, lon: float, h: float, tv: float, ta: float) -> None:
+        if not (math.isfinite(lat) and math.isfinite(lon) and math.isfinite(h)):
+            self.refused_values += 1
+            return
         self._pos = self._frame.to_enu(lat, lon, h)
         self._pos_tv, self._pos_ta = tv, ta
 
     def _set_velocity(self, speed: float | None, course: float | None, tv: float, vel_up: float = 0.0) -> None:
         if speed is None:
+            return
+        if not (math.isfinite(speed) and (course is None or math.isfinite(course)) and math.isfinite(vel_up)):
+            self.refused_values += 1
             return
         c = 0.0 if course is None else course
         s = speed if (course is not None or speed < 0.1) else 0.0
@@ -240,6 +249,10 @@ class GnssFrontEnd:
 
     def _set_attitude(self, yaw: float | None, pitch: float | None, roll: float | None, tv: float, ta: float) -> None:
         if yaw is None:
+            return
+        if not (math.isfinite(yaw) and (pitch is None or math.isfinite(pitch))
+                and (roll is None or math.isfinite(roll))):
+            self.refused_values += 1
             return
         yaw = (yaw + self._heading_offset) % _TWO_PI
         dt = tv - self._rate_tv
@@ -284,8 +297,9 @@ class GnssFrontEnd:
             self._corr_age = _UBX_CORR_AGE.get(m.last_correction_age)
             if self._fix is not FixQuality.NONE:
                 self._set_position(m.lat, m.lon, m.height, tv, ta)
-                self._vel = (float(m.vel_e), float(m.vel_n), float(-m.vel_d))
-                self._vel_tv = tv
+                vel = (float(m.vel_e), float(m.vel_n), float(-m.vel_d))
+                if math.isfinite(vel[0]) and math.isfinite(vel[1]) and math.isfinite(vel[2]):
+                    self._vel, self._vel_tv = vel, tv
             else:
                 self._pos_ta = ta
         elif isinstance(m, (Vtg, Rmc)):

@@ -15,7 +15,12 @@ emulated bridge firmware and the plant (as :class:`hil.devices.valve_faults.Valv
   or has not engaged within :data:`REGRAB` s of the hand-back (the fix is still bad). On the bench
   it never takes over before the first engage (a run's start is its start); with ``from_start``
   (``hil emulate``) it also holds the tractor on the line until the loop first engages, as an
-  operator lines the tractor up before pressing engage.
+  operator lines the tractor up before pressing engage;
+* in front of an AgOpenGPS steer module, whose sensor kicks its steer switch off (latched) when the
+  driver turns the wheel, the driver re-arms the switch when handing back, as AgOpenGPS asks of an
+  operator after a kick-out: open for one look (:data:`DRIVER_PERIOD`, longer than the module's loop),
+  then closed (the module takes a closing edge). Without it the module stayed off after the first
+  takeover and the loop never engaged again.
 
 The driver sees the truth (the field and the tractor), not the GPS. Runs where it took over say
 so in the metadata (``driver_takeovers``); the bench's statistics leave out the cycles the loop
@@ -82,6 +87,8 @@ class FieldDriver:
         self._near_since = math.nan
         self._last_look = -math.inf
         self._firmware_duty = 0.0
+        self._switch: Callable[[bool], None] | None = None   # the steer module's switch, when there is one
+        self._rearm = False     # the switch was opened at the hand-back: close it at the next look
         p = tractor.params
         self._wheelbase, self._stop = p.vehicle.wheelbase, p.steering.max_wheel_angle
 
@@ -104,6 +111,10 @@ class FieldDriver:
         """True while the driver steers (or the inner layer says so)."""
         return self.steering or self.inner.manual_override()
 
+    def attach_steer_switch(self, operate: Callable[[bool], None]) -> None:
+        """Give the driver the steer module's switch (``operate(closed)``), re-armed at every hand-back."""
+        self._switch = operate
+
     def advance(self, dt: float) -> None:
         """Look and steer (every :data:`DRIVER_PERIOD` s), then let ``dt`` seconds pass."""
         now = self.inner.time
@@ -115,6 +126,9 @@ class FieldDriver:
     def _look(self, now: float) -> None:
         elapsed = now - self._last_look if math.isfinite(self._last_look) else DRIVER_PERIOD
         self._last_look = now
+        if self._rearm:   # the switch has been open for a look: close it (the module sees the closing edge)
+            self._rearm = False
+            self._switch(True)
         truth = self.tractor.truth()
         x, y, psi = truth["along_track"], truth["cross_track"], truth["heading_error"]
         xte, he, station, _ = self.tracker.update(x, y, math.pi / 2 - psi, elapsed)
@@ -140,6 +154,9 @@ class FieldDriver:
             # handed back: the driver grabs again if the autosteer has not engaged within REGRAB s
             self.steering, self._off_since = False, now + REGRAB - REACTION
             self.inner.set_valve_duty(self._firmware_duty)
+            if self._switch is not None:   # re-arm a module the hands kicked out: open now, closed at the next look
+                self._switch(False)
+                self._rearm = True
             return
         # pure pursuit on the route: the arc through the point LOOK_AHEAD m ahead
         (te,), (tn,), _ = self.path.pose([station + LOOK_AHEAD])

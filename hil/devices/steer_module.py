@@ -19,7 +19,9 @@ Behaviour, as the firmware cited in ``docs/agopengps_protocol.md`` (``src/Autost
   edge, so after a kick-out it stays off until the switch is cycled. Without a switch (no
   STEER_SWITCH bit) it follows AgOpenGPS's autosteer button through the status byte transitions.
   The plant's ``manual_override()`` (the driver turning the wheel, seen by the module's pressure,
-  current or encoder sensor) kicks the steer switch off.
+  current or encoder sensor) kicks the steer switch off. A plant with ``attach_steer_switch(operate)``
+  (a driver in front of it, :class:`hil.devices.field_driver.FieldDriver`) is given the switch, as an
+  operator has it: after a kick-out the driver cycles it when handing the wheel back.
 * ``verify_checksum=False`` is the stock firmware: frames with a wrong checksum are applied (the
   other fields are still checked by the table), and the hello reply carries the stock firmware's
   constant checksum byte 71.
@@ -225,6 +227,9 @@ class SteerModule:
         self._motor_on = False
         self._switch_byte = 0
         self._n = dict(frames=0, bad_frames=0, unexpected_frames=0, replies=0, loops=0, link_errors=0)
+        attach = getattr(plant, "attach_steer_switch", None)
+        if callable(attach):   # a driver in front of the plant operates the switch (re-arms it after a kick-out)
+            attach(self.set_steer_switch)
 
     # -- the physical inputs ----------------------------------------------------------------
     def set_steer_switch(self, on: bool) -> None:

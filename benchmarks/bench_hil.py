@@ -41,10 +41,10 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from design.controller import KinematicLQRController  # noqa: E402
-from hil.bench.bridge_measure import measure_lockstep_speed, measure_pty_latency  # noqa: E402
+from hil.bench.benches.bridge_measure import measure_lockstep_speed, measure_pty_latency  # noqa: E402
 from hil.truth.conditions import condition_for  # noqa: E402
 from hil.devices.plant import SimulatedTractor  # noqa: E402
-from hil.bench.run import RunSpec, simulated_run  # noqa: E402
+from hil.bench.runs.run import RunSpec, simulated_run  # noqa: E402
 from hil.vehicle.summary import summarize  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -58,7 +58,7 @@ COMPARE_CEILING = 1.5      # demo comparison's wall time, after / before
 _LOCKSTEP = r"""
 import json, sys, time
 try:
-    from hil.bench.run import RunSpec, simulated_run
+    from hil.bench.runs.run import RunSpec, simulated_run
 except ImportError:
     from hil.run import RunSpec, simulated_run
 from design.controller import KinematicLQRController

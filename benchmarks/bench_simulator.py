@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from hil.bench.sysid import SysidPlan, make_passes
+from hil.bench.runs.sysid import SysidPlan, make_passes
 
 
 def cpu(fn):

@@ -7,7 +7,7 @@ robust 9.9 cm with it, 5.9 cm without; MPC 7.8 against 6.1; three seeds). The MP
 misses the paper's method at 1.00 m/s. No one setting is right at every speed, and which
 speeds want it off depends on the tractor (the estimate off at 2.91 m/s on every tractor of the
 family was better in 22 of 66 cells, worse in the rest), so the choice is measured on the
-tractor, per speed, by a trial drive (:mod:`hil.bench.estimate_trial`), and recorded here.
+tractor, per speed, by a trial drive (:mod:`hil.bench.commissioning.estimate_trial`), and recorded here.
 
 The two laws. With the estimate ``dh`` (states ``s`` and ``dp`` of
 :func:`design.disturbance.estimate_compensator`), the command is ``u = u_w + u_d``, with

@@ -46,7 +46,7 @@ from design.files.load import load_controller
 from design.export import export_controller
 from design.plausibility import implausible
 from design.robust import RobustSpec, design_lqr, design_robust
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
 from identification.model import Model
 

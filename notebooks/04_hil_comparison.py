@@ -36,9 +36,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from hil.bench.campaign import Campaign
+from hil.bench.runs.campaign import Campaign
 from hil.truth.conditions import condition_for
-from hil.bench.report import cells, table2_text, write_report
+from hil.bench.runs.report import cells, table2_text, write_report
 
 t0 = time.perf_counter()
 OUT = Path("nb_out")

@@ -45,8 +45,8 @@ matplotlib.use("Agg")
 from IPython.display import Image, display
 
 import hil
-from hil.calibration.calibrate import REFERENCE, CalibrationOptions, Evaluator, objective
-from hil.calibration.report import figure, mismatches, table
+from hil.bench.calibration.calibrate import REFERENCE, CalibrationOptions, Evaluator, objective
+from hil.bench.calibration.report import figure, mismatches, table
 from hil.truth.params import SimParams
 
 t0 = time.perf_counter()

@@ -30,13 +30,21 @@ def test_every_hil_sub_package_has_a_contract_and_a_line_in_the_readme_map():
     sources = {m.strip() for sec in cfg.sections() if sec.startswith("importlinter:contract:")
                for m in cfg[sec].get("source_modules", "").split()}
     subs = sorted(p.parent.name for p in (ROOT / "hil").glob("*/__init__.py"))
-    assert subs == ["bench", "calibration", "commissioning", "devices", "links", "truth", "vehicle"]
+    assert subs == ["bench", "commissioning", "devices", "links", "truth", "vehicle"]
     readme = (ROOT / "README.md").read_text()
     section = readme.split("## Map of the code", 1)[1].split("\n## ", 1)[0]
     for sub in subs:
         assert re.search(rf"^\| `hil/{sub}/` \|", section, re.M), f"README map has no line for hil/{sub}/"
-    for sub in ("truth", "links", "vehicle", "devices", "commissioning", "bench"):
+    for sub in ("truth", "links", "vehicle", "devices", "commissioning", "bench.runs", "bench.fields",
+                "bench.benches", "bench.commissioning"):
         assert f"hil.{sub}" in sources, f"no contract constrains hil.{sub}"
+
+
+def test_no_module_of_the_bench_stands_outside_a_room():
+    """The bench keeps its modules in rooms (runs, fields, benches, commissioning, calibration): at its top
+    only its ``__init__`` and its command line."""
+    loose = sorted(p.name for p in (ROOT / "hil" / "bench").glob("*.py"))
+    assert loose == ["__init__.py", "cli.py"], loose
 
 
 def test_hil_drive_loads_nothing_of_the_simulator_or_the_bench():
@@ -49,7 +57,7 @@ def test_hil_drive_loads_nothing_of_the_simulator_or_the_bench():
             "try:\n    main(['drive', '--help'])\nexcept SystemExit:\n    pass\n"
             "import hil.vehicle.drive, hil.vehicle.loop\n"
             "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('tqdm', 'dask', 'distributed')"
-            " or m.startswith(('hil.truth', 'hil.devices', 'hil.bench', 'hil.calibration')))\n"
+            " or m.startswith(('hil.truth', 'hil.devices', 'hil.bench')))\n"
             "print('LOADED', bad)\n")
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]

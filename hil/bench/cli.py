@@ -33,16 +33,16 @@ from hil.errors import HilError, SimulatorConfigError
 from hil.devices.faults import LinkFault
 from hil.truth.params import SimParams, parameter_markdown, parameter_table
 from hil.truth.tractors import builtin_tractors, random_tractor, resolve_tractor, save_tractor, tractors_markdown
-from hil.bench.plots import plot_pass, plot_run
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.plots import plot_pass, plot_run
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
-from hil.bench.campaign import BUILTIN_CONTROLLERS, EXECUTORS, Campaign, controller_label, make_controller
+from hil.bench.runs.campaign import BUILTIN_CONTROLLERS, EXECUTORS, Campaign, controller_label, make_controller
 from hil.truth.conditions import condition_for
-from hil.bench.report import write_report
-from hil.bench.sysid import SysidPlan, make_passes
+from hil.bench.runs.report import write_report
+from hil.bench.runs.sysid import SysidPlan, make_passes
 from hil.vehicle.cli import add_drive_parser, print_run_result
 from hil.vehicle.commissioning import load_commissioning
-from hil.bench.cli_commission import add_commission_parser
+from hil.bench.commissioning.cli import add_commission_parser
 from hil.vehicle.outputs import prepare_out_dir, prepare_out_file, write_text_atomic
 
 #: Sub-commands whose --out is a directory, and those whose --out is a file (checked before any work).
@@ -140,7 +140,7 @@ def _cmd_params(args: argparse.Namespace) -> dict:
 
 def _controller_spec(text: str) -> str:
     if text.partition("?")[0] == "oracle" and "?" in text:       # the oracle's weights: field runs only
-        from hil.bench.field_bench import check_field_controller
+        from hil.bench.fields.runs import check_field_controller
         try:
             check_field_controller(text)
         except (ValueError, TypeError, SimulatorConfigError) as exc:
@@ -247,7 +247,7 @@ def _refuse_oracle_weights(controllers: list[str], option: str) -> None:
 
 
 def _cmd_compare_fields(args: argparse.Namespace) -> dict:
-    from hil.bench.field_bench import compare_fields
+    from hil.bench.fields.runs import compare_fields
     if args.realtime or args.executor != "local" or args.bridge != "hc11" or args.duration is not None:
         raise SimulatorConfigError("--fields runs whole routes in lockstep through the HC11 bridge on local processes: "
                                    "drop --realtime, --executor, --bridge and --duration (a route's length sets it)")
@@ -272,7 +272,7 @@ def _grid(text: str) -> tuple[str, list[float]]:
 
 
 def _cmd_tune(args: argparse.Namespace) -> dict:
-    from hil.bench.tune import tune
+    from hil.bench.runs.tune import tune
     bar = tqdm(total=1, unit="pass", desc="tuning", disable=args.quiet, file=sys.stderr)
 
     def progress(done: int, total: int) -> None:
@@ -289,8 +289,8 @@ def _cmd_tune(args: argparse.Namespace) -> dict:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> dict:
-    from hil.calibration.calibrate import CalibrationOptions, knob_text
-    from hil.calibration.pipeline import run_calibration
+    from hil.bench.calibration.calibrate import CalibrationOptions, knob_text
+    from hil.bench.calibration.pipeline import run_calibration
     knobs = {"knobs": tuple(args.knobs)} if args.knobs else {}
     opts = CalibrationOptions(seeds=tuple(range(args.seed, args.seed + args.seeds)), duration=args.duration,
                               budget=args.budget, step=args.step, min_improvement=args.min_improvement,
@@ -310,7 +310,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> dict:
 
 
 def _cmd_run(args: argparse.Namespace) -> dict:
-    from hil.bench.field_bench import route_duration
+    from hil.bench.fields.runs import route_duration
     faults: dict[str, list] = {}
     for kind, span in args.fault or []:
         faults.setdefault(kind, []).append(span)
@@ -322,10 +322,10 @@ def _cmd_run(args: argparse.Namespace) -> dict:
                    field=args.field, field_passes=args.passes, **{k: tuple(v) for k, v in faults.items()})
     com = load_commissioning(args.commissioning) if args.commissioning else None
     if spec.field:         # the field oracle (curvature, headland turns) for 'oracle'; any other as on a line
-        from hil.bench.field_bench import field_controller
+        from hil.bench.fields.runs import field_controller
         controller = field_controller(args.controller, spec.implement, spec.speed, params, host_map=com is not None)
     elif com is not None and args.controller == "oracle":      # behind the host's inverse map
-        from hil.bench.oracle import OracleOptions, oracle_for
+        from hil.bench.runs.oracle import OracleOptions, oracle_for
         controller = oracle_for(spec.implement, spec.speed, params, OracleOptions(invert_valve=False, host_map=True))
     else:
         _refuse_oracle_weights([args.controller], "--field")
@@ -349,7 +349,7 @@ def _cmd_run(args: argparse.Namespace) -> dict:
     if solver:              # the MPC's / NMPC's solve times (wall and, for the NMPC, CPU) apart from the loop's
         result["solver"] = solver
     if spec.field:
-        from hil.bench.field_bench import field_result, write_field_figures
+        from hil.bench.fields.runs import field_result, write_field_figures
         result["field"] = {**field_result(log)["field_metrics"], "name": log.meta["field"]["name"]}
         result["files"] += write_field_figures(log, out)
     write_text_atomic(out / "summary.json", json.dumps(result, indent=2) + "\n")
@@ -488,7 +488,7 @@ def build_parser() -> argparse.ArgumentParser:
     tu.set_defaults(func=_cmd_tune)
 
     ca = sub.add_parser("calibrate", help="tune the disturbance parameters so the paper's method lands on "
-                        "Table 2 (see hil.calibration.calibrate)")
+                        "Table 2 (see hil.bench.calibration.calibrate)")
     ca.add_argument("--out", required=True, help="directory of the search; an interrupted search resumes there")
     ca.add_argument("--controller", type=_controller_spec, default=None,
                     help="the paper's central LQR (.json); default: identified at the reference parameters")
@@ -576,7 +576,7 @@ def _print_human(command: str, result: dict) -> None:
     elif command in ("run", "drive"):
         print_run_result(result)
         if "field" in result:
-            from hil.bench.field_bench import field_text
+            from hil.bench.fields.runs import field_text
             print(field_text(result["field"]))
     elif command == "commission":
         for st in result["steps"]:

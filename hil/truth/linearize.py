@@ -12,7 +12,7 @@
   the *secant* gain at ``typical_rate`` (mean of left and right); :func:`valve_command` inverts
   the known valve curve (deadband, flow exponent, asymmetry).
 
-Used by the bench's oracle (:mod:`hil.bench.oracle`); this module knows nothing of controllers.
+Used by the bench's oracle (:mod:`hil.bench.runs.oracle`); this module knows nothing of controllers.
 """
 
 from __future__ import annotations

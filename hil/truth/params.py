@@ -2,7 +2,7 @@
 
 ``source`` says where a default comes from: ``"paper"`` (the 1997 paper or
 DESIGN section 2), ``"design"`` (DESIGN section 5), ``"calibrated"`` (set by the
-bench's calibration against the paper's Table 2, :mod:`hil.calibration.calibrate`; the values
+bench's calibration against the paper's Table 2, :mod:`hil.bench.calibration.calibrate`; the values
 are those of ``docs/calibration/result.json``, which a test keeps equal) or
 ``"assumption"`` (a plausible value for a JD 7800-class row-crop tractor that
 nobody measured). ``hil params`` prints the whole table.

@@ -150,6 +150,10 @@ def print_run_result(result: dict) -> None:
           f"p99 {s['loop_time_ms_p99']:.2f} ms")
     if result.get("solver"):       # the MPC's / NMPC's solve times apart from the loop's
         print(solver_text(result["solver"]))
+    if s.get("implausible_events") or s.get("bytes_dropped"):   # what the loop refused or a flooded link lost
+        print(f"{s.get('implausible_events', 0)} implausible measurement(s) refused "
+              f"({s.get('implausible_cycles', 0)} cycles), {s.get('bytes_dropped', 0)} byte(s) dropped from a "
+              "flooded link")
     for e in result["events"]:
         print(f"  t={e['t']:7.2f} s  {e['event']}: {e['reason']}")
     print(f"files in {result['out']}")

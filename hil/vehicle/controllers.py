@@ -4,7 +4,7 @@ A spec is ``kinematic``, ``pure-pursuit`` or ``stanley``, the latter two optiona
 (``pure-pursuit?lookahead_time=1.2&servo=4``, names of :class:`~design.baselines.PurePursuitGains`
 / :class:`~design.baselines.StanleyGains`), ``aog-pure-pursuit`` or ``aog-stanley`` (AgOpenGPS's
 own laws and default settings, :mod:`design.agopengps_baselines`, same ``?name=value`` form), or a
-controller file (``*.json`` of kind ``linear``, ``mpc`` or ``nmpc``, see :mod:`design.files`). The bench adds the oracle (:mod:`hil.bench.campaign`), which is
+controller file (``*.json`` of kind ``linear``, ``mpc`` or ``nmpc``, see :mod:`design.files`). The bench adds the oracle (:mod:`hil.bench.runs.campaign`), which is
 designed on the simulator's truth and cannot steer a real vehicle.
 """
 

@@ -10,8 +10,8 @@ from design.agopengps_baselines import (AogPurePursuitController, AogPurePursuit
                                         AogStanleySettings, goal_point_distance, pure_pursuit_angle, stanley_angle)
 from design.controller import Controller, Measurement
 from design.errors import DesignInputError
-from hil.bench.run import RunSpec, simulated_run
-from hil.bench.targets import Roles
+from hil.bench.runs.run import RunSpec, simulated_run
+from hil.bench.runs.targets import Roles
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, vehicle_controller
 from hil.vehicle.errors import VehicleConfigError
 from hil.vehicle.summary import summarize

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from design.mpc import MPCLimits, build_mpc
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.run import RunSpec, simulated_run
 
 from design_family import tractor_model
 

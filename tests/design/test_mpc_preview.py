@@ -21,9 +21,9 @@ import pytest
 from design.controller import Measurement
 from design.curvature import steady_state
 from design.mpc import build_mpc
-from hil.bench.campaign import make_controller
-from hil.bench.field_route import field_run
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.campaign import make_controller
+from hil.bench.runs.field_route import field_run
+from hil.bench.runs.run import RunSpec, simulated_run
 
 from design_family import tractor_model
 

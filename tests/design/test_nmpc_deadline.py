@@ -135,7 +135,7 @@ def test_the_nmpc_meets_its_deadline_in_a_real_time_run():
     cycle, no fall-back on a straight line, and the loop misses no deadline beyond a host stall. The
     issue's 3 ms is a speed target: `python3 tasks.py bench` (benchmarks/bench_mpc.py, the NMPC rows) measures
     it; the bound here is generous, for a shared host."""
-    from hil.bench.run import RunSpec, simulated_run
+    from hil.bench.runs.run import RunSpec, simulated_run
     from hil.vehicle.summary import summarize
     c = NonlinearMPC(NMPCSettings(horizon=30, rate_limit=0.35, integral_max=1.0,
                                   weights=KinematicWeights(y_max=0.2)))

@@ -148,7 +148,7 @@ def test_design_nmpc_and_verify_commands(models, tmp_path, capsys):
 def test_no_steady_bias_on_the_simulator():
     # the disker's soil force pulls the tractor: without the integral state the same NMPC holds 11.8 cm off
     # (measured, seed 0); with it the bias over the pass (5 s after engage to the end) is within 1 cm
-    from hil.bench.run import RunSpec, simulated_run
+    from hil.bench.runs.run import RunSpec, simulated_run
     from hil.vehicle.summary import summarize
     settings = dataclasses.replace(SETTINGS, horizon=30)
     run = RunSpec(implement="disker", speed=1.79, duration=60.0, seed=0)

@@ -25,8 +25,8 @@ from design.compensator import integrator_states
 from design.curvature import APPROACH_KAPPA_MAX, ApproachPath
 from design.errors import DesignInputError
 from design.iostate import IOStateLayout, feedback_compensator
-from hil.bench.campaign import make_controller
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.campaign import make_controller
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
 
 ROBUST = str(Path(__file__).resolve().parents[1] / "data" / "hil_reference" / "controllers" / "robust.json")

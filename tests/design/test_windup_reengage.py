@@ -36,8 +36,8 @@ import pytest
 from design.controller import Measurement
 from design.files.envelope import read_json
 from design.files.mpc import mpc_from_body
-from hil.bench.campaign import make_controller
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.campaign import make_controller
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.devices.faults import LinkFault
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "hil_reference"

@@ -1,6 +1,6 @@
 """A lockstep vehicle loop whose inputs an attacker can edit: the bridge's byte stream and the GNSS solution.
 
-The bench's parts as :func:`hil.bench.run.simulated_run` assembles them in lockstep (virtual clock,
+The bench's parts as :func:`hil.bench.runs.run.simulated_run` assembles them in lockstep (virtual clock,
 in-memory links, the emulated HC11 board or AgOpenGPS steer module, the emulated receivers), with two
 layers in front of the loop:
 
@@ -21,8 +21,8 @@ import numpy as np
 
 from design.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd, NavSolution
-from hil.bench.agio_bench import AgioLockstepBench
-from hil.bench.bridge_bench import LockstepBridge
+from hil.bench.benches.agio import AgioLockstepBench
+from hil.bench.benches.bridge import LockstepBridge
 from hil.devices.firmware import config_for_tractor
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver

@@ -1,4 +1,4 @@
-"""hil.calibration.calibrate: the objective, the search (deterministic, resumable), option checks."""
+"""hil.bench.calibration.calibrate: the objective, the search (deterministic, resumable), option checks."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.calibration.calibrate import (FIXED, LOG2_LOWER, REFERENCE, CalibrationOptions, Evaluator, clean_results, knob_text,
+from hil.bench.calibration.calibrate import (FIXED, LOG2_LOWER, REFERENCE, CalibrationOptions, Evaluator, clean_results, knob_text,
                            objective, parameter_values, search)
 from hil.cli import main
 from hil.errors import SimulatorConfigError

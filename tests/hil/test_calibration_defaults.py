@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.calibration.calibrate import FIXED, KNOBS, parameter_values
+from hil.bench.calibration.calibrate import FIXED, KNOBS, parameter_values
 from hil.truth.params import _GROUPS, SimParams
 
 RESULT = Path(__file__).resolve().parents[2] / "docs" / "calibration" / "result.json"

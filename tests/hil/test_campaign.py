@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 
 from design.robust import RobustSpec, design_robust
-from hil.bench.campaign import Campaign
+from hil.bench.runs.campaign import Campaign
 from hil.cli import main as hil_main
 from hil.truth.conditions import condition_for
 from hil.truth.params import SimParams
-from hil.bench.report import cells, write_report
+from hil.bench.runs.report import cells, write_report
 
 CONDS = [condition_for("disker", 2.24), condition_for("none", 1.0)]
 WALL = {"loop_time_ms_p50", "loop_time_ms_p99", "loop_time_ms_max", "lateness_ms_p99", "deadline_misses"}
@@ -117,7 +117,7 @@ def test_cli_compare_small_campaign(tmp_path, capsys):
 
 
 def test_tuning_ranks_candidates_on_the_same_passes(tmp_path):
-    from hil.bench.tune import candidates, tune
+    from hil.bench.runs.tune import candidates, tune
     assert candidates("stanley", {"k": [0.5, 1.0]}) == ["stanley?k=0.5", "stanley?k=1"]
     with pytest.raises(ValueError, match="unknown stanley gain"):
         candidates("stanley", {"kp": [1.0]})

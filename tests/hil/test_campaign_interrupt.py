@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.bench.workers import EXIT_TERMINATED
+from hil.bench.runs.workers import EXIT_TERMINATED
 from hil.cli import EXIT_INTERRUPTED
 
 CAMPAIGN = ["compare", "kinematic", "stanley", "--conditions", "none:1.34,disker:1.79", "--seeds", "2",
@@ -108,7 +108,7 @@ def _fail_first(i: int) -> int:
 
 
 def test_a_failed_pass_stops_the_other_workers():
-    from hil.bench.workers import run_pool
+    from hil.bench.runs.workers import run_pool
     got = []
     with pytest.raises(ValueError, match="pass 0 failed"):
         run_pool(_fail_first, [(i,) for i in range(4)], 2, lambda i, r: got.append(r))
@@ -117,7 +117,7 @@ def test_a_failed_pass_stops_the_other_workers():
 
 
 def test_a_failing_callback_stops_the_workers():
-    from hil.bench.workers import run_pool
+    from hil.bench.runs.workers import run_pool
 
     def save(i, r):
         raise OSError("disk full")

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from hil.bench.cli_commission import _options, add_commission_parser
-from hil.bench.commission import CommissionOptions, commission
-from hil.bench.commission_table import hil_ratios
+from hil.bench.commissioning.cli import _options, add_commission_parser
+from hil.bench.commissioning.recipe import CommissionOptions, commission
+from hil.bench.commissioning.table import hil_ratios
 from hil.truth.conditions import condition_for
 from hil.truth.tractors import resolve_tractor
 
@@ -91,7 +91,7 @@ def test_the_command_refuses_bad_options(capsys) -> None:
 def test_hil_run_takes_a_commissioning_file_and_hil_commission_refuses_an_unknown_tractor(tmp_path: Path,
                                                                                         capsys) -> None:
     from hil.bench.cli import main
-    from hil.bench.valve_bench import characterise_on_bench, linearity_on_bench
+    from hil.bench.benches.valve import characterise_on_bench, linearity_on_bench
     from hil.vehicle.commissioning import Commissioning, save_commissioning
     p = resolve_tractor("default").params()
     curve, _ = characterise_on_bench(p, seed=0)
@@ -119,7 +119,7 @@ def test_the_trial_counts_each_implement_alike() -> None:
     # implements (the rule before) is decided by the disker's large 1-sigma and turned the estimate off;
     # the geometric mean of the ratios keeps it on (the HIL comparison: 1.22-1.42x the oracle off, within
     # 1.3x on)
-    from hil.bench.estimate_trial import geometric_ratio
+    from hil.bench.commissioning.estimate_trial import geometric_ratio
     on, off = {"none": 6.09, "disker": 23.59, "ripper": 8.80}, {"none": 9.48, "disker": 17.85, "ripper": 12.80}
     rms = {k: math.sqrt(sum(x * x for x in d.values()) / 3) for k, d in (("on", on), ("off", off))}
     assert rms["off"] < rms["on"]
@@ -134,7 +134,7 @@ def test_the_trial_counts_each_implement_alike() -> None:
 @pytest.mark.parametrize("bad", [0.9, math.nan, math.inf, -1.0])
 def test_the_trial_refuses_a_threshold_below_one_and_writes_nothing(tmp_path, bad) -> None:
     # below 1.0 the estimate would be turned off where the trial measured it helping
-    from hil.bench.estimate_trial import OFF_ABOVE, choose_schedule
+    from hil.bench.commissioning.estimate_trial import OFF_ABOVE, choose_schedule
     f = tmp_path / "robust.json"
     f.write_text("{}")
     with pytest.raises(ValueError, match="off_above must be a finite ratio >= 1.0"):

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from hil.bench.campaign_tractors import commission_campaign, load_result
-from hil.bench.campaign_tractors_report import ORACLE_BOUND, PAPER_BOUND, summarise_tractor, write_campaign_report
+from hil.bench.commissioning.campaign import commission_campaign, load_result
+from hil.bench.commissioning.campaign_report import ORACLE_BOUND, PAPER_BOUND, summarise_tractor, write_campaign_report
 from hil.bench.cli import main as hil_main
-from hil.bench.commission import CommissionOptions, options_dict
-from hil.bench.commission_table import CONTROLLERS, DIVERGED_M
+from hil.bench.commissioning.recipe import CommissionOptions, options_dict
+from hil.bench.commissioning.table import CONTROLLERS, DIVERGED_M
 from hil.truth.conditions import condition_for
 from hil.truth.tractors import random_tractor
 

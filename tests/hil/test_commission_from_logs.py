@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from hil.bench.cli import main as hil_main
-from hil.bench.sysid import SysidPlan, make_passes
-from hil.bench.valve_bench import characterise_on_bench
+from hil.bench.runs.sysid import SysidPlan, make_passes
+from hil.bench.benches.valve import characterise_on_bench
 from hil.commissioning.from_logs import CommissioningError, LogOptions, commission_from_logs
 from hil.truth.tractors import resolve_tractor
 from hil.vehicle.commissioning import Commissioning, save_commissioning

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from design.controller import KinematicLQRController
-from hil.bench.bridge_bench import LockstepBridge
+from hil.bench.benches.bridge import LockstepBridge
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.vehicle.bridge.protocol import RATE_SCALE
 from hil.truth.conditions import condition_for
@@ -14,7 +14,7 @@ from hil.devices.faults import FaultyLink, LinkFault
 from hil.vehicle.loop import LoopConfig
 from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.run import RunSpec, simulated_run
 
 # no random GPS outages or float episodes, so that every disengagement is the injected fault's
 CLEAN_GPS = SimParams().with_overrides({"gps.float_rate": 0.0, "gps.dropout_rate": 0.0})

@@ -31,11 +31,11 @@ from design.controller import KinematicLQRController
 from gnss.curve import ArcPath
 from gnss.field import Field
 from gnss.field_io import field_to_dict
-from hil.bench.campaign import make_controller
-from hil.bench.field_bench import route_duration
-from hil.bench.field_metrics import field_metrics
-from hil.bench.field_route import field_run
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.campaign import make_controller
+from hil.bench.fields.runs import route_duration
+from hil.bench.fields.metrics import field_metrics
+from hil.bench.runs.field_route import field_run
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.truth.params import SimParams
 
 CONTROLLERS = Path(__file__).resolve().parents[1] / "data" / "hil_reference" / "controllers"

@@ -1,4 +1,4 @@
-"""The oracle on a field's route (hil/bench/field_oracle.py): the bound for issue 16's pass-to-pass spacing.
+"""The oracle on a field's route (hil/bench/fields/oracle.py): the bound for issue 16's pass-to-pass spacing.
 
 On an AB line it is the AB-line oracle, command for command; on a circle it holds the arc with the
 curvature the linear controllers get (the bare oracle, designed about a straight line, does not);
@@ -18,12 +18,12 @@ import pytest
 from gnss.curve import ArcPath
 from gnss.field import Field
 from gnss.field_io import field_to_dict
-from hil.bench.field_bench import check_field_controller, field_controller
-from hil.bench.field_metrics import field_metrics
-from hil.bench.field_oracle import FieldOracle
-from hil.bench.field_route import field_run
-from hil.bench.oracle import OracleLQG, OracleOptions
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.fields.runs import check_field_controller, field_controller
+from hil.bench.fields.metrics import field_metrics
+from hil.bench.fields.oracle import FieldOracle
+from hil.bench.runs.field_route import field_run
+from hil.bench.runs.oracle import OracleLQG, OracleOptions
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import condition_for
 from hil.truth.params import SimParams

@@ -17,9 +17,9 @@ from design.controller import KinematicLQRController
 from gnss.curve import ArcPath
 from gnss.field import Field
 from gnss.field_io import field_to_dict
-from hil.bench.field_metrics import field_metrics, jumps
-from hil.bench.field_route import field_run
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.fields.metrics import field_metrics, jumps
+from hil.bench.runs.field_route import field_run
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.cli import main as hil_main
 from hil.truth.params import SimParams
 from hil.vehicle.errors import VehicleConfigError
@@ -96,7 +96,7 @@ def test_field_figures_of_the_hairpin_run(hairpin_run):
 
 
 def test_each_pass_carries_its_measured_bias_and_the_report_names_the_worst_pass(hairpin_run):
-    from hil.bench.field_bench import worst_pass_bias
+    from hil.bench.fields.runs import worst_pass_bias
     fr, log = hairpin_run
     m = field_metrics(log, 3.0, fr.curve_entries())
     ch = log.channels
@@ -328,7 +328,7 @@ def test_a_driver_takes_the_wheel_when_the_autosteer_lets_go_in_a_curve(curved):
 
 
 def test_pass_spacing_is_measured_to_the_neighbour_track_and_never_across_its_gaps():
-    from hil.bench.field_metrics import track_distance
+    from hil.bench.fields.metrics import track_distance
     s = np.arange(0.0, 55.0, 0.1)
     keep = ((s < 20.0) | (s > 30.0)) & (s < 50.0)       # 10 m of the neighbour left out (a disengagement)
     arc = np.column_stack([30.0 * np.cos(s / 30.0), 30.0 * np.sin(s / 30.0)])

@@ -1,4 +1,4 @@
-"""Where the pass-to-pass spacing error comes from (hil/bench/field_spacing.py, docs/fields.md).
+"""Where the pass-to-pass spacing error comes from (hil/bench/fields/spacing.py, docs/fields.md).
 
 Three straight 120 m passes 6 m apart at 2.91 m/s with the demo's robust file, seed 3, run twice: with
 the receiver's slow (multipath) error and without it. The decomposition must put the difference into
@@ -16,11 +16,11 @@ import pytest
 from gnss.curve import ArcPath
 from gnss.field import Field
 from gnss.field_io import field_to_dict
-from hil.bench.campaign import make_controller
-from hil.bench.field_bench import field_result
-from hil.bench.field_route import field_run
-from hil.bench.field_spacing import spacing_decomposition
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.campaign import make_controller
+from hil.bench.fields.runs import field_result
+from hil.bench.runs.field_route import field_run
+from hil.bench.fields.spacing import spacing_decomposition
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.truth.params import SimParams
 
 CONTROLLERS = Path(__file__).resolve().parents[1] / "data" / "hil_reference" / "controllers"

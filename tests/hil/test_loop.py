@@ -11,7 +11,7 @@ from design.controller import KinematicLQRController
 from hil.cli import main as hil_main
 from hil.vehicle.loop import LoopConfig
 from hil.truth.params import SimParams
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
 from identification.passlog import PassLog
 

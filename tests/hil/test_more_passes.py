@@ -1,5 +1,5 @@
 """The recipe follows the refusal's fix: more passes of the refused conditions, then identify again
-(hil.bench.more_passes, issue 14)."""
+(hil.bench.commissioning.identify, issue 14)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import pytest
 
 from identification.errors import ModelRefusedError
 from identification.passlog import PassLog
-from hil.bench.more_passes import identify_with_more_passes, record_more_passes, refused_conditions
-from hil.bench.sysid import SysidPlan, make_passes
-from hil.bench.valve_bench import characterise_on_bench
+from hil.bench.commissioning.identify import identify_with_more_passes, record_more_passes, refused_conditions
+from hil.bench.runs.sysid import SysidPlan, make_passes
+from hil.bench.benches.valve import characterise_on_bench
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import condition_for
 from hil.truth.tractors import resolve_tractor

@@ -1,5 +1,5 @@
 """The MPC's window chosen by a trial drive among the windows that meet as many specifications
-(hil.bench.mpc_window_trial, issue 14)."""
+(hil.bench.commissioning.mpc_window_trial, issue 14)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ from pathlib import Path
 import pytest
 
 from hil.commissioning.steps import Steps
-from hil.bench.commission_report import _mpc_window_trial_lines
+from hil.bench.commissioning.report import _mpc_window_trial_lines
 from hil.commissioning.mpc_window import WINDOWS, auto_record
-from hil.bench.mpc_window_trial import mpc_window_trial
-from hil.bench.window_trial import lowest
+from hil.bench.commissioning.mpc_window_trial import mpc_window_trial
+from hil.bench.commissioning.window_trial import lowest
 from hil.truth.tractors import resolve_tractor
 
 from test_mpc_window import MODELS, RECIPE, _designers  # noqa: E402 - random-19's five models

@@ -11,7 +11,7 @@ from scipy.linalg import expm
 from design.controller import Controller, Measurement
 from hil.truth.conditions import all_conditions, condition_for
 from hil.errors import SimulatorConfigError
-from hil.bench.oracle import OracleLQG, OracleOptions, OracleWeights, design_oracle, oracle_for
+from hil.bench.runs.oracle import OracleLQG, OracleOptions, OracleWeights, design_oracle, oracle_for
 from hil.truth.linearize import EXOGENOUS, find_trim, linearize, mean_inputs, valve_command, valve_secant_gain
 from hil.truth.params import SimParams
 from hil.truth.steering import nominal_duty, valve_rate
@@ -114,7 +114,7 @@ def test_the_oracle_is_a_controller_and_regulates_its_own_model():
 
 
 def test_a_short_pass_on_the_bench_holds_the_disker_line():
-    from hil.bench.run import RunSpec, simulated_run
+    from hil.bench.runs.run import RunSpec, simulated_run
     from hil.vehicle.summary import summarize
     s = summarize(simulated_run(RunSpec(implement="disker", speed=1.79, duration=20, seed=2), oracle_for("disker", 1.79)))
     assert abs(s["true_bias_m"]) < 0.02 and s["true_sigma_m"] < 0.05
@@ -123,8 +123,8 @@ def test_a_short_pass_on_the_bench_holds_the_disker_line():
 @pytest.mark.slow
 def test_on_the_bench_the_oracle_beats_the_kinematic_lqr_and_has_no_disker_bias():
     """Same seeds (same soil, slope and GPS errors) for both controllers, 60 s passes."""
-    from hil.bench.campaign import make_controller
-    from hil.bench.run import RunSpec, simulated_run
+    from hil.bench.runs.campaign import make_controller
+    from hil.bench.runs.run import RunSpec, simulated_run
     from hil.vehicle.summary import summarize
     for implement, speed in (("none", 1.0), ("disker", 2.24), ("ripper", 1.79)):
         spec = RunSpec(implement=implement, speed=speed, duration=60, seed=1)

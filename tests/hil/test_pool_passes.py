@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from hil.bench.oracle import OracleOptions, oracle_for
-from hil.bench.report import cells
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.oracle import OracleOptions, oracle_for
+from hil.bench.runs.report import cells
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.truth.params import SimParams
 from hil.vehicle.summary import engaged_max_abs, first_gps_fault, pool_passes, summarize
 from identification.passlog import PassLog

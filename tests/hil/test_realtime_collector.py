@@ -8,7 +8,7 @@ import time
 import pytest
 
 from design.controller import KinematicLQRController, Measurement
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.run import RunSpec, simulated_run
 
 #: Longest collector pause allowed during the run, s. A young collection takes about 1 ms and a full one
 #: 80-190 ms on this bench process (docs/nmpc.md), but a wall-clock pause also holds any host stall that

@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hil.bench.campaign import make_controller
+from hil.bench.runs.campaign import make_controller
 from hil.devices.faults import LinkFault
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "hil_reference"

@@ -10,7 +10,7 @@ import pytest
 from hil.cli import main as hil_main
 from hil.truth.conditions import condition_for
 from hil.truth.params import SimParams
-from hil.bench.sysid import SysidPlan, make_passes, pass_name
+from hil.bench.runs.sysid import SysidPlan, make_passes, pass_name
 from identification.passlog import PassLog
 
 

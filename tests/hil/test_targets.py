@@ -1,4 +1,4 @@
-"""The comparison's target check (hil.bench.targets) on hand-made cells."""
+"""The comparison's target check (hil.bench.runs.targets) on hand-made cells."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from hil.bench.report import solver_table
-from hil.bench.targets import Roles, check_targets, targets_markdown
+from hil.bench.runs.report import solver_table
+from hil.bench.runs.targets import Roles, check_targets, targets_markdown
 
 
 def _row(ctrl: str, bias_cm: float, sigma_cm: float, imp: str = "disker", speed: float = 1.79) -> dict:

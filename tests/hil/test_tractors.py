@@ -185,10 +185,10 @@ class _ConstantRate:
 
 @pytest.mark.parametrize("name", ["default", "heavy-11t", "compact-4t", "random-13"])
 def test_the_bridge_gives_the_duty_the_passes_and_the_oracle_assume(name: str) -> None:
-    # The identification passes (hil.bench.sysid) and the oracle turn a rate into a duty with
+    # The identification passes (hil.bench.runs.sysid) and the oracle turn a rate into a duty with
     # nominal_duty (full duty = the tractor's max_rate); the HC11 firmware of the HIL runs must do the
     # same, or the two see different valves (its full scale was 0.35 rad/s on every tractor).
-    from hil.bench.run import RunSpec, simulated_run
+    from hil.bench.runs.run import RunSpec, simulated_run
     from hil.truth.steering import nominal_duty
     st = resolve_tractor(name).params().steering
     log = simulated_run(RunSpec(implement="none", speed=1.0, duration=2.0, seed=0), _ConstantRate(0.02),

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from design.controller import KinematicLQRController
-from hil.bench.oracle import OracleOptions, oracle_for
-from hil.bench.run import RunSpec, simulated_run
-from hil.bench.valve_bench import characterise_on_bench, linearity_on_bench
+from hil.bench.runs.oracle import OracleOptions, oracle_for
+from hil.bench.runs.run import RunSpec, simulated_run
+from hil.bench.benches.valve import characterise_on_bench, linearity_on_bench
 from hil.truth.params import SimParams
 from hil.truth.tractors import resolve_tractor
 from hil.vehicle.commissioning import Commissioning, load_commissioning, loop_settings, save_commissioning
@@ -172,7 +172,7 @@ def test_a_stuck_valve_is_still_caught_with_the_measured_thresholds(tractor: str
 
 
 def test_identification_passes_through_the_inverse_map_slew_equally_both_ways() -> None:
-    from hil.bench.sysid import SysidPlan, make_passes
+    from hil.bench.runs.sysid import SysidPlan, make_passes
     p = resolve_tractor("worn-valve").params()
     curve, _ = characterise_on_bench(p, seed=0)
     plan = SysidPlan(speeds=(1.0,), implements=("none",), passes=1, duration=60.0, seed=4)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.bench.bridge_bench import LockstepBridge
+from hil.bench.benches.bridge import LockstepBridge
 from hil.devices.plant import SimulatedTractor
 from hil.devices.valve_faults import ValveFaults
 from hil.errors import SimulatorConfigError

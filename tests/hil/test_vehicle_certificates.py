@@ -18,7 +18,7 @@ from design.errors import ControllerFileError
 from design.files.load import sign_file
 from design.files.signature import keygen, load_private_key
 from design.robust import RobustSpec, design_lqr, design_robust
-from hil.bench.campaign import make_controller
+from hil.bench.runs.campaign import make_controller
 from hil.cli import main as hil_main
 from hil.vehicle.controllers import vehicle_controller
 

@@ -1,6 +1,6 @@
 """The robust controller's window law: the estimate's back-off in ``design robust`` keeps every law it made as a
 candidate file (``--window-candidates``), and a trial drive on the tractor chooses among them
-(hil/bench/window_trial.py; issue 14)."""
+(hil/bench/commissioning/window_trial.py; issue 14)."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ import pytest
 
 from design.cli import main as design_main
 from design.files.load import load_controller
-from hil.bench.commission_report import _window_trial_lines
-from hil.bench.estimate_trial import trial_sigma
-from hil.bench.window_trial import (WINDOW_SEEDS, candidate_files, choose_window, geometric_mean, paired_t,
+from hil.bench.commissioning.report import _window_trial_lines
+from hil.bench.commissioning.estimate_trial import trial_sigma
+from hil.bench.commissioning.window_trial import (WINDOW_SEEDS, candidate_files, choose_window, geometric_mean, paired_t,
                                    per_speed, speed_bands, speed_means, window_record)
 from hil.truth.tractors import resolve_tractor
 

@@ -66,7 +66,7 @@ set it."""
 MODULE_LAG = 0.25
 """Delay of the measured angle behind the setpoint ramp through a steer module, s: the module's own
 P-loop (its 40 Hz period, the valve's lag) and one report period. Measured on the bench (0.22 s for a
-0.1 rad/s ramp with the settings of :mod:`hil.bench.agio_bench`); on a tractor, measure it."""
+0.1 rad/s ramp with the settings of :mod:`hil.bench.benches.agio`); on a tractor, measure it."""
 MAX_WINDUP = 0.03
 """Default anti-windup of the setpoint integral, rad: how far the integral may lead the reported angle.
 With the lead cancelling the module's own lag, the integral leads the report only by the report's age

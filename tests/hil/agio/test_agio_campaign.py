@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from hil.bench.campaign import Campaign, RunKey
+from hil.bench.runs.campaign import Campaign, RunKey
 from hil.cli import main as hil_main
 from hil.errors import SimulatorConfigError
 from identification.passlog import PassLog

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
-from hil.bench.agio_bench import module_settings
+from hil.bench.benches.agio import module_settings
 from hil.devices.datagram_faults import DatagramFaultRates, DatagramFaults
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver

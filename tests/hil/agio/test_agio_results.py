@@ -1,4 +1,4 @@
-"""Issue 15's table from two comparison reports (hil.bench.agio_results), on hand-made cells."""
+"""Issue 15's table from two comparison reports (hil.bench.benches.agio_results), on hand-made cells."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from hil.bench.agio_results import bridge_table, main, markdown
+from hil.bench.benches.agio_results import bridge_table, main, markdown
 from hil.errors import SimulatorConfigError
 
 COLUMNS = ("controller", "implement", "speed", "measured_bias_m", "measured_sigma_m", "true_sigma_m",

@@ -1,11 +1,11 @@
-"""Bench passes through the AgOpenGPS bridge (hil.bench.run.simulated_run with bridge='agopengps'):
+"""Bench passes through the AgOpenGPS bridge (hil.bench.runs.run.simulated_run with bridge='agopengps'):
 lockstep on in-memory links, real time over UDP on 127.0.0.1, and the two agreeing."""
 
 from __future__ import annotations
 
 import pytest
 
-from hil.bench.run import RunSpec, simulated_run
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.devices.faults import LinkFault
 from hil.errors import SimulatorConfigError
 from hil.vehicle.controllers import vehicle_controller
@@ -63,7 +63,7 @@ def test_robust_and_mpc_through_the_module_within_1_15x_of_the_hc11_bridge_at_th
     """Disker at 2.91 m/s (the paper's worst cell), seed 0, 60 s: designed on HC11-bridge models and run
     unchanged through the module; the setpoint lead (LEAD_TIME) is what makes it hold (without it the
     robust controller measured 11.9 cm against 5.0 cm)."""
-    from hil.bench.campaign import make_controller
+    from hil.bench.runs.campaign import make_controller
     sig = {}
     for bridge in ("agopengps", "hc11"):
         log = simulated_run(RunSpec(implement="disker", speed=2.91, duration=60, seed=0, bridge=bridge),
@@ -108,7 +108,7 @@ def test_the_setpoint_integral_does_not_wind_up_in_a_saturated_approach():
     HC11 bridge, issue 15's 1.44x); with it each seed within 1.15x of the HC11 bridge. Fails at 9923445;
     since 9bf72f9 the controller file's own line acquisition (integrators held during the approach) also
     keeps this approach from saturating, so the test now guards both."""
-    from hil.bench.campaign import make_controller
+    from hil.bench.runs.campaign import make_controller
     for seed in (0, 1):
         sig = {}
         for bridge in ("agopengps", "hc11"):

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from hil.bench.sysid import SysidPlan, make_passes
+from hil.bench.runs.sysid import SysidPlan, make_passes
 from hil.cli import main as hil_main
 from hil.errors import SimulatorConfigError
 from hil.vehicle.agio.driver import AgioDriverConfig
@@ -85,7 +85,7 @@ def test_hil_sysid_takes_the_bridge(tmp_path, capsys):
 
 def test_the_identification_driver_leaves_the_excitation_unlimited(both):
     """With the loop's own lead limit (0.1 rad) the setpoint is cut in most slews and the models see a
-    slower module than the loop runs (hil.bench.sysid.SYSID_MODULE_DRIVER); the identification driver's
+    slower module than the loop runs (hil.bench.runs.sysid.SYSID_MODULE_DRIVER); the identification driver's
     limit is never reached by the excitation."""
     assert both["agopengps"].meta["agopengps"]["driver"]["max_lead"] == 0.3
     assert both["agopengps"].meta["agopengps"]["driver"]["max_windup"] == 0.3

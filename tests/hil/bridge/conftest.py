@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from bridge_plant_double import FirstOrderPlantDouble
 
-from hil.bench.bridge_bench import LockstepBridge
+from hil.bench.benches.bridge import LockstepBridge
 
 
 @pytest.fixture

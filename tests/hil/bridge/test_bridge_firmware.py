@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 from bridge_plant_double import FirstOrderPlantDouble
 
-from hil.bench.bridge_bench import LockstepBridge
+from hil.bench.benches.bridge import LockstepBridge
 from hil.vehicle.bridge.config import FirmwareConfig
 from hil.vehicle.bridge.errors import ConfigError
 from hil.vehicle.bridge.protocol import Engage, Ping, SteerRateCommand, encode_frame, frame_length

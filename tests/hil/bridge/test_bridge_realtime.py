@@ -12,7 +12,7 @@ from itertools import groupby
 import pytest
 from bridge_plant_double import FirstOrderPlantDouble
 
-from hil.bench.bridge_bench import LockstepBridge, PtyBridge
+from hil.bench.benches.bridge import LockstepBridge, PtyBridge
 from hil.vehicle.bridge.driver import BridgeReport
 from hil.vehicle.bridge.protocol import Ping, SteerRateCommand, frame_length
 

@@ -12,7 +12,7 @@ from bridge_plant_double import FirstOrderPlantDouble
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from hil.bench.bridge_bench import LockstepBridge
+from hil.bench.benches.bridge import LockstepBridge
 from hil.devices.firmware import BridgeFirmware
 
 BT = 10 / 9600

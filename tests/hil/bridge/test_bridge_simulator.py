@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hil.bench.bridge_bench import LockstepBridge
+from hil.bench.benches.bridge import LockstepBridge
 from hil.devices.firmware import SteeringPlant
 from hil.truth.conditions import condition_for
 from hil.truth.simulator import TractorSimulator
@@ -75,7 +75,7 @@ def test_bridge_steers_the_truth_simulator_and_reports_its_potentiometer():
 
 @pytest.mark.timeout(30)
 def test_bridge_steers_the_truth_simulator_over_a_pty_in_real_time():
-    from hil.bench.bridge_bench import PtyBridge
+    from hil.bench.benches.bridge import PtyBridge
 
     sim = TractorSimulator([condition_for("ripper", 1.0)], duration=5.0, seeds=[5])
     with PtyBridge(SimulatorPlant(sim)) as bench:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 from bridge_plant_double import FirstOrderPlantDouble
 
-from hil.bench.bridge_bench import LockstepBridge
+from hil.bench.benches.bridge import LockstepBridge
 
 
 @pytest.mark.timeout(30)
@@ -32,7 +32,7 @@ def test_a_minute_of_lockstep_bridge_traffic_arrives_whole():
 @pytest.mark.realtime
 @pytest.mark.timeout(30)
 def test_measurement_functions_report_plausible_numbers():
-    from hil.bench.bridge_measure import measure_lockstep_speed, measure_pty_latency
+    from hil.bench.benches.bridge_measure import measure_lockstep_speed, measure_pty_latency
 
     speed = measure_lockstep_speed(FirstOrderPlantDouble(), duration=10.0)
     assert speed.cycles == 200 and speed.virtual_s == pytest.approx(10.0)

@@ -13,7 +13,7 @@ from bridge_plant_double import FirstOrderPlantDouble
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hil.bench.bridge_bench import LockstepBridge
+from hil.bench.benches.bridge import LockstepBridge
 from hil.vehicle.bridge.errors import CrcError
 from hil.vehicle.bridge.framing import StreamDecoder
 from hil.vehicle.bridge.protocol import Ping, SteerRateCommand, encode_frame

@@ -1,0 +1,248 @@
+"""``hil commission`` and ``hil commission-campaign``: the commissioning recipe end to end on a bench
+tractor, and on many (thin layers over :func:`hil.bench.commissioning.recipe.commission` and
+:func:`hil.bench.commissioning.campaign.commission_campaign`).
+
+    hil commission --tractor NAME|FILE --out DIR [--speeds ...] [--implements ...] [--passes N]
+        [--duration S] [--seed S] [--hil-seeds N] [--hil-duration S] [--hil-conditions IMPLEMENT:SPEED,...]
+        [--weights auto-if-available|auto|default] [--order N|auto|validate] [--markov N|auto|validate]
+        [--acceptance refuse|warn] [--set group.name=value ...] [--quiet] [--json]
+    hil commission-campaign [--random 0-19 ...] [--tractor NAME|FILE ...] --out DIR [the recipe's options]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from tqdm import tqdm
+
+from hil.bench.commissioning.campaign import commission_campaign
+from hil.bench.commissioning.recipe import CommissionOptions, commission
+from hil.commissioning.designs import WEIGHTS
+from hil.commissioning.from_logs import LATENCY_SOURCES, LogOptions, commission_from_logs
+from hil.errors import SimulatorConfigError
+from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for
+from hil.truth.tractors import Tractor, random_tractor, resolve_tractor
+
+__all__ = ["add_commission_parser", "run_commission", "run_commission_campaign"]
+
+
+def _int_or(words: tuple[str, ...]):
+    def parse(text: str) -> int | str:
+        if text in words:
+            return text
+        try:
+            n = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer or one of {list(words)}, got {text!r}") from None
+        if n < 1:
+            raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {n}")
+        return n
+    return parse
+
+
+def _hil_conditions(number):
+    def parse(text: str):
+        out = []
+        for part in text.split(","):
+            imp, sep, speed = part.partition(":")
+            if not sep:
+                raise argparse.ArgumentTypeError(f"expected IMPLEMENT:SPEED[,...], got {text!r}")
+            try:
+                out.append(condition_for(imp, number(speed)))
+            except ValueError as exc:
+                raise argparse.ArgumentTypeError(str(exc)) from None
+        return tuple(out)
+    return parse
+
+
+def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
+    """The recipe's options, shared by ``commission`` and ``commission-campaign``."""
+    c.add_argument("--speeds", nargs="+", type=number, default=list(GEAR_SPEEDS.values()), metavar="M_PER_S")
+    c.add_argument("--implements", nargs="+", choices=IMPLEMENTS, default=list(IMPLEMENTS))
+    c.add_argument("--passes", type=int, default=3, help="identification passes per condition (default 3)")
+    c.add_argument("--duration", type=number, default=120.0, help="seconds per identification pass (default 120)")
+    c.add_argument("--seed", type=int, default=1997, help="seed of the passes and the valve test (default 1997)")
+    c.add_argument("--hil-seeds", type=int, default=3, help="closed-loop passes per condition and controller "
+                   "(seeds 0..N-1, default 3; a cell's 1-sigma is pooled over them)")
+    c.add_argument("--hil-duration", type=number, default=60.0, help="seconds per closed-loop pass (default 60)")
+    c.add_argument("--hil-conditions", type=_hil_conditions(number), default=None, metavar="IMPLEMENT:SPEED,...",
+                   help="conditions of the HIL comparison (default: those of the passes)")
+    c.add_argument("--weights", choices=WEIGHTS, default="auto-if-available",
+                   help="robust/MPC weights: from specifications (auto) or the design commands' defaults")
+    c.add_argument("--order", type=_int_or(("auto", "validate")), default="validate",
+                   help="model order (default: chosen by held-out prediction)")
+    c.add_argument("--markov", type=_int_or(("auto", "validate")), default="auto",
+                   help="Markov parameters (past window)")
+    c.add_argument("--acceptance", choices=("refuse", "warn"), default="refuse",
+                   help="a model that does not predict: stop (refuse) or go on with a warning")
+    c.add_argument("--more-passes", type=int, default=2, metavar="ROUNDS",
+                   help="with --acceptance refuse: rounds of --passes more passes of the conditions a refused model "
+                        "came from, each followed by identification again, before the refusal stops the recipe "
+                        "(0..5, default 2)")
+    c.add_argument("--disturbance-estimate", choices=("on", "off"), default="on",
+                   help="the robust controller and the MPC with the disturbance estimate (design robust/mpc "
+                        "--disturbance-estimate; default on)")
+    c.add_argument("--estimate-trial", choices=("on", "off"), default="on",
+                   help="choose per speed whether the estimate acts, by a trial drive with it and without it "
+                        "(design estimate-schedule; default on)")
+    c.add_argument("--quiet", action="store_true", help="no progress")
+    c.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
+
+
+def _seed_ranges(text: str) -> list[int]:
+    """``0-19``, ``3`` or ``0-4,7``: random tractors' seeds."""
+    seeds: list[int] = []
+    for part in text.split(","):
+        lo, sep, hi = part.partition("-")
+        try:
+            a, b = int(lo), int(hi) if sep else int(lo)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected seeds like 0-19 or 3 or 0-4,7, got {text!r}") from None
+        if not 0 <= a <= b <= 2 ** 31:
+            raise argparse.ArgumentTypeError(f"expected seeds 0 <= FIRST <= LAST, got {part!r}")
+        if b - a >= 1000:
+            raise argparse.ArgumentTypeError(f"at most 1000 seeds in a range, got {part!r}")
+        seeds.extend(range(a, b + 1))
+    return seeds
+
+
+def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> argparse.ArgumentParser:
+    """Add ``commission`` and ``commission-campaign`` to the bench's sub-commands (``number``/``override``: the
+    CLI's value parsers); returns the ``commission`` parser."""
+    c = sub.add_parser("commission", help="commission a tractor: from the passes and valve test recorded on it "
+                       "(--logs, --commissioning: identification, designs, certificates, report), or a bench "
+                       "tractor end to end (--tractor: valve, passes, identification, designs, HIL comparison)")
+    c.add_argument("--tractor", metavar="NAME|FILE.json",
+                   help="a bench tractor (a tractor file, a name of the family or random-SEED; see `hil tractors`)")
+    c.add_argument("--logs", metavar="DIR", help="pass logs recorded on the tractor (instead of --tractor)")
+    c.add_argument("--commissioning", metavar="FILE", help="with --logs: the commissioning file of the tractor's "
+                   "valve test")
+    c.add_argument("--latency", choices=LATENCY_SOURCES, default="auto",
+                   help="with --logs: where the GPS latency comes from (default auto: the receivers' valid times, "
+                        "else the logs' declaration, else identified from the data)")
+    c.add_argument("--set", action="append", type=override, metavar="GROUP.NAME=VALUE",
+                   help="override a parameter of that tractor; repeatable")
+    c.add_argument("--out", required=True, help="directory for every output (commissioning.json, logs/, models/, "
+                   "controllers/, report.md, figures, result.json)")
+    _add_recipe_options(c, number)
+    c.set_defaults(func=run_commission)
+
+    m = sub.add_parser("commission-campaign", help="commission many tractors (OUT/<tractor>/, resumable) and "
+                       "write their table and figure (campaign.md, campaign_ratios.png)")
+    m.add_argument("--random", type=_seed_ranges, action="append", metavar="SEEDS",
+                   help="random tractors random-SEED for SEEDS like 0-19 or 0-4,7; repeatable")
+    m.add_argument("--tractor", action="append", metavar="NAME|FILE.json",
+                   help="a tractor of the family, random-SEED or a tractor file; repeatable")
+    m.add_argument("--out", required=True, help="directory of the campaign (one folder per tractor, campaign.md, "
+                   "campaign.json, campaign_ratios.png)")
+    _add_recipe_options(m, number)
+    m.set_defaults(func=run_commission_campaign)
+    return c
+
+
+def _options(args: argparse.Namespace) -> CommissionOptions:
+    return CommissionOptions(speeds=tuple(args.speeds), implements=tuple(args.implements), passes=args.passes,
+                             pass_duration=args.duration, seed=args.seed,
+                             hil_seeds=tuple(range(args.hil_seeds)) if args.hil_seeds >= 1 else (),
+                             hil_duration=args.hil_duration, hil_conditions=args.hil_conditions,
+                             weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance,
+                             more_passes=args.more_passes, disturbance_estimate=args.disturbance_estimate == "on",
+                             estimate_trial=args.estimate_trial == "on")
+
+
+def _reporters(quiet: bool):
+    """``say`` (one line per step) and ``progress`` (a tqdm bar per long step) on stderr, and ``close``."""
+    bars: dict[str, tqdm] = {}
+
+    def progress(step: str, done: int, total: int) -> None:
+        if quiet:
+            return
+        bar = bars.get(step)
+        if bar is None:
+            bar = bars[step] = tqdm(total=total, desc=f"    {step}", file=sys.stderr, leave=False)
+        bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    def close() -> None:
+        for bar in bars.values():
+            bar.close()
+        bars.clear()
+
+    def say(line: str) -> None:
+        close()
+        if not quiet:
+            print(line, file=sys.stderr, flush=True)
+    return say, progress, close
+
+
+#: Options of the bench's recipe that recorded logs do not take (they drive or evaluate on the simulator).
+BENCH_ONLY = ("speeds", "implements", "passes", "duration", "seed", "hil_seeds", "hil_duration", "hil_conditions",
+              "more_passes", "estimate_trial", "set")
+
+
+def run_commission(args: argparse.Namespace) -> dict:
+    """The command: build the options, run the recipe (a bench tractor) or the commissioning from recorded logs
+    with progress on stderr, return a summary."""
+    if (args.tractor is None) == (args.logs is None):
+        raise SimulatorConfigError("give either --tractor (a bench tractor) or --logs DIR --commissioning FILE "
+                                   "(passes recorded on a tractor)")
+    if args.logs is not None:
+        return _run_from_logs(args)
+    if args.commissioning is not None or args.latency != "auto":
+        raise SimulatorConfigError("--commissioning and --latency go with --logs; a bench tractor makes its own")
+    base = resolve_tractor(args.tractor)
+    tractor = base
+    if args.set:
+        merged = {g: dict(v) for g, v in base.parameters.items()}
+        for key, value in args.set:
+            group, _, name = key.partition(".")
+            merged.setdefault(group, {})[name] = value
+        tractor = Tractor(name=f"{base.name}-modified", description=f"{base.description} With --set "
+                          f"{', '.join(f'{k}={v:g}' for k, v in args.set)}.", parameters=merged, source=base.source)
+    opts = _options(args)
+    say, progress, close = _reporters(args.quiet)
+    res = commission(tractor, args.out, opts, say=say, progress=progress)
+    close()
+    return {"out": args.out, "tractor": tractor.name, "steps": res["steps"], "files": res["files"],
+            "valve": res.get("valve"), "hil": res["hil"]}
+
+
+def _run_from_logs(args: argparse.Namespace) -> dict:
+    defaults = build_defaults()
+    given = [f"--{k.replace('_', '-')}" for k in BENCH_ONLY if getattr(args, k, None) != defaults.get(k)]
+    if given:
+        raise SimulatorConfigError(f"{', '.join(given)} drive or evaluate on the bench and do not go with --logs; "
+                                   "drop them")
+    if args.commissioning is None:
+        raise SimulatorConfigError("--logs needs --commissioning FILE (the tractor's valve test)")
+    opts = LogOptions(order=args.order, markov=args.markov, acceptance=args.acceptance, latency=args.latency,
+                      weights=args.weights, disturbance_estimate=args.disturbance_estimate == "on")
+    say, progress, close = _reporters(args.quiet)
+    res = commission_from_logs(args.logs, args.commissioning, args.out, opts, say=say, progress=progress)
+    close()
+    return {"out": args.out, "tractor": res["tractor"], "steps": res["steps"], "files": res["files"],
+            "valve": res["valve"], "hil": [], "driving_s": res["driving_s"]}
+
+
+def build_defaults() -> dict:
+    """The defaults of ``hil commission``'s bench-only options (dest -> default)."""
+    sub = argparse.ArgumentParser().add_subparsers(dest="command")
+    c = add_commission_parser(sub, float, lambda t: t)
+    return {k: c.get_default(k) for k in BENCH_ONLY}
+
+
+def run_commission_campaign(args: argparse.Namespace) -> dict:
+    """The command: the tractors (random ones first, then ``--tractor`` ones, in the order given), the
+    campaign with progress on stderr, and its overall line."""
+    tractors = [random_tractor(s) for seeds in (args.random or []) for s in seeds]
+    tractors += [resolve_tractor(t) for t in (args.tractor or [])]
+    if not tractors:
+        raise SimulatorConfigError("no tractor given: expected --random SEEDS and/or --tractor NAME|FILE.json")
+    opts = _options(args)
+    say, progress, close = _reporters(args.quiet)
+    agg = commission_campaign(tractors, args.out, opts, say=say, progress=progress)
+    close()
+    return {"out": args.out, "tractors": [r["tractor"] for r in agg["rows"]], "overall": agg["overall_line"],
+            "files": agg["files"]}

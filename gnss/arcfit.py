@@ -9,13 +9,15 @@ lengths; the path is ``N`` segments of equal length spanning them, unknowns the 
 point, the start direction and the ``N`` curvatures; the residual of each point is its
 offset from the path's point at its station, across the path (weight 1) and along it
 (weight ``along_weight``, small: a noisy contour's chord length is slightly too long).
-scipy's Levenberg-Marquardt solves it; the distance of every point to the result is then
-measured with :class:`gnss.track.PathTracker` (locally, so a contour that comes back near
-itself is measured against the right part), segments holding a point beyond the tolerance
-are split in two, and the fit is repeated, at most ``rounds`` times. The Jacobian is
-analytic (:func:`_jacobian`). Every point counts, so the tolerance must exceed the points'
-noise (about 4 sigma). Cost grows like length^3 (dense least squares): about 0.5 s for a
-1 km contour, 4 s for 2 km.
+scipy's Levenberg-Marquardt solves it: in one piece up to :data:`WINDOW` segments, beyond that in
+overlapping windows swept from the start (:func:`_solve`), so that the work grows linearly with
+the number of points and segments. The distance of every point to the result is then measured
+with :class:`gnss.track.PathTracker` (locally, so a contour that comes back near itself is
+measured against the right part), segments holding a point beyond the tolerance are split in two
+(where each half holds a point: a curvature that no point decides is not an unknown), and the
+fit is repeated, at most ``rounds`` times. The Jacobian is analytic (:func:`_jacobian`).
+Every point counts, so the tolerance must exceed the points' noise (about 4 sigma); noisier
+points are refused after a few rounds, with the deviation reached.
 """
 
 from __future__ import annotations
@@ -91,6 +93,72 @@ def _jacobian(x, lengths, seg_of, local, pts, along_weight):
     return jac
 
 
+#: Segments solved together; a longer chain is solved window by window (see :func:`_solve`).
+WINDOW = 48
+
+
+def _solve(x, lengths, seg_of, local, pts, along_weight):
+    """Least-squares start pose and curvatures ``x`` of the chain, starting from ``x``.
+
+    A chain of at most :data:`WINDOW` segments is solved in one piece. A longer one is solved
+    in windows swept from the start: a window is :data:`WINDOW` segments, or more where they
+    hold fewer points than that (each curvature needs points after it); the first window also
+    moves the start pose, each later one starts at the (fixed) end pose of the segments kept
+    so far and keeps the first half of its segments, so every kept segment was fitted with the
+    points of the next half window in view. The dense least squares of a window costs
+    ``O(points in it * segments in it^2)``, so the sweep grows linearly with the points and the
+    segments, where one dense solve of the whole chain grows like their cube.
+    """
+    nseg = len(lengths)
+    x = np.array(x, dtype=float)
+    first = np.searchsorted(seg_of, np.arange(nseg + 1), side="left")    # first point of each segment
+    j0 = 0
+    while True:
+        j1 = min(j0 + WINDOW, nseg)
+        while j1 < nseg and first[j1] - first[j0] < j1 - j0 and j1 - j0 < 4 * WINDOW:
+            j1 = min(j1 + WINDOW // 2, nseg)
+        a, b = first[j0], first[j1]
+        if j0 == 0:
+            x[:3 + j1] = _solve_window(None, x[:3 + j1], lengths[:j1], seg_of[a:b], local[a:b], pts[a:b],
+                                       along_weight)
+        else:
+            p0, th0 = chain_starts(x[:2], x[2], lengths[:j0], x[3:3 + j0])
+            x[3 + j0:3 + j1] = _solve_window((p0[-1], th0[-1]), x[3 + j0:3 + j1], lengths[j0:j1],
+                                             seg_of[a:b] - j0, local[a:b], pts[a:b], along_weight)
+        if j1 == nseg:
+            return x
+        j0 += max(1, (j1 - j0) // 2)
+
+
+def _solve_window(pose, x, lengths, seg_of, local, pts, along_weight):
+    """Solve one window: ``x`` is the start pose and the curvatures (``pose`` None), or only the
+    curvatures of segments that start at ``pose`` = ``((east, north), angle)`` (fixed)."""
+    nk = len(lengths)
+    if len(pts) == 0:
+        return x
+    scale = np.full(nk, 0.001)
+    if pose is None:
+        fun, jac, scale = _residual, _jacobian, np.concatenate([[1.0, 1.0, 0.01], scale])
+    else:
+        head = np.array([pose[0][0], pose[0][1], pose[1]])
+
+        def fun(k, *args):
+            return _residual(np.concatenate([head, k]), *args)
+
+        def jac(k, *args):
+            return _jacobian(np.concatenate([head, k]), *args)[:, 3:]
+    # Levenberg-Marquardt needs at least as many residuals as unknowns; a window with fewer
+    # (far-apart points between short segments) is solved by the trust-region method, with a
+    # bounded number of evaluations: the deviations checked after the solve judge the result
+    if 2 * len(pts) >= len(x):
+        sol = least_squares(fun, x, jac=jac, method="lm", args=(lengths, seg_of, local, pts, along_weight),
+                            x_scale=scale)
+    else:
+        sol = least_squares(fun, x, jac=jac, method="trf", args=(lengths, seg_of, local, pts, along_weight),
+                            x_scale=scale, max_nfev=100)
+    return sol.x
+
+
 def fit_arcs(points: ArrayLike, tolerance: float = 0.02, *, segment_length: float = 10.0, rounds: int = 8,
              along_weight: float = 0.05, max_segments: int = 2000) -> ArcPath:
     """A tangent-continuous :class:`ArcPath` within ``tolerance`` m of every point.
@@ -129,23 +197,24 @@ def fit_arcs(points: ArrayLike, tolerance: float = 0.02, *, segment_length: floa
     station = np.concatenate([[0.0], np.cumsum(gaps)])
     total = float(station[-1])
     # segment edges (stations), equal lengths to start with
-    n0 = max(1, int(math.ceil(total / segment_length)))
+    # (at most one segment per two points: far-apart points leave no segment without a point to decide it)
+    n0 = max(1, min(int(math.ceil(total / segment_length)), len(pts) // 2))
     edges = np.linspace(0.0, total, n0 + 1)
     # first guess: directions of the chords, curvature from their change over each segment
     chord_angle = np.unwrap(np.arctan2(*np.diff(pts, axis=0).T[::-1]))
     mid = 0.5 * (station[1:] + station[:-1])
     x = None
     best = (math.inf, None)
-    for _ in range(rounds + 1):
+    why = f"after {rounds} rounds"
+    for done in range(rounds + 1):
         lengths = np.diff(edges)
         seg_of = np.clip(np.searchsorted(edges, station, side="right") - 1, 0, len(lengths) - 1)
+        first = np.searchsorted(seg_of, np.arange(len(lengths) + 1))         # first point of each segment
         local = station - edges[seg_of]
         heading_at_edges = np.interp(edges, mid, chord_angle)
         if x is None:
             x = np.concatenate([pts[0], [heading_at_edges[0]], np.diff(heading_at_edges) / lengths])
-        sol = least_squares(_residual, x, jac=_jacobian, method="lm", args=(lengths, seg_of, local, pts, along_weight),
-                            x_scale=np.concatenate([[1.0, 1.0, 0.01], np.full(len(lengths), 0.001)]))
-        x = sol.x
+        x = _solve(x, lengths, seg_of, local, pts, along_weight)
         try:
             path = ArcPath(x[:2], float(x[2]), [Segment(float(a), float(k)) for a, k in zip(lengths, x[3:])])
         except GeometryError:
@@ -161,22 +230,29 @@ def fit_arcs(points: ArrayLike, tolerance: float = 0.02, *, segment_length: floa
         else:
             bad = np.arange(len(lengths))
         if len(lengths) + len(bad) > max_segments:
+            why = f"after {done} rounds, more than max_segments={max_segments} segments needed"
             break
         # split each bad segment in two; the curvature guess is kept on both halves
+        split = np.zeros(len(lengths), dtype=bool)
+        split[bad] = True
+        half = np.searchsorted(station, 0.5 * (edges[:-1] + edges[1:]))      # first point of each second half
+        split &= (lengths > 0.2) & (half > first[:-1]) & (half < first[1:])     # a point in each half
         new_edges, new_k = [edges[0]], []
         for j in range(len(lengths)):
-            if j in set(bad.tolist()) and lengths[j] > 0.2:
+            if split[j]:
                 new_edges += [0.5 * (edges[j] + edges[j + 1]), edges[j + 1]]
                 new_k += [x[3 + j], x[3 + j]]
             else:
                 new_edges.append(edges[j + 1])
                 new_k.append(x[3 + j])
         if len(new_k) == len(lengths):
+            why = f"after {done} rounds, no segment beyond it holds points in both halves to split"
             break
         edges = np.array(new_edges)
         x = np.concatenate([x[:3], new_k])
-    raise GeometryError(f"fit_arcs: no arc fit within {tolerance:g} m of every point (best {best[0]:.4g} m after "
-                        f"{rounds} rounds); raise the tolerance, smooth the points or record the contour again")
+    raise GeometryError(f"fit_arcs: no arc fit within {tolerance:g} m of every point (best {best[0]:.4g} m {why}); "
+                        f"raise the tolerance (to about 4 sigma of the points' noise), smooth the points, record them "
+                        f"more densely or record the contour again")
 
 
 def _deviations(path: ArcPath, pts: np.ndarray) -> np.ndarray:

@@ -18,11 +18,16 @@ exits 1 when anything in the file's certificate does not hold on the given model
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import math
 import sys
 
 import numpy as np
+
+from identification.errors import OutputError
+from identification.outputs import write_stdout
 
 from . import cli_mpc, cli_nmpc, cli_robust
 from .errors import DesignError, DesignInputError
@@ -158,6 +163,34 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _print_result(command: str, result: dict, as_json: bool) -> None:
+    """Print a command's result: JSON, or the command's text."""
+    if as_json:
+        print(json.dumps(result, indent=2))
+    elif command in ("robust", "lqr", "verify", "export"):
+        print(cli_robust.render(result))
+    elif command == "mpc":
+        print(cli_mpc.render(result))
+    elif command == "nmpc":
+        print(cli_nmpc.render(result))
+    elif command == "keygen":
+        print(f"wrote {result['private_key']} (mode 0600, keep it on the design machine) and {result['public_key']} "
+              f"(copy it to the field computer); key {result['key_id']}")
+    elif command == "sign":
+        print(f"signed {result['out']} with key {result['key_id']}")
+    elif command == "estimate-schedule":
+        bands = ", ".join(f"{lo:g}-{'inf' if hi is None else f'{hi:g}'} m/s" for lo, hi in result["off_speed_bands"])
+        print(f"wrote {result['out']}: the disturbance estimate is off at {bands or 'no speed'}")
+    elif command == "law-schedule":
+        bands = "; ".join(f"{b['band_mps'][0]:g}-{'inf' if b['band_mps'][1] is None else format(b['band_mps'][1], 'g')} "
+                          f"m/s {b['file']}" for b in result["laws"])
+        print(f"wrote {result['out']}: {bands or 'its own law at every speed'}")
+    else:
+        print(f"{'speed m/s':>10} {'K_y':>10} {'K_psi':>10} {'K_delta':>10}")
+        for row in zip(result["speeds"], result["k_cross_track"], result["k_heading"], result["k_wheel_angle"]):
+            print("".join(f"{x:>11.4g}" for x in row))
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if getattr(args, "name", "unset") is None:
@@ -177,30 +210,14 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"design {args.command}: interrupted (Ctrl-C); no file was left half-written", file=sys.stderr)
         return 130
-    if args.json:
-        print(json.dumps(result, indent=2))
-    elif args.command in ("robust", "lqr", "verify", "export"):
-        print(cli_robust.render(result))
-    elif args.command == "mpc":
-        print(cli_mpc.render(result))
-    elif args.command == "nmpc":
-        print(cli_nmpc.render(result))
-    elif args.command == "keygen":
-        print(f"wrote {result['private_key']} (mode 0600, keep it on the design machine) and {result['public_key']} "
-              f"(copy it to the field computer); key {result['key_id']}")
-    elif args.command == "sign":
-        print(f"signed {result['out']} with key {result['key_id']}")
-    elif args.command == "estimate-schedule":
-        bands = ", ".join(f"{lo:g}-{'inf' if hi is None else f'{hi:g}'} m/s" for lo, hi in result["off_speed_bands"])
-        print(f"wrote {result['out']}: the disturbance estimate is off at {bands or 'no speed'}")
-    elif args.command == "law-schedule":
-        bands = "; ".join(f"{b['band_mps'][0]:g}-{'inf' if b['band_mps'][1] is None else format(b['band_mps'][1], 'g')} "
-                          f"m/s {b['file']}" for b in result["laws"])
-        print(f"wrote {result['out']}: {bands or 'its own law at every speed'}")
-    else:
-        print(f"{'speed m/s':>10} {'K_y':>10} {'K_psi':>10} {'K_delta':>10}")
-        for row in zip(result["speeds"], result["k_cross_track"], result["k_heading"], result["k_wheel_angle"]):
-            print("".join(f"{x:>11.4g}" for x in row))
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
+        _print_result(args.command, result, args.json)
+    try:                                 # the file is written: a reader that left or a full disk is one line
+        write_stdout(text.getvalue().rstrip("\n"), f"design {args.command}")
+    except OutputError as exc:
+        print(exc, file=sys.stderr)
+        return 1
     return 0
 
 

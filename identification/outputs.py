@@ -122,7 +122,7 @@ def _umask() -> int:
 
 
 @contextlib.contextmanager
-def atomic_write(path: str | Path, mode: str = "wb") -> Iterator[IO]:
+def atomic_write(path: str | Path, mode: str = "wb", permissions: int | None = None) -> Iterator[IO]:
     """Write ``path`` whole or not at all: a block writes a temporary file that replaces ``path`` at its end.
 
     The temporary file has a unique name in ``path``'s folder (``.<name>.<random>.part``, made by
@@ -131,7 +131,9 @@ def atomic_write(path: str | Path, mode: str = "wb") -> Iterator[IO]:
     and synced to disk and the file is moved onto ``path`` with :func:`os.replace` (atomic on one
     file system); on any exception, ``KeyboardInterrupt`` included, the temporary file is removed
     and ``path`` is left as it was. The file gets the permissions a new file would (``0o666`` less
-    the umask), or those of the file it replaces.
+    the umask), or those of the file it replaces, unless ``permissions`` says otherwise; they are set
+    on the temporary file before anything is written to it (a private key is never readable by others,
+    not even for a moment).
 
     Parameters
     ----------
@@ -139,6 +141,8 @@ def atomic_write(path: str | Path, mode: str = "wb") -> Iterator[IO]:
         The file to write; its folder is created if missing.
     mode
         ``"wb"`` (bytes) or ``"w"`` (text, UTF-8, no newline translation).
+    permissions
+        Permission bits of the file (e.g. ``0o600``); None: as described above.
 
     Yields
     ------
@@ -149,10 +153,13 @@ def atomic_write(path: str | Path, mode: str = "wb") -> Iterator[IO]:
         raise OptionError(f"atomic_write mode must be 'wb' or 'w', got {mode!r}")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        perms = path.stat().st_mode & 0o7777
-    except OSError:
-        perms = 0o666 & ~_umask()
+    if permissions is not None:
+        perms = permissions & 0o7777
+    else:
+        try:
+            perms = path.stat().st_mode & 0o7777
+        except OSError:
+            perms = 0o666 & ~_umask()
     fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:100]}.", suffix=".part")
     tmp = Path(name)
     try:

@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import design.cli
 import gnss.cli
 
@@ -62,6 +64,24 @@ def test_identification_prints_one_line_when_the_reader_closed_the_pipe(tmp_path
     proc = subprocess.Popen(_convert_argv(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=ROOT)
     proc.stdout.close()              # the reader is gone before the command prints its result
+    err = proc.stderr.read()
+    assert proc.wait(timeout=120) == 1 and "Traceback" not in err and "Exception ignored" not in err, err
+    assert len(err.strip().splitlines()) == 1 and "(Broken pipe)" in err, err
+
+
+@pytest.mark.parametrize("argv, what", [
+    ([sys.executable, "-m", "hil.cli", "tractors"], "hil tractors"),
+    ([sys.executable, "-m", "design.cli", "kinematic"], "design kinematic"),
+])
+def test_hil_and_design_print_one_line_when_stdout_is_a_full_disk_or_a_closed_pipe(argv, what):
+    with open("/dev/full", "w") as full:
+        done = subprocess.run(argv, stdout=full, stderr=subprocess.PIPE, text=True, cwd=ROOT, timeout=120)
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.strip().splitlines() == [
+        f"{what}: error: cannot write the result to standard output (No space left on device); the reader closed "
+        "the pipe or the disk is full: keep the reader open or redirect to a file on a disk with room"]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    proc.stdout.close()
     err = proc.stderr.read()
     assert proc.wait(timeout=120) == 1 and "Traceback" not in err and "Exception ignored" not in err, err
     assert len(err.strip().splitlines()) == 1 and "(Broken pipe)" in err, err

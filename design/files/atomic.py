@@ -17,6 +17,8 @@ import tempfile
 from pathlib import Path
 from typing import Callable, Iterable
 
+from identification.outputs import atomic_write
+
 from ..errors import DesignInputError
 
 #: Permission bits of a new file (read for everyone, write for the owner); a replaced file keeps its own.
@@ -31,7 +33,7 @@ def _mode_of(path: Path) -> int:
 
 
 def write_bytes_atomically(path: str | Path, data: bytes, mode: int | None = None) -> Path:
-    """Write ``data`` to ``path`` atomically (see the module docstring).
+    """Write ``data`` to ``path`` atomically (:func:`identification.outputs.atomic_write`).
 
     Parameters
     ----------
@@ -49,22 +51,8 @@ def write_bytes_atomically(path: str | Path, data: bytes, mode: int | None = Non
         temporary file is left behind.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    bits = _mode_of(path) if mode is None else mode
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, bits)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with atomic_write(path, "wb", _mode_of(path) if mode is None else mode) as fh:
+        fh.write(data)
     return path
 
 

@@ -18,14 +18,16 @@ library refused), with a message saying what was expected.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
-import os
 import sys
 from pathlib import Path
 
 from tqdm import tqdm
 
-from identification.errors import PassLogError
+from identification.errors import OutputError, PassLogError
+from identification.outputs import write_stdout
 from identification.passlog import PassLog
 
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS
@@ -603,14 +605,17 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:           # a name too long, a full disk, a folder that vanished
         print(f"hil {args.command}: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
         return 1
-    try:
+    text = io.StringIO()
+    with contextlib.redirect_stdout(text):
         if args.json:
             print(json.dumps(result, indent=2))
         else:
             _print_human(args.command, result)
-        sys.stdout.flush()
-    except BrokenPipeError:              # e.g. `hil tune ... | head`: the reader left; the work is saved
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    try:                                 # the work is saved: a reader that left or a full disk is one line
+        write_stdout(text.getvalue().rstrip("\n"), f"hil {args.command}")
+    except OutputError as exc:
+        print(exc, file=sys.stderr)
+        return 1
     return 0
 
 

@@ -2,263 +2,45 @@
 
 :func:`fit_arcs` finds a tangent-continuous chain of constant-curvature segments within
 ``tolerance`` m of every point (default 2 cm), so that a contour recorded by the tractor
-and a :class:`~gnss.guidance.CurvedLine` get exact curvature (and a curvature preview).
-
-Method (least squares on the curvature profile): the points get stations from their chord
-lengths; the path is ``N`` segments of equal length spanning them, unknowns the start
-point, the start direction and the ``N`` curvatures; the residual of each point is its
-offset from the path's point at its station, across the path (weight 1) and along it
-(weight ``along_weight``, small: a noisy contour's chord length is slightly too long).
-scipy's Levenberg-Marquardt solves it: in one piece up to :data:`WINDOW` segments, beyond that in
-overlapping windows swept from the start (:func:`_solve`), so that the work grows linearly with
-the number of points and segments. The distance of every point to the result is then measured
-with :class:`gnss.track.PathTracker` (locally, so a contour that comes back near itself is
-measured against the right part), segments holding a point beyond the tolerance are split in two
-(where each half holds a point: a curvature that no point decides is not an unknown), and the
-fit is repeated, at most ``rounds`` times. The Jacobian is analytic (:func:`_jacobian`).
-Every point counts, so the tolerance must exceed the points' noise (about 4 sigma); noisier
-points are refused after a few rounds, with the deviation reached.
+and a :class:`~gnss.guidance.CurvedLine` get exact curvature (and a curvature preview);
+:func:`max_deviation` measures how far points are from a path. The method and its cost are
+described in :mod:`gnss.arcsolve`, which :meth:`ArcPath.fit` calls too.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import least_squares
 
-from .curve import ARRAY_OPS, ArcPath, Segment, chain_starts, pose_on_segment
+from .arcsolve import chain_deviations
+from .curve import ArcPath
 from .errors import GeometryError
 
 __all__ = ["fit_arcs", "max_deviation"]
 
 
 def max_deviation(path: ArcPath, points: ArrayLike) -> float:
-    """Largest distance (m) of ``points`` (in order along the path, ``(M, 2)``) from ``path``, searched locally."""
+    """Largest distance (m) of ``points`` (in order along the path, ``(M, 2)``) from ``path``, searched locally
+    (:func:`gnss.arcsolve.chain_deviations`)."""
     p = np.asarray(points, dtype=float)
     if p.ndim != 2 or p.shape[1] != 2 or p.shape[0] < 2 or not np.all(np.isfinite(p)):
         raise GeometryError(f"max_deviation: expected finite points of shape (M >= 2, 2), got {p.shape}")
-    return float(np.max(_deviations(path, p)))
-
-
-def _residual(x, lengths, seg_of, local, pts, along_weight):
-    k = x[3:]
-    p0, th0 = chain_starts(x[:2], x[2], lengths, k)
-    kk = k[seg_of]
-    qe, qn, qth = pose_on_segment(ARRAY_OPS, p0[seg_of, 0], p0[seg_of, 1], th0[seg_of], kk, local)
-    de, dn = pts[:, 0] - qe, pts[:, 1] - qn
-    c, s = np.cos(qth), np.sin(qth)
-    return np.concatenate([dn * c - de * s, along_weight * (de * c + dn * s)])
-
-
-def _jacobian(x, lengths, seg_of, local, pts, along_weight):
-    """Exact derivatives of :func:`_residual` (up to Simpson's rule for the integrals of the path).
-
-    Bending segment ``j`` by ``dk`` turns everything after each of its points ``u`` by
-    ``dk du``, so the point at station ``s`` moves by ``dk J int_{a_j}^{min(s, b_j)} (q(s) - q(u)) du``
-    (``J``: a quarter turn left) and its direction by ``dk clip(s - a_j, 0, l_j)``.
-    """
-    k = x[3:]
-    p0, th0 = chain_starts(x[:2], x[2], lengths, k)
-    kk = k[seg_of]
-    qe, qn, qth = pose_on_segment(ARRAY_OPS, p0[seg_of, 0], p0[seg_of, 1], th0[seg_of], kk, local)
-    c, s = np.cos(qth), np.sin(qth)
-    de, dn = pts[:, 0] - qe, pts[:, 1] - qn
-    t_d, n_d = c * de + s * dn, c * dn - s * de                    # d along and across
-    # integrals of q over each whole segment and over the part of its own segment before each point
-    me, mn, _ = pose_on_segment(ARRAY_OPS, p0[:-1, 0], p0[:-1, 1], th0[:-1], k, 0.5 * lengths)
-    full_e = lengths / 6 * (p0[:-1, 0] + 4 * me + p0[1:, 0])
-    full_n = lengths / 6 * (p0[:-1, 1] + 4 * mn + p0[1:, 1])
-    he, hn, _ = pose_on_segment(ARRAY_OPS, p0[seg_of, 0], p0[seg_of, 1], th0[seg_of], kk, 0.5 * local)
-    part_e = local / 6 * (p0[seg_of, 0] + 4 * he + qe)
-    part_n = local / 6 * (p0[seg_of, 1] + 4 * hn + qn)
-    m, nseg = len(pts), len(lengths)
-    before = np.arange(nseg)[None, :] < seg_of[:, None]            # whole segments behind each point
-    dth = np.where(before, lengths[None, :], 0.0)
-    ie, in_ = np.where(before, full_e[None, :], 0.0), np.where(before, full_n[None, :], 0.0)
-    rows = np.arange(m)
-    dth[rows, seg_of] = local
-    ie[rows, seg_of], in_[rows, seg_of] = part_e, part_n
-    ve, vn = dth * qe[:, None] - ie, dth * qn[:, None] - in_      # v_ij = int (q_i - q(u)) du
-    t_v = c[:, None] * ve + s[:, None] * vn
-    n_v = c[:, None] * vn - s[:, None] * ve
-    jac = np.empty((2 * m, 3 + nseg))
-    jac[:m, 3:] = -dth * t_d[:, None] - t_v
-    jac[m:, 3:] = along_weight * (dth * n_d[:, None] + n_v)
-    le, ln = qe - x[0], qn - x[1]                                   # lever from the start, for the start angle
-    jac[:m, 0], jac[:m, 1], jac[:m, 2] = s, -c, -t_d - (c * le + s * ln)
-    jac[m:, 0], jac[m:, 1] = -along_weight * c, -along_weight * s
-    jac[m:, 2] = along_weight * (n_d + (c * ln - s * le))
-    return jac
-
-
-#: Segments solved together; a longer chain is solved window by window (see :func:`_solve`).
-WINDOW = 48
-
-
-def _solve(x, lengths, seg_of, local, pts, along_weight):
-    """Least-squares start pose and curvatures ``x`` of the chain, starting from ``x``.
-
-    A chain of at most :data:`WINDOW` segments is solved in one piece. A longer one is solved
-    in windows swept from the start: a window is :data:`WINDOW` segments, or more where they
-    hold fewer points than that (each curvature needs points after it); the first window also
-    moves the start pose, each later one starts at the (fixed) end pose of the segments kept
-    so far and keeps the first half of its segments, so every kept segment was fitted with the
-    points of the next half window in view. The dense least squares of a window costs
-    ``O(points in it * segments in it^2)``, so the sweep grows linearly with the points and the
-    segments, where one dense solve of the whole chain grows like their cube.
-    """
-    nseg = len(lengths)
-    x = np.array(x, dtype=float)
-    first = np.searchsorted(seg_of, np.arange(nseg + 1), side="left")    # first point of each segment
-    j0 = 0
-    while True:
-        j1 = min(j0 + WINDOW, nseg)
-        while j1 < nseg and first[j1] - first[j0] < j1 - j0 and j1 - j0 < 4 * WINDOW:
-            j1 = min(j1 + WINDOW // 2, nseg)
-        a, b = first[j0], first[j1]
-        if j0 == 0:
-            x[:3 + j1] = _solve_window(None, x[:3 + j1], lengths[:j1], seg_of[a:b], local[a:b], pts[a:b],
-                                       along_weight)
-        else:
-            p0, th0 = chain_starts(x[:2], x[2], lengths[:j0], x[3:3 + j0])
-            x[3 + j0:3 + j1] = _solve_window((p0[-1], th0[-1]), x[3 + j0:3 + j1], lengths[j0:j1],
-                                             seg_of[a:b] - j0, local[a:b], pts[a:b], along_weight)
-        if j1 == nseg:
-            return x
-        j0 += max(1, (j1 - j0) // 2)
-
-
-def _solve_window(pose, x, lengths, seg_of, local, pts, along_weight):
-    """Solve one window: ``x`` is the start pose and the curvatures (``pose`` None), or only the
-    curvatures of segments that start at ``pose`` = ``((east, north), angle)`` (fixed)."""
-    nk = len(lengths)
-    if len(pts) == 0:
-        return x
-    scale = np.full(nk, 0.001)
-    if pose is None:
-        fun, jac, scale = _residual, _jacobian, np.concatenate([[1.0, 1.0, 0.01], scale])
-    else:
-        head = np.array([pose[0][0], pose[0][1], pose[1]])
-
-        def fun(k, *args):
-            return _residual(np.concatenate([head, k]), *args)
-
-        def jac(k, *args):
-            return _jacobian(np.concatenate([head, k]), *args)[:, 3:]
-    # Levenberg-Marquardt needs at least as many residuals as unknowns; a window with fewer
-    # (far-apart points between short segments) is solved by the trust-region method, with a
-    # bounded number of evaluations: the deviations checked after the solve judge the result
-    if 2 * len(pts) >= len(x):
-        sol = least_squares(fun, x, jac=jac, method="lm", args=(lengths, seg_of, local, pts, along_weight),
-                            x_scale=scale)
-    else:
-        sol = least_squares(fun, x, jac=jac, method="trf", args=(lengths, seg_of, local, pts, along_weight),
-                            x_scale=scale, max_nfev=100)
-    return sol.x
+    return float(np.max(chain_deviations(path.table(), p)))
 
 
 def fit_arcs(points: ArrayLike, tolerance: float = 0.02, *, segment_length: float = 10.0, rounds: int = 8,
              along_weight: float = 0.05, max_segments: int = 2000) -> ArcPath:
     """A tangent-continuous :class:`ArcPath` within ``tolerance`` m of every point.
 
-    Parameters
-    ----------
-    points
-        ``(M, 2)`` east, north, m, in order along the path, M >= 3, consecutive points at
-        least 1 mm and at most 50 m apart.
-    tolerance
-        Largest allowed distance of a point from the path, m (> 0).
-    segment_length
-        Length of the segments of the first round, m (they are split where needed).
-    rounds
-        Rounds of splitting at most.
-    along_weight
-        Weight of the along-path residual relative to the across one.
-    max_segments
-        Refuse rather than use more segments.
+    Parameters and errors as :func:`gnss.arcsolve.fit_chain`: ``points`` ``(M, 2)`` east, north,
+    m, in order along the path (M >= 3, consecutive points 1 mm to 50 m apart); ``tolerance`` m
+    (> 0); ``segment_length`` of the first round, m; at most ``rounds`` rounds of splitting;
+    ``along_weight`` of the along-path residual; at most ``max_segments`` segments.
 
     Raises
     ------
     GeometryError
-        Bad points, or no fit within ``tolerance`` after ``rounds`` (the message gives the
-        deviation reached: raise the tolerance or smooth the points).
+        Bad points, or no fit within ``tolerance`` (the message gives the deviation reached).
     """
-    pts = np.array(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < 3 or not np.all(np.isfinite(pts)):
-        raise GeometryError(f"fit_arcs: expected finite points of shape (M >= 3, 2), got {pts.shape}")
-    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
-        raise GeometryError(f"fit_arcs: tolerance must be > 0 m, got {tolerance!r}")
-    gaps = np.hypot(*np.diff(pts, axis=0).T)
-    if np.min(gaps) < 1e-3 or np.max(gaps) > 50.0:
-        raise GeometryError(f"fit_arcs: consecutive points must be 1 mm to 50 m apart, got {np.min(gaps):.4g} to "
-                            f"{np.max(gaps):.4g} m; remove duplicates or resample")
-    station = np.concatenate([[0.0], np.cumsum(gaps)])
-    total = float(station[-1])
-    # segment edges (stations), equal lengths to start with
-    # (at most one segment per two points: far-apart points leave no segment without a point to decide it)
-    n0 = max(1, min(int(math.ceil(total / segment_length)), len(pts) // 2))
-    edges = np.linspace(0.0, total, n0 + 1)
-    # first guess: directions of the chords, curvature from their change over each segment
-    chord_angle = np.unwrap(np.arctan2(*np.diff(pts, axis=0).T[::-1]))
-    mid = 0.5 * (station[1:] + station[:-1])
-    x = None
-    best = (math.inf, None)
-    why = f"after {rounds} rounds"
-    for done in range(rounds + 1):
-        lengths = np.diff(edges)
-        seg_of = np.clip(np.searchsorted(edges, station, side="right") - 1, 0, len(lengths) - 1)
-        first = np.searchsorted(seg_of, np.arange(len(lengths) + 1))         # first point of each segment
-        local = station - edges[seg_of]
-        heading_at_edges = np.interp(edges, mid, chord_angle)
-        if x is None:
-            x = np.concatenate([pts[0], [heading_at_edges[0]], np.diff(heading_at_edges) / lengths])
-        x = _solve(x, lengths, seg_of, local, pts, along_weight)
-        try:
-            path = ArcPath(x[:2], float(x[2]), [Segment(float(a), float(k)) for a, k in zip(lengths, x[3:])])
-        except GeometryError:
-            path = None
-        if path is not None:
-            dev = _deviations(path, pts)
-            worst = float(np.max(dev))
-            if worst < best[0]:
-                best = (worst, path)
-            if worst <= tolerance:
-                return path
-            bad = np.unique(seg_of[dev > tolerance])
-        else:
-            bad = np.arange(len(lengths))
-        if len(lengths) + len(bad) > max_segments:
-            why = f"after {done} rounds, more than max_segments={max_segments} segments needed"
-            break
-        # split each bad segment in two; the curvature guess is kept on both halves
-        split = np.zeros(len(lengths), dtype=bool)
-        split[bad] = True
-        half = np.searchsorted(station, 0.5 * (edges[:-1] + edges[1:]))      # first point of each second half
-        split &= (lengths > 0.2) & (half > first[:-1]) & (half < first[1:])     # a point in each half
-        new_edges, new_k = [edges[0]], []
-        for j in range(len(lengths)):
-            if split[j]:
-                new_edges += [0.5 * (edges[j] + edges[j + 1]), edges[j + 1]]
-                new_k += [x[3 + j], x[3 + j]]
-            else:
-                new_edges.append(edges[j + 1])
-                new_k.append(x[3 + j])
-        if len(new_k) == len(lengths):
-            why = f"after {done} rounds, no segment beyond it holds points in both halves to split"
-            break
-        edges = np.array(new_edges)
-        x = np.concatenate([x[:3], new_k])
-    raise GeometryError(f"fit_arcs: no arc fit within {tolerance:g} m of every point (best {best[0]:.4g} m {why}); "
-                        f"raise the tolerance (to about 4 sigma of the points' noise), smooth the points, record them "
-                        f"more densely or record the contour again")
-
-
-def _deviations(path: ArcPath, pts: np.ndarray) -> np.ndarray:
-    """Distance of each point from ``path`` (m), tracked from the first point (locally)."""
-    from .track import PathTracker   # track imports curve, which imports this module lazily
-
-    step = float(np.max(np.hypot(*np.diff(pts, axis=0).T)))
-    tracker = PathTracker(path, station=None, max_speed=1.0, cycle=2.0 * step + 1.0, margin=1.0)
-    return np.array([abs(tracker.update(float(e), float(n)).cross_track) for e, n in pts])
+    return ArcPath.fit(points, tolerance, segment_length=segment_length, rounds=rounds, along_weight=along_weight,
+                       max_segments=max_segments)

@@ -25,153 +25,33 @@ Building paths (the field API, issue 16; :mod:`gnss.field` and :mod:`gnss.uturn`
 * :meth:`ArcPath.chain` ``(paths)``: one path from pieces that each start where the last
   ended, with its direction (checked).
 * :meth:`ArcPath.fit` ``(points, tolerance=0.02)``: arcs fitted to a recorded contour or
-  sampled spline (:mod:`gnss.arcfit`), within ``tolerance`` m of every point.
+  sampled spline (:mod:`gnss.arcsolve`), within ``tolerance`` m of every point.
 * :meth:`ArcPath.sample` ``(step)``: points every ``step`` m, for plots.
 
 The nearest point is found here for every point against the **whole** path; a vehicle that
 follows a path uses :class:`gnss.track.PathTracker`, which searches only near its last
-station (the same projection, :func:`foot_on_segment`, on plain floats).
+station (the same projection, :func:`foot_on_segment`, on plain floats). The segment equations
+(:func:`pose_on_segment`, :func:`foot_on_segment`, :func:`chain_starts`) live in :mod:`gnss.arcgeom`.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, Union
+from typing import Iterable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .arcgeom import (ARRAY_OPS, MAX_TURN, SCALAR_OPS, chain_starts, foot_on_arc, foot_on_segment,
+                      foot_on_straight, pose_on_segment)
+from .arcsolve import fit_chain
 from .errors import GeometryError
-from .guidance import TrackErrors, _heading_error, _point2, _points
+from .linebase import TrackErrors, heading_error, point2, as_points
 
+# the segment equations live in gnss.arcgeom; their names stay importable from here
 __all__ = ["Segment", "ArcPath", "foot_on_segment", "foot_on_straight", "foot_on_arc", "pose_on_segment",
-           "chain_starts"]
-
-#: Longest turn of one segment, rad (just under a full circle, so projection is unambiguous).
-MAX_TURN = 1.9 * math.pi
-
-
-class _ArrayOps:
-    """Element-wise operations on arrays (many points at once: :meth:`ArcPath.errors`)."""
-
-    sin, cos, atan2, where, clip, mod = np.sin, np.cos, np.arctan2, np.where, np.clip, np.mod
-    copysign, abs = np.copysign, np.abs
-
-    @staticmethod
-    def sinc(half):
-        return np.sinc(half / np.pi)
-
-
-class _ScalarOps:
-    """The same operations on Python floats (one point per call: :class:`gnss.track.PathTracker`)."""
-
-    sin, cos, atan2, copysign, abs = math.sin, math.cos, math.atan2, math.copysign, abs
-
-    @staticmethod
-    def where(c, a, b):
-        return a if c else b
-
-    @staticmethod
-    def clip(x, lo, hi):
-        return lo if x < lo else (hi if x > hi else x)
-
-    @staticmethod
-    def mod(a, b):
-        return a % b
-
-    @staticmethod
-    def sinc(half):
-        return math.sin(half) / half if abs(half) > 1e-8 else 1.0 - half * half / 6.0
-
-
-ARRAY_OPS, SCALAR_OPS = _ArrayOps, _ScalarOps
-
-
-#: A float or an array of floats (the equations below take either, with the matching ``ops``).
-Real = Union[float, NDArray[np.float64]]
-
-
-def pose_on_segment(ops: type, e0: Real, n0: Real, th0: Real, k: Real, s: Real) -> tuple[Real, Real, Real]:
-    """Pose at local arc length ``s`` (m, any value: the circle/line continues) of a segment.
-
-    Parameters
-    ----------
-    ops
-        :data:`ARRAY_OPS` (arrays) or :data:`SCALAR_OPS` (Python floats).
-    e0, n0
-        Start of the segment, m, ENU.
-    th0
-        Direction at its start, rad, ENU (0 = east, counter-clockwise).
-    k
-        Curvature, 1/m, + = left.
-    s
-        Local arc length, m.
-
-    Returns
-    -------
-    tuple
-        ``(east, north, angle)``: m, m, rad (ENU, unwrapped).
-    """
-    half = 0.5 * k * s
-    chord = s * ops.sinc(half)           # |chord| of the arc, exact and stable as k -> 0
-    mid = th0 + half
-    return e0 + chord * ops.cos(mid), n0 + chord * ops.sin(mid), th0 + k * s
-
-
-def foot_on_segment(ops: type, e0: float, n0: float, th0: float, k: float, length: float, lo: float, hi: float,
-                    pe: Real, pn: Real) -> Real:
-    """Local arc length in ``[lo, hi]`` (m) of the nearest point to ``(pe, pn)`` (m, ENU) on a segment.
-
-    The segment is as in :func:`pose_on_segment` (start, direction and curvature as floats),
-    ``length`` m long (``inf`` for a straight extension); ``0 <= lo <= hi <= length`` for an
-    arc, any ``lo <= hi`` for a straight. The projection is written once (:func:`foot_on_straight`,
-    :func:`foot_on_arc`) for arrays (:data:`ARRAY_OPS`, also many segments at once) and for floats
-    (:data:`SCALAR_OPS`).
-    """
-    if k == 0.0 or abs(k) * length < 1e-6:
-        return foot_on_straight(ops, e0, n0, th0, k, lo, hi, pe, pn, newton=k != 0.0)
-    return foot_on_arc(ops, e0, n0, th0, k, lo, hi, pe, pn)
-
-
-def foot_on_straight(ops: type, e0: Real, n0: Real, th0: Real, k: Real, lo: Real, hi: Real, pe: Real, pn: Real,
-                     newton: bool = True) -> Real:
-    """:func:`foot_on_segment` of a (nearly, ``|k| length < 1e-6``) straight segment: the projection on
-    its chord, then (``newton``) two Newton steps on ``(p - q(t)) . T(t) = 0``; m, clipped to ``[lo, hi]``."""
-    t = (pe - e0) * ops.cos(th0) + (pn - n0) * ops.sin(th0)
-    if newton:
-        for _ in range(2):
-            qe, qn, qth = pose_on_segment(ops, e0, n0, th0, k, t)
-            de, dn = pe - qe, pn - qn
-            along = de * ops.cos(qth) + dn * ops.sin(qth)
-            across = dn * ops.cos(qth) - de * ops.sin(qth)
-            t = t + along / (1.0 - k * across)
-    return ops.clip(t, lo, hi)
-
-
-def foot_on_arc(ops: type, e0: Real, n0: Real, th0: Real, k: Real, lo: Real, hi: Real, pe: Real, pn: Real) -> Real:
-    """:func:`foot_on_segment` of a circular arc (``k != 0``, turn below 2 pi): the circle's nearest
-    point if it lies in ``[lo, hi]``, else the nearer end; m."""
-    r = 1.0 / k
-    ce, cn = e0 - r * ops.sin(th0), n0 + r * ops.cos(th0)
-    tang = ops.atan2(pn - cn, pe - ce) + ops.copysign(math.pi / 2, k)   # direction at the circle point
-    turn = ops.mod((tang - th0 - k * lo) * ops.copysign(1.0, k), 2 * math.pi)  # 0..2pi from lo
-    past = turn - ops.abs(k) * (hi - lo)                                  # > 0: beyond hi
-    return ops.where(past <= 0, lo + turn / ops.abs(k), ops.where(past < 2 * math.pi - turn, hi, lo))
-
-
-def chain_starts(start: ArrayLike, angle: float, lengths: NDArray[np.float64],
-                 curvatures: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Start point ``(n + 1, 2)`` (m, ENU) and direction ``(n + 1,)`` (rad, ENU) of each of ``n`` chained
-    segments (``lengths`` m, ``curvatures`` 1/m) from ``start`` along ``angle``; the last row is the end."""
-    de, dn, turn = pose_on_segment(ARRAY_OPS, 0.0, 0.0, 0.0, curvatures, lengths)   # each in its own frame
-    th = float(angle) + np.concatenate([[0.0], np.cumsum(turn)])
-    c, s = np.cos(th[:-1]), np.sin(th[:-1])
-    p = np.empty((len(lengths) + 1, 2))
-    p[0] = start
-    p[1:, 0] = start[0] + np.cumsum(c * de - s * dn)
-    p[1:, 1] = start[1] + np.cumsum(s * de + c * dn)
-    return p, th
+           "chain_starts", "MAX_TURN", "ARRAY_OPS", "SCALAR_OPS"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -222,7 +102,7 @@ class ArcPath:
     """
 
     def __init__(self, start: ArrayLike, angle: float, segments: Iterable[Segment | tuple[float, float]]) -> None:
-        self.start = _point2(start, "ArcPath.start")
+        self.start = point2(start, "ArcPath.start")
         if isinstance(angle, bool) or not isinstance(angle, (int, float, np.floating)) or not math.isfinite(angle):
             raise GeometryError(f"ArcPath.angle: expected a finite ENU angle in rad, got {angle!r}")
         segs = []
@@ -248,7 +128,7 @@ class ArcPath:
     @classmethod
     def straight(cls, a: ArrayLike, b: ArrayLike) -> "ArcPath":
         """The straight path from A to B (the :class:`~gnss.guidance.ABLine` through them)."""
-        pa, pb = _point2(a, "straight.a"), _point2(b, "straight.b")
+        pa, pb = point2(a, "straight.a"), point2(b, "straight.b")
         d = pb - pa
         if np.hypot(*d) < 0.1:
             raise GeometryError(f"straight: A and B must be at least 0.1 m apart, got A={pa}, B={pb}")
@@ -280,13 +160,12 @@ class ArcPath:
 
     @classmethod
     def fit(cls, points: ArrayLike, tolerance: float = 0.02, **options: float) -> "ArcPath":
-        """Arcs fitted to a polyline (a recorded contour, a sampled spline); see :func:`gnss.arcfit.fit_arcs`.
+        """Arcs fitted to a polyline (a recorded contour, a sampled spline): :func:`gnss.arcsolve.fit_chain`
+        with its options (``segment_length``, ``rounds``, ``along_weight``, ``max_segments``).
 
         Every point ends up within ``tolerance`` m of the path (checked), or the fit is refused.
         """
-        from .arcfit import fit_arcs   # arcfit builds ArcPaths
-
-        return fit_arcs(points, tolerance, **options)
+        return cls(*fit_chain(points, tolerance, **options))
 
     def offset(self, distance: float) -> "ArcPath":
         """The parallel path ``distance`` m to the left (negative: to the right), exact.
@@ -468,12 +347,12 @@ class ArcPath:
         yaw : array_like, optional
             Vehicle heading, rad, 0 = north, clockwise (``nan`` heading error without it).
         """
-        e, n = _points(east, north)
+        e, n = as_points(east, north)
         if not (np.all(np.isfinite(e)) and np.all(np.isfinite(n))):
             raise GeometryError("errors: positions must be finite (drop epochs without a fix first)")
         xte, sta, ang = self._project(e.reshape(-1), n.reshape(-1))
         shape = e.shape
-        return TrackErrors(xte.reshape(shape), _heading_error(yaw, ang.reshape(shape), shape), sta.reshape(shape))
+        return TrackErrors(xte.reshape(shape), heading_error(yaw, ang.reshape(shape), shape), sta.reshape(shape))
 
     def errors_enu(self, east: ArrayLike, north: ArrayLike, angle: ArrayLike) -> TrackErrors:
         """As :meth:`errors` with the vehicle direction as an ENU angle (rad, 0 = east, CCW)."""

@@ -19,48 +19,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 
+from .curve import ArcPath
 from .errors import GeometryError
-from .frames import wrap_angle, yaw_to_enu_angle
+from .linebase import TrackErrors, as_points, heading_error, point2
 
 __all__ = ["TrackErrors", "ABLine", "ParallelLines", "CurvedLine"]
-
-
-@dataclass(frozen=True, slots=True)
-class TrackErrors:
-    """Errors of points relative to a guidance line (arrays of the points' shape).
-
-    Attributes
-    ----------
-    cross_track : ndarray
-        m, positive = left of the line direction.
-    heading_error : ndarray
-        rad in [-pi, pi), positive = counter-clockwise of the line direction; ``nan`` without a heading.
-    station : ndarray
-        m along the line from its start.
-    """
-
-    cross_track: NDArray[np.float64]
-    heading_error: NDArray[np.float64]
-    station: NDArray[np.float64]
-
-
-def _points(east: ArrayLike, north: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    e, n = np.broadcast_arrays(np.asarray(east, dtype=float), np.asarray(north, dtype=float))
-    return e, n
-
-
-def _heading_error(yaw: ArrayLike | None, line_angle: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
-    if yaw is None:
-        return np.full(shape, np.nan)
-    return np.broadcast_to(np.asarray(wrap_angle(yaw_to_enu_angle(yaw) - np.asarray(line_angle))), shape).copy()
-
-
-def _point2(p: ArrayLike, name: str) -> NDArray[np.float64]:
-    a = np.array(p, dtype=float, copy=True).reshape(-1)
-    if a.shape != (2,) or not np.all(np.isfinite(a)):
-        raise GeometryError(f"{name}: expected a finite (east, north) point in m, got {p!r}")
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True)
@@ -77,7 +40,7 @@ class ABLine:
     b: NDArray[np.float64]
 
     def __post_init__(self) -> None:
-        a, b = _point2(self.a, "ABLine.a"), _point2(self.b, "ABLine.b")
+        a, b = point2(self.a, "ABLine.a"), point2(self.b, "ABLine.b")
         if np.hypot(*(b - a)) < 0.1:
             raise GeometryError(f"ABLine: A and B must be at least 0.1 m apart, got A={a}, B={b}")
         object.__setattr__(self, "a", a)
@@ -111,12 +74,12 @@ class ABLine:
         yaw : array_like, optional
             Vehicle heading, rad, 0 = north, clockwise.
         """
-        e, n = _points(east, north)
+        e, n = as_points(east, north)
         d = self.direction
         re, rn = e - self.a[0], n - self.a[1]
         station = re * d[0] + rn * d[1]
         xte = rn * d[0] - re * d[1]
-        return TrackErrors(xte, _heading_error(yaw, self.angle, e.shape), station)
+        return TrackErrors(xte, heading_error(yaw, self.angle, e.shape), station)
 
 
 @dataclass(frozen=True)
@@ -188,18 +151,16 @@ class CurvedLine:
     @classmethod
     def arc(cls, center: ArrayLike, radius: float, start: float, stop: float, spacing: float = 0.25) -> "CurvedLine":
         """A circular arc, ENU angles ``start`` to ``stop`` (rad, CCW if stop > start), sampled every ``spacing`` m."""
-        c = _point2(center, "arc.center")
+        c = point2(center, "arc.center")
         if not radius > 0:
             raise GeometryError(f"arc: radius must be > 0 m, got {radius!r}")
         k = max(int(np.ceil(abs(stop - start) * radius / spacing)) + 1, 2)
         th = np.linspace(start, stop, k)
         return cls(c + radius * np.column_stack([np.cos(th), np.sin(th)]))
 
-    def to_arc_path(self, tolerance: float = 0.02):
+    def to_arc_path(self, tolerance: float = 0.02) -> ArcPath:
         """This line as a tangent-continuous :class:`~gnss.curve.ArcPath` of arcs within ``tolerance`` m of
-        every vertex (:func:`gnss.arcfit.fit_arcs`): exact curvature and preview for a spline or a contour."""
-        from .curve import ArcPath   # curve imports this module
-
+        every vertex (:meth:`ArcPath.fit`): exact curvature and preview for a spline or a contour."""
         return ArcPath.fit(self.vertices, tolerance)
 
     @property
@@ -228,7 +189,7 @@ class CurvedLine:
         Each point is projected on its nearest segment (exact nearest point on the polyline).
         Work is ``O(points * segments)`` in chunks of ``chunk`` points.
         """
-        e, n = _points(east, north)
+        e, n = as_points(east, north)
         pe, pn = e.reshape(-1), n.reshape(-1)
         v = self.vertices
         d = np.diff(v, axis=0)
@@ -253,4 +214,4 @@ class CurvedLine:
             sta[i : i + chunk] = s0[k] + t[rows, k]
             ang[i : i + chunk] = seg_angle[k]
         shape = e.shape
-        return TrackErrors(xte.reshape(shape), _heading_error(yaw, ang.reshape(shape), shape), sta.reshape(shape))
+        return TrackErrors(xte.reshape(shape), heading_error(yaw, ang.reshape(shape), shape), sta.reshape(shape))

@@ -16,7 +16,7 @@ in one call plus a margin::
 station (m along the path) and the path's curvature there (1/m, + left, 0 on the straight
 extensions before the start and past the end). Positions are ENU (m) and ``yaw`` is the
 receiver's heading (rad, 0 = north, clockwise). The projection is the path's own
-(:func:`gnss.curve.foot_on_segment`, on floats).
+(:func:`gnss.arcgeom.nearest_in_window`, on floats).
 
 The window is ``[s - margin, s + max_speed * elapsed + margin]`` about the last station
 ``s``; ``elapsed`` defaults to ``cycle``. The station therefore moves at most
@@ -25,14 +25,14 @@ The window is ``[s - margin, s + max_speed * elapsed + margin]`` about the last 
 
 from __future__ import annotations
 
-import bisect
 import math
 from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .curve import SCALAR_OPS, ArcPath, foot_on_segment, pose_on_segment
+from .arcgeom import SCALAR_OPS, nearest_in_window, pose_on_segment
+from .curve import ArcPath
 from .errors import GeometryError
 
 __all__ = ["Tracked", "PathTracker"]
@@ -137,43 +137,14 @@ class PathTracker:
                 raise GeometryError(f"PathTracker.update: elapsed must be a finite time >= 0 s, got {elapsed!r}")
             lo = self._station - self.margin
             hi = self._station + self.max_speed * dt + self.margin
-        best_d2, best = math.inf, (0.0, 0.0, 0.0, 0.0, 0.0)
-        table, length = self._table, self._length
-        if lo < 0.0:     # the straight extension behind the start
-            s0, e0, n0, th0, _, _ = table[0]
-            t = foot_on_segment(SCALAR_OPS, e0, n0, th0, 0.0, math.inf, lo, min(hi, 0.0), east, north)
-            best_d2, best = self._candidate(best_d2, best, east, north, e0, n0, th0, 0.0, t, 0.0)
-        if hi > length:  # ... and the one past the end
-            e0, n0, th0 = self._end
-            t = foot_on_segment(SCALAR_OPS, e0, n0, th0, 0.0, math.inf, max(lo - length, 0.0), hi - length,
-                                east, north)
-            best_d2, best = self._candidate(best_d2, best, east, north, e0, n0, th0, 0.0, t, length)
-        if hi >= 0.0 and lo <= length:
-            i = max(bisect.bisect_right(self._starts, lo) - 1, 0)
-            n = len(table)
-            while i < n and table[i][0] <= hi:
-                s0, e0, n0, th0, k, seg_len = table[i]
-                a, b = max(lo - s0, 0.0), min(hi - s0, seg_len)
-                if a <= b:
-                    t = foot_on_segment(SCALAR_OPS, e0, n0, th0, k, seg_len, a, b, east, north)
-                    best_d2, best = self._candidate(best_d2, best, east, north, e0, n0, th0, k, t, s0)
-                i += 1
-        xte, qth, station, kappa = best[0], best[1], best[2], best[3]
+        xte, qth, station, kappa = nearest_in_window(self._table, self._starts, self._end, self._length, lo, hi,
+                                                         east, north)
         self._station = station
         if math.isfinite(yaw):
             he = (math.pi / 2 - yaw - qth + math.pi) % _TWO_PI - math.pi
         else:
             he = math.nan
         return Tracked(xte, he, station, kappa)
-
-    @staticmethod
-    def _candidate(best_d2, best, pe, pn, e0, n0, th0, k, t, s0):
-        qe, qn, qth = pose_on_segment(SCALAR_OPS, e0, n0, th0, k, t)
-        de, dn = pe - qe, pn - qn
-        d2 = de * de + dn * dn
-        if d2 < best_d2:
-            return d2, (dn * math.cos(qth) - de * math.sin(qth), qth, s0 + t, k, d2)
-        return best_d2, best
 
     def preview(self, n: int, step: float) -> NDArray[np.float64]:
         """Mean curvature (1/m) over the next ``n`` stretches of ``step`` m from the current station

@@ -20,9 +20,11 @@ design in ``result.json``, and the report). When the MPC relaxed nothing, nothin
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
+
+from design.limits import MAX_FILE_BYTES
+from identification.bounded import read_json
 from typing import Callable, Sequence
 
 #: Measured windows (samples of past outputs and commands) the MPC's weights are searched with.
@@ -46,7 +48,7 @@ def auto_record(path: str | Path) -> tuple[int, list[str], float]:
     ValueError
         The file has no valid record of automatic weights (designed with explicit weights, or damaged).
     """
-    body = json.loads(Path(path).read_text())
+    body = read_json(path, MAX_FILE_BYTES, "controller file", ValueError)
     try:
         past = body["estimator"]["past"]
         aw = body["design"]["auto_weights"]

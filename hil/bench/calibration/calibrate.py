@@ -46,6 +46,8 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
+from identification.bounded import read_json
+from identification.outputs import atomic_write
 from hil.bench.runs.campaign import Campaign, make_controller
 from hil.truth.conditions import GEAR_SPEEDS, condition_for
 from hil.errors import SimulatorConfigError
@@ -333,7 +335,7 @@ class Evaluator:
         d = self.out / "evaluations" / self.key(scales)
         rec_path = d / "evaluation.json"
         if rec_path.exists():            # read back; the objective is recomputed with this search's weights
-            rec = json.loads(rec_path.read_text())
+            rec = read_json(rec_path, 2**24, "calibration evaluation", SimulatorConfigError)
             return {**rec, "objective": objective(rec["cells"], o.bias_weight, o.bias_scale, o.band)}
         conds = [condition_for(i, GEAR_SPEEDS[g]) for i, g in o.conditions]
         campaign = Campaign(d / "campaign", [self.controller], conds, o.seeds, o.duration,
@@ -351,7 +353,8 @@ class Evaluator:
         rec = {"log2_scales": scales, "scales": {k: 2.0 ** v for k, v in scales.items() if k not in LINEAR},
                "values": parameter_values(scales), "objective": objective(rows, o.bias_weight, o.bias_scale, o.band),
                "cells": [{k: r[k] for k in keep if k in r} for r in rows]}
-        rec_path.write_text(json.dumps(rec, indent=2) + "\n")
+        with atomic_write(rec_path, "w") as fh:
+            fh.write(json.dumps(rec, indent=2) + "\n")
         return rec
 
 

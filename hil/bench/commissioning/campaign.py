@@ -17,7 +17,6 @@ after each tractor the aggregate (``campaign.json``, ``campaign.md``, ``campaign
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -25,6 +24,8 @@ from typing import Callable, Sequence
 
 from identification.outputs import check_name
 
+from identification.bounded import read_json
+from identification.outputs import atomic_write
 from hil.bench.commissioning.campaign_report import summarise_tractor, write_campaign_report
 from hil.bench.commissioning.recipe import CommissionOptions, commission, options_dict
 from hil.bench.commissioning.table import CONTROLLERS
@@ -104,9 +105,7 @@ def load_result(path: Path, tractor: Tractor, options: CommissionOptions) -> tup
     if not path.is_file():
         return None, "no result.json yet"
     try:
-        if path.stat().st_size > 64 * 1024 * 1024:
-            raise SimulatorConfigError("larger than 64 MiB")
-        res = json.loads(path.read_text())
+        res = read_json(path, 64 * 2**20, "commissioning result", SimulatorConfigError)
         if not isinstance(res, dict):
             raise SimulatorConfigError(f"expected a JSON object, got {type(res).__name__}")
         if res.get("tractor") != tractor.to_dict():
@@ -123,14 +122,13 @@ def load_result(path: Path, tractor: Tractor, options: CommissionOptions) -> tup
 
 
 def _write_json(path: Path, data: object) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=str) + "\n")
-    os.replace(tmp, path)
+    with atomic_write(path, "w") as fh:
+        fh.write(json.dumps(data, indent=2, default=str) + "\n")
 
 
 def _code_of(folder: Path) -> dict:
     try:
-        d = json.loads((folder / "campaign_code.json").read_text())
+        d = read_json(folder / "campaign_code.json", 2**16, "campaign code record", SimulatorConfigError)
     except (OSError, ValueError):
         return {"commit": "unknown", "dirty": None}
     sha = d.get("commit") if isinstance(d, dict) else None

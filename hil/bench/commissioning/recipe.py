@@ -33,13 +33,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable
 
 
+from identification.outputs import atomic_write
 from hil.commissioning.designs import WEIGHTS, DesignHooks, Designer, attempts, design_with_fallback
 from hil.commissioning.steps import Steps
 from hil.bench.commissioning.estimate_trial import OFF_ABOVE, TRIAL_SEEDS, choose_schedule, has_schedule
@@ -304,9 +304,8 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
     res["hil"] = table or []
     res["steps"] = steps.record
     res["files"] = write_commission_report(res, out)
-    tmp = out / "result.json.tmp"      # whole or not at all: a campaign takes a result.json as complete
-    tmp.write_text(json.dumps(res, indent=2, default=_jsonable) + "\n")
-    os.replace(tmp, out / "result.json")
+    with atomic_write(out / "result.json", "w") as fh:   # whole or not at all: a campaign takes it as complete
+        fh.write(json.dumps(res, indent=2, default=_jsonable) + "\n")
     return res
 
 

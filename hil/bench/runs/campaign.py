@@ -21,6 +21,7 @@ from typing import Callable, Sequence
 
 from identification.outputs import atomic_write
 
+from identification.bounded import read_json
 from hil.truth.conditions import Condition, all_conditions
 from hil.errors import SimulatorConfigError
 from hil.truth.params import SimParams
@@ -31,6 +32,9 @@ from hil.bench.runs.oracle import OracleOptions, oracle_for
 from hil.bench.runs.workers import run_pool
 
 EXECUTORS = ("local", "dask")
+
+#: Largest campaign file read back (a run's result or the campaign's identity), bytes.
+RESULT_BYTES = 64 * 2**20
 
 
 BUILTIN_CONTROLLERS = VEHICLE_CONTROLLERS + ("oracle",)
@@ -141,7 +145,7 @@ class Campaign:
         (self.out / "runs").mkdir(parents=True, exist_ok=True)
         ident = self.out / "campaign.json"
         if ident.exists():
-            old = json.loads(ident.read_text())
+            old = read_json(ident, RESULT_BYTES, "campaign identity", SimulatorConfigError)
             if old.get("params") != self.params or old.get("duration") != self.identity["duration"]:
                 raise SimulatorConfigError(f"{ident} belongs to a campaign with other simulator parameters or "
                                            "pass duration; use another --out directory")
@@ -151,7 +155,8 @@ class Campaign:
                 raise SimulatorConfigError(f"controller file(s) {changed} changed since {ident} ran them; their "
                                            "saved passes are stale: use another --out directory")
             self.identity["controller_files"] = {**before, **self.identity["controller_files"]}
-        ident.write_text(json.dumps(self.identity, indent=2) + "\n")
+        with atomic_write(ident, "w") as fh:
+            fh.write(json.dumps(self.identity, indent=2) + "\n")
 
     def _path(self, key: RunKey, realtime: bool = False) -> Path:
         return self.out / ("runs_realtime" if realtime else "runs") / f"{key.name}.json"
@@ -167,9 +172,13 @@ class Campaign:
         with atomic_write(path, "w") as fh:
             fh.write(json.dumps(result, indent=2) + "\n")
 
+    @staticmethod
+    def _load(path: Path) -> dict:
+        return read_json(path, RESULT_BYTES, "run result", SimulatorConfigError)
+
     def results(self) -> list[dict]:
         """Every finished run's result, in campaign order."""
-        return [json.loads(self._path(k).read_text()) for k in self.keys if self._path(k).exists()]
+        return [self._load(self._path(k)) for k in self.keys if self._path(k).exists()]
 
     def run(self, executor: str = "local", scheduler: str | None = None, workers: int | None = None,
             progress: Callable[[int, int], None] | None = None, client=None) -> list[dict]:
@@ -257,7 +266,7 @@ class Campaign:
                 self._save(run_one(k, self.params, realtime=True))
             if progress:
                 progress(i + 1, len(keys))
-        return [json.loads(self._path(k, True).read_text()) for k in keys]
+        return [self._load(self._path(k, True)) for k in keys]
 
     def _run_dask(self, todo, scheduler, client, progress, done, total) -> None:
         from dask.distributed import Client

@@ -130,6 +130,8 @@ def _jacobian(x, lengths, seg_of, local, pts, along_weight):
 
 #: Segments solved together; a longer chain is solved window by window (see :func:`_solve`).
 WINDOW = 48
+#: Most evaluations of the residual by one least-squares solve (of one window).
+MAX_EVALUATIONS = 500
 
 
 def _solve(x, lengths, seg_of, local, pts, along_weight):
@@ -183,11 +185,12 @@ def _solve_window(pose, x, lengths, seg_of, local, pts, along_weight):
         def jac(k, *args):
             return _jacobian(np.concatenate([head, k]), *args)[:, 3:]
     # Levenberg-Marquardt needs at least as many residuals as unknowns; a window with fewer
-    # (far-apart points between short segments) is solved by the trust-region method, with a
-    # bounded number of evaluations: the deviations checked after the solve judge the result
+    # (far-apart points between short segments) is solved by the trust-region method. Both stop
+    # after a bounded number of evaluations (a window of points noisier than the tolerance can
+    # creep for thousands): the deviations checked after the solve judge the result
     if 2 * len(pts) >= len(x):
         sol = least_squares(fun, x, jac=jac, method="lm", args=(lengths, seg_of, local, pts, along_weight),
-                            x_scale=scale)
+                            x_scale=scale, max_nfev=MAX_EVALUATIONS)
     else:
         sol = least_squares(fun, x, jac=jac, method="trf", args=(lengths, seg_of, local, pts, along_weight),
                             x_scale=scale, max_nfev=100)

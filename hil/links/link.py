@@ -80,4 +80,4 @@ def read_bounded(link: ByteLink, budget: int, chunk: int = 1 << 16) -> tuple[byt
             break
         dropped += got
         excess -= got
-    return link.read(budget), dropped
+    return link.read(min(n, budget)), dropped   # what was waiting when asked, as a reader without a budget

@@ -108,9 +108,11 @@ class LoopConfig:
         Wheel motion allowed between two reports on top of ``max_wheel_rate x dt``, rad (the sensor's
         noise and quantisation: 5 counts of the HC11 potentiometer).
     report_max_age
-        Oldest bridge report the loop acts on, s (a backstop to the driver's own report timeout).
+        Oldest bridge report the loop acts on, s: a backstop behind the driver's own report timeout
+        (0.15 s), so a driver configured without one cannot keep the loop on an old report.
     gnss_max_age
-        Oldest position fix the loop acts on, s (a backstop to the front-end's integrity limit).
+        Oldest position fix the loop acts on, s: a backstop behind the front-end's integrity limit
+        (0.3 s), for a front-end that does not notice (a configuration without it, a fault of its own).
     position_jump
         Control-point motion allowed between two cycles with a healthy fix on top of
         ``speed_max x dt``, m; more is a jump (a fault).
@@ -138,8 +140,8 @@ class LoopConfig:
     wheel_margin: float = 0.15
     max_wheel_rate: float = 0.0
     wheel_step: float = 0.03
-    report_max_age: float = 0.2
-    gnss_max_age: float = 0.35
+    report_max_age: float = 0.25
+    gnss_max_age: float = 0.5
     position_jump: float = 0.3
     max_cross_track: float = 10.0
     plausible_hold: float = 1.0

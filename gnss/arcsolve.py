@@ -138,8 +138,9 @@ def _solve(x, lengths, seg_of, local, pts, along_weight):
     """Least-squares start pose and curvatures ``x`` of the chain, starting from ``x``.
 
     A chain of at most :data:`WINDOW` segments is solved in one piece. A longer one is solved
-    in windows swept from the start: a window is :data:`WINDOW` segments, or more where they
-    hold fewer points than that (each curvature needs points after it); the first window also
+    in windows swept from the start: a window is :data:`WINDOW` segments, or up to four times
+    as many where they hold fewer points than segments (each curvature needs points after it),
+    and holds the points of its segments; the first window also
     moves the start pose, each later one starts at the (fixed) end pose of the segments kept
     so far and keeps the first half of its segments, so every kept segment was fitted with the
     points of the next half window in view. The dense least squares of a window costs

@@ -58,6 +58,34 @@ def ensure_env(extras: str = "test") -> None:
     STAMP.write_text(want + "\n")
 
 
+#: The headless browser of the report-page test (tests/hil/test_report_page.py), Debian's package.
+CHROMIUM = Path("/usr/bin/chromium")
+
+
+def ensure_chromium() -> None:
+    """Install Debian's ``chromium`` when ``/usr/bin/chromium`` is missing (the suite runs as root in CI).
+
+    Quiet and idempotent: nothing is run when the browser is there; when it cannot be installed (no
+    root, no apt-get) one line says so and the report-page test then fails with the command to run.
+    """
+    if CHROMIUM.exists():
+        return
+    if shutil.which("apt-get") is None or os.geteuid() != 0:
+        print(f"{CHROMIUM} is missing and cannot be installed here (needs root and apt-get): "
+              "run `apt-get install chromium` (the report-page test needs it)", flush=True)
+        return
+    print("installing chromium (headless browser of the report-page test)", flush=True)
+    env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
+    for cmd in (["apt-get", "update", "-qq"],
+                ["apt-get", "install", "-y", "-qq", "--no-install-recommends", "chromium"]):
+        done = subprocess.run(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if done.returncode != 0:
+            tail = done.stderr.strip().splitlines()[-1:] or ["no message"]
+            print(f"{' '.join(cmd)} failed ({tail[0]}): run `apt-get install chromium` "
+                  "(the report-page test needs it)", flush=True)
+            return
+
+
 def demo(args: list[str]) -> None:
     """The main job on the simulated tractor, end to end.
 
@@ -121,6 +149,7 @@ def test(args: list[str]) -> None:
     """Every test, slow and notebook ones included (what CI runs), on every core; the 15 slowest are
     listed at the end (CI's budget is 15 minutes)."""
     ensure_env()
+    ensure_chromium()
     for key, value in _ONE_BLAS_THREAD.items():
         os.environ.setdefault(key, value)
     _run(PY, "-m", "pytest", "-m", "", "-q", "--durations=15", *_workers(), *args)

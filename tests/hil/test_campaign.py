@@ -96,8 +96,9 @@ def test_report_files(tmp_path):
     assert len(json.loads((tmp_path / "results.json").read_text())["cells"]) == 15
     assert (tmp_path / "cells.csv").read_text().count("\n") == 16
     page = (tmp_path / "index.html").read_text().replace("\n", "")   # robust is a candidate: its targets, in HTML too
-    assert "<h2>Targets</h2>" in page and page.count("<table") == page.count("</table>")
-    assert "<tr><td>robust</td><td>0/15</td>" in page    # no oracle or paper's method ran: nothing met
+    assert '<h2 id="targets">Targets</h2>' in page and page.count("<table") == page.count("</table>")
+    # no oracle or paper's method ran: nothing met, marked in colour and in text
+    assert '<tr><td>robust</td><td class="fail">\u2718 0/15 cells meet all</td></tr>' in page
 
 
 def test_cli_compare_small_campaign(tmp_path, capsys):

@@ -7,7 +7,8 @@ measured (GPS) cross-track over engaged, settled cycles, as the paper measured i
 and of the truth. Ratios are to the paper's Table 2 and, when one of the
 controllers is named ``oracle``, to it.
 
-Files: ``report.md`` and ``index.html`` (tables and figures), ``cells.csv`` and
+Files: ``report.md`` (tables and figures) and ``index.html`` (the same as a page: styled tables, the
+targets marked met or missed, a table of contents and the provenance: :mod:`hil.commissioning.html`), ``cells.csv`` and
 ``results.json`` (data), ``fig10_sigma_vs_speed.png`` (the paper's Figure 10: 1-sigma
 versus speed per implement and controller) and ``fig12_passes.png`` (the paper's
 Figure 12: overlaid passes at 1.79 and 2.91 m/s).
@@ -16,8 +17,9 @@ Figure 12: overlaid passes at 1.79 and 2.91 m/s).
 from __future__ import annotations
 
 import csv
-import html
+import hashlib
 import json
+import math
 from pathlib import Path
 from typing import Sequence
 
@@ -30,9 +32,12 @@ import numpy as np  # noqa: E402
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for  # noqa: E402
 from hil.bench.runs.paper import TABLE2  # noqa: E402
 from hil.bench.runs.targets import Roles, check_targets, targets_markdown  # noqa: E402
+from hil.commissioning.html import Cell, Table, provenance, write_page  # noqa: E402
 from hil.vehicle.summary import pool_passes  # noqa: E402
 
 ORACLE = "oracle"
+#: Half-width of the reference band drawn on Figure 12, cm (2 in).
+BAND_CM = 5.08
 
 
 def cells(results: Sequence[dict]) -> list[dict]:
@@ -92,12 +97,15 @@ def table2_text(rows: Sequence[dict], controller: str) -> str:
 def _fig10(rows: Sequence[dict], out: Path) -> Path:
     ctrls = sorted({r["controller"] for r in rows})
     fig, axes = plt.subplots(1, 3, figsize=(13, 4), sharey=True)
+    cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colors = {c: cycle[k % len(cycle)] for k, c in enumerate(ctrls)}     # one colour per controller in every panel
     for ax, imp in zip(axes, IMPLEMENTS):
         for ctrl in ctrls:
             rs = sorted((r for r in rows if r["controller"] == ctrl and r["implement"] == imp
                          and "measured_sigma_m" in r), key=lambda r: r["speed"])
             if rs:
-                ax.plot([r["speed"] for r in rs], [r["measured_sigma_m"] * 100 for r in rs], "o-", label=ctrl)
+                ax.plot([r["speed"] for r in rs], [r["measured_sigma_m"] * 100 for r in rs], "o-", label=ctrl,
+                        color=colors[ctrl])
         paper = sorted((GEAR_SPEEDS[g], sigma) for (i, g), (_b, sigma) in TABLE2.items() if i == imp)
         ax.plot([p[0] for p in paper], [p[1] * 100 for p in paper], "k--", marker="s", label="paper (1997)")
         ax.set_title(imp)
@@ -107,7 +115,11 @@ def _fig10(rows: Sequence[dict], out: Path) -> Path:
     sig = [r["measured_sigma_m"] for r in rows if "measured_sigma_m" in r]
     if sig and max(sig) > 20 * min(sig):
         axes[0].set_yscale("log")          # a diverging cell would flatten every other line
-    axes[-1].legend(fontsize=8)
+    seen: dict = {}
+    for ax in axes:                      # every controller in the legend, even one run on one implement only
+        for h, lbl in zip(*ax.get_legend_handles_labels()):
+            seen.setdefault(lbl, h)
+    axes[-1].legend(list(seen.values()), list(seen), fontsize=8)
     fig.suptitle("1-sigma cross-track versus speed (the paper's Figure 10)")
     fig.tight_layout()
     fig.savefig(out, dpi=110)
@@ -132,9 +144,9 @@ def _fig12(results: Sequence[dict], out: Path) -> Path:
             ax.plot(x, y, lw=0.7, color=colors[r["controller"]], alpha=0.8)
         for c in ctrls:
             ax.plot([], [], color=colors[c], label=c)
-        for b in (-5.08, 5.08):
-            ax.axhline(b, color="g", lw=0.5, ls="--")
-        ax.set_ylabel("cm")
+        ax.axhline(-BAND_CM, color="g", lw=0.5, ls="--", label="\u00b15.08 cm (\u00b12 in) reference band")
+        ax.axhline(BAND_CM, color="g", lw=0.5, ls="--")
+        ax.set_ylabel("measured (GPS)\ncross-track [cm]")
         ax.set_title(f"{imp}, {v} m/s: overlaid passes (engaged)", fontsize=9)
         ax.grid(True, alpha=0.3)
     np.atleast_1d(axes)[0].legend(fontsize=8, loc="upper right")
@@ -178,29 +190,78 @@ def solver_table(results: Sequence[dict]) -> list[str]:
     return rows
 
 
-def _md_to_html(lines: Sequence[str]) -> str:
-    """HTML of simple Markdown: runs of ``| ... |`` rows become a table (separator rows dropped),
-    ``## `` lines headings, other non-empty lines paragraphs."""
-    body: list[str] = []
-    in_table = False
-    for line in lines:
-        row = line.startswith("|")
-        if in_table and not row:
-            body.append("</table>")
-        if row and not in_table:
-            body.append("<table border=1 cellpadding=4>")
-        in_table = row
-        if row:
-            if not set(line) <= set("|-: "):
-                cells_ = [html.escape(x.strip()) for x in line.strip("|").split("|")]
-                body.append("<tr>" + "".join(f"<td>{x}</td>" for x in cells_) + "</tr>")
-        elif line.startswith("## "):
-            body.append(f"<h2>{html.escape(line[3:])}</h2>")
-        elif line.strip():
-            body.append(f"<p>{html.escape(line)}</p>")
-    if in_table:
-        body.append("</table>")
-    return "\n".join(body)
+def table2_html(rows: Sequence[dict], controller: str) -> Table:
+    """One controller in the paper's Table 2 layout as a page table: a row per speed (and gear), per implement
+    the bias and 1-sigma of the measured cross-track, the paper's, and the 1-sigma ratio to the paper (cm)."""
+    mine = {(r["implement"], r["speed"]): r for r in rows if r["controller"] == controller}
+    imps = [i for i in IMPLEMENTS if any(k[0] == i for k in mine)]
+    speeds = sorted({k[1] for k in mine})
+    sub = ("bias [cm]", "1-sigma [cm]", "paper bias / 1-sigma [cm]", "1-sigma ratio to paper")
+    header = [[Cell("", span=2), *(Cell(i, span=len(sub)) for i in imps)],
+              [Cell("gear"), Cell("speed [m/s]"), *(Cell(x) for _ in imps for x in sub)]]
+    body = []
+    for v in speeds:
+        gear = next((c["gear"] for (i, s), c in mine.items() if s == v), "")
+        row = [Cell(f"{gear}"), Cell(f"{v:.2f}", numeric=True)]
+        for i in imps:
+            c = mine.get((i, v))
+            if c is None or "measured_sigma_m" not in c:
+                row.append(Cell("-" if c is None else "never engaged", "" if c is None else "fail", span=len(sub)))
+                continue
+            paper = f"{c['paper_bias_m'] * 100:.1f} / {c['paper_sigma_m'] * 100:.1f}" if "paper_sigma_m" in c else "-"
+            ratio = f"{c['sigma_ratio_to_paper']:.2f}" if "sigma_ratio_to_paper" in c else "-"
+            row += [Cell(f"{c['measured_bias_m'] * 100:.1f}", numeric=True),
+                    Cell(f"{c['measured_sigma_m'] * 100:.1f}", numeric=True), Cell(paper, numeric=True),
+                    Cell(ratio, numeric=True)]
+        body.append(row)
+    return Table(header, body, caption=f"{controller}: cross-track of the measured (GPS) position, cm")
+
+
+def _mark(ok: bool) -> Cell:
+    return Cell("\u2714 met" if ok else "\u2718 missed", "pass" if ok else "fail")
+
+
+def targets_html(checks: Sequence[dict]) -> list[Table]:
+    """Page tables of the target checks: per candidate the cells meeting all, then every cell with a mark per target."""
+    if not checks:
+        return []
+    summary = []
+    for cand in sorted({c["controller"] for c in checks}):
+        cs = [c for c in checks if c["controller"] == cand]
+        met = sum(c["all_ok"] for c in cs)
+        ok = met == len(cs)
+        summary.append([Cell(cand), Cell(("\u2714 " if ok else "\u2718 ") + f"{met}/{len(cs)} cells meet all",
+                                         "pass" if ok else "fail")])
+    head = [[Cell("controller"), Cell("cell"), Cell("bias [cm]"), Cell("1-sigma [cm]"),
+             Cell("ratio to paper's method"), Cell("ratio to oracle"), Cell("RMS / best baseline [cm]"),
+             Cell("|bias|"), Cell("paper's method"), Cell("oracle"), Cell("baselines"), Cell("all")]]
+    body = [[Cell(c["controller"]), Cell(f"{c['implement']} {c['speed']:.2f} m/s"),
+             Cell(_fmt(c["bias_cm"]), numeric=True), Cell(_fmt(c["sigma_cm"]), numeric=True),
+             Cell(_fmt(c["ratio_paper_method"]), numeric=True), Cell(_fmt(c["ratio_oracle"]), numeric=True),
+             Cell(f"{_fmt(c['rms_cm'])} / {_fmt(c['best_baseline_rms_cm'])}", numeric=True),
+             _mark(c["bias_ok"]), _mark(c["paper_ok"]), _mark(c["oracle_ok"]), _mark(c["baselines_ok"]),
+             _mark(c["all_ok"])] for c in checks]
+    return [Table([[Cell("controller"), Cell("targets")]], summary, caption="Targets met"),
+            Table(head, body, caption="Targets per cell")]
+
+
+def _fmt(x: float) -> str:
+    return "-" if math.isnan(x) else f"{x:.2f}"
+
+
+def _provenance(extra: dict | None) -> list[tuple[str, str]]:
+    """Provenance rows from the campaign's identity in ``extra`` (seeds, duration, bridge, conditions, files)."""
+    ident = (extra or {}).get("campaign") or {}
+    opts: dict = {}
+    if ident:
+        opts = {"controllers": ident.get("controllers", []), "duration [s]": ident.get("duration"),
+                "bridge": ident.get("bridge"),
+                "conditions": [f"{c[0]} {float(c[1]):.2f} m/s" for c in ident.get("conditions", [])]}
+        if "params" in ident:
+            blob = json.dumps(ident["params"], sort_keys=True).encode()
+            opts["simulator parameters"] = f"in results.json (sha256 {hashlib.sha256(blob).hexdigest()})"
+    return provenance(tractor=(extra or {}).get("tractor"), options=opts, seeds=ident.get("seeds"),
+                      files=ident.get("controller_files") or {})
 
 
 def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL comparison",
@@ -237,19 +298,25 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
         solve = ["Solve times of the optimisation-based controllers (CPU, inside the loop):", "", *solve, ""]
     target_md = targets_markdown(checks, roles)
     rt_md = ["## In real time over pseudo-terminals", "", *realtime_table(realtime), ""] if realtime else []
-    md = [f"# {title}", "", f"{len(results)} passes: {len(ctrls)} controller(s), "
-          f"{len({(r['implement'], r['speed']) for r in rows})} condition(s).", ""]
+    counts = (f"{len(results)} passes: {len(ctrls)} controller(s), "
+              f"{len({(r['implement'], r['speed']) for r in rows})} condition(s)")
+    met = f"; targets: {sum(c['all_ok'] for c in checks)}/{len(checks)} cells meet all" if checks else ""
+    md = [f"# {title}", "", counts + ".", ""]
     for c in ctrls:
         md += ["```", tables[c], "```", ""]
-    md += [*timing, "", *solve, *target_md, f"![Figure 10]({f10.name})", "", f"![Figure 12]({f12.name})", "",
-           *rt_md]
+    figs = [f"![Figure 10: 1-sigma of the measured cross-track versus speed]({f10.name})", "",
+            f"![Figure 12: overlaid passes, measured cross-track]({f12.name})", ""]
+    md += [*timing, "", *solve, *target_md, *figs, *rt_md]
     (out / "report.md").write_text("\n".join(md))
-    body = [f"<h1>{html.escape(title)}</h1>"]
-    body += [f"<pre>{html.escape(tables[c])}</pre>" for c in ctrls]
-    body += [_md_to_html([*timing, "", *solve, *target_md]),
-             f"<img src='{f10.name}' width=100%><img src='{f12.name}' width=100%>", _md_to_html(rt_md)]
-    (out / "index.html").write_text("<!doctype html><meta charset=utf-8><title>" + html.escape(title) +
-                                    "</title><body>" + "\n".join(body) + "</body>\n")
+    page: list = ["## Cross-track (the paper's Table 2 layout)", "",
+                  "Per controller and cell: bias and 1-sigma of the measured (GPS) cross-track over engaged, settled "
+                  "cycles, pooled over the passes; the paper's figures and the ratio of the 1-sigma to the paper's.", ""]
+    page += [table2_html(rows, c) for c in ctrls]
+    page += ["", "## Timing", "", *timing, "", *solve]
+    if target_md:
+        page += ["", "## Targets", "", target_md[2], "", *targets_html(checks)]
+    page += ["", "## Figures", "", *figs, *rt_md]
+    write_page(out / "index.html", title, page, _provenance(extra), summary=counts + met + ".")
     return {"cells": rows, "tables": tables, "targets": checks,
             "files": [str(out / n) for n in ("report.md", "index.html", "cells.csv", "results.json",
                                              f10.name, f12.name)]}

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.bench.commissioning.cli import _options, add_commission_parser
+from hil.bench.commissioning.cli import add_commission_parser, commission_options
 from hil.bench.commissioning.recipe import CommissionOptions, commission
 from hil.bench.commissioning.table import hil_ratios
 from hil.truth.conditions import condition_for
@@ -85,7 +85,7 @@ def test_the_command_refuses_bad_options(capsys) -> None:
         CommissionOptions(hil_seeds=(0, 1), trial_seeds=(1, 5))
     with pytest.raises(ValueError, match="more_passes must be 0..5 rounds"):
         CommissionOptions(more_passes=-1)
-    assert _options(p.parse_args(["commission", "--tractor", "x", "--out", "o", "--more-passes", "0"])).more_passes == 0
+    assert commission_options(p.parse_args(["commission", "--tractor", "x", "--out", "o", "--more-passes", "0"])).more_passes == 0
 
 
 def test_hil_run_takes_a_commissioning_file_and_hil_commission_refuses_an_unknown_tractor(tmp_path: Path,

@@ -86,6 +86,9 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     c.add_argument("--estimate-trial", choices=("on", "off"), default="on",
                    help="choose per speed whether the estimate acts, by a trial drive with it and without it "
                         "(design estimate-schedule; default on)")
+    c.add_argument("--oracle-search", choices=("on", "off"), default="off",
+                   help="search the oracle's weights per condition before the HIL comparison (its own seeds, "
+                        "scales of its weights from 0.25 to 2.8; default off)")
     c.add_argument("--quiet", action="store_true", help="no progress")
     c.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
 
@@ -141,14 +144,15 @@ def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> 
     return c
 
 
-def _options(args: argparse.Namespace) -> CommissionOptions:
+def commission_options(args: argparse.Namespace) -> CommissionOptions:
+    """The recipe's options from the parsed command line."""
     return CommissionOptions(speeds=tuple(args.speeds), implements=tuple(args.implements), passes=args.passes,
                              pass_duration=args.duration, seed=args.seed,
                              hil_seeds=tuple(range(args.hil_seeds)) if args.hil_seeds >= 1 else (),
                              hil_duration=args.hil_duration, hil_conditions=args.hil_conditions,
                              weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance,
                              more_passes=args.more_passes, disturbance_estimate=args.disturbance_estimate == "on",
-                             estimate_trial=args.estimate_trial == "on")
+                             estimate_trial=args.estimate_trial == "on", oracle_search=args.oracle_search == "on")
 
 
 def _reporters(quiet: bool):
@@ -179,7 +183,7 @@ def _reporters(quiet: bool):
 
 #: Options of the bench's recipe that recorded logs do not take (they drive or evaluate on the simulator).
 BENCH_ONLY = ("speeds", "implements", "passes", "duration", "seed", "hil_seeds", "hil_duration", "hil_conditions",
-              "more_passes", "estimate_trial", "set")
+              "more_passes", "estimate_trial", "oracle_search", "set")
 
 
 def run_commission(args: argparse.Namespace) -> dict:
@@ -201,7 +205,7 @@ def run_commission(args: argparse.Namespace) -> dict:
             merged.setdefault(group, {})[name] = value
         tractor = Tractor(name=f"{base.name}-modified", description=f"{base.description} With --set "
                           f"{', '.join(f'{k}={v:g}' for k, v in args.set)}.", parameters=merged, source=base.source)
-    opts = _options(args)
+    opts = commission_options(args)
     say, progress, close = _reporters(args.quiet)
     res = commission(tractor, args.out, opts, say=say, progress=progress)
     close()
@@ -240,7 +244,7 @@ def run_commission_campaign(args: argparse.Namespace) -> dict:
     tractors += [resolve_tractor(t) for t in (args.tractor or [])]
     if not tractors:
         raise SimulatorConfigError("no tractor given: expected --random SEEDS and/or --tractor NAME|FILE.json")
-    opts = _options(args)
+    opts = commission_options(args)
     say, progress, close = _reporters(args.quiet)
     agg = commission_campaign(tractors, args.out, opts, say=say, progress=progress)
     close()

@@ -48,6 +48,7 @@ from hil.bench.commissioning.mpc_window_trial import mpc_window_trial
 from hil.bench.commissioning.window_trial import WINDOW_SEEDS, candidate_files, choose_window
 from hil.bench.commissioning.table import hil_table
 from hil.bench.commissioning.report import write_commission_report
+from hil.bench.runs.oracle_search import OracleSearch
 from hil.bench.runs.run import RunSpec
 from hil.bench.runs.sysid import SysidPlan, make_passes
 from hil.bench.benches.valve import characterise_on_bench, linearity_on_bench
@@ -108,6 +109,10 @@ class CommissionOptions:
     estimate_trial, trial_seeds
         Choose per speed whether the estimate acts by a trial drive with and without it
         (:mod:`hil.bench.commissioning.estimate_trial`), on passes with ``trial_seeds`` (apart from ``hil_seeds``).
+    oracle_search
+        Search the oracle's weights per condition before the HIL comparison
+        (:mod:`hil.bench.runs.oracle_search`), so that it is a bound on a tractor its default weights do not
+        suit (a slow valve).
     window_seeds
         Seeds of the robust controller's window trial, which chooses its window law for every speed and,
         per speed, where another is better there (:mod:`hil.bench.commissioning.window_trial`; apart from ``hil_seeds``).
@@ -133,6 +138,7 @@ class CommissionOptions:
     estimate_trial: bool = True
     trial_seeds: tuple[int, ...] = TRIAL_SEEDS
     window_seeds: tuple[int, ...] = WINDOW_SEEDS
+    oracle_search: bool = False
 
     def __post_init__(self) -> None:
         SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
@@ -297,7 +303,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
 
     def hil() -> list[dict]:
         return hil_table(params, com, designs, opts.conditions(), opts.hil_seeds, opts.hil_duration,
-                         lambda d, n: tick("hil", d, n))
+                         lambda d, n: tick("hil", d, n), OracleSearch() if opts.oracle_search else None)
     table = steps.run("hil", f"HIL comparison on the tractor ({len(opts.conditions())} conditions, "
                       f"{len(opts.hil_seeds)} seed(s), {opts.hil_duration:g} s, commissioned loop)",
                       hil) if com is not None else None

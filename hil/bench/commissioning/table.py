@@ -9,6 +9,7 @@ from typing import Callable, Mapping, Sequence
 
 from hil.bench.runs.campaign import make_controller
 from hil.bench.runs.oracle import OracleOptions, oracle_for
+from hil.bench.runs.oracle_search import OracleSearch, search_oracle
 from hil.bench.runs.run import RunSpec, simulated_run
 from hil.truth.conditions import IMPLEMENTS, Condition
 from hil.truth.params import SimParams
@@ -24,22 +25,32 @@ CONTROLLERS = {"central-lqr": "paper's method", "robust": "robust", "mpc": "MPC"
 DIVERGED_M = 2.0
 
 def hil_table(params: SimParams, com: Commissioning, designs: Mapping[str, Mapping], conditions: Sequence[Condition],
-              seeds: Sequence[int], duration: float, progress: Callable[[int, int], None]) -> list[dict]:
+              seeds: Sequence[int], duration: float, progress: Callable[[int, int], None],
+              oracle_search: OracleSearch | None = None) -> list[dict]:
     """Closed-loop passes of every designed controller (``designs[name]["file"]``) and of the oracle, through the
     commissioned loop, per condition: each cell's 1-sigma and bias pooled over ``seeds`` (passes of ``duration``
-    s), its disengagements and their reasons, and the passes that diverged (:data:`DIVERGED_M`)."""
+    s), its disengagements and their reasons, and the passes that diverged (:data:`DIVERGED_M`). With
+    ``oracle_search`` the oracle's weights are searched per condition first (:mod:`hil.bench.runs.oracle_search`,
+    on seeds of its own; the oracle's row records the scale kept and what was tried)."""
     names = [n for n in CONTROLLERS if n == "oracle" or n in designs]
     conds = list(conditions)
-    total, done = len(names) * len(conds) * len(seeds), 0
+    per_search = len(oracle_search.scales) * len(oracle_search.seeds) if oracle_search else 0
+    total, done = len(names) * len(conds) * len(seeds) + len(conds) * per_search, 0
+    base = OracleOptions(invert_valve=False, host_map=True)
     rows = []
     for cond in conds:
+        oracle_options, searched = base, None
+        if oracle_search is not None:
+            searched = search_oracle(cond, params, base, com, oracle_search,
+                                     lambda d, n, done0=done: progress(done0 + d, total))
+            oracle_options = searched["options"]
+            done += per_search
         for name in names:
             summaries, dis, errors, worst, diverging, reasons, reacquired = [], 0, [], 0.0, 0, {}, 0.0
             for seed in seeds:
                 try:
                     if name == "oracle":
-                        ctrl = oracle_for(cond.implement, cond.speed, params,
-                                          OracleOptions(invert_valve=False, host_map=True))
+                        ctrl = oracle_for(cond.implement, cond.speed, params, oracle_options)
                     else:
                         ctrl = make_controller(designs[name]["file"])
                     log = simulated_run(RunSpec(implement=cond.implement, speed=cond.speed,
@@ -69,6 +80,8 @@ def hil_table(params: SimParams, com: Commissioning, designs: Mapping[str, Mappi
                          "disengagements": dis, "passes": len(seeds), "errors": errors,
                          "max_abs_cross_track_m": worst, "diverging": diverging, "disengage_reasons": reasons,
                          "max_abs_after_fault_m": reacquired})
+            if name == "oracle" and searched is not None:
+                rows[-1]["oracle_search"] = {"scale": searched["scale"], "tried": searched["tried"]}
     return rows
 
 

@@ -8,8 +8,11 @@ Engagement: the loop engages only after ``engage_after`` seconds of continuous
 health (GPS integrity healthy, speed in range, bridge reporting without
 override, close enough to the line); it disengages in the cycle it sees any
 fault (GPS not healthy or stale, bridge silent, watchdog, override, the bridge
-not confirming the engage, a link error, the wheel not following the commands)
-and records why. While disengaged it never sends a steering command. A control
+not confirming the engage, a link error, the wheel not following the commands, an
+impossible measurement: non-finite, out of range, faster than the valve, a position
+jump, see :mod:`hil.vehicle.plausibility`) and records why. After an impossible
+measurement the inputs must be plausible for ``LoopConfig.plausible_hold`` before
+the loop counts them healthy again. While disengaged it never sends a steering command. A control
 law that raises or returns a non-finite command is latched off for the rest of
 the run (a person has to look at it before it steers again).
 

@@ -113,8 +113,18 @@ def _cmd_law_schedule(args: argparse.Namespace) -> dict:
 SIGNED_COMMANDS = ("robust", "lqr", "mpc", "nmpc")
 
 
+def _version() -> str:
+    """The installed toolkit's version (pyproject.toml's ``version``), or ``unknown`` outside an installation."""
+    from importlib import metadata
+    try:
+        return metadata.version("tractor-autosteer")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="design", description="Controller design for the tractor.")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
     k = sub.add_parser("kinematic", help="LQR gains of the paper's kinematic model versus speed")
     k.add_argument("--speeds", nargs="+", type=_float, default=[1.00, 1.34, 1.79, 2.24, 2.91], metavar="M_PER_S")

@@ -31,8 +31,18 @@ def _latlon(text: str) -> tuple[float, float]:
     return math.radians(lat), math.radians(lon)
 
 
+def _version() -> str:
+    """The installed toolkit's version (pyproject.toml's ``version``), or ``unknown`` outside an installation."""
+    from importlib import metadata
+    try:
+        return metadata.version("tractor-autosteer")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gnss", description="GNSS receiver captures: decode, summarise, cross-track.")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
     for name in ("decode", "replay"):
         d = sub.add_parser(name, help="summarise a capture (messages per type, rates, fix quality, track)")

@@ -10,13 +10,26 @@ import sys
 EXIT_INTERRUPTED = 130
 
 
+def _version() -> str:
+    """The installed toolkit's version (pyproject.toml's ``version``), or ``unknown`` outside an installation."""
+    from importlib import metadata
+    try:
+        return metadata.version("tractor-autosteer")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Dispatch on the sub-command; returns the exit status (0, 1 refused value, 2 usage, 130 Ctrl-C).
+    """Dispatch on the sub-command (``--version`` prints the toolkit's version); returns the exit status
+    (0, 1 refused value, 2 usage, 130 Ctrl-C).
 
     Ctrl-C stops any sub-command with one line and status 130: every file is written whole or not at
     all (atomic renames), and campaigns, calibrations and tuning resume from what they saved.
     """
     args = sys.argv[1:] if argv is None else list(argv)
+    if args[:1] == ["--version"]:
+        print(f"hil {_version()}")
+        return 0
     try:
         if args[:1] == ["drive"]:
             from hil.vehicle.cli import main as drive_main

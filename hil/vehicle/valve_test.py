@@ -76,6 +76,12 @@ class ValveTestPlan:
         if self.position_duty > 1:
             raise VehicleConfigError(f"ValveTestPlan.position_duty must be in (0, 1], got {self.position_duty!r}")
 
+    def longest_duration(self, steps: int | None = None) -> float:
+        """Longest time the test takes, s: ``steps`` steps (default every duty both ways), each brought to its
+        start (at most 6 s), held still, stepped and refreshed, after 5 s of engaging."""
+        n = 2 * len(self.duties) if steps is None else steps
+        return 5.0 + n * (6.0 + self.settle + self.step_time + 4 * self.period)
+
 
 @dataclass
 class _Session:

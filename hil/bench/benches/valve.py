@@ -23,10 +23,6 @@ from hil.vehicle.valve_test import ValveTestPlan, characterise_valve, linearity_
 __all__ = ["characterise_on_bench", "linearity_on_bench"]
 
 
-def _duration(n_steps: int, plan: ValveTestPlan) -> float:
-    return 5.0 + n_steps * (6.0 + plan.settle + plan.step_time + 4 * plan.period)
-
-
 def characterise_on_bench(params: SimParams | None = None, seed: int = 0, plan: ValveTestPlan | None = None,
                           speed: float = 0.0,
                           progress: Callable[[int, int], None] | None = None) -> tuple[ValveCurve, list[RateStep]]:
@@ -48,7 +44,7 @@ def characterise_on_bench(params: SimParams | None = None, seed: int = 0, plan: 
     (ValveCurve, list of RateStep)
     """
     plan = plan or ValveTestPlan()
-    plant = SimulatedTractor(condition_for("none", speed), _duration(2 * len(plan.duties), plan), seed, params,
+    plant = SimulatedTractor(condition_for("none", speed), plan.longest_duration(), seed, params,
                              initial={"Y": 0.0})
     p = plant.params
     cal = two_point_calibration(p.sensor, p.steering)
@@ -60,7 +56,7 @@ def linearity_on_bench(curve: ValveCurve, params: SimParams | None = None, seed:
                        plan: ValveTestPlan | None = None, speed: float = 0.0) -> dict:
     """Rates asked through ``curve``'s inverse map versus the rates the simulated wheel gave."""
     plan = plan or ValveTestPlan()
-    plant = SimulatedTractor(condition_for("none", speed), _duration(14, plan), seed, params, initial={"Y": 0.0})
+    plant = SimulatedTractor(condition_for("none", speed), plan.longest_duration(14), seed, params, initial={"Y": 0.0})
     p = plant.params
     cal = two_point_calibration(p.sensor, p.steering)
     with LockstepBridge(plant, config_for_tractor(p.steering), max_step=0.01) as bench:

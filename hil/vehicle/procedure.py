@@ -1,0 +1,242 @@
+"""The field procedure of commissioning as the operator follows it: a plan within a driving budget, what is
+recorded, what a fault spoiled, and what to do next.
+
+A :class:`FieldPlan` lists the identification passes (implement, speed, pass, length) after the valve test
+at standstill, and counts the minutes of driving each step takes; :meth:`FieldPlan.check_budget` refuses a
+plan over :data:`BUDGET_TOTAL_S` (30 min for three implements) or :data:`BUDGET_PER_IMPLEMENT_S` (10 min
+each), as a dealer's day allows. The state of a procedure is read from its folder every time
+(:class:`Procedure`): ``commissioning.json`` once the valve test is done, ``logs/`` the passes recorded,
+``spoiled/`` the passes a fault spoiled. So an interruption (power, Ctrl-C, a lost receiver) loses
+nothing and no recorded pass is driven again: the next step is the first planned pass with no good log.
+
+A pass is spoiled (:func:`pass_faults`) when the fix was not RTK fixed for more than
+:data:`MAX_NOT_FIXED` of its position epochs, the operator took over or the loop disengaged (a closed-loop
+pass), or it stopped early; :meth:`Procedure.review` moves such a log to
+``spoiled/`` with the reason, where it still counts as driving time but is never identified from.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+
+import numpy as np
+
+from identification.errors import IdentificationError
+from identification.outputs import atomic_write
+from identification.passlog import PassLog
+
+from hil.vehicle.errors import VehicleConfigError
+from hil.vehicle.valve_test import ValveTestPlan
+
+__all__ = ["BUDGET_TOTAL_S", "BUDGET_PER_IMPLEMENT_S", "MAX_NOT_FIXED", "PlannedPass", "FieldPlan", "pass_faults",
+           "pass_key", "Procedure", "ProcedureError", "status_text"]
+
+#: Driving of the whole procedure for three implements, s (what commercial kits and AgOpenGPS's wizard take).
+BUDGET_TOTAL_S = 30 * 60.0
+#: Driving per implement, s (an implement added later is a top-up of at most this).
+BUDGET_PER_IMPLEMENT_S = 10 * 60.0
+#: Largest fraction of a pass's position epochs that may be other than RTK fixed (GGA quality 4).
+MAX_NOT_FIXED = 0.01
+#: A pass shorter than this fraction of its planned length stopped early.
+MIN_LENGTH = 0.95
+#: Words of a disengagement's reason that say the operator took the wheel.
+TAKEOVER_WORDS = ("override", "takeover", "steer switch")
+
+
+class ProcedureError(VehicleConfigError):
+    """A plan over its budget, or a procedure folder that cannot be read (the message says the fix)."""
+
+
+@dataclass(frozen=True)
+class PlannedPass:
+    """One identification pass of the plan: implement, nominal speed (m/s), index, length (s)."""
+
+    implement: str
+    speed: float
+    index: int
+    duration: float
+
+    @property
+    def key(self) -> tuple[str, int, int]:
+        """``(implement, speed in mm/s, index)``: how a recorded log is matched to it (:func:`pass_key`)."""
+        return self.implement, round(self.speed * 1000), self.index
+
+    def label(self) -> str:
+        return f"{self.implement} at {self.speed:g} m/s, pass {self.index + 1} ({self.duration:g} s)"
+
+
+@dataclass(frozen=True)
+class FieldPlan:
+    """What the operator drives: the valve test, then ``passes`` passes of ``duration`` s per speed and implement.
+
+    The default fits the budget: three implements x three speeds x two passes of 80 s (8 min per
+    implement) and the valve test (at most 5.3 min at standstill): 29.3 min.
+    """
+
+    implements: tuple[str, ...] = ("none", "disker", "ripper")
+    speeds: tuple[float, ...] = (1.0, 1.79, 2.91)
+    passes: int = 2
+    duration: float = 80.0
+    valve_test: ValveTestPlan | None = ValveTestPlan()
+
+    def __post_init__(self) -> None:
+        if not self.implements or len(set(self.implements)) != len(self.implements) or not all(
+                isinstance(i, str) and i.isidentifier() for i in self.implements):
+            raise ProcedureError(f"implements must be distinct names (letters, digits, _), got {self.implements!r}")
+        if not self.speeds or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                                      and 0.3 <= v <= 5.0 for v in self.speeds):
+            raise ProcedureError(f"speeds must be 0.3-5 m/s, got {self.speeds!r}")
+        if isinstance(self.passes, bool) or not isinstance(self.passes, int) or not 1 <= self.passes <= 10:
+            raise ProcedureError(f"passes must be 1..10 per speed, got {self.passes!r}")
+        if isinstance(self.duration, bool) or not isinstance(self.duration, (int, float)) or not (
+                math.isfinite(self.duration) and 10.0 <= self.duration <= 600.0):
+            raise ProcedureError(f"duration must be 10-600 s per pass, got {self.duration!r}")
+
+    def planned(self) -> list[PlannedPass]:
+        """Every pass, implement by implement (one hitch each), speed by speed."""
+        return [PlannedPass(imp, float(v), i, float(self.duration))
+                for imp in self.implements for v in self.speeds for i in range(self.passes)]
+
+    def seconds(self) -> dict:
+        """Driving per step, s: ``valve test``, each implement, and ``total``."""
+        out = {"valve test": self.valve_test.longest_duration() if self.valve_test is not None else 0.0}
+        for imp in self.implements:
+            out[imp] = len(self.speeds) * self.passes * float(self.duration)
+        out["total"] = sum(out.values())
+        return out
+
+    def check_budget(self, total: float = BUDGET_TOTAL_S, per_implement: float = BUDGET_PER_IMPLEMENT_S) -> dict:
+        """:meth:`seconds`, or :class:`ProcedureError` naming the steps over the budget."""
+        sec = self.seconds()
+        over = [f"{imp} {sec[imp] / 60:.1f} min" for imp in self.implements if sec[imp] > per_implement + 1e-9]
+        if over:
+            raise ProcedureError(f"the plan drives {', '.join(over)}: over the {per_implement / 60:g} min per "
+                                 "implement; fewer speeds, passes or seconds per pass")
+        if sec["total"] > total + 1e-9:
+            raise ProcedureError(f"the plan drives {sec['total'] / 60:.1f} min in all (valve test "
+                                 f"{sec['valve test'] / 60:.1f} min): over the {total / 60:g} min budget; fewer "
+                                 "speeds, passes or seconds per pass")
+        return sec
+
+
+def pass_key(log: PassLog) -> tuple[str, int, int] | None:
+    """The plan's key of a recorded log (``implement``, ``nominal_speed``, ``pass_index`` of its metadata);
+    ``None`` when the log does not say."""
+    m = log.meta
+    imp, speed, index = m.get("implement"), m.get("nominal_speed"), m.get("pass_index")
+    if not isinstance(imp, str) or isinstance(speed, bool) or not isinstance(speed, (int, float)) \
+            or isinstance(index, bool) or not isinstance(index, int):
+        return None
+    return imp, round(float(speed) * 1000), index
+
+
+def pass_faults(log: PassLog, planned_duration: float | None = None) -> list[str]:
+    """Why a recorded pass cannot be identified from (empty: it is good).
+
+    Parameters
+    ----------
+    log
+        The pass log.
+    planned_duration
+        Its planned length, s (None: not checked).
+    """
+    faults: list[str] = []              # a pass log holds finite samples only (PassLog refuses others)
+    if "fix_quality" in log.channels and log.channels["fix_quality"].size:
+        q = log.channels["fix_quality"]
+        bad = float(np.mean(q != 4))
+        if bad > MAX_NOT_FIXED:
+            faults.append(f"the fix was not RTK fixed for {100 * bad:.0f} % of the pass (at most "
+                          f"{100 * MAX_NOT_FIXED:g} %)")
+    for e in log.meta.get("events", []) or []:
+        reason = str(e.get("reason", "")) if isinstance(e, dict) else ""
+        if isinstance(e, dict) and e.get("event") == "disengage" and reason != "end of run":
+            what = "the operator took over" if any(w in reason.lower() for w in TAKEOVER_WORDS) else "disengaged"
+            faults.append(f"{what} at {float(e.get('t', math.nan)):.1f} s ({reason[:80]})")
+            break
+    if planned_duration is not None and log.duration < MIN_LENGTH * planned_duration:
+        faults.append(f"stopped after {log.duration:.0f} s of the {planned_duration:g} s planned")
+    return faults
+
+
+@dataclass(frozen=True)
+class Procedure:
+    """A procedure's folder and its plan; every state is read from the folder (module docstring)."""
+
+    folder: Path
+    plan: FieldPlan = FieldPlan()
+
+    @property
+    def logs(self) -> Path:
+        return Path(self.folder) / "logs"
+
+    @property
+    def spoiled(self) -> Path:
+        return Path(self.folder) / "spoiled"
+
+    def _read(self, folder: Path) -> list[tuple[Path, PassLog]]:
+        out = []
+        for f in sorted(folder.glob("*.npz")) if folder.is_dir() else []:
+            try:
+                out.append((f, PassLog.load(f)))
+            except (IdentificationError, ValueError, OSError) as exc:
+                raise ProcedureError(f"{f}: {exc}; move it out of {folder} (a damaged pass is driven again)") \
+                    from None
+        return out
+
+    def review(self) -> list[dict]:
+        """Move every recorded pass that a fault spoiled (or the plan does not hold) to ``spoiled/``, with a
+        ``<name>.why.txt`` beside it; returns one record per pass moved."""
+        planned = {p.key: p for p in self.plan.planned()}
+        moved = []
+        for f, log in self._read(self.logs):
+            key = pass_key(log)
+            faults = ["not a pass of the plan (its implement, speed or pass index)"] if key not in planned else \
+                pass_faults(log, planned[key].duration)
+            if faults:
+                self.spoiled.mkdir(parents=True, exist_ok=True)
+                target, n = self.spoiled / f.name, 1
+                while target.exists():                  # a pass spoiled twice: both kept
+                    target, n = self.spoiled / f"{f.stem}.{n}{f.suffix}", n + 1
+                with atomic_write(target.with_suffix(".why.txt"), "w") as fh:
+                    fh.write("; ".join(faults) + "\n")
+                f.replace(target)
+                moved.append({"file": str(target), "faults": faults})
+        return moved
+
+    def status(self) -> dict:
+        """What is done and what is next: ``valve_test_done``, ``recorded`` and ``remaining`` passes (labels),
+        ``spoiled`` (count), ``driven_s`` (every recorded pass, spoiled ones too, and the valve test once done),
+        ``planned_s`` (the plan's total), and ``next`` (one line for the operator)."""
+        planned = self.plan.planned()
+        good = {pass_key(log) for _, log in self._read(self.logs)}
+        spoiled = self._read(self.spoiled)
+        driven = sum(log.duration for _, log in self._read(self.logs)) + sum(log.duration for _, log in spoiled)
+        valve_done = (Path(self.folder) / "commissioning.json").is_file()
+        if valve_done:
+            driven += self.plan.seconds()["valve test"]
+        remaining = [p for p in planned if p.key not in good]
+        if not valve_done and self.plan.valve_test is not None:
+            nxt = "valve test at standstill: engine running, implement up, wheels free to turn"
+        elif remaining:
+            p = remaining[0]
+            hitch = "" if any(q.implement == p.implement and q.key in good for q in planned) else \
+                f"hitch the {p.implement} (none: no implement); "
+            nxt = f"{hitch}drive {p.label()} along the line"
+        else:
+            nxt = "every pass is recorded: commission from the logs (hil commission --logs)"
+        return {"valve_test_done": valve_done, "recorded": [p.label() for p in planned if p.key in good],
+                "remaining": [p.label() for p in remaining], "spoiled": len(spoiled), "driven_s": driven,
+                "planned_s": self.plan.seconds()["total"], "next": nxt}
+
+
+def status_text(status: dict) -> str:
+    """The operator's screen: progress, minutes of driving so far and planned, and the next step."""
+    n = len(status["recorded"]) + len(status["remaining"])
+    return "\n".join([
+        f"passes recorded: {len(status['recorded'])} of {n}" + (f" ({status['spoiled']} spoiled, to drive again)"
+                                                               if status["spoiled"] else ""),
+        f"driving so far: {status['driven_s'] / 60:.1f} min of {status['planned_s'] / 60:.1f} min planned",
+        f"next: {status['next']}"])

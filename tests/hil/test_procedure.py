@@ -1,0 +1,78 @@
+"""The field procedure as the operator follows it (hil.vehicle.procedure): the budget, spoiled passes, and
+the next step read back from the folder after an interruption."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hil.bench.runs.sysid import SysidPlan, make_passes
+from hil.vehicle.procedure import (BUDGET_TOTAL_S, FieldPlan, Procedure, ProcedureError, pass_faults, pass_key,
+                                   status_text)
+from identification.passlog import PassLog
+
+PLAN = FieldPlan(implements=("none", "disker"), speeds=(1.0,), passes=2, duration=20.0, valve_test=None)
+
+
+@pytest.fixture(scope="module")
+def passes() -> list[tuple[str, PassLog]]:
+    """Four recorded passes: none and disker at 1.0 m/s, two each, 20 s (as a tractor's logger names them)."""
+    return make_passes(SysidPlan(speeds=(1.0,), implements=("none", "disker"), passes=2, duration=20.0, seed=4))
+
+
+def _with(log: PassLog, channels: dict | None = None, meta: dict | None = None) -> PassLog:
+    return PassLog(times=dict(log.times), channels={**dict(log.channels), **(channels or {})},
+                   meta={**dict(log.meta), **(meta or {})})
+
+
+def test_the_default_plan_fits_the_budget_and_says_its_minutes_per_step():
+    sec = FieldPlan().check_budget()
+    assert sec["total"] <= BUDGET_TOTAL_S
+    assert sec["none"] == sec["disker"] == sec["ripper"] == 8 * 60 and 0 < sec["valve test"] <= 330
+    with pytest.raises(ProcedureError, match=r"none 12.0 min, disker 12.0 min, ripper 12.0 min: over the 10 min per"):
+        FieldPlan(passes=3).check_budget()
+    with pytest.raises(ProcedureError, match=r"over the 30 min budget"):
+        FieldPlan(implements=("none", "disker", "ripper", "bedder")).check_budget()
+
+
+def test_a_good_pass_has_no_fault_and_each_fault_is_named(passes):
+    _, log = passes[0]
+    assert pass_faults(log, 20.0) == [] and pass_key(log) == ("none", 1000, 0)
+    q = np.array(log.channels["fix_quality"])
+    q[: max(2, q.size // 10)] = 5
+    assert "not RTK fixed for 10 %" in pass_faults(_with(log, {"fix_quality": q}), 20.0)[0]
+    taken = _with(log, meta={"events": [{"t": 7.5, "event": "disengage", "reason": "manual override"}]})
+    assert pass_faults(taken) == ["the operator took over at 7.5 s (manual override)"]
+    assert "stopped after 20 s of the 60 s planned" in pass_faults(log, 60.0)
+
+
+def test_an_interrupted_procedure_resumes_where_it_stopped_and_drives_a_spoiled_pass_again(passes, tmp_path):
+    proc = Procedure(tmp_path, PLAN)
+    assert proc.status()["next"].startswith("hitch the none") and proc.status()["driven_s"] == 0
+    (tmp_path / "logs").mkdir()
+    for name, log in passes[:3]:                         # none 0, none 1, disker 0 recorded; then the power went
+        log.save(tmp_path / "logs" / f"{name}.npz")
+    q = np.array(passes[1][1].channels["fix_quality"])
+    q[:] = 5                                              # the second none pass had only an RTK float
+    _with(passes[1][1], {"fix_quality": q}).save(tmp_path / "logs" / f"{passes[1][0]}.npz")
+    resumed = Procedure(Path(tmp_path), PLAN)             # a new process after the interruption
+    moved = resumed.review()
+    assert [Path(m["file"]).name for m in moved] == [f"{passes[1][0]}.npz"]
+    assert "RTK fixed" in (tmp_path / "spoiled" / f"{passes[1][0]}.why.txt").read_text()
+    st = resumed.status()
+    assert st["recorded"] == ["none at 1 m/s, pass 1 (20 s)", "disker at 1 m/s, pass 1 (20 s)"]
+    assert st["remaining"] == ["none at 1 m/s, pass 2 (20 s)", "disker at 1 m/s, pass 2 (20 s)"]
+    assert st["next"] == "drive none at 1 m/s, pass 2 (20 s) along the line"   # no new hitch: none is on
+    assert st["spoiled"] == 1 and st["driven_s"] == pytest.approx(3 * 20.0, abs=0.5)  # the spoiled pass counts
+    text = status_text(st)
+    assert "passes recorded: 2 of 4 (1 spoiled, to drive again)" in text and "1.0 min of 1.3 min planned" in text
+    assert resumed.review() == [] and Procedure(tmp_path, PLAN).status() == st           # nothing moves twice
+
+
+def test_a_log_that_is_not_a_pass_log_is_named_with_the_fix(tmp_path):
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "logs" / "x.npz").write_bytes(b"PK\x03\x04 broken")
+    with pytest.raises(ProcedureError, match=r"x\.npz: .*move it out of"):
+        Procedure(tmp_path, PLAN).status()

@@ -1,5 +1,7 @@
 """Generate the layout tables and example frames of ``docs/agopengps_protocol.md`` from the PGN table.
 
+The rendering is the shared one of :mod:`hil.vehicle.wire.doc`; this module names the examples.
+
 The document holds a block between two markers that this module writes; a test checks that the
 block equals what the encoder produces now, so the document cannot drift from the code.
 
@@ -11,14 +13,12 @@ Usage::
 
 from __future__ import annotations
 
-from hil.vehicle import docblock
-
 import math
 import sys
 
+from hil.vehicle import docblock
 from hil.vehicle.agio.protocol import (
-    HEADER_LEN,
-    PGN_TABLE,
+    FORMAT,
     ConfigBits0,
     ConfigBits1,
     FromAutosteer,
@@ -30,8 +30,9 @@ from hil.vehicle.agio.protocol import (
     SteerData,
     SteerSettings,
     Switches,
-    encode_frame,
+    layout_of,
 )
+from hil.vehicle.wire import Layout, doc
 
 __all__ = ["BEGIN", "END", "EXAMPLES", "render", "replace_block", "main"]
 
@@ -55,53 +56,16 @@ EXAMPLES: list[tuple[str, Message]] = [
     ("scan request", ScanRequest()),
 ]
 
-_TYPES = {"B": "uint8", "b": "int8", "H": "uint16 LE", "h": "int16 LE"}
-_SIZES = {"B": 1, "b": 1, "H": 2, "h": 2}
-
-
-def _wire(f) -> str:
-    if f.kind == "scaled":
-        return f"{f.wire} ({f.scale:.6g} {f.unit} per LSB)"
-    if f.kind == "flags":
-        return "bits: " + ", ".join(f"0x{int(m):02X} {m.name}" for m in f.flags)
-    if f.kind == "const":
-        return f"always {f.offset}"
-    return f.unit or "integer"
-
-
-def _tables() -> list[str]:
-    out: list[str] = []
-    for pgn, layout in PGN_TABLE.items():
-        src = "module's last IP octet" if layout.source is None else f"0x{layout.source:02X}"
-        arrow = layout.direction.replace("->", " → ")
-        out += [f"#### PGN {pgn} (0x{pgn:02X}) {layout.cls.__name__} ({arrow}, source {src}, "
-                f"{layout.size} data bytes, frame {HEADER_LEN + layout.size + 1} bytes)", "",
-                "| frame byte | type | field | wire | in code |", "|---|---|---|---|---|"]
-        offset = HEADER_LEN
-        for f in layout.fields:
-            n = _SIZES[f.code] * f.count
-            where = str(offset) if n == 1 else f"{offset}-{offset + n - 1}"
-            typ = _TYPES[f.code] + (f" x {f.count}" if f.count > 1 else "")
-            code = {"scaled": "float, " + f.unit + (" or None" if f.sentinel is not None else ""),
-                    "flags": getattr(f.flags, "__name__", ""), "const": "(checked)", "octets": "tuple of int"}
-            out.append(f"| {where} | {typ} | `{f.name or '-'}` | {_wire(f)} | {code.get(f.kind, 'int')} |")
-            offset += n
-        out += [f"| {offset} | uint8 | checksum | low byte of the sum of bytes 2-{offset - 1} | checked |", ""]
-    return out
-
-
-def _examples() -> list[str]:
-    out: list[str] = []
-    for title, message in EXAMPLES:
-        frame = encode_frame(message)
-        out += [f"- {title}: `{message!r}`", "", "  ```", f"  {frame.hex(' ')}", "  ```", ""]
-    return out
+def _source(layout: Layout) -> str:
+    return "source module's last IP octet" if layout.tag is None else f"source 0x{layout.tag:02X}"
 
 
 def render() -> str:
     """The generated block, markers included."""
-    lines = [BEGIN, "", "### Layouts", ""] + _tables() + ["### Example frames (hex)", ""] + _examples()
-    return "\n".join(lines).rstrip() + "\n" + END
+    examples = [(title, message, layout_of(message).tag) for title, message in EXAMPLES]
+    return doc.render_block(FORMAT, examples, BEGIN, END,
+                            lambda layout: f"PGN {layout.msg_id} (0x{layout.msg_id:02X}) {layout.cls.__name__}",
+                            _source)
 
 
 def replace_block(text: str) -> str:

@@ -16,21 +16,21 @@ forks of the AiO Teensy firmware) and AgIO (``farmerbriantee/AgOpenGPS``,
 ``SourceCode/AgIO/Source/Forms/UDP.designer.cs``); see ``docs/agopengps_protocol.md``.
 
 Layouts are data (:data:`PGN_TABLE`): a struct code, a scale, an offset and a sentinel per field.
-The scale converts the wire integer into the SI value of the message dataclass, here and nowhere
-else. AgOpenGPS counts steer angles positive to the *right*; the toolkit counts them positive to
-the left, so the angle fields carry a negative scale.
+The scale converts the wire integer into the SI value of the message dataclass; the shared engine
+of :mod:`hil.vehicle.wire` applies it, in one place for every protocol. This module holds only what
+is AgOpenGPS's own: the messages, the table, the frame grammar, the checksum and the source rule.
+AgOpenGPS counts steer angles positive to the *right*; the toolkit counts them positive to the
+left, so the angle fields carry a negative scale.
 """
 
 from __future__ import annotations
 
 import enum
-import functools
 import math
-import struct
-from dataclasses import dataclass, fields
-from typing import Any
+from dataclasses import dataclass
 
 from hil.vehicle.agio.errors import (
+    AgioConfigError,
     ChecksumError,
     EncodeError,
     FieldError,
@@ -39,12 +39,13 @@ from hil.vehicle.agio.errors import (
     SourceError,
     UnknownPgnError,
 )
+from hil.vehicle.wire import ErrorSet, Field, FrameFormat, Layout, MessageTable
 
 __all__ = [
     "PREAMBLE", "HEADER_LEN", "SOURCE_AGIO", "SOURCE_STEER", "ANGLE_SCALE", "SPEED_SCALE",
     "GuidanceStatus", "Switches", "ConfigBits0", "ConfigBits1",
     "SteerData", "FromAutosteer", "SteerSettings", "SteerConfig", "HelloFromAgio", "HelloFromSteer",
-    "ScanRequest", "ScanReply", "Message", "Field", "Layout", "PGN_TABLE", "layout_of",
+    "ScanRequest", "ScanReply", "Message", "Field", "Layout", "PGN_TABLE", "TABLE", "FORMAT", "layout_of",
     "checksum", "frame_length", "encode_frame", "decode_frame", "decode_data",
 ]
 
@@ -279,94 +280,22 @@ Message = (SteerData | FromAutosteer | SteerSettings | SteerConfig | HelloFromAg
            | ScanRequest | ScanReply)
 
 
-@dataclass(frozen=True)
-class Field:
-    """One field of a data layout.
-
-    Parameters
-    ----------
-    name : str
-        Attribute of the message dataclass ("" for a reserved or constant byte).
-    code : str
-        struct code: ``B``, ``b``, ``H`` (uint16 LE) or ``h`` (int16 LE).
-    kind : str
-        ``int``, ``scaled`` (``(raw - offset) * scale``), ``flags`` (an IntFlag), ``const``
-        (the wire holds ``offset``), ``octets`` (consecutive uint8 gathered into a tuple).
-    scale : float
-        SI units per LSB (scaled fields).
-    unit : str
-        Unit of the attribute (documentation).
-    offset : int
-        Wire value of SI zero (scaled) or the constant (const).
-    sentinel : int or None
-        Wire value meaning None (scaled fields that may be absent).
-    flags : type or None
-        The IntFlag class of a flags field.
-    count : int
-        Number of octets (octets fields).
-    wire : str
-        What the wire integer means, as the AgOpenGPS sources say it (documentation).
-    """
-
-    name: str
-    code: str
-    kind: str = "int"
-    scale: float = 1.0
-    unit: str = ""
-    offset: int = 0
-    sentinel: int | None = None
-    flags: type | None = None
-    count: int = 1
-    wire: str = ""
-
-
-_RANGES = {"B": (0, 0xFF), "b": (-0x80, 0x7F), "H": (0, 0xFFFF), "h": (-0x8000, 0x7FFF)}
-
-
-@dataclass(frozen=True)
-class Layout:
-    """Layout of one PGN.
-
-    Parameters
-    ----------
-    pgn : int
-        PGN byte.
-    cls : type
-        Message dataclass.
-    source : int or None
-        Source byte of frames carrying this PGN (None: variable, see the message).
-    direction : str
-        ``agio->module`` or ``module->agio``.
-    fields : tuple of Field
-        Data fields in wire order.
-    """
-
-    pgn: int
-    cls: type
-    source: int | None
-    direction: str
-    fields: tuple[Field, ...]
-
-    @functools.cached_property
-    def struct(self) -> struct.Struct:
-        """Compiled little-endian struct of the data (octets fields expand to ``count`` bytes)."""
-        return struct.Struct("<" + "".join(f.code * f.count for f in self.fields))
-
-    @functools.cached_property
-    def size(self) -> int:
-        """Data length, bytes."""
-        return self.struct.size
-
-
 def _angle(name: str) -> Field:
     return Field(name, "h", "scaled", ANGLE_SCALE, "rad, + left", wire="degrees x 100, + right")
 
 
-_OCTET = "octets"
-PGN_TABLE: dict[int, Layout] = {
-    layout.pgn: layout
-    for layout in (
-        Layout(254, SteerData, SOURCE_AGIO, "agio->module", (
+def _const(*values: int) -> tuple[Field, ...]:
+    return tuple(Field("", "B", "const", offset=v) for v in values)
+
+
+def checksum(body: bytes) -> int:
+    """Low byte of the sum of ``body`` (the bytes from the source to the last data byte), 0..255."""
+    return sum(body) & 0xFF
+
+
+TABLE = MessageTable(
+    (
+        Layout(254, SteerData, "agio->module", (
             Field("speed", "H", "scaled", SPEED_SCALE, "m/s", wire="km/h x 10"),
             Field("status", "B", "flags", flags=GuidanceStatus),
             _angle("steer_angle"),
@@ -374,16 +303,16 @@ PGN_TABLE: dict[int, Layout] = {
                   wire="2 cm per bit, offset 127, 255 = off"),
             Field("sections_1_8", "B"),
             Field("sections_9_16", "B"),
-        )),
-        Layout(253, FromAutosteer, SOURCE_STEER, "module->agio", (
+        ), SOURCE_AGIO),
+        Layout(253, FromAutosteer, "module->agio", (
             _angle("steer_angle"),
             Field("heading", "h", "scaled", _HEADING_SCALE, "rad, compass", sentinel=9999,
                   wire="degrees x 10, 9999 = no IMU"),
             Field("roll", "h", "scaled", _HEADING_SCALE, "rad", sentinel=8888, wire="degrees x 10, 8888 = no IMU"),
             Field("switches", "B", "flags", flags=Switches),
             Field("pwm_display", "B", unit="PWM counts"),
-        )),
-        Layout(252, SteerSettings, SOURCE_AGIO, "agio->module", (
+        ), SOURCE_STEER),
+        Layout(252, SteerSettings, "agio->module", (
             Field("kp", "B", unit="PWM counts per degree"),
             Field("high_pwm", "B", unit="PWM counts"),
             Field("low_pwm", "B", unit="PWM counts"),
@@ -391,38 +320,35 @@ PGN_TABLE: dict[int, Layout] = {
             Field("counts_per_degree", "B", unit="sensor counts per degree"),
             Field("was_offset", "h", unit="sensor counts"),
             Field("ackermann", "B", "scaled", 0.01, "fraction", wire="percent"),
-        )),
-        Layout(251, SteerConfig, SOURCE_AGIO, "agio->module", (
+        ), SOURCE_AGIO),
+        Layout(251, SteerConfig, "agio->module", (
             Field("setting0", "B", "flags", flags=ConfigBits0),
             Field("pulse_count_max", "B", unit="counts"),
             Field("min_speed", "B", unit="(unused)"),
             Field("setting1", "B", "flags", flags=ConfigBits1),
-            *(Field("", "B", "const", offset=0) for _ in range(4)),
-        )),
-        Layout(200, HelloFromAgio, SOURCE_AGIO, "agio->module", (
-            Field("", "B", "const", offset=56), Field("", "B", "const", offset=0),
-            Field("", "B", "const", offset=0),
-        )),
-        Layout(126, HelloFromSteer, SOURCE_STEER, "module->agio", (
+            *_const(0, 0, 0, 0),
+        ), SOURCE_AGIO),
+        Layout(200, HelloFromAgio, "agio->module", _const(56, 0, 0), SOURCE_AGIO),
+        Layout(126, HelloFromSteer, "module->agio", (
             _angle("steer_angle"),
             Field("sensor_counts", "h", unit="sensor counts - 6800"),
             Field("switches", "B", "flags", flags=Switches),
+        ), SOURCE_STEER),
+        Layout(202, ScanRequest, "agio->module", (*_const(202, 202), Field("tag", "B")), SOURCE_AGIO),
+        Layout(203, ScanReply, "module->agio", (
+            Field("module_ip", "B", "octets", count=4), Field("subnet", "B", "octets", count=3),
         )),
-        Layout(202, ScanRequest, SOURCE_AGIO, "agio->module", (
-            Field("", "B", "const", offset=202), Field("", "B", "const", offset=202),
-            Field("tag", "B"),
-        )),
-        Layout(203, ScanReply, None, "module->agio", (
-            Field("module_ip", "B", _OCTET, count=4), Field("subnet", "B", _OCTET, count=3),
-        )),
-    )
-}
-"""PGN -> layout. The one place where wire integers and SI values meet."""
+    ),
+    byteorder="little",
+    errors=ErrorSet(encode=EncodeError, frame=FrameError, length=LengthError, unknown=UnknownPgnError,
+                    field=FieldError, checksum=ChecksumError, config=AgioConfigError),
+    noun="an AgOpenGPS message", id_text="PGN {}", payload_text="{} data bytes",
+)
+"""The PGN layouts and their codec; a layout's ``tag`` is the source byte its frames carry (None:
+the module's last IP octet, :class:`ScanReply`)."""
 
-_BY_CLASS: dict[type, Layout] = {layout.cls: layout for layout in PGN_TABLE.values()}
-for _layout in PGN_TABLE.values():   # every attribute of a message has exactly one field
-    if {f.name for f in _layout.fields if f.name} != {f.name for f in fields(_layout.cls)}:
-        raise TypeError(f"PGN {_layout.pgn}: the layout's fields are not the attributes of {_layout.cls.__name__}")
+PGN_TABLE: dict[int, Layout] = TABLE.layouts
+"""PGN -> layout. The one place where wire integers and SI values meet."""
 
 
 def layout_of(message: Message) -> Layout:
@@ -433,88 +359,13 @@ def layout_of(message: Message) -> Layout:
     EncodeError
         ``message`` is not a message of the table.
     """
-    try:
-        return _BY_CLASS[type(message)]
-    except KeyError:
-        raise EncodeError(f"{type(message).__name__} is not an AgOpenGPS message; expected one of "
-                          f"{', '.join(c.__name__ for c in _BY_CLASS)}") from None
-
-
-def checksum(body: bytes) -> int:
-    """Low byte of the sum of ``body`` (the bytes from the source to the last data byte), 0..255."""
-    return sum(body) & 0xFF
+    return TABLE.layout_of(message)
 
 
 def frame_length(message_or_pgn: Message | int) -> int:
     """Total frame length on the wire, bytes (header + data + checksum)."""
-    pgn = message_or_pgn if isinstance(message_or_pgn, int) else layout_of(message_or_pgn).pgn
+    pgn = message_or_pgn if isinstance(message_or_pgn, int) else layout_of(message_or_pgn).msg_id
     return HEADER_LEN + PGN_TABLE[pgn].size + 1
-
-
-def _int(value: object, lo: int, hi: int, where: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise EncodeError(f"{where} must be an int in [{lo}, {hi}], got {value!r}")
-    return int(value)
-
-
-def _to_wire(f: Field, value: object, where: str) -> list[int]:
-    lo, hi = _RANGES[f.code]
-    if f.kind == "const":
-        return [f.offset]
-    if f.kind == _OCTET:
-        if not isinstance(value, tuple) or len(value) != f.count:
-            raise EncodeError(f"{where} must be a tuple of {f.count} octets, got {value!r}")
-        return [_int(v, 0, 255, where) for v in value]
-    if f.kind == "flags":
-        if f.flags is None:
-            raise TypeError(f"{where}: a 'flags' field without its flag type")
-        if not isinstance(value, f.flags):
-            raise EncodeError(f"{where} must be a {f.flags.__name__}, got {value!r}")
-        return [int(value)]
-    if f.kind == "scaled":
-        if value is None and f.sentinel is not None:
-            return [f.sentinel]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise EncodeError(f"{where} must be a finite number ({f.unit}), got {value!r}")
-        raw = round(float(value) / f.scale) + f.offset
-        if not lo <= raw <= hi or raw == f.sentinel:
-            a, b = sorted(((lo - f.offset) * f.scale, (hi - f.offset) * f.scale))
-            raise EncodeError(f"{where}={value!r} {f.unit} is outside the encodable range [{a:g}, {b:g}] "
-                              f"(wire {raw}); saturate before sending")
-        return [raw]
-    return [_int(value, lo, hi, where)]
-
-
-def encode_frame(message: Message, source: int | None = None) -> bytes:
-    """Encode one message as a complete frame.
-
-    Parameters
-    ----------
-    message : Message
-        Any message of :data:`PGN_TABLE`.
-    source : int, optional
-        Source byte; default the PGN's own (for :class:`ScanReply` the module's last IP octet).
-
-    Returns
-    -------
-    bytes
-        Preamble, header, data and checksum.
-
-    Raises
-    ------
-    EncodeError
-        Unknown message type, or a field that cannot be encoded.
-    """
-    layout = layout_of(message)
-    name = layout.cls.__name__
-    if source is None:
-        source = layout.source if layout.source is not None else message.module_ip[3]  # type: ignore[union-attr]
-    _int(source, 0, 255, "source")
-    raws: list[int] = []
-    for f in layout.fields:
-        raws += _to_wire(f, getattr(message, f.name) if f.name else None, f"{name}.{f.name or 'const'}")
-    body = bytes((source, layout.pgn, layout.size)) + layout.struct.pack(*raws)
-    return PREAMBLE + body + bytes((checksum(body),))
 
 
 def decode_data(pgn: int, data: bytes, source: int | None = None) -> Message:
@@ -535,39 +386,50 @@ def decode_data(pgn: int, data: bytes, source: int | None = None) -> Message:
         The PGN is unknown, the data has the wrong length, the source is not the PGN's, or a
         field holds a value the protocol forbids (reserved bits, a constant byte that differs).
     """
-    layout = PGN_TABLE.get(pgn)
-    if layout is None:
-        raise UnknownPgnError(f"unknown PGN {pgn} (0x{pgn:02X}); known: {', '.join(str(p) for p in PGN_TABLE)}")
+    layout = TABLE.lookup(pgn)
     name = layout.cls.__name__
-    if len(data) != layout.size:
-        raise LengthError(f"PGN {pgn} ({name}) has {layout.size} data bytes, got {len(data)}")
-    if source is not None and layout.source is not None and source != layout.source:
-        raise SourceError(f"PGN {pgn} ({name}) comes from source 0x{layout.source:02X}, got 0x{source:02X}")
-    raws = iter(layout.struct.unpack(data))
-    values: dict[str, Any] = {}
-    for f in layout.fields:
-        if f.kind == _OCTET:
-            values[f.name] = tuple(next(raws) for _ in range(f.count))
-            continue
-        raw = next(raws)
-        if f.kind == "const":
-            if raw != f.offset:
-                raise FieldError(f"PGN {pgn} ({name}): a constant byte must be {f.offset}, got {raw}")
-        elif f.kind == "flags":
-            if f.flags is None:
-                raise TypeError(f"PGN {pgn} ({name}).{f.name}: a 'flags' field without its flag type")
-            mask = sum(int(m) for m in f.flags)
-            if raw & ~mask:
-                raise FieldError(f"{name}.{f.name}=0x{raw:02x} sets reserved bits (allowed mask 0x{mask:02x})")
-            values[f.name] = f.flags(raw)
-        elif f.kind == "scaled":
-            values[f.name] = None if raw == f.sentinel else (raw - f.offset) * f.scale
-        else:
-            values[f.name] = raw
-    if layout.source is None and source is not None and source != values["module_ip"][3]:
+    if source is not None and layout.tag is not None and source != layout.tag and len(data) == layout.size:
+        raise SourceError(f"PGN {pgn} ({name}) comes from source 0x{layout.tag:02X}, got 0x{source:02X}")
+    message = TABLE.decode_payload(pgn, data)
+    if layout.tag is None and source is not None and source != message.module_ip[3]:
         raise SourceError(f"PGN {pgn} ({name}) comes from the module's last IP octet "
-                          f"{values['module_ip'][3]}, got source {source}")
-    return layout.cls(**values)
+                          f"{message.module_ip[3]}, got source {source}")
+    return message
+
+
+FORMAT = FrameFormat(
+    TABLE, sync=PREAMBLE, header_len=HEADER_LEN, id_at=3, tag_at=2, length_at=4, tag_name="source",
+    checksum=checksum, checksum_len=1, checksum_order="little", checksum_name="checksum", checksum_hex="02X",
+    checksum_doc="low byte of the sum of bytes {first}-{last}", checked_from=2, max_payload=255,
+    decode=decode_data, content_errors=((SourceError, "source_errors"), (FieldError, "field_errors")),
+)
+"""The frame grammar of PGN frames: the source byte is the tag, checked by :func:`decode_data`."""
+
+
+def encode_frame(message: Message, source: int | None = None) -> bytes:
+    """Encode one message as a complete frame.
+
+    Parameters
+    ----------
+    message : Message
+        Any message of :data:`PGN_TABLE`.
+    source : int, optional
+        Source byte; default the PGN's own (for :class:`ScanReply` the module's last IP octet).
+
+    Returns
+    -------
+    bytes
+        Preamble, header, data and checksum.
+
+    Raises
+    ------
+    EncodeError
+        Unknown message type, a source that is not 0..255, or a field that cannot be encoded.
+    """
+    if source is None:
+        tag = layout_of(message).tag
+        source = tag if tag is not None else message.module_ip[3]  # type: ignore[union-attr]
+    return FORMAT.encode(message, source)
 
 
 def decode_frame(data: bytes) -> tuple[int, Message]:
@@ -584,14 +446,4 @@ def decode_frame(data: bytes) -> tuple[int, Message]:
         Bad preamble, truncated or trailing bytes; or its subclasses :class:`ChecksumError`,
         :class:`LengthError`, :class:`UnknownPgnError`, :class:`SourceError`, :class:`FieldError`.
     """
-    data = bytes(data)
-    if len(data) < HEADER_LEN + 1 or data[:2] != PREAMBLE:
-        raise FrameError(f"a frame starts with {PREAMBLE.hex(' ')} and is at least {HEADER_LEN + 1} bytes; "
-                         f"got {data[:8].hex(' ')!r} ({len(data)} bytes)")
-    length = data[4]
-    if len(data) != HEADER_LEN + length + 1:
-        raise LengthError(f"length byte says {length} data bytes, frame has {len(data) - HEADER_LEN - 1}")
-    got, want = data[-1], checksum(data[2:-1])
-    if got != want:
-        raise ChecksumError(f"invalid checksum 0x{got:02X} - should be 0x{want:02X}")
-    return data[2], decode_data(data[3], data[HEADER_LEN:-1], data[2])
+    return FORMAT.decode_frame(data)

@@ -1,5 +1,7 @@
 """Generate the tables and example frames of ``docs/bridge_protocol.md`` from the message table.
 
+The rendering is the shared one of :mod:`hil.vehicle.wire.doc`; this module names the examples.
+
 The protocol document holds a block between two markers that this module
 writes; a test checks that the block in the document equals what the encoder
 produces now, so the document cannot drift from the code.
@@ -12,23 +14,11 @@ Usage::
 
 from __future__ import annotations
 
-from hil.vehicle import docblock
-
 import sys
 
-from hil.vehicle.bridge.protocol import (
-    CRC_LEN,
-    HEADER_LEN,
-    MESSAGE_TABLE,
-    Engage,
-    Message,
-    Ping,
-    StatusFlags,
-    SteerRateCommand,
-    WheelAngleReport,
-    crc16,
-    encode_frame,
-)
+from hil.vehicle import docblock
+from hil.vehicle.bridge.protocol import FORMAT, Engage, Message, Ping, StatusFlags, SteerRateCommand, WheelAngleReport
+from hil.vehicle.wire import doc
 
 __all__ = ["BEGIN", "END", "EXAMPLES", "render", "replace_block"]
 
@@ -45,58 +35,10 @@ EXAMPLES: list[tuple[str, Message, int]] = [
                       duty=0.5, bad_frames=1, dropped_frames=2, bridge_time_ms=3456), 3),
 ]
 
-_TYPES = {"B": "uint8", "b": "int8", "H": "uint16", "h": "int16"}
-_SIZES = {"B": 1, "b": 1, "H": 2, "h": 2}
-
-
-def _layout_tables() -> list[str]:
-    out: list[str] = []
-    for msg_id, layout in MESSAGE_TABLE.items():
-        size = layout.size
-        out.append(f"#### 0x{msg_id:02X} {layout.cls.__name__} ({layout.direction}, payload {size} bytes, "
-                   f"frame {HEADER_LEN + size + CRC_LEN} bytes)")
-        out.append("")
-        if not layout.fields:
-            out.append("No payload.")
-            out.append("")
-            continue
-        out.append("| payload offset | type | field | wire unit | value in code |")
-        out.append("|---|---|---|---|---|")
-        offset = 0
-        for f in layout.fields:
-            if f.kind == "scaled":
-                wire = f"{f.scale:g} {f.unit} per LSB"
-            elif f.kind == "flags":
-                wire = "bit field"
-            else:
-                wire = f.unit
-            in_code = {"scaled": f"float, {f.unit}", "flags": "StatusFlags"}.get(f.kind, "int")
-            out.append(f"| {offset} | {_TYPES[f.code]} | `{f.name}` | {wire} | {in_code} |")
-            offset += _SIZES[f.code]
-        out.append("")
-    return out
-
-
-def _examples() -> list[str]:
-    out: list[str] = []
-    for title, message, seq in EXAMPLES:
-        frame = encode_frame(message, seq)
-        out.append(f"- {title}: `{message!r}`")
-        out.append("")
-        out.append("  ```")
-        out.append(f"  {frame.hex(' ')}")
-        out.append("  ```")
-        out.append("")
-        out.append(f"  CRC 0x{crc16(frame[2:-2]):04X} over `{frame[2:-2].hex(' ')}`.")
-        out.append("")
-    return out
-
 
 def render() -> str:
     """The generated block, markers included."""
-    lines = [BEGIN, "", "### Message layouts", ""] + _layout_tables() + ["### Example frames (hex)", ""]
-    lines += _examples()
-    return "\n".join(lines).rstrip() + "\n" + END
+    return doc.render_block(FORMAT, EXAMPLES, BEGIN, END, lambda layout: f"0x{layout.msg_id:02X} {layout.cls.__name__}")
 
 
 def replace_block(text: str) -> str:

@@ -14,20 +14,28 @@ Frame (all multi-byte integers big-endian, as on the MC68HC11)::
 
 Message layouts are data (:data:`MESSAGE_TABLE`): a struct code, a scale and a
 unit per field. The scale converts between the integer on the wire and the SI
-value in the message dataclass; it is applied here and nowhere else.
+value in the message dataclass; the shared engine of :mod:`hil.vehicle.wire`
+applies it, in one place for every protocol. This module holds only what is the
+bridge's own: the messages, the table, the frame grammar and the CRC.
 """
 
 from __future__ import annotations
 
 import binascii
 import enum
-import functools
-import math
-import struct
 from dataclasses import dataclass
 from typing import Callable
 
-from hil.vehicle.bridge.errors import CrcError, EncodeError, FieldError, FrameError, LengthError, UnknownMessageError
+from hil.vehicle.bridge.errors import (
+    ConfigError,
+    CrcError,
+    EncodeError,
+    FieldError,
+    FrameError,
+    LengthError,
+    UnknownMessageError,
+)
+from hil.vehicle.wire import ErrorSet, Field, FrameFormat, Layout, MessageTable
 
 __all__ = [
     "frame_packer",
@@ -50,6 +58,8 @@ __all__ = [
     "Field",
     "Layout",
     "MESSAGE_TABLE",
+    "TABLE",
+    "FORMAT",
     "layout_of",
     "crc16",
     "frame_length",
@@ -84,9 +94,6 @@ class StatusFlags(enum.IntFlag):
     """The watchdog tripped since the last engage; cleared only by an engage."""
     OVERRIDE = 0x04
     """The driver is turning the steering wheel (sampled now)."""
-
-
-_FLAG_MASK = int(StatusFlags.ENGAGED | StatusFlags.WATCHDOG | StatusFlags.OVERRIDE)
 
 
 @dataclass(frozen=True)
@@ -191,135 +198,56 @@ class Frame:
     message: Message
 
 
-@dataclass(frozen=True)
-class Field:
-    """One field of a payload layout.
-
-    Parameters
-    ----------
-    name : str
-        Attribute name in the message dataclass.
-    code : str
-        struct code of the wire integer: ``B``, ``b``, ``H`` or ``h``.
-    scale : float or None
-        SI units per LSB for scaled fields; None for plain integers.
-    unit : str
-        Unit of the dataclass attribute (documentation).
-    kind : str
-        ``int``, ``scaled`` or ``flags``.
-    """
-
-    name: str
-    code: str
-    scale: float | None
-    unit: str
-    kind: str = "int"
+def crc16(data: bytes) -> int:
+    """CRC-16/CCITT-FALSE of ``data`` (init 0xFFFF, poly 0x1021), 0..65535."""
+    return binascii.crc_hqx(data, CRC_INIT)
 
 
-_RANGES = {"B": (0, 0xFF), "b": (-0x80, 0x7F), "H": (0, 0xFFFF), "h": (-0x8000, 0x7FFF)}
-
-
-@dataclass(frozen=True)
-class Layout:
-    """Layout of one message id.
-
-    Parameters
-    ----------
-    msg_id : int
-        Message id on the wire.
-    cls : type
-        Message dataclass.
-    direction : str
-        ``host->bridge`` or ``bridge->host``.
-    fields : tuple of Field
-        Payload fields in wire order.
-    """
-
-    msg_id: int
-    cls: type
-    direction: str
-    fields: tuple[Field, ...]
-
-    @functools.cached_property
-    def struct(self) -> struct.Struct:
-        """Compiled big-endian struct of the payload (compiled once)."""
-        return struct.Struct(">" + "".join(f.code for f in self.fields))
-
-    @functools.cached_property
-    def size(self) -> int:
-        """Payload length, bytes."""
-        return self.struct.size
-
-
-MESSAGE_TABLE: dict[int, Layout] = {
-    layout.msg_id: layout
-    for layout in (
-        Layout(0x01, SteerRateCommand, "host->bridge",
-               (Field("rate", "h", RATE_SCALE, "rad/s", "scaled"),)),
+TABLE = MessageTable(
+    (
+        Layout(0x01, SteerRateCommand, "host->bridge", (Field("rate", "h", "scaled", RATE_SCALE, "rad/s"),)),
         Layout(0x02, Engage, "host->bridge", ()),
         Layout(0x03, Disengage, "host->bridge", ()),
-        Layout(0x04, Ping, "host->bridge", (Field("token", "H", None, "token"),)),
+        Layout(0x04, Ping, "host->bridge", (Field("token", "H", unit="token"),)),
         Layout(0x81, WheelAngleReport, "bridge->host", (
-            Field("adc_counts", "B", None, "counts"),
-            Field("flags", "B", None, "bits", "flags"),
-            Field("command_seq", "B", None, "sequence"),
-            Field("duty", "h", DUTY_SCALE, "fraction", "scaled"),
-            Field("bad_frames", "H", None, "frames"),
-            Field("dropped_frames", "H", None, "frames"),
-            Field("bridge_time_ms", "H", None, "ms"),
+            Field("adc_counts", "B", unit="counts"),
+            Field("flags", "B", "flags", unit="bits", flags=StatusFlags),
+            Field("command_seq", "B", unit="sequence"),
+            Field("duty", "h", "scaled", DUTY_SCALE, "fraction"),
+            Field("bad_frames", "H", unit="frames"),
+            Field("dropped_frames", "H", unit="frames"),
+            Field("bridge_time_ms", "H", unit="ms"),
         )),
-        Layout(0x84, Pong, "bridge->host", (Field("token", "H", None, "token"),)),
-    )
-}
+        Layout(0x84, Pong, "bridge->host", (Field("token", "H", unit="token"),)),
+    ),
+    byteorder="big",
+    errors=ErrorSet(encode=EncodeError, frame=FrameError, length=LengthError, unknown=UnknownMessageError,
+                    field=FieldError, checksum=CrcError, config=ConfigError),
+    noun="a bridge message", id_text="message id 0x{:02x}", payload_text="a {}-byte payload",
+)
+"""The bridge's layouts and their codec (:class:`~hil.vehicle.wire.table.MessageTable`)."""
+
+MESSAGE_TABLE: dict[int, Layout] = TABLE.layouts
 """Message id -> layout. The one place where wire integers and SI values meet."""
 
-_BY_CLASS: dict[type, Layout] = {layout.cls: layout for layout in MESSAGE_TABLE.values()}
-_CRC = struct.Struct(">H")
+FORMAT = FrameFormat(
+    TABLE, sync=SYNC, header_len=HEADER_LEN, id_at=2, tag_at=3, length_at=4, tag_name="sequence number",
+    checksum=crc16, checksum_len=CRC_LEN, checksum_order="big", checksum_name="CRC", checksum_hex="04x",
+    checksum_doc="CRC-16/CCITT-FALSE (init 0xFFFF, poly 0x1021) of bytes {first}-{last}", checked_from=2,
+    max_payload=MAX_PAYLOAD, content_errors=((FieldError, "field_errors"),),
+)
+"""The bridge's frame grammar (:class:`~hil.vehicle.wire.frame.FrameFormat`)."""
 
 
 def layout_of(message: Message) -> Layout:
     """Layout of a message object; EncodeError for a type not in the table."""
-    try:
-        return _BY_CLASS[type(message)]
-    except KeyError:
-        raise EncodeError(
-            f"{type(message).__name__} is not a bridge message; expected one of "
-            f"{', '.join(c.__name__ for c in _BY_CLASS)}"
-        ) from None
-
-
-def crc16(data: bytes) -> int:
-    """CRC-16/CCITT-FALSE of ``data`` (init 0xFFFF, poly 0x1021), 0..65535."""
-    return binascii.crc_hqx(data, CRC_INIT)
+    return TABLE.layout_of(message)
 
 
 def frame_length(message_or_id: Message | int) -> int:
     """Total frame length on the wire, bytes (header + payload + CRC)."""
     msg_id = message_or_id if isinstance(message_or_id, int) else layout_of(message_or_id).msg_id
     return HEADER_LEN + MESSAGE_TABLE[msg_id].size + CRC_LEN
-
-
-def _to_wire(field: Field, value: object, cls_name: str) -> int:
-    lo, hi = _RANGES[field.code]
-    if field.kind == "scaled":
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise EncodeError(f"{cls_name}.{field.name} must be a finite number ({field.unit}), got {value!r}")
-        scaled = float(value) / field.scale  # type: ignore[operator]
-        raw = round(scaled) if math.isfinite(scaled) else (hi + 1 if scaled > 0 else lo - 1)   # 1e308 / scale = inf
-        if not lo <= raw <= hi:
-            raise EncodeError(
-                f"{cls_name}.{field.name}={value!r} {field.unit} is outside the encodable range "
-                f"[{lo * field.scale:g}, {hi * field.scale:g}]; saturate before sending"  # type: ignore[operator]
-            )
-        return raw
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise EncodeError(f"{cls_name}.{field.name} must be an int, got {value!r}")
-    raw = int(value)
-    if not lo <= raw <= hi:
-        raise EncodeError(f"{cls_name}.{field.name}={raw} is outside [{lo}, {hi}]")
-    if field.kind == "flags" and raw & ~_FLAG_MASK:
-        raise EncodeError(f"{cls_name}.{field.name}=0x{raw:02x} sets reserved bits (allowed mask 0x{_FLAG_MASK:02x})")
-    return raw
 
 
 def encode_frame(message: Message, seq: int) -> bytes:
@@ -342,13 +270,7 @@ def encode_frame(message: Message, seq: int) -> bytes:
     EncodeError
         Unknown message type, sequence out of range, or a field that cannot be encoded.
     """
-    layout = layout_of(message)
-    if isinstance(seq, bool) or not isinstance(seq, int) or not 0 <= seq <= 0xFF:
-        raise EncodeError(f"sequence number must be an int in 0..255, got {seq!r}")
-    name = layout.cls.__name__
-    raws = [_to_wire(f, getattr(message, f.name), name) for f in layout.fields]
-    body = bytes((layout.msg_id, seq, layout.size)) + layout.struct.pack(*raws)
-    return SYNC + body + _CRC.pack(crc16(body))
+    return FORMAT.encode(message, seq)
 
 
 def frame_packer(message_class: type) -> Callable[..., bytes]:
@@ -360,12 +282,11 @@ def frame_packer(message_class: type) -> Callable[..., bytes]:
     EncodeError
         ``message_class`` is not in the table (the packer raises as :func:`encode_frame` does).
     """
-    if message_class not in _BY_CLASS:
-        raise EncodeError(f"{getattr(message_class, '__name__', message_class)!s} is not a bridge message; expected "
-                          f"one of {', '.join(c.__name__ for c in _BY_CLASS)}")
+    TABLE.check_class(message_class)
+    encode = FORMAT.encode
 
     def pack(seq: int, *values: object) -> bytes:
-        return encode_frame(message_class(*values), seq)
+        return encode(message_class(*values), seq)
 
     return pack
 
@@ -382,25 +303,7 @@ def decode_payload(msg_id: int, payload: bytes) -> Message:
     FieldError
         A field holds a value the protocol forbids (reserved flag bits).
     """
-    layout = MESSAGE_TABLE.get(msg_id)
-    if layout is None:
-        raise UnknownMessageError(f"unknown message id 0x{msg_id:02x}; known: "
-                                  f"{', '.join(f'0x{i:02x}' for i in MESSAGE_TABLE)}")
-    if len(payload) != layout.size:
-        raise LengthError(f"message 0x{msg_id:02x} ({layout.cls.__name__}) has a {layout.size}-byte payload, "
-                          f"got {len(payload)}")
-    values = {}
-    for f, raw in zip(layout.fields, layout.struct.unpack(payload)):
-        if f.kind == "scaled":
-            values[f.name] = raw * f.scale
-        elif f.kind == "flags":
-            if raw & ~_FLAG_MASK:
-                raise FieldError(f"{layout.cls.__name__}.{f.name}=0x{raw:02x} sets reserved bits "
-                                 f"(allowed mask 0x{_FLAG_MASK:02x})")
-            values[f.name] = StatusFlags(raw)
-        else:
-            values[f.name] = raw
-    return layout.cls(**values)
+    return TABLE.decode_payload(msg_id, payload)
 
 
 def decode_frame(data: bytes) -> Frame:
@@ -412,17 +315,5 @@ def decode_frame(data: bytes) -> Frame:
         Bad sync or trailing bytes; or its subclasses :class:`CrcError`,
         :class:`LengthError`, :class:`UnknownMessageError`, :class:`FieldError`.
     """
-    data = bytes(data)
-    if len(data) < HEADER_LEN + CRC_LEN or data[:2] != SYNC:
-        raise FrameError(f"a frame starts with sync {SYNC.hex(' ')} and is at least "
-                         f"{HEADER_LEN + CRC_LEN} bytes; got {data[:8].hex(' ')!r} ({len(data)} bytes)")
-    length = data[4]
-    if length > MAX_PAYLOAD or len(data) != HEADER_LEN + length + CRC_LEN:
-        raise LengthError(f"length byte says {length} payload bytes (max {MAX_PAYLOAD}), "
-                          f"frame has {len(data) - HEADER_LEN - CRC_LEN}")
-    body = data[2:HEADER_LEN + length]
-    got = _CRC.unpack_from(data, HEADER_LEN + length)[0]
-    want = crc16(body)
-    if got != want:
-        raise CrcError(f"invalid CRC 0x{got:04x} - should be 0x{want:04x}")
-    return Frame(seq=data[3], message=decode_payload(data[2], data[HEADER_LEN:HEADER_LEN + length]))
+    seq, message = FORMAT.decode_frame(data)
+    return Frame(seq=seq, message=message)

@@ -10,7 +10,7 @@ becomes, with no simulator and no truth:
 2. **designs** -- the paper's central LQR, the robust controller certified on every local model and the
    MPC (:func:`hil.commissioning.designs.design_with_fallback`), their command limits the valve's
    measured rate, the automatic weights' margins covering the latency identification measured;
-3. **report** -- ``report.md`` and ``result.json``: the logs and the minutes of driving they hold, the
+3. **report** -- ``report.md``, ``index.html`` (the same as a page, with the provenance) and ``result.json``: the logs and the minutes of driving they hold, the
    latency and where it came from, the models and their fits, the designs and their certificates.
 
 No trial drive chooses among laws here: the designs are made from the models alone.
@@ -31,6 +31,7 @@ from identification.passlog import PassLog
 from identification.workflow import expand_logs, identify_logs
 
 from hil.commissioning.designs import WEIGHTS, Designer, attempts, design_with_fallback, settings_text
+from hil.commissioning.html import provenance, write_page
 from hil.commissioning.steps import Steps
 from hil.vehicle.commissioning import Commissioning, load_commissioning
 from hil.vehicle.errors import VehicleConfigError
@@ -132,7 +133,7 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
     commissioning
         The commissioning file of its valve test.
     out
-        Output folder: ``models/``, ``controllers/``, ``report.md``, ``result.json``.
+        Output folder: ``models/``, ``controllers/``, ``report.md``, ``index.html``, ``result.json``.
     options
         Identification and design settings.
     say, progress
@@ -176,11 +177,17 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
             res["identification_fallback"] = again
     res["designs"] = designs
     res["steps"] = steps.record
-    res["files"] = [str(out / "report.md"), str(out / "result.json")]
+    res["files"] = [str(out / "report.md"), str(out / "index.html"), str(out / "result.json")]
     with atomic_write(out / "result.json", "w") as fh:          # first: a report that fails loses nothing
         fh.write(json.dumps(res, indent=2, default=_jsonable) + "\n")
+    text = report_text(res)
     with atomic_write(out / "report.md", "w") as fh:
-        fh.write(report_text(res))
+        fh.write(text)
+    failed = [s["step"] for s in res["steps"] if not s["ok"]]
+    write_page(out / "index.html", f"Commissioning of {res['tractor']} from its recorded passes", text.splitlines(),
+               provenance(tractor=str(res["tractor"]), options=res["options"],
+                          files={d["file"]: "" for d in designs.values() if d.get("file")}),
+               summary=f"{len(files)} pass log(s); " + (f"failed: {', '.join(failed)}." if failed else "every step ok."))
     return res
 
 

@@ -37,7 +37,7 @@ HASH_MAX_BYTES = 64 * 2 ** 20
 GIT_TIMEOUT_S = 10.0
 
 _PASS = re.compile(r"^(ok|yes|met|passed|pass|stable on every model)\b", re.I)
-_FAIL = re.compile(r"^(no|not met|missed|fail|failed|not stable)\b", re.I)
+_FAIL = re.compile(r"^(no|not met|missed|fail|failed|not stable|refused)\b", re.I)
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,8 @@ fails and says how to install it (it is never skipped).
 
 from __future__ import annotations
 
+import hashlib
+import json
 import re
 import shutil
 import subprocess
@@ -75,3 +77,66 @@ def test_the_comparison_page_renders_in_chromium_with_its_tables_and_figures(tmp
     assert done.returncode == 0 and shot.stat().st_size > 20_000, done.stderr[-2000:]
     assert shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     shutil.rmtree(tmp_path / "chromium-profile", ignore_errors=True)
+
+
+def _page(path: Path) -> str:
+    return path.read_text().replace("\n", "")
+
+
+def test_the_commissioning_page_marks_each_step_and_states_its_provenance(tmp_path):
+    from hil.bench.commissioning.report import write_commission_report
+    ctrl = tmp_path / "controllers" / "robust.json"
+    ctrl.parent.mkdir()
+    ctrl.write_text('{"controller": "robust"}\n')
+    res = {"tractor": {"name": "heavy-11t", "description": "An 11 t tractor.", "parameters": {}},
+           "options": {"hil_seeds": [0, 1, 2], "hil_duration": 40.0},
+           "steps": [{"step": "valve", "ok": True, "seconds": 1.5},
+                     {"step": "identification", "ok": False, "error": "too few passes", "seconds": 2.0}],
+           "designs": {"robust": {"file": str(ctrl), "weights": "auto", "settings": {}}}}
+    files = write_commission_report(res, tmp_path)
+    assert str(tmp_path / "index.html") in files and (tmp_path / "report.md").is_file()
+    page = _page(tmp_path / "index.html")
+    assert "<title>Commissioning of heavy-11t</title>" in page and '<nav class="toc"' in page
+    assert '<td class="pass">ok</td>' in page and '<td class="fail">FAILED: too few passes</td>' in page
+    assert "<td>tractor</td><td>heavy-11t</td>" in page and "<td>seeds</td><td>0, 1, 2</td>" in page
+    assert "<td>option hil_duration</td><td>40.0</td>" in page
+    assert f"<td>sha256 of {ctrl}</td><td>{hashlib.sha256(ctrl.read_bytes()).hexdigest()}</td>" in page
+    assert "<code>robust</code>" in page and "`" not in page.split("</style>")[1]
+
+
+def test_commissioning_from_logs_writes_its_page(tmp_path):
+    from hil.bench.benches.valve import characterise_on_bench
+    from hil.bench.runs.sysid import SysidPlan, make_passes
+    from hil.commissioning.from_logs import commission_from_logs
+    from hil.truth.tractors import resolve_tractor
+    from hil.vehicle.commissioning import Commissioning, save_commissioning
+    params = resolve_tractor("default").params()
+    curve, _ = characterise_on_bench(params, seed=5)
+    com = save_commissioning(Commissioning("field tractor", curve, None, notes=""), tmp_path / "commissioning.json")
+    for name, log in make_passes(SysidPlan(speeds=(1.0,), implements=("none",), passes=1, duration=8.0, seed=11),
+                                 params, valve=curve):
+        log.save(tmp_path / "logs" / f"{name}.npz")
+    res = commission_from_logs(tmp_path / "logs", com, tmp_path / "out", say=lambda line: None)   # 8 s: too short
+    assert str(tmp_path / "out" / "index.html") in res["files"]
+    page = _page(tmp_path / "out" / "index.html")
+    assert "<title>Commissioning of field tractor from its recorded passes</title>" in page
+    assert "1 pass log(s); failed: identification." in page
+    assert '<td>identification</td><td class="fail">NO</td>' in page
+    assert "<td>option acceptance</td><td>refuse</td>" in page and "<td>tractor</td><td>field tractor</td>" in page
+
+
+def test_the_field_comparison_writes_its_page(tmp_path):
+    from gnss.curve import ArcPath
+    from gnss.field import Field
+    from gnss.field_io import field_to_dict
+    from hil.bench.fields.runs import compare_fields
+    from hil.truth.conditions import condition_for
+    field = tmp_path / "hairpin.json"
+    field.write_text(json.dumps(field_to_dict(Field("hairpin", ArcPath((0, 0), 0.0, [(20.0, 0.0)]), 3.0, 2))))
+    out = tmp_path / "cmp"
+    rep = compare_fields(out, ["kinematic"], [str(field)], [condition_for("none", 1.79)], seeds=(0,), workers=1)
+    assert str(out / "index.html") in rep["files"]
+    page = _page(out / "index.html")
+    assert '<h2 id="runs">Runs</h2>' in page and '<h2 id="figures">Figures</h2>' in page
+    assert "<td>hairpin</td><td>kinematic</td>" in page and page.count("<img ") == 3
+    assert f"<td>sha256 of {field}</td><td>{hashlib.sha256(field.read_bytes()).hexdigest()}</td>" in page

@@ -1,4 +1,5 @@
-"""The report of ``hil commission``: ``report.md``, the valve figure and the 1-sigma figure.
+"""The report of ``hil commission``: ``report.md``, ``index.html`` (the same as a page, with the provenance:
+:mod:`hil.commissioning.html`), the valve figure and the 1-sigma figure.
 
 Everything is read from the recipe's result (:func:`hil.bench.commissioning.recipe.commission`); nothing is
 recomputed here.
@@ -12,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from hil.commissioning.designs import settings_text
+from hil.commissioning.html import provenance, write_page
 from hil.bench.commissioning.table import CONTROLLERS, hil_ratios
 from hil.vehicle.valve_map import ValveCurve
 
@@ -147,7 +149,7 @@ def _mpc_window_trial_lines(tr: dict | None) -> list[str]:
 
 
 def write_commission_report(res: dict, out: Path) -> list[str]:
-    """Write ``report.md`` and its figures under ``out``; returns the files written."""
+    """Write ``report.md``, ``index.html`` and the figures under ``out``; returns the files written."""
     files: list[str] = []
     t = res["tractor"]
     lines = [f"# Commissioning of `{t['name']}`", "", t["description"], "",
@@ -267,4 +269,12 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
         files.append(str(_sigma_figure(cells, out / "sigma_vs_speed.png")))
         lines += ["", "![1-sigma versus speed](sigma_vs_speed.png)"]
     (out / "report.md").write_text("\n".join(lines) + "\n")
-    return [str(out / "report.md"), *files]
+    opts = dict(res.get("options") or {})
+    seeds = opts.pop("hil_seeds", None)
+    ctrl_files = {d["file"]: "" for d in (res.get("designs") or {}).values() if d.get("file")}
+    failed = [s["step"] for s in res.get("steps", []) if not s["ok"]]
+    write_page(out / "index.html", f"Commissioning of {t['name']}", lines,
+               provenance(tractor=t["name"], options=opts, seeds=seeds, files=ctrl_files),
+               summary=f"{len(res.get('steps', []))} steps, " + (f"failed: {', '.join(failed)}." if failed
+                                                                   else "all ok."))
+    return [str(out / "report.md"), str(out / "index.html"), *files]

@@ -29,6 +29,7 @@ from hil.bench.runs.field_route import field_run
 from hil.bench.fields.spacing import spacing_decomposition
 from hil.bench.runs.run import RunSpec, simulated_run
 from hil.bench.runs.workers import run_pool
+from hil.commissioning.html import provenance, write_page
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import Condition
 from hil.truth.params import SimParams
@@ -286,7 +287,8 @@ def field_row(r: dict) -> dict:
 
 
 def write_field_report(results: list[dict], comparison: FieldComparison) -> dict:
-    """``fields.md`` and ``fields.json`` under the comparison's ``out``, and the figures of each field's first run."""
+    """``fields.md``, ``index.html`` (the same as a page, with the provenance) and ``fields.json`` under the
+    comparison's ``out``, and the figures of each field's first run."""
     out = comparison.out
     rows = [field_row(r) for r in results]
     lines = ["# Field comparison", "",
@@ -312,6 +314,7 @@ def write_field_report(results: list[dict], comparison: FieldComparison) -> dict
                      f"{_cm(w['worst_skip'])} | {w['jumps']} | {w['disengagements']} | {w['off_route_s']:.0f} | "
                      f"{w['route_driven'] * 100:.0f} % |")
     files = [str(out / "fields.md"), str(out / "fields.json")]
+    table_end = len(lines)
     seen = set()
     for key in comparison.keys:
         fname = Path(key.field).stem if key.field.endswith(".json") else key.field
@@ -325,6 +328,17 @@ def write_field_report(results: list[dict], comparison: FieldComparison) -> dict
     (out / "fields.md").write_text("\n".join(lines) + "\n")
     (out / "fields.json").write_text(json.dumps({"identity": comparison.identity, "rows": rows,
                                                  "runs": results}, indent=1) + "\n")
+    ident = comparison.identity
+    opts = {"controllers": ident["controllers"], "fields": ident["fields"], "passes": ident["passes"],
+            "conditions": [f"{i} {float(v):.2f} m/s" for i, v in ident["conditions"]],
+            "simulator parameters": "in fields.json (sha256 "
+                                    f"{hashlib.sha256(json.dumps(ident['params'], sort_keys=True).encode()).hexdigest()})"}
+    page = ["## Runs", *lines[1:table_end], "", "## Figures", *lines[table_end:]]
+    write_page(out / "index.html", "Field comparison", page,
+               provenance(options=opts, seeds=ident["seeds"], files=ident["files"]),
+               summary=f"{len(rows)} run(s): {len(ident['controllers'])} controller(s) on {len(ident['fields'])} "
+                       f"field(s), {len(ident['conditions'])} condition(s).")
+    files.insert(1, str(out / "index.html"))
     return {"rows": len(rows), "files": files}
 
 

@@ -21,6 +21,7 @@ from hil.vehicle.agio.errors import EncodeError as AgioEncodeError
 from hil.vehicle.agio.protocol import GuidanceStatus, SteerData
 from hil.vehicle.agio.protocol import encode_frame as agio_encode
 from hil.vehicle.wire import Deframer, ErrorSet, Field, FrameFormat, Layout, MessageTable, TableError
+from hil.vehicle.wire.errors import FrameRefusal
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -29,10 +30,8 @@ class CanError(ValueError):
     pass
 
 
-class CanFrameError(CanError):
-    def __init__(self, message: str, offset: int = -1) -> None:
-        super().__init__(message)
-        self.offset = offset
+class CanFrameError(CanError, FrameRefusal):
+    pass
 
 
 class CanEncodeError(CanError):

@@ -36,7 +36,6 @@ from hil.vehicle.wire import Layout, doc
 
 __all__ = ["BEGIN", "END", "EXAMPLES", "render", "replace_block", "main"]
 
-BEGIN = docblock.begin_marker("hil.vehicle.agio.docgen")
 END = docblock.END
 
 EXAMPLES: list[tuple[str, Message]] = [
@@ -56,26 +55,18 @@ EXAMPLES: list[tuple[str, Message]] = [
     ("scan request", ScanRequest()),
 ]
 
+
 def _source(layout: Layout) -> str:
     return "source module's last IP octet" if layout.tag is None else f"source 0x{layout.tag:02X}"
 
 
-def render() -> str:
-    """The generated block, markers included."""
-    examples = [(title, message, layout_of(message).tag) for title, message in EXAMPLES]
-    return doc.render_block(FORMAT, examples, BEGIN, END,
-                            lambda layout: f"PGN {layout.msg_id} (0x{layout.msg_id:02X}) {layout.cls.__name__}",
-                            _source)
-
-
-def replace_block(text: str) -> str:
-    """``text`` with its generated block replaced by :func:`render` (see :mod:`hil.vehicle.docblock`)."""
-    return docblock.replace_block(text, BEGIN, render())
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Check or rewrite the generated block of a protocol document; 0 when up to date."""
-    return docblock.docgen_main(argv, "hil.vehicle.agio.docgen", replace_block)
+_DOC = doc.DocGenerator("hil.vehicle.agio.docgen", FORMAT,
+                        [(title, message, layout_of(message).tag) for title, message in EXAMPLES],
+                        lambda layout: f"PGN {layout.msg_id} (0x{layout.msg_id:02X}) {layout.cls.__name__}", _source)
+BEGIN = _DOC.begin
+render = _DOC.render
+replace_block = _DOC.replace_block
+main = _DOC.main
 
 
 if __name__ == "__main__":

@@ -7,6 +7,8 @@ decoder returns them (it never raises on bad bytes) so that the driver can count
 
 from __future__ import annotations
 
+from hil.vehicle.wire.errors import FrameRefusal
+
 __all__ = [
     "AgioError",
     "FrameError",
@@ -25,20 +27,9 @@ class AgioError(Exception):
     """Base of every error raised or reported by :mod:`hil.vehicle.agio`."""
 
 
-class FrameError(AgioError, ValueError):
-    """A received frame was refused; ``offset`` is the stream index of its last byte (-1: unknown).
-
-    Parameters
-    ----------
-    message : str
-        What was expected, what came.
-    offset : int, optional
-        Index in the decoded byte stream of the last byte that belonged to the refused frame.
-    """
-
-    def __init__(self, message: str, offset: int = -1) -> None:
-        super().__init__(message)
-        self.offset = offset
+class FrameError(AgioError, FrameRefusal):
+    """A received frame was refused; ``offset`` (from :class:`~hil.vehicle.wire.errors.FrameRefusal`) is
+    the stream index where it ended (-1 when unknown)."""
 
 
 class ChecksumError(FrameError):

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from hil.vehicle.bridge.errors import ConfigError
-from hil.vehicle.bridge.protocol import MAX_PAYLOAD, RATE_SCALE
+from hil.vehicle.bridge.protocol import MAX_PAYLOAD, MESSAGE_TABLE, RATE_SCALE
 from hil.links.errors import LinkConfigError
 from hil.links.uart import LineConfig
 
@@ -18,6 +18,15 @@ __all__ = ["FirmwareConfig", "DriverConfig"]
 def _positive(name: str, value: object, unit: str = "s") -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
         raise ConfigError(f"{name} must be a positive finite number ({unit}), got {value!r}")
+
+
+_LARGEST = max(layout.size for layout in MESSAGE_TABLE.values())
+
+
+def _payload_limit(value: object) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or not _LARGEST <= value <= 255:
+        raise ConfigError(f"max_payload must be an int in {_LARGEST}..255 bytes (the largest message needs "
+                          f"{_LARGEST}), got {value!r}")
 
 
 def _build(cls: type, options: Mapping[str, Any], nested: Mapping[str, Any] | None = None) -> Any:
@@ -75,10 +84,7 @@ class FirmwareConfig:
         if self.watchdog_timeout < self.report_period:
             raise ConfigError(f"watchdog_timeout ({self.watchdog_timeout} s) shorter than report_period "
                               f"({self.report_period} s) would trip between two host cycles; lengthen it")
-        if isinstance(self.max_payload, bool) or not isinstance(self.max_payload, int) \
-                or not 11 <= self.max_payload <= 255:
-            raise ConfigError(f"max_payload must be an int in 11..255 bytes (the report needs 11), "
-                              f"got {self.max_payload!r}")
+        _payload_limit(self.max_payload)
         if self.max_rate / RATE_SCALE < 100:
             raise ConfigError(f"max_rate {self.max_rate} rad/s is under 100 command steps of {RATE_SCALE} rad/s")
 
@@ -122,9 +128,7 @@ class DriverConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ConfigError(f"{name} must be a positive int, got {value!r}")
-        if isinstance(self.max_payload, bool) or not isinstance(self.max_payload, int) \
-                or not 11 <= self.max_payload <= 255:
-            raise ConfigError(f"max_payload must be an int in 11..255 bytes, got {self.max_payload!r}")
+        _payload_limit(self.max_payload)
 
     @classmethod
     def from_mapping(cls, options: Mapping[str, Any]) -> DriverConfig:

@@ -22,7 +22,6 @@ from hil.vehicle.wire import doc
 
 __all__ = ["BEGIN", "END", "EXAMPLES", "render", "replace_block"]
 
-BEGIN = docblock.begin_marker("hil.vehicle.bridge.docgen")
 END = docblock.END
 
 EXAMPLES: list[tuple[str, Message, int]] = [
@@ -36,19 +35,12 @@ EXAMPLES: list[tuple[str, Message, int]] = [
 ]
 
 
-def render() -> str:
-    """The generated block, markers included."""
-    return doc.render_block(FORMAT, EXAMPLES, BEGIN, END, lambda layout: f"0x{layout.msg_id:02X} {layout.cls.__name__}")
-
-
-def replace_block(text: str) -> str:
-    """``text`` with its generated block replaced by :func:`render` (see :mod:`hil.vehicle.docblock`)."""
-    return docblock.replace_block(text, BEGIN, render())
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Check or rewrite the generated block of a protocol document; 0 when up to date."""
-    return docblock.docgen_main(argv, "hil.vehicle.bridge.docgen", replace_block)
+_DOC = doc.DocGenerator("hil.vehicle.bridge.docgen", FORMAT, EXAMPLES,
+                        lambda layout: f"0x{layout.msg_id:02X} {layout.cls.__name__}")
+BEGIN = _DOC.begin
+render = _DOC.render
+replace_block = _DOC.replace_block
+main = _DOC.main
 
 
 if __name__ == "__main__":

@@ -8,6 +8,8 @@ decoder returns them (it never raises on bad bytes) so that they can be counted.
 
 from __future__ import annotations
 
+from hil.vehicle.wire.errors import FrameRefusal
+
 __all__ = [
     "BridgeError",
     "FrameError",
@@ -27,21 +29,9 @@ class BridgeError(Exception):
     """Base of every error raised or reported by :mod:`hil.vehicle.bridge`."""
 
 
-class FrameError(BridgeError, ValueError):
-    """A received frame was refused; ``offset`` is the stream index where it ended.
-
-    Parameters
-    ----------
-    message : str
-        What was expected, what came.
-    offset : int, optional
-        Index in the decoded byte stream of the last byte that belonged to the
-        refused frame (-1 when unknown).
-    """
-
-    def __init__(self, message: str, offset: int = -1) -> None:
-        super().__init__(message)
-        self.offset = offset
+class FrameError(BridgeError, FrameRefusal):
+    """A received frame was refused; ``offset`` (from :class:`~hil.vehicle.wire.errors.FrameRefusal`) is
+    the stream index where it ended (-1 when unknown)."""
 
 
 class CrcError(FrameError):

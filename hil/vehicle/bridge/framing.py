@@ -114,16 +114,7 @@ class StreamDecoder(Deframer):
                                bytes_discarded=n["bytes_discarded"], bytes_fed=self.bytes_fed)
 
     def feed(self, data: bytes) -> list[DecodeEvent]:
-        """Add bytes; return the frames and refused frames they complete, in stream order.
-
-        Parameters
-        ----------
-        data : bytes
-            Any bytes, possibly empty, possibly garbage.
-
-        Returns
-        -------
-        list of DecodeEvent
-        """
+        """``feed_tuples(data)``, each event wrapped in a :class:`DecodeEvent` (and a frame in a
+        :class:`~hil.vehicle.bridge.protocol.Frame`)."""
         return [DecodeEvent(end, error=item) if seq is None else DecodeEvent(end, Frame(seq, item))
                 for end, seq, item in self.feed_tuples(data)]

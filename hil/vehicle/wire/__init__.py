@@ -16,8 +16,9 @@ frames: preamble ``80 81``, little-endian, 8-bit sum) are the two built on it.
 Plugging in a new protocol
 --------------------------
 1. Its errors: one exception module in its package, each class subclassing a builtin; gather
-   them in an :class:`ErrorSet` (encode, frame, length, unknown id, field, checksum, config;
-   the four decoding errors subclass the frame error so a stream decoder can return them).
+   them in an :class:`ErrorSet` (encode, frame, length, unknown id, field, checksum, config).
+   The frame error subclasses :class:`FrameRefusal` (a ``ValueError`` with the stream offset)
+   and the four decoding errors subclass it, so a stream decoder can return them as values.
 2. Its table: one frozen dataclass per message and one :class:`Layout` per message id, whose
    :class:`Field` rows give the struct code, the kind (``int``, ``scaled``, ``flags``, ``const``,
    ``octets``), the SI scale and offset (``value = (raw - offset) * scale``), the unit, a
@@ -38,9 +39,9 @@ Plugging in a new protocol
    :mod:`hil.vehicle.docblock`, and a test that the committed document equals the rendering.
 """
 
-from hil.vehicle.wire.errors import ErrorSet, TableError
+from hil.vehicle.wire.errors import ErrorSet, FrameRefusal, TableError
 from hil.vehicle.wire.frame import COUNTERS, Deframer, FrameFormat
 from hil.vehicle.wire.table import CODES, KINDS, Field, Layout, MessageTable
 
-__all__ = ["ErrorSet", "TableError", "COUNTERS", "Deframer", "FrameFormat", "CODES", "KINDS", "Field", "Layout",
+__all__ = ["ErrorSet", "FrameRefusal", "TableError", "COUNTERS", "Deframer", "FrameFormat", "CODES", "KINDS", "Field", "Layout",
            "MessageTable"]

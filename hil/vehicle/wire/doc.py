@@ -9,10 +9,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+from hil.vehicle import docblock
 from hil.vehicle.wire.frame import FrameFormat
 from hil.vehicle.wire.table import Field, Layout
 
-__all__ = ["render_block", "type_name"]
+__all__ = ["render_block", "type_name", "DocGenerator"]
 
 _TYPES = {"B": "uint8", "b": "int8", "H": "uint16", "h": "int16", "I": "uint32", "i": "int32"}
 
@@ -89,3 +90,34 @@ def render_block(fmt: FrameFormat, examples: Sequence[tuple[str, object, int]], 
                   f"  {fmt.checksum_name} 0x{fmt.checksum(checked):{fmt.checksum_hex.upper()}} over "
                   f"`{checked.hex(' ')}`.", ""]
     return "\n".join(lines).rstrip() + "\n" + end
+
+
+class DocGenerator:
+    """The generated block of one protocol document and the command that checks or rewrites it.
+
+    Parameters
+    ----------
+    module : str
+        The ``docgen`` module (``python -m MODULE PATH [--write]``), named in the block's marker.
+    fmt, examples, heading, tag
+        As :func:`render_block`.
+    """
+
+    def __init__(self, module: str, fmt: FrameFormat, examples: Sequence[tuple[str, object, int]],
+                 heading: Callable[[Layout], str], tag: Callable[[Layout], str] | None = None) -> None:
+        self.module = module
+        self.begin = docblock.begin_marker(module)
+        self._args = (fmt, examples, heading, tag)
+
+    def render(self) -> str:
+        """The generated block, markers included."""
+        fmt, examples, heading, tag = self._args
+        return render_block(fmt, examples, self.begin, docblock.END, heading, tag)
+
+    def replace_block(self, text: str) -> str:
+        """``text`` with its generated block replaced by :meth:`render` (see :mod:`hil.vehicle.docblock`)."""
+        return docblock.replace_block(text, self.begin, self.render())
+
+    def main(self, argv: list[str] | None = None) -> int:
+        """Check or rewrite the generated block of a protocol document; 0 when up to date."""
+        return docblock.docgen_main(argv, self.module, self.replace_block)

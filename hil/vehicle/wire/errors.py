@@ -10,11 +10,29 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["TableError", "ErrorSet"]
+__all__ = ["TableError", "FrameRefusal", "ErrorSet"]
 
 
 class TableError(ValueError):
     """A field, layout, table or frame grammar is inconsistent (found when it is defined)."""
+
+
+class FrameRefusal(ValueError):
+    """Base of a protocol's frame error: a received frame was refused; ``offset`` is the stream index
+    where it ended.
+
+    Parameters
+    ----------
+    message : str
+        What was expected, what came.
+    offset : int, optional
+        Index in the decoded byte stream of the last byte that belonged to the refused frame
+        (-1 when unknown; the stream decoder sets it).
+    """
+
+    def __init__(self, message: str, offset: int = -1) -> None:
+        super().__init__(message)
+        self.offset = offset
 
 
 @dataclass(frozen=True)
@@ -26,7 +44,8 @@ class ErrorSet:
     encode : type
         A message cannot be encoded (wrong type, non-finite, out of range).
     frame : type
-        A received frame is refused (bad sync, truncated, trailing bytes); base of the four below.
+        A received frame is refused (bad sync, truncated, trailing bytes); a subclass of
+        :class:`FrameRefusal` and the base of the four below.
     length : type
         The payload length is wrong for the message id or above the limit.
     unknown : type
@@ -48,6 +67,9 @@ class ErrorSet:
     config: type
 
     def __post_init__(self) -> None:
+        if not issubclass(self.frame, FrameRefusal):
+            raise TableError(f"ErrorSet.frame ({self.frame.__name__}) must subclass FrameRefusal (it carries the "
+                             "stream offset of the refused frame)")
         for name in ("length", "unknown", "field", "checksum"):
             if not issubclass(getattr(self, name), self.frame):
                 raise TableError(f"ErrorSet.{name} ({getattr(self, name).__name__}) must subclass the frame error "

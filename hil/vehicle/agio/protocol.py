@@ -365,7 +365,7 @@ def layout_of(message: Message) -> Layout:
 def frame_length(message_or_pgn: Message | int) -> int:
     """Total frame length on the wire, bytes (header + data + checksum)."""
     pgn = message_or_pgn if isinstance(message_or_pgn, int) else layout_of(message_or_pgn).msg_id
-    return HEADER_LEN + PGN_TABLE[pgn].size + 1
+    return FORMAT.frame_length(pgn)
 
 
 def decode_data(pgn: int, data: bytes, source: int | None = None) -> Message:

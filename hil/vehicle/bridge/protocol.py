@@ -246,8 +246,7 @@ def layout_of(message: Message) -> Layout:
 
 def frame_length(message_or_id: Message | int) -> int:
     """Total frame length on the wire, bytes (header + payload + CRC)."""
-    msg_id = message_or_id if isinstance(message_or_id, int) else layout_of(message_or_id).msg_id
-    return HEADER_LEN + MESSAGE_TABLE[msg_id].size + CRC_LEN
+    return FORMAT.frame_length(message_or_id if isinstance(message_or_id, int) else layout_of(message_or_id).msg_id)
 
 
 def encode_frame(message: Message, seq: int) -> bytes:

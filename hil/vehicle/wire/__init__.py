@@ -43,5 +43,5 @@ from hil.vehicle.wire.errors import ErrorSet, FrameRefusal, TableError
 from hil.vehicle.wire.frame import COUNTERS, Deframer, FrameFormat
 from hil.vehicle.wire.table import CODES, KINDS, Field, Layout, MessageTable
 
-__all__ = ["ErrorSet", "FrameRefusal", "TableError", "COUNTERS", "Deframer", "FrameFormat", "CODES", "KINDS", "Field", "Layout",
-           "MessageTable"]
+__all__ = ["ErrorSet", "FrameRefusal", "TableError", "COUNTERS", "Deframer", "FrameFormat", "CODES", "KINDS",
+           "Field", "Layout", "MessageTable"]

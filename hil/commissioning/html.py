@@ -262,7 +262,7 @@ def provenance(tractor: str | None = None, options: Mapping[str, object] | None 
     for path, digest in (files or {}).items():
         rows.append((f"sha256 of {path}", digest or file_sha256(path)))
     if not files:
-        rows.append(("controller files", "none (built-in controllers only)"))
+        rows.append(("controller files", "none"))
     return rows
 
 

@@ -141,7 +141,7 @@ def attacker(bridge: str, plan: list[tuple[str, float, float]], rng: np.random.G
 @pytest.mark.parametrize("bridge", ["hc11", "agopengps"])
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(plan=episodes, seed=st.integers(0, 2**32 - 1))
-@example(plan=[("wheel_range", 2.0, 1.0), ("flood", 2.0, 1.0)], seed=0)   # a report lost in a flood: stale, not acted on
+@example(plan=[("wheel_range", 2.0, 1.0), ("flood", 2.0, 1.0)], seed=0)   # a report lost in a flood: stale
 def test_random_hostile_streams_never_steer_on_a_fault(bridge, controller, plan, seed):
     rng = np.random.default_rng(seed)
     inject, edit = attacker(bridge, plan, rng)

@@ -2,7 +2,7 @@
 
 The checks on their own (:class:`hil.vehicle.plausibility.Plausibility`), then the loop in lockstep on
 the simulated tractor through both bridges with an attacker editing its inputs
-(:mod:`tests.hil.hostile_doubles`): a GNSS yaw or speed that turns ``nan``, wheel-angle reports that are
+(``hostile_doubles.py`` beside this file): a GNSS yaw or speed that turns ``nan``, wheel-angle reports that are
 well formed and physically impossible (an HC11 ADC of 255, a steer module's 327 degrees).
 """
 
@@ -120,7 +120,8 @@ def assert_never_steers_on_a_fault(run) -> None:
 def test_a_nan_gnss_value_disengages_in_its_cycle_and_says_why(bridge, field, controller):
     """A yaw (``$PTNL,AVR``) or speed (``$GPVTG``) of ``nan`` from 2 s on: the loop used to stay engaged
     with the fix marked invalid, steering on a frozen cross-track, to the end of the run."""
-    run = hostile_run(bridge, controller, duration=5.0, edit=lambda t, nav: edited(nav, **{field: math.nan}) if t >= 2.0 else nav)
+    run = hostile_run(bridge, controller, duration=5.0,
+                      edit=lambda t, nav: edited(nav, **{field: math.nan}) if t >= 2.0 else nav)
     events = run.log.meta["events"]
     assert events[0]["event"] == "engage" and events[0]["t"] < 1.5
     off = [e for e in events if e["event"] == "disengage"]
@@ -141,7 +142,8 @@ def test_an_impossible_wheel_angle_disengages_and_holds_until_the_reports_are_pl
     steer module's setpoint went to its 30 degree limit with autosteer on, and re-engaged)."""
     start, end = 2.0, 3.5
     attack = IMPOSSIBLE[bridge]
-    run = hostile_run(bridge, controller, duration=6.0, inject=lambda now: attack(now) if start <= now < end else (b"", False))
+    run = hostile_run(bridge, controller, duration=6.0,
+                      inject=lambda now: attack(now) if start <= now < end else (b"", False))
     cfg = run.loop.config
     events = run.log.meta["events"]
     off = [e for e in events if e["event"] == "disengage"]

@@ -1,0 +1,9 @@
+"""ISO 11783 (ISOBUS) guidance: steering a steering-ready tractor through its valve controller.
+
+Modules
+-------
+protocol   Guidance System Command (PGN 44288) and Guidance Machine Info (PGN 44032): layout
+           table on :mod:`hil.vehicle.wire`, bit fields, strict codec.
+docgen     The generated part of ``docs/isobus_protocol.md``.
+errors     The package's exceptions.
+"""

@@ -29,6 +29,7 @@ Event = tuple[int, int | None, Message | FrameError]
 """``(end, source, message)`` for an accepted frame, ``(end, None, error)`` for a refused one;
 ``end`` is the stream index (0 = first byte ever fed) of the frame's last byte."""
 
+
 @dataclass(frozen=True)
 class PgnCounters:
     """Counters of a decoder since construction.

@@ -36,7 +36,7 @@ HASH_MAX_BYTES = 64 * 2 ** 20
 #: Seconds allowed to each ``git`` call of the provenance.
 GIT_TIMEOUT_S = 10.0
 
-_PASS = re.compile(r"^(ok|yes|met|passed|pass|stable on every model)\b", re.I)
+_PASS = re.compile(r"^(ok|yes|met|passed|pass|accepted|stable on every model)\b", re.I)
 _FAIL = re.compile(r"^(no|not met|missed|fail|failed|not stable|refused)\b", re.I)
 
 
@@ -119,7 +119,7 @@ def _anchor(text: str, used: set[str]) -> str:
 def blocks(lines: Iterable[str | Table]) -> list:
     """Blocks of the page from Markdown lines (a line may hold several, split at newlines) and :class:`Table` s.
 
-    Handled: ``#``/``##``/``###`` headings (the first level-1 heading is the page's title and is
+    Handled: ``##``/``###`` headings (a ``#`` heading is the page's title, given apart, and is
     dropped), pipe tables (the separator row sets right alignment), fenced code, ``- `` lists,
     ``![alt](file)`` images, and paragraphs (consecutive lines joined).
     """

@@ -105,7 +105,8 @@ def test_the_wheel_installs_and_runs_outside_the_checkout(tmp_path):
     run([sys.executable, "-m", "venv", "--without-pip", env_dir])
     py = env_dir / "bin" / "python"
     site = Path(run([py, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"]).strip())
-    project_site = Path(run([sys.executable, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"]).strip())
+    project_site = Path(run([sys.executable, "-c",
+                             "import sysconfig; print(sysconfig.get_paths()['purelib'])"]).strip())
     # The project environment's packages, after the new environment's own: a plain path line, so that the
     # project's editable-install hook (a .pth file there) is not run and the toolkit comes from the wheel.
     (site / "project-environment.pth").write_text(f"{project_site}\n")

@@ -10,7 +10,8 @@ becomes, with no simulator and no truth:
 2. **designs** -- the paper's central LQR, the robust controller certified on every local model and the
    MPC (:func:`hil.commissioning.designs.design_with_fallback`), their command limits the valve's
    measured rate, the automatic weights' margins covering the latency identification measured;
-3. **report** -- ``report.md``, ``index.html`` (the same as a page, with the provenance) and ``result.json``: the logs and the minutes of driving they hold, the
+3. **report** -- ``report.md``, ``index.html`` (the same as a page, with the provenance) and
+   ``result.json``: the logs and the minutes of driving they hold, the
    latency and where it came from, the models and their fits, the designs and their certificates.
 
 No trial drive chooses among laws here: the designs are made from the models alone.
@@ -187,7 +188,8 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
     write_page(out / "index.html", f"Commissioning of {res['tractor']} from its recorded passes", text.splitlines(),
                provenance(tractor=str(res["tractor"]), options=res["options"],
                           files={d["file"]: "" for d in designs.values() if d.get("file")}),
-               summary=f"{len(files)} pass log(s); " + (f"failed: {', '.join(failed)}." if failed else "every step ok."))
+               summary=f"{len(files)} pass log(s); "
+                       + (f"failed: {', '.join(failed)}." if failed else "every step ok."))
     return res
 
 

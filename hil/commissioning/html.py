@@ -42,7 +42,8 @@ _FAIL = re.compile(r"^(no|not met|missed|fail|failed|not stable|refused)\b", re.
 
 @dataclass(frozen=True)
 class Cell:
-    """One table cell: its text, ``status`` ``"pass"``, ``"fail"`` or ``""``, columns spanned, numeric (right-aligned)."""
+    """One table cell: its text, ``status`` (``"pass"``, ``"fail"`` or ``""``), columns spanned, and whether it
+    is numeric (right-aligned)."""
 
     text: str
     status: str = ""

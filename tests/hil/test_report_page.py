@@ -31,8 +31,8 @@ def _result(ctrl: str, imp: str, speed: float, seed: int, bias: float, sigma: fl
             "disengagements": 0, "deadline_misses": 0, "loop_time_ms_p99": 0.5, "loop_time_ms_max": 1.0,
             "measured_bias_m": bias, "measured_sigma_m": sigma, "true_bias_m": bias, "true_sigma_m": sigma,
             "samples_in_statistics": 1100,
-            "trace": {"t": t, "along": [speed * x for x in t], "cross_track": [bias + sigma * (-1) ** k for k in range(80)],
-                      "engaged": [1] * 80}}
+            "trace": {"t": t, "along": [speed * x for x in t],
+                      "cross_track": [bias + sigma * (-1) ** k for k in range(80)], "engaged": [1] * 80}}
 
 
 def _chromium(tmp: Path, *args: str) -> subprocess.CompletedProcess:

@@ -329,10 +329,10 @@ def write_field_report(results: list[dict], comparison: FieldComparison) -> dict
     (out / "fields.json").write_text(json.dumps({"identity": comparison.identity, "rows": rows,
                                                  "runs": results}, indent=1) + "\n")
     ident = comparison.identity
+    params_sha = hashlib.sha256(json.dumps(ident["params"], sort_keys=True).encode()).hexdigest()
     opts = {"controllers": ident["controllers"], "fields": ident["fields"], "passes": ident["passes"],
             "conditions": [f"{i} {float(v):.2f} m/s" for i, v in ident["conditions"]],
-            "simulator parameters": "in fields.json (sha256 "
-                                    f"{hashlib.sha256(json.dumps(ident['params'], sort_keys=True).encode()).hexdigest()})"}
+            "simulator parameters": f"in fields.json (sha256 {params_sha})"}
     page = ["## Runs", *lines[1:table_end], "", "## Figures", *lines[table_end:]]
     write_page(out / "index.html", "Field comparison", page,
                provenance(options=opts, seeds=ident["seeds"], files=ident["files"]),

@@ -310,7 +310,8 @@ def write_report(results: Sequence[dict], out: str | Path, title: str = "HIL com
     (out / "report.md").write_text("\n".join(md))
     page: list = ["## Cross-track (the paper's Table 2 layout)", "",
                   "Per controller and cell: bias and 1-sigma of the measured (GPS) cross-track over engaged, settled "
-                  "cycles, pooled over the passes; the paper's figures and the ratio of the 1-sigma to the paper's.", ""]
+                  "cycles, pooled over the passes; the paper's figures and the ratio of the 1-sigma to the "
+                  "paper's.", ""]
     page += [table2_html(rows, c) for c in ctrls]
     page += ["", "## Timing", "", *timing, "", *solve]
     if target_md:

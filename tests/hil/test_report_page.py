@@ -140,3 +140,19 @@ def test_the_field_comparison_writes_its_page(tmp_path):
     assert '<h2 id="runs">Runs</h2>' in page and '<h2 id="figures">Figures</h2>' in page
     assert "<td>hairpin</td><td>kinematic</td>" in page and page.count("<img ") == 3
     assert f"<td>sha256 of {field}</td><td>{hashlib.sha256(field.read_bytes()).hexdigest()}</td>" in page
+
+
+def test_the_comparison_page_states_the_campaign_it_came_from(tmp_path):
+    from hil.truth.tractors import resolve_tractor
+    ctrl = tmp_path / "robust.json"
+    ctrl.write_text('{"controller": "robust"}\n')
+    ident = {"controllers": [str(ctrl), "oracle"], "seeds": [3, 4], "duration": 20.0, "bridge": "hc11",
+             "conditions": [["disker", 1.79]], "params": resolve_tractor("heavy-11t").params().to_dict(),
+             "controller_files": {str(ctrl): hashlib.sha256(ctrl.read_bytes()).hexdigest()}}
+    rs = [_result(c, "disker", 1.79, s, 0.0, 0.03) for c in ("robust", "oracle") for s in (3, 4)]
+    write_report(rs, tmp_path / "report", extra={"campaign": ident})
+    page = _page(tmp_path / "report" / "index.html")
+    assert "<td>tractor</td><td>heavy-11t</td>" in page and "<td>seeds</td><td>3, 4</td>" in page
+    assert f"<td>sha256 of {ctrl}</td><td>{ident['controller_files'][str(ctrl)]}</td>" in page
+    assert "<td>option conditions</td><td>disker 1.79 m/s</td>" in page
+    assert "<td>option duration [s]</td><td>20.0</td>" in page

@@ -30,6 +30,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for  # noqa: E402
+from hil.truth.tractors import builtin_tractors  # noqa: E402
 from hil.bench.runs.paper import TABLE2  # noqa: E402
 from hil.bench.runs.targets import Roles, check_targets, targets_markdown  # noqa: E402
 from hil.commissioning.html import Cell, Table, provenance, write_page  # noqa: E402
@@ -249,6 +250,16 @@ def _fmt(x: float) -> str:
     return "-" if math.isnan(x) else f"{x:.2f}"
 
 
+def _tractor_of(params: dict | None) -> str | None:
+    """The name of the family's tractor whose simulator parameters are ``params``, else None."""
+    if not params:
+        return None
+    for name, tractor in builtin_tractors().items():
+        if tractor.params().to_dict() == params:
+            return name
+    return "not one of the family (simulator parameters in results.json)"
+
+
 def _provenance(extra: dict | None) -> list[tuple[str, str]]:
     """Provenance rows from the campaign's identity in ``extra`` (seeds, duration, bridge, conditions, files)."""
     ident = (extra or {}).get("campaign") or {}
@@ -260,7 +271,8 @@ def _provenance(extra: dict | None) -> list[tuple[str, str]]:
         if "params" in ident:
             blob = json.dumps(ident["params"], sort_keys=True).encode()
             opts["simulator parameters"] = f"in results.json (sha256 {hashlib.sha256(blob).hexdigest()})"
-    return provenance(tractor=(extra or {}).get("tractor"), options=opts, seeds=ident.get("seeds"),
+    return provenance(tractor=(extra or {}).get("tractor") or _tractor_of(ident.get("params")), options=opts,
+                      seeds=ident.get("seeds"),
                       files=ident.get("controller_files") or {})
 
 

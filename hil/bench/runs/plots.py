@@ -57,8 +57,8 @@ def plot_run(log: PassLog, out: str | Path, summary: dict | None = None) -> Path
     """Draw a closed-loop run like the paper's Figure 12: the track and the cross-track error.
 
     Top: cross-track [m] against distance along the line [m] (measured, and the truth
-    when present), engaged stretches shaded. Bottom: wheel angle [deg] and steering
-    command [deg/s] against time [s], disengagements marked.
+    when present), disengaged stretches shaded, a +-5.08 cm (2 in) reference band dashed.
+    Bottom: wheel angle [deg] and steering command [deg/s] against time [s], disengagements marked.
     """
     out = Path(out)
     t = log.times["t"]
@@ -72,8 +72,8 @@ def plot_run(log: PassLog, out: str | Path, summary: dict | None = None) -> Path
     ax1.fill_between(along, -1, 1, where=~engaged, color="red", alpha=0.08, transform=ax1.get_xaxis_transform(),
                      label="disengaged")
     ax1.axhline(0.0, color="g", lw=0.8)
-    for b in (-0.0508, 0.0508):
-        ax1.axhline(b, color="g", lw=0.5, ls="--")
+    ax1.axhline(-0.0508, color="g", lw=0.5, ls="--", label="\u00b15.08 cm (\u00b12 in) reference band")
+    ax1.axhline(0.0508, color="g", lw=0.5, ls="--")
     ax1.set_xlabel("distance along the line [m]")
     ax1.set_ylabel("cross-track [m]")
     ax1.legend(loc="upper right", fontsize=8)
@@ -87,7 +87,7 @@ def plot_run(log: PassLog, out: str | Path, summary: dict | None = None) -> Path
     ax2.grid(True, alpha=0.3)
     ax3.plot(t, ch["compute_time"] * 1e3, lw=0.6, label="loop time [ms]")
     ax3.set_xlabel("time [s]")
-    ax3.set_ylabel("ms")
+    ax3.set_ylabel("loop time [ms]")
     ax3.grid(True, alpha=0.3)
     m = log.meta
     s = summary or {}

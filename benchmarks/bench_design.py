@@ -35,9 +35,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "design"))
 
-from design.lmi import LMIOptions, closed_loop_cost, robust_state_feedback, robust_state_feedback_rounds  # noqa: E402
-from design.lqr import dlqr  # noqa: E402
-from design.robust import RobustSpec, design_problem  # noqa: E402
+from design.synthesis.lmi import LMIOptions, closed_loop_cost, robust_state_feedback, robust_state_feedback_rounds  # noqa: E402
+from design.core.lqr import dlqr  # noqa: E402
+from design.synthesis.robust import RobustSpec, design_problem  # noqa: E402
 from identification.model import Model  # noqa: E402
 
 

@@ -40,7 +40,7 @@ import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from design.controller import KinematicLQRController  # noqa: E402
+from design.laws.controller import KinematicLQRController  # noqa: E402
 from hil.bench.benches.bridge_measure import measure_lockstep_speed, measure_pty_latency  # noqa: E402
 from hil.truth.conditions import condition_for  # noqa: E402
 from hil.devices.plant import SimulatedTractor  # noqa: E402
@@ -61,7 +61,7 @@ try:
     from hil.bench.runs.run import RunSpec, simulated_run
 except ImportError:
     from hil.run import RunSpec, simulated_run
-from design.controller import KinematicLQRController
+from design.laws.controller import KinematicLQRController
 dur, reps = float(sys.argv[1]), int(sys.argv[2])
 ctrl = KinematicLQRController()
 simulated_run(RunSpec(implement="disker", speed=1.79, duration=5.0, seed=1), ctrl)   # imports and set-up warm

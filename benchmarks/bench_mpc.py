@@ -19,7 +19,7 @@
    of the rate limit and of the wheel-angle limit in closed loop, and the largest
    difference of the first move from a reference solve (Clarabel through cvxpy at tight
    tolerances) at 50 of the ticks. Ratios are to the project's default backend.
-2. The nonlinear MPC (``design.nmpc``) at N = 30 on its own model at 2.91 m/s, the same
+2. The nonlinear MPC (``design.mpc.nmpc``) at N = 30 on its own model at 2.91 m/s, the same
    row changes, per solver setting.
 3. ``--long``: 100,000 ticks of the default backend at N = 50, counting ticks over 5 ms.
 
@@ -228,7 +228,7 @@ def _sqrt_psd(m: np.ndarray) -> np.ndarray:
 class ProjectMPC:
     """The project's MPC (:func:`design.mpc.build_mpc`) stepped like the vehicle loop steps it.
 
-    Each tick a :class:`~design.controller.Measurement` is made from the plant's present outputs
+    Each tick a :class:`~design.laws.controller.Measurement` is made from the plant's present outputs
     (cross-track and heading de-normalised at the bench speed) and ``step`` builds the measured
     state, solves the QP and returns the command (or the fallback's). Its state equals the
     plant's except on a row-change tick (its memory of the previous output is not moved), so
@@ -236,7 +236,7 @@ class ProjectMPC:
     """
 
     def __init__(self, model, horizon, limits, backend, solver) -> None:
-        from design.controller import Measurement
+        from design.laws.controller import Measurement
         from design.mpc import build_mpc
 
         self.ctrl = build_mpc(model, horizon, limits=limits, backend=backend, solver=solver, output_clip=None)
@@ -298,7 +298,7 @@ def evaluate(name: str, pb, solve, steps, shift, z_start, reference, note="") ->
 
 # ------------------------------------------------------------------ the nonlinear MPC
 def bench_nmpc(steps: int) -> None:
-    from design.nmpc import NMPCSettings, NonlinearMPC
+    from design.mpc.nmpc import NMPCSettings, NonlinearMPC
 
     print(f"\nnonlinear MPC, N = 30, {steps} ticks at {SPEED} m/s on its own model (start {OFFSET0} m off, "
           f"row changes of {ROW_SHIFT} m every {ROW_PERIOD} ticks), limits rate 0.2 rad/s, wheel angle 0.2 rad; "
@@ -349,9 +349,9 @@ def bench_nmpc_jacobian(calls: int = 2000) -> None:
     against casadi's symbolic ``jacobian`` of the same residual, built here in the same run: CPU per
     call and operations, N = 30, with and without the integral state."""
     import casadi as ca
-    from design.nmpc import NMPCSettings, NonlinearMPC
+    from design.mpc.nmpc import NMPCSettings, NonlinearMPC
 
-    print(f"\nNMPC residual Jacobian, N = 30: the chain rule along the horizon (design.nmpc) against casadi's "
+    print(f"\nNMPC residual Jacobian, N = 30: the chain rule along the horizon (design.mpc.nmpc) against casadi's "
           f"jacobian of the same residual; CPU per call over {calls} calls")
     print(f"{'states':<10}{'ours ms':>9}{'casadi ms':>11}{'ratio':>8}{'ours ops':>10}{'casadi ops':>12}{'max diff':>10}")
     rng = np.random.default_rng(0)
@@ -387,7 +387,7 @@ def load_model(path: Path | None):
     path = path or ROOT / "out" / "demo" / "models" / "central.npz"
     if path.exists():
         return Model.load(path), f"central model {path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}"
-    from design.kinematic import kinematic_model
+    from design.core.kinematic import kinematic_model
 
     a, b = kinematic_model(SPEED)
     dt = 0.05

@@ -29,13 +29,15 @@ import numpy as np
 from identification.errors import OutputError
 from identification.outputs import write_stdout
 
-from . import cli_mpc, cli_nmpc, cli_robust
-from .errors import DesignError, DesignInputError
-from .estimate_schedule import EstimateSchedule
-from .files.schedule import set_estimate_schedule, set_law_schedule
-from .files.load import sign_file
-from .files.signature import key_id, keygen, load_private_key
-from .kinematic import KinematicWeights, gains_versus_speed
+from design.commands import mpc as cli_mpc
+from design.commands import nmpc as cli_nmpc
+from design.commands import robust as cli_robust
+from design.core.errors import DesignError, DesignInputError
+from design.laws.estimate_schedule import EstimateSchedule
+from design.files.schedule import set_estimate_schedule, set_law_schedule
+from design.files.load import sign_file
+from design.files.signature import key_id, keygen, load_private_key
+from design.core.kinematic import KinematicWeights, gains_versus_speed
 
 
 def _float(text: str) -> float:

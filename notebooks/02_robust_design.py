@@ -41,11 +41,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from design.compensator import closed_loop_matrix
+from design.core.compensator import closed_loop_matrix
 from design.files.load import load_controller
-from design.export import export_controller
-from design.plausibility import implausible
-from design.robust import RobustSpec, design_lqr, design_robust
+from design.export.formats import export_controller
+from design.core.plausibility import implausible
+from design.synthesis.robust import RobustSpec, design_lqr, design_robust
 from hil.bench.runs.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
 from identification.model import Model

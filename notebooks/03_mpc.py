@@ -22,7 +22,7 @@
 # 1. a model of the tractor at 13th gear (2.91 m/s) from one short identification pass;
 # 2. **high speed, large offset**: the paper's kinematic LQR (command clipped to the rate limit)
 #    against the linear MPC on the identified model (`design.mpc`, hard rate limit, soft wheel-angle
-#    limit) and the nonlinear kinematic MPC (`design.nmpc`);
+#    limit) and the nonlinear kinematic MPC (`design.mpc.nmpc`);
 # 3. **a curve**: a 25 m radius turn between two straights (`gnss.curve.ArcPath`) at 2.24 m/s, the
 #    straight-line laws fed the errors to the curve against the nonlinear MPC with the curvature
 #    preview of the path.
@@ -43,10 +43,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from design.controller import KinematicLQRController, Measurement
-from design.kinematic import KinematicWeights
+from design.laws.controller import KinematicLQRController, Measurement
+from design.core.kinematic import KinematicWeights
 from design.mpc import MPCLimits, build_mpc
-from design.nmpc import NMPCSettings, NonlinearMPC
+from design.mpc.nmpc import NMPCSettings, NonlinearMPC
 from gnss.curve import ArcPath
 from hil.truth.conditions import condition_for
 from hil.truth.params import SimParams

@@ -40,11 +40,13 @@ def test_every_hil_sub_package_has_a_contract_and_a_line_in_the_readme_map():
         assert f"hil.{sub}" in sources, f"no contract constrains hil.{sub}"
 
 
-def test_no_module_of_the_bench_stands_outside_a_room():
-    """The bench keeps its modules in rooms (runs, fields, benches, commissioning, calibration): at its top
-    only its ``__init__`` and its command line."""
-    loose = sorted(p.name for p in (ROOT / "hil" / "bench").glob("*.py"))
-    assert loose == ["__init__.py", "cli.py"], loose
+def test_no_module_of_design_or_the_bench_stands_outside_a_room():
+    """design and the bench keep their modules in rooms (design: core, laws, mpc, files, synthesis, export,
+    commands; the bench: runs, fields, benches, commissioning, calibration): at their top only the
+    ``__init__`` and the command line."""
+    for package in (ROOT / "design", ROOT / "hil" / "bench"):
+        loose = sorted(p.name for p in package.glob("*.py"))
+        assert loose == ["__init__.py", "cli.py"], (package.name, loose)
 
 
 def test_hil_drive_loads_nothing_of_the_simulator_or_the_bench():

@@ -19,7 +19,7 @@ from typing import Callable, Iterable
 
 from identification.outputs import atomic_write
 
-from ..errors import DesignInputError
+from design.core.errors import DesignInputError
 
 #: Permission bits of a new file (read for everyone, write for the owner); a replaced file keeps its own.
 NEW_FILE_MODE = 0o644

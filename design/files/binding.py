@@ -21,8 +21,8 @@ import hashlib
 import json
 from typing import Any, Mapping
 
-from ..errors import ControllerFileError
-from .envelope import canonical_json
+from design.core.errors import ControllerFileError
+from design.files.envelope import canonical_json
 
 #: Certificate key of the digests of the law's fields.
 LAW_KEY = "law_fields"

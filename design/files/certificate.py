@@ -1,6 +1,6 @@
 """The certificate a controller file must carry, re-checked against the file's own matrices on every read.
 
-The certificate (:meth:`design.verify.Certificate.to_dict`) records, per model it was
+The certificate (:meth:`design.core.verify.Certificate.to_dict`) records, per model it was
 checked on, the closed-loop spectral radius, the gain, phase, disk and delay margins,
 the latency the model states, its validation fits and its matrices; overall, whether
 every loop passed and the hash of the compensator that was checked.
@@ -11,7 +11,7 @@ give the recorded spectral radii when the loop is closed again here (the models'
 matrices are in the certificate, their hashes are checked, the eigenvalues recomputed).
 That is cheap (one eigenvalue problem per model) and catches an edited gain, an edited
 sample time or a swapped certificate. The margins are re-computed by ``design verify``
-(:func:`design.verify.recheck`), which takes longer.
+(:func:`design.core.verify.recheck`), which takes longer.
 """
 
 from __future__ import annotations
@@ -22,13 +22,13 @@ from typing import TYPE_CHECKING, Any
 from identification.errors import ModelFileError
 from identification.model import Model
 
-from ..compensator import Compensator, closed_loop_matrix, spectral_radius
-from ..errors import ControllerFileError, DesignInputError
-from ..limits import check_model_order
-from ..verify import compensator_hash, model_hash
+from design.core.compensator import Compensator, closed_loop_matrix, spectral_radius
+from design.core.errors import ControllerFileError, DesignInputError
+from design.core.limits import check_model_order
+from design.core.verify import compensator_hash, model_hash
 
 if TYPE_CHECKING:                                   # for the annotation only
-    from ..estimate_schedule import EstimateSchedule
+    from design.laws.estimate_schedule import EstimateSchedule
 
 MODEL_KEYS = ("A", "B", "C", "D", "K", "dt")
 RADIUS_TOLERANCE = 1e-9
@@ -152,7 +152,7 @@ def recorded_latency(cert: Any) -> float:
 
     Each certificate model may carry ``latency.delay.outputs_latency_s``, a mapping of output
     name to seconds (the latency the design assumed). The curvature feed-forward looks this far
-    ahead (:class:`design.curvature.Reference`). A value that is not a finite number in 0-1 s is
+    ahead (:class:`design.laws.curvature.Reference`). A value that is not a finite number in 0-1 s is
     refused.
     """
     rows = cert.get("models") if isinstance(cert, dict) else None
@@ -174,12 +174,12 @@ def recorded_latency(cert: Any) -> float:
 
 def check_estimate_schedule(design: Any, cert: Any, law: Compensator, dp_states: tuple[int, ...],
                             legacy: bool = False) -> "EstimateSchedule | None":
-    """The file's estimate schedule (:mod:`design.estimate_schedule`), its law without the estimate certified.
+    """The file's estimate schedule (:mod:`design.laws.estimate_schedule`), its law without the estimate certified.
 
     ``design`` is the file's ``design`` object, ``cert`` its certificate, ``law`` the law it certifies (with the
     estimate) and ``dp_states`` the estimate's states. Returns None when the file has no schedule (the
     estimate acts at every speed, as in files written before schedules). Otherwise the record's
-    ``certificate_off`` must certify exactly :func:`~design.estimate_schedule.law_without_estimate` (as
+    ``certificate_off`` must certify exactly :func:`~design.laws.estimate_schedule.law_without_estimate` (as
     :func:`check_certificate` does for the file's own) on the same models as the file's certificate,
     whenever the schedule turns the estimate off somewhere.
 
@@ -189,7 +189,7 @@ def check_estimate_schedule(design: Any, cert: Any, law: Compensator, dp_states:
         A malformed schedule, a schedule without an estimate, or one whose law without the estimate is
         not certified on the file's models.
     """
-    from ..estimate_schedule import RECORD, EstimateSchedule, law_without_estimate
+    from design.laws.estimate_schedule import RECORD, EstimateSchedule, law_without_estimate
     rec = design.get(RECORD) if isinstance(design, dict) else None
     if rec is None:
         return None
@@ -198,7 +198,7 @@ def check_estimate_schedule(design: Any, cert: Any, law: Compensator, dp_states:
         raise ControllerFileError(f"design.{RECORD} is given but the file has no disturbance estimate")
     if not schedule.off:
         return schedule
-    what = "the law without the disturbance estimate (design.estimate_schedule.certificate_off)"
+    what = "the law without the disturbance estimate (design.laws.estimate_schedule.certificate_off)"
     try:
         off = law_without_estimate(law, dp_states)
     except DesignInputError as exc:

@@ -6,8 +6,8 @@ the canonical JSON of everything but the checksum and the signature) and, option
 ``signature`` (:mod:`design.files.signature`). The checksum catches corruption and
 careless edits; only the signature says who made the file.
 
-Reading refuses, before parsing, a file larger than :data:`design.limits.MAX_FILE_BYTES`
-or nested deeper than :data:`design.limits.MAX_NESTING`, and while parsing any
+Reading refuses, before parsing, a file larger than :data:`design.core.limits.MAX_FILE_BYTES`
+or nested deeper than :data:`design.core.limits.MAX_NESTING`, and while parsing any
 non-finite number (``NaN``, ``Infinity``). The nesting is measured in one pass over the
 text (:func:`nesting_depth`: time linear in the size, whatever the content), so the
 largest file allowed is checked in well under a second.
@@ -23,9 +23,9 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import ControllerFileError
-from ..limits import MAX_FILE_BYTES, MAX_NESTING
-from .atomic import write_text_atomically
+from design.core.errors import ControllerFileError
+from design.core.limits import MAX_FILE_BYTES, MAX_NESTING
+from design.files.atomic import write_text_atomically
 
 SCHEMA = "design-controller/1"
 UNSEALED = ("checksum", "signature")          # keys the checksum does not cover

@@ -14,9 +14,9 @@ from typing import Any, Sequence
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-from ..errors import ControllerFileError
-from .envelope import check_envelope
-from .signature import check_signature
+from design.core.errors import ControllerFileError
+from design.files.envelope import check_envelope
+from design.files.signature import check_signature
 
 #: Largest difference between the file's and the loop's sample times, s.
 DT_TOLERANCE = 1e-9

@@ -34,12 +34,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from ..compensator import Compensator, integrator_states
-from ..errors import ControllerFileError, DesignInputError
-from ..estimate_schedule import RECORD as ESTIMATE_RECORD
-from ..estimate_schedule import check_bands
-from ..limits import MAX_COEFFICIENT
-from .certificate import check_certificate, check_estimate_schedule, is_legacy, recorded_models
+from design.core.compensator import Compensator, integrator_states
+from design.core.errors import ControllerFileError, DesignInputError
+from design.laws.estimate_schedule import RECORD as ESTIMATE_RECORD
+from design.laws.estimate_schedule import check_bands
+from design.core.limits import MAX_COEFFICIENT
+from design.files.certificate import check_certificate, check_estimate_schedule, is_legacy, recorded_models
 
 #: Key of the record in a linear controller file's ``design`` object.
 RECORD = "law_schedule"
@@ -51,7 +51,7 @@ LAW_KEYS = ("compensator", "certificate", "certificate_off", "source", "window_s
 
 
 def check_coefficients(mats: Mapping[str, np.ndarray], what: str) -> None:
-    """Refuse a matrix entry larger than :data:`design.limits.MAX_COEFFICIENT` in magnitude (``what`` names
+    """Refuse a matrix entry larger than :data:`design.core.limits.MAX_COEFFICIENT` in magnitude (``what`` names
     the matrices in the error, ``ControllerFileError``)."""
     for k, m in mats.items():
         big = float(np.max(np.abs(m))) if m.size else 0.0

@@ -27,7 +27,7 @@ steering can deliver; inside it the compensator is exactly the certified linear 
 
 :func:`read_controller_file` refuses a file that fails the envelope (schema, keys,
 checksum, size and nesting: :mod:`design.files.envelope`), the dimensions, finiteness,
-the stated limits (:mod:`design.limits`: coefficients, rate, speed floor, clips, sample
+the stated limits (:mod:`design.core.limits`: coefficients, rate, speed floor, clips, sample
 time), the certificate (:mod:`design.files.certificate`, :mod:`design.files.binding`) or, when
 a public key is given, the signature (:mod:`design.files.signature`).
 """
@@ -44,21 +44,21 @@ import numpy as np
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-from ..acquisition import INTEGRAL_MEMORY_S, HeadlandIntegrals, IntegralGate, integral_kept
-from ..compensator import Compensator, integrator_states
-from ..curvature import Reference
-from ..controller import Measurement
-from ..errors import ControllerFileError, DesignInputError
-from ..limits import DT_RANGE, MAX_MODEL_ORDER, OUTPUT_CLIP_MAX, RATE_LIMIT_MAX, SPEED_MIN_RANGE, in_range
-from ..estimate_schedule import RECORD, EstimateSchedule, law_without_estimate
-from ..speed_latch import SpeedLatch
-from .certificate import check_certificate, check_estimate_schedule, recorded_latency
-from .law_schedule import RECORD as LAW_RECORD
-from .law_schedule import (MATRICES, LawSchedule, check_coefficients, check_law_schedule, compensator_from_record,
+from design.laws.acquisition import INTEGRAL_MEMORY_S, HeadlandIntegrals, IntegralGate, integral_kept
+from design.core.compensator import Compensator, integrator_states
+from design.laws.curvature import Reference
+from design.laws.controller import Measurement
+from design.core.errors import ControllerFileError, DesignInputError
+from design.core.limits import DT_RANGE, MAX_MODEL_ORDER, OUTPUT_CLIP_MAX, RATE_LIMIT_MAX, SPEED_MIN_RANGE, in_range
+from design.laws.estimate_schedule import RECORD, EstimateSchedule, law_without_estimate
+from design.core.speed_latch import SpeedLatch
+from design.files.certificate import check_certificate, check_estimate_schedule, recorded_latency
+from design.files.law_schedule import RECORD as LAW_RECORD
+from design.files.law_schedule import (MATRICES, LawSchedule, check_coefficients, check_law_schedule, compensator_from_record,
                            compensator_record, parse_law_schedule)
-from .binding import bind, check_bound
-from .envelope import SCHEMA, read_json, seal, write_atomically
-from .header import check_header
+from design.files.binding import bind, check_bound
+from design.files.envelope import SCHEMA, read_json, seal, write_atomically
+from design.files.header import check_header
 
 MEASUREMENTS = ("cross_track", "heading_error", "wheel_angle")
 NORMALIZATIONS = ("speed", "none")
@@ -68,7 +68,7 @@ TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "compensator", "
 
 #: Units an output may state: unit symbols joined by ``*`` or ``/``, each with an optional integer power
 #: (``s``, ``rad*s/m``, ``m^-1``), or nothing. The text reaches the exported C header and CSV
-#: (:mod:`design.export`), so nothing else (no spaces, quotes, newlines, comment marks) is accepted.
+#: (:mod:`design.export.formats`), so nothing else (no spaces, quotes, newlines, comment marks) is accepted.
 UNITS_PATTERN = re.compile(r"(?:[A-Za-z][A-Za-z0-9]{0,7}(?:\^-?[0-9])?(?:[*/][A-Za-z][A-Za-z0-9]{0,7}(?:\^-?[0-9])?){0,4})?")
 #: The command every file writes.
 INPUT = {"name": "steer_rate_cmd", "units": "rad/s"}
@@ -246,7 +246,7 @@ def uncertified_from_body(body: Any, dt: float | None = 0.05,
 
 def estimate_states(spec: ControllerFile) -> tuple[int, ...]:
     """Compensator states of the file's disturbance estimate (``design["disturbance_estimate"]["states"]``,
-    :mod:`design.disturbance`), () when it has none.
+    :mod:`design.laws.disturbance`), () when it has none.
 
     Raises
     ------
@@ -269,31 +269,31 @@ def estimate_states(spec: ControllerFile) -> tuple[int, ...]:
 
 
 class LinearController:
-    """Runs a linear controller file in the vehicle loop (implements :class:`design.controller.Controller`).
+    """Runs a linear controller file in the vehicle loop (implements :class:`design.laws.controller.Controller`).
 
     Each cycle the measured outputs are normalised as the file says, the compensator
     steps, the command is clipped to the file's rate limit and the compensator's
     memory follows the clipped command (anti-windup). The first step after
     :meth:`reset` starts from ``xc = X0 y`` (bumpless engage). The compensator's pure
-    integrators (:func:`design.compensator.integrator_states`) are held while the line is
-    being acquired (:class:`design.acquisition.IntegralGate`: after an engage until the
+    integrators (:func:`design.core.compensator.integrator_states`) are held while the line is
+    being acquired (:class:`design.laws.acquisition.IntegralGate`: after an engage until the
     cross-track reaches the line, and whenever an output is at its clip), so the approach
     does not wind them up; once tracking, the law is exactly the certified linear one. Over a
-    re-engage within :data:`design.acquisition.INTEGRAL_MEMORY_S` of the last step the integrators keep the value they
+    re-engage within :data:`design.laws.acquisition.INTEGRAL_MEMORY_S` of the last step the integrators keep the value they
     had (the implement's pull they had learnt; the rest of the state starts bumpless from ``X0 y``).
     A disturbance estimate (:func:`estimate_states`) is held in every cycle whose command is at the
     rate limit or whose outputs are at their clip (it learns the soil's pull, not the valve's limit or
     the clip: on random-1 over 5 seeds, at 2.91 m/s with the none implement 12.8 cm against 15.6 cm
     unheld); unlike the integral it runs during the rest of the approach (holding it there cost 5 %
     on the disker at 1.79 m/s), and it starts at zero on every engage.
-    Where the file's estimate schedule (:mod:`design.estimate_schedule`) turns it off at the measured
+    Where the file's estimate schedule (:mod:`design.laws.estimate_schedule`) turns it off at the measured
     speed, the step runs the certified law without it (the estimate's filter still runs); where its law
     schedule (:mod:`design.files.law_schedule`) names another window law for the measured speed, that
     law runs, on the same state (:meth:`law_at`). Between them it switches with hysteresis and a dwell time
-    (:class:`design.speed_latch.SpeedLatch`): a speed on a band's edge does not switch laws every cycle.
+    (:class:`design.core.speed_latch.SpeedLatch`): a speed on a band's edge does not switch laws every cycle.
 
     The law acts on the measurement's deviation from its reference
-    (:class:`design.curvature.Reference`): on engage, a smooth approach path from where the
+    (:class:`design.laws.curvature.Reference`): on engage, a smooth approach path from where the
     tractor is to the line (if it engages turning away, with its heading error or wheel angle at
     its clip, the law recovers the turn first and the path is planned from where that leaves it; a
     new path is planned likewise whenever the cross-track deviation is at its clip); on a curve, the steady heading error and wheel angle of the path's
@@ -304,7 +304,7 @@ class LinearController:
 
     ``acquisition=False`` runs the bare certified compensator (no approach path, no
     feed-forward, integrators never held): what the exported C step implements
-    (:mod:`design.export_c`).
+    (:mod:`design.export.c_code`).
     """
 
     def __init__(self, spec: ControllerFile, acquisition: bool = True) -> None:
@@ -318,7 +318,7 @@ class LinearController:
         self.acquisition = bool(acquisition)
         self._integrators = np.array(integrator_states(c) if acquisition else (), dtype=int)
         self._estimate = np.array(estimate_states(spec) if acquisition else (), dtype=int)
-        # the estimate's speed schedule (design.estimate_schedule): the law without it where it is off
+        # the estimate's speed schedule (design.laws.estimate_schedule): the law without it where it is off
         rec = spec.design.get(RECORD) if acquisition and isinstance(spec.design, Mapping) else None
         self.schedule = None if rec is None else EstimateSchedule.from_record(rec)
         # the window laws by speed (design.files.law_schedule): the file's own where no band holds the speed
@@ -347,9 +347,9 @@ class LinearController:
         self.reference.reset()
 
     def enter_part(self, kind: str) -> None:
-        """The loop's station entered a part of a field's route (:data:`design.curvature.ROUTE_PART_METHOD`):
-        over a headland turn the integrators are set aside (:class:`design.acquisition.HeadlandIntegrals`)
-        and the next pass is acquired as on engage (:meth:`design.curvature.Reference.enter_part`); a
+        """The loop's station entered a part of a field's route (:data:`design.laws.curvature.ROUTE_PART_METHOD`):
+        over a headland turn the integrators are set aside (:class:`design.laws.acquisition.HeadlandIntegrals`)
+        and the next pass is acquired as on engage (:meth:`design.laws.curvature.Reference.enter_part`); a
         disturbance estimate is held at zero over the turn (the law there is the window law the estimate
         was added beside, certified on its own) and starts from zero on the next pass."""
         was = self.reference.headland
@@ -430,7 +430,7 @@ class LinearController:
     def law_at(self, speed: float) -> Compensator:
         """The certified law of ``speed`` (m/s): the law schedule's band law (the file's own outside every
         band), without the disturbance estimate where its schedule turns it off. A step runs the law of its
-        measured speed on engage, and another only past :class:`design.speed_latch.SpeedLatch`'s hysteresis
+        measured speed on engage, and another only past :class:`design.core.speed_latch.SpeedLatch`'s hysteresis
         and dwell (:attr:`latch`)."""
         return self._laws[self._key_at(speed)]
 

@@ -14,14 +14,14 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
-from ..errors import ControllerFileError
-from .envelope import read_json, write_atomically
-from .signature import sign_body
+from design.core.errors import ControllerFileError
+from design.files.envelope import read_json, write_atomically
+from design.files.signature import sign_body
 
 if TYPE_CHECKING:                                   # for the annotations only
-    from ..mpc.controller import MPCController
-    from ..nmpc import NonlinearMPC
-    from .linear import LinearController
+    from design.mpc.controller import MPCController
+    from design.mpc.nmpc import NonlinearMPC
+    from design.files.linear import LinearController
 
 #: Module of each file kind and its checking reader (``body, dt, public_key, legacy -> contents``).
 KIND_MODULES = {"linear": ("design.files.linear", "from_body"), "mpc": ("design.files.mpc", "mpc_from_body"),
@@ -54,7 +54,7 @@ def load_controller(path: str | Path, dt: float | None = 0.05, public_key: Ed255
 
     A file of kind ``"linear"`` gives a :class:`~design.files.linear.LinearController`,
     one of kind ``"mpc"`` a :class:`design.mpc.MPCController`, one of kind ``"nmpc"`` a
-    :class:`design.nmpc.NonlinearMPC` (:mod:`design.files.nmpc`). Every check of
+    :class:`design.mpc.nmpc.NonlinearMPC` (:mod:`design.files.nmpc`). Every check of
     :func:`~design.files.linear.read_controller_file` /
     :func:`~design.files.mpc.read_mpc_file` applies, the certificate's included: a
     file whose certificate is missing, failed, made for other matrices or for another

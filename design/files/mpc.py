@@ -2,7 +2,7 @@
 
 Layout (schema ``design-controller/1``, ``kind: "mpc"``; same rules as the linear file:
 every key known and present, finite numbers, the loop's sample time, a checksum, limits
-in their physical ranges, the horizon at most :data:`design.limits.MAX_HORIZON`, an
+in their physical ranges, the horizon at most :data:`design.core.limits.MAX_HORIZON`, an
 optional signature)::
 
     {"schema", "kind": "mpc", "name", "dt",
@@ -10,7 +10,7 @@ optional signature)::
      "model": {"A", "B", "C", "D", "K", "name", "hash"},  # the prediction (central) model
      "estimator": {"kind": "measured-window", "past": p, "integral": [0]},
                     # or kind "measured-window+disturbance" with "disturbance": {"tau_d_s", "tau_f_s",
-                    # "channels"} (design.disturbance: the estimate is part of the MPC's state)
+                    # "channels"} (design.laws.disturbance: the estimate is part of the MPC's state)
      "horizon": N,
      "weights": {"y_max", "u_max", "i_max", "slack_linear", "slack_quadratic", "terminal"},
      "limits": {"rate": rad/s, "wheel_angle": rad, "speed_min": m/s, "output_clip": [...]},
@@ -40,23 +40,23 @@ from identification.model import Model
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-from ..compensator import Compensator
-from ..errors import ControllerFileError, DesignInputError
-from ..disturbance import DisturbanceSpec
-from ..estimate_schedule import RECORD, EstimateSchedule, trailing_states
-from ..limits import SPEED_MIN_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, DT_RANGE, check_horizon, check_model_order, in_range
-from ..mpc.backends import SolverSettings
-from ..mpc.controller import MPCController
-from ..mpc.law import unconstrained_gain, unconstrained_law
-from ..mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
-from ..verify import model_hash
-from ..weights import OutputWeights
-from .certificate import check_certificate, check_estimate_schedule, recorded_latency
-from .law_schedule import RECORD as LAW_RECORD
-from .binding import bind, check_bound
-from .envelope import SCHEMA, read_json, seal, write_atomically
-from .header import check_header
-from .linear import INPUT, VELOCITY_OUTPUTS, check_coefficients, check_output_clip
+from design.core.compensator import Compensator
+from design.core.errors import ControllerFileError, DesignInputError
+from design.laws.disturbance import DisturbanceSpec
+from design.laws.estimate_schedule import RECORD, EstimateSchedule, trailing_states
+from design.core.limits import SPEED_MIN_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, DT_RANGE, check_horizon, check_model_order, in_range
+from design.mpc.backends import SolverSettings
+from design.mpc.controller import MPCController
+from design.mpc.law import unconstrained_gain, unconstrained_law
+from design.mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
+from design.core.verify import model_hash
+from design.core.weights import OutputWeights
+from design.files.certificate import check_certificate, check_estimate_schedule, recorded_latency
+from design.files.law_schedule import RECORD as LAW_RECORD
+from design.files.binding import bind, check_bound
+from design.files.envelope import SCHEMA, read_json, seal, write_atomically
+from design.files.header import check_header
+from design.files.linear import INPUT, VELOCITY_OUTPUTS, check_coefficients, check_output_clip
 
 TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "model", "estimator", "horizon", "weights", "limits",
             "solver", "fallback", "design", "certificate", "models", "checksum")
@@ -319,7 +319,7 @@ def read_mpc_file(path: str | Path, dt: float | None = 0.05, public_key: Ed25519
     ControllerFileError
         Malformed JSON, too large or too deeply nested, another schema or kind, bad
         checksum or model hash, wrong dimensions, non-finite numbers, unknown settings, a
-        horizon above :data:`design.limits.MAX_HORIZON`, limits outside their physical
+        horizon above :data:`design.core.limits.MAX_HORIZON`, limits outside their physical
         ranges, a sample-time mismatch, a certificate that is missing, failed or made for
         another law, or a missing or invalid signature when one is required.
     """

@@ -12,21 +12,21 @@ and present, finite numbers, the loop's sample time, a checksum, an optional sig
      "design": {...}, "certificate": {...}, "models": [{"name", "hash"}],
      "checksum": "sha256:..."}
 
-The law is :class:`design.nmpc.NonlinearMPC` with these settings; a file must carry the integral
+The law is :class:`design.mpc.nmpc.NonlinearMPC` with these settings; a file must carry the integral
 state (``integral_max``, m s), so the NMPC has no steady bias. Limits are checked against
-:mod:`design.limits` (rate, wheel angle, sample time) and the NMPC's own bounds (horizon 1..400).
+:mod:`design.core.limits` (rate, wheel angle, sample time) and the NMPC's own bounds (horizon 1..400).
 
 **What the certificate covers.** For small errors on a straight line with no active limit the
 NMPC's first move is the discrete LQR of its linearised model at the measured speed
-(:func:`design.nmpc.lqr_gain`; the Riccati terminal cost makes the finite horizon exact). The
+(:func:`design.mpc.nmpc.lqr_gain`; the Riccati terminal cost makes the finite horizon exact). The
 certificate closes that linear law, at each identified model's nominal speed, around the model
 (which carries the valve, the sensor and the latencies the kinematic model leaves out), and
-records per model the spectral radius and margins (:func:`design.verify.check_model`), the speed
+records per model the spectral radius and margins (:func:`design.core.verify.check_model`), the speed
 and the model's matrices, and the hash of the settings. Every read recomputes the spectral radii
 from the file's settings and the recorded models and refuses a file whose certificate is missing,
 failed or made for other settings.
 
-**Stage weights scheduled with speed** (``settings.y_max_speed``, :func:`design.nmpc_law.y_max_at`):
+**Stage weights scheduled with speed** (``settings.y_max_speed``, :func:`design.mpc.nmpc_law.y_max_at`):
 the law at each model's nominal speed is the LQR with the weights of that speed, so both checks
 are per speed. The key is written only when the schedule is set: a file without it is one of
 constant weights, byte for byte as files were written before the schedule existed (they load,
@@ -37,7 +37,7 @@ rate limit a high-gain law can oscillate between the limits and diverge although
 linearisation is stable (a chain of integrators under saturated linear feedback): the demo's
 ``--y-max 0.03`` gave spectral radii up to 0.9985 on all 15 models and drove 5-12 m off the line
 on the simulator. So the certificate also closes the law with the rate limit (the NMPC's fallback,
-:meth:`design.nmpc.NonlinearMPC.fallback_command`) around every model, with an actuation delay
+:meth:`design.mpc.nmpc.NonlinearMPC.fallback_command`) around every model, with an actuation delay
 reserve of :data:`DELAY_RESERVE_S` on top of the model's own latency, from a tractor parallel to
 the line :data:`CHECK_OFFSET_M` off, for :data:`CHECK_SECONDS`; the cross-track must stay within
 :data:`SETTLE_BOUND_M` over the last :data:`TAIL_SECONDS`. The result per model (``tail_max_m``)
@@ -46,9 +46,9 @@ the simulator (nonlinear valve) at 2.91 m/s the NMPC diverges from ``y_max`` 0.1
 check refuses 0.10 m and below (measured on the demo's models, docs/nmpc.md). It says nothing else
 about the constrained, nonlinear law far from the line (the simulator tests cover that).
 
-**With the observer** (``settings.observer``, :mod:`design.nmpc_observer`) the vehicle's law is
+**With the observer** (``settings.observer``, :mod:`design.mpc.nmpc_observer`) the vehicle's law is
 the Kalman filter and the LQR on its effective state: at a model's speed one linear compensator
-(:func:`design.nmpc_observer.observed_law`, the filter's gain interpolated on the speed grid as
+(:func:`design.mpc.nmpc_observer.observed_law`, the filter's gain interpolated on the speed grid as
 the vehicle does). Both checks close that compensator; in the rate-limited one the observer is
 told the clipped command, as the NMPC tells it the command it sent.
 """
@@ -66,18 +66,18 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
 from identification.model import Model
 
-from ..compensator import Compensator, closed_loop_matrix, spectral_radius
-from ..errors import ControllerFileError, DesignInputError, VerificationError
-from ..kinematic import KinematicWeights
-from ..limits import DT_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, in_range
-from ..nmpc import NMPCSettings, NonlinearMPC, lqr_gain
-from ..nmpc_law import y_max_at
-from ..nmpc_observer import ObserverSettings, observed_law
-from ..verify import Certificate, check_model, model_hash
-from .certificate import check_stated_radius, recorded_models
-from .binding import bind, check_bound
-from .envelope import SCHEMA, canonical_bytes, read_json, seal, write_atomically
-from .header import check_header
+from design.core.compensator import Compensator, closed_loop_matrix, spectral_radius
+from design.core.errors import ControllerFileError, DesignInputError, VerificationError
+from design.core.kinematic import KinematicWeights
+from design.core.limits import DT_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, in_range
+from design.mpc.nmpc import NMPCSettings, NonlinearMPC, lqr_gain
+from design.mpc.nmpc_law import y_max_at
+from design.mpc.nmpc_observer import ObserverSettings, observed_law
+from design.core.verify import Certificate, check_model, model_hash
+from design.files.certificate import check_stated_radius, recorded_models
+from design.files.binding import bind, check_bound
+from design.files.envelope import SCHEMA, canonical_bytes, read_json, seal, write_atomically
+from design.files.header import check_header
 
 TOP_KEYS = ("schema", "kind", "name", "dt", "settings", "design", "certificate", "models", "checksum")
 SETTING_KEYS = ("horizon", "weights", "rate_limit", "wheel_limit", "slack_weight", "wheelbase", "d2", "solver",
@@ -119,7 +119,7 @@ def settings_from_dict(d: Any, dt: float) -> NMPCSettings:
     Raises
     ------
     ControllerFileError
-        Unknown or missing keys, non-numbers, limits outside :mod:`design.limits`, no integral state.
+        Unknown or missing keys, non-numbers, limits outside :mod:`design.core.limits`, no integral state.
     """
     if not isinstance(d, dict) or sorted(set(d) - {SCHEDULE_KEY}) != sorted(SETTING_KEYS):
         got = sorted(d) if isinstance(d, dict) else type(d).__name__
@@ -383,7 +383,7 @@ class NMPCFile:
         return write_atomically(path, self.to_dict())
 
     def controller(self) -> NonlinearMPC:
-        """A fresh :class:`~design.nmpc.NonlinearMPC` for the vehicle loop."""
+        """A fresh :class:`~design.mpc.nmpc.NonlinearMPC` for the vehicle loop."""
         ctrl = NonlinearMPC(self.settings)
         ctrl.name = f"nmpc:{self.name}"
         return ctrl
@@ -424,7 +424,7 @@ def design_nmpc(models: Sequence[Model], settings: NMPCSettings, name: str = "nm
     VerificationError
         Naming every model on which the linearised loop is not stable.
     ControllerFileError
-        Settings a file cannot carry (no integral state, limits outside :mod:`design.limits`).
+        Settings a file cannot carry (no integral state, limits outside :mod:`design.core.limits`).
     """
     settings_from_dict(settings_to_dict(settings), settings.dt)          # what a reader will accept
     cert = certify_nmpc(settings, models)

@@ -2,7 +2,7 @@
 
 For the law the file certifies (a linear file's compensator, an MPC file's unconstrained
 law; an NMPC file's linearisation at each model's speed, :mod:`design.files.nmpc`) the
-certificate is computed afresh (:func:`design.verify.certify`) on the given
+certificate is computed afresh (:func:`design.core.verify.certify`) on the given
 models and compared with the file's, row by row for each model of the same hash:
 spectral radius, gain, phase, disk and delay margins, the latency the model file states
 and its validation fits. Every difference, every model the file lists that was not
@@ -18,17 +18,17 @@ from typing import Any, Sequence
 
 from identification.model import Model
 
-from ..compensator import Compensator
-from ..errors import ControllerFileError, DesignInputError
-from ..verify import certify, compensator_hash, model_hash
-from .binding import check_bound
-from .envelope import read_json
-from ..estimate_schedule import RECORD, law_without_estimate
-from .law_schedule import RECORD as LAW_RECORD
-from .law_schedule import parse_law_schedule
-from .linear import estimate_states, uncertified_from_body
-from .mpc import uncertified_mpc_from_body
-from .nmpc import recheck_nmpc
+from design.core.compensator import Compensator
+from design.core.errors import ControllerFileError, DesignInputError
+from design.core.verify import certify, compensator_hash, model_hash
+from design.files.binding import check_bound
+from design.files.envelope import read_json
+from design.laws.estimate_schedule import RECORD, law_without_estimate
+from design.files.law_schedule import RECORD as LAW_RECORD
+from design.files.law_schedule import parse_law_schedule
+from design.files.linear import estimate_states, uncertified_from_body
+from design.files.mpc import uncertified_mpc_from_body
+from design.files.nmpc import recheck_nmpc
 
 NUMBERS = ("spectral_radius", "gain_margin_db", "gain_reduction_margin_db", "phase_margin_deg", "delay_margin_samples",
            "disk_margin", "disk_gain_margin_db", "disk_phase_margin_deg", "delay_margin_s")

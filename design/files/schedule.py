@@ -3,7 +3,7 @@ and which window law runs at which speed (:func:`set_law_schedule`, :mod:`design
 
 The file must have been designed with the estimate (``design robust/mpc --disturbance-estimate on``):
 its ``design["estimate_schedule"]`` then carries the certificate of the law without the estimate
-(:mod:`design.estimate_schedule`), so changing where the estimate acts changes no certified law. The
+(:mod:`design.laws.estimate_schedule`), so changing where the estimate acts changes no certified law. The
 file is rewritten with a new checksum (a signature is dropped: sign it again) and read back with every
 check the vehicle applies before it is written; the certificate's digests of the law's fields
 (:mod:`design.files.binding`) are recorded anew, the schedule's own certificates being checked.
@@ -14,17 +14,17 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-from ..compensator import integrator_states
-from ..errors import ControllerFileError
-from ..estimate_schedule import RECORD, EstimateSchedule
-from .certificate import recorded_models
-from .binding import bind
-from .envelope import read_json, seal, write_atomically
-from .law_schedule import RECORD as LAW_RECORD
-from .law_schedule import law_entry
-from .law_schedule import schedule_record as law_schedule_record
-from .linear import ControllerFile, estimate_states, from_body
-from .mpc import mpc_from_body
+from design.core.compensator import integrator_states
+from design.core.errors import ControllerFileError
+from design.laws.estimate_schedule import RECORD, EstimateSchedule
+from design.files.certificate import recorded_models
+from design.files.binding import bind
+from design.files.envelope import read_json, seal, write_atomically
+from design.files.law_schedule import RECORD as LAW_RECORD
+from design.files.law_schedule import law_entry
+from design.files.law_schedule import schedule_record as law_schedule_record
+from design.files.linear import ControllerFile, estimate_states, from_body
+from design.files.mpc import mpc_from_body
 
 
 def set_estimate_schedule(path: str | Path, schedule: EstimateSchedule, out: str | Path) -> Path:

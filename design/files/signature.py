@@ -26,8 +26,8 @@ from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey, Ed25519PublicKey
 
-from ..errors import ControllerFileError, DesignInputError
-from .envelope import canonical_bytes
+from design.core.errors import ControllerFileError, DesignInputError
+from design.files.envelope import canonical_bytes
 
 ALGORITHM = "ed25519"
 PRIVATE_NAME = "controller-signing.key"

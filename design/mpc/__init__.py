@@ -3,7 +3,7 @@
 What it is
 ----------
 A constrained alternative to the robust LQR. The prediction model is the
-central model in the robust design's measured coordinates (:mod:`design.iostate`:
+central model in the robust design's measured coordinates (:mod:`design.core.iostate`:
 present and past normalised outputs, past commands, the integral of y/V), so the
 state is measured (no estimator, the same state as the robust gain's) and the
 integral gives offset-free tracking of a steady pull. Each tick one QP::
@@ -33,10 +33,10 @@ import numpy as np
 
 from identification.model import Model
 
-from ..weights import OutputWeights
-from .backends import BACKENDS, CASADI_SOLVERS, SolverSettings
-from .controller import FallbackEvent, MPCController, SolveInfo
-from .problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
+from design.core.weights import OutputWeights
+from design.mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
+from design.mpc.controller import FallbackEvent, MPCController, SolveInfo
+from design.mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 
 __all__ = ["BACKENDS", "CASADI_SOLVERS", "FallbackEvent", "MPCController", "MPCLimits", "MPCProblem", "MPCWeights",
            "OutputWeights", "SolveInfo", "SolverSettings", "build_mpc", "mpc_problem"]

@@ -31,8 +31,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..errors import DesignInputError
-from .problem import MPCProblem
+from design.core.errors import DesignInputError
+from design.mpc.problem import MPCProblem
 
 BACKENDS = ("casadi", "osqp")
 CASADI_SOLVERS = ("daqp", "qpoases", "piqp")

@@ -11,8 +11,8 @@ unconstrained LQR of the Riccati terminal), clipped to the rate limit; the event
 recorded in :attr:`MPCController.events`. A non-finite measurement gives a zero
 command and a fresh start on the next tick, as the linear controller files do. The
 integral of y/V is held while a measured output is at its clip (far from the line:
-:class:`design.acquisition.IntegralGate` without the crossing rule) and while the approach path to
-the line is travelled (:class:`design.curvature.Reference`, as the linear controllers).
+:class:`design.laws.acquisition.IntegralGate` without the crossing rule) and while the approach path to
+the line is travelled (:class:`design.laws.curvature.Reference`, as the linear controllers).
 """
 
 from __future__ import annotations
@@ -25,14 +25,14 @@ from typing import Sequence
 
 import numpy as np
 
-from ..acquisition import HeadlandIntegrals, IntegralGate, integral_kept
-from ..controller import Measurement
-from ..curvature import PREVIEW_MAX, Reference
-from ..errors import DesignInputError
-from ..estimate_schedule import EstimateSchedule
-from ..speed_latch import SpeedLatch
-from .backends import SolverSettings, make_backend
-from .problem import MPCProblem
+from design.laws.acquisition import HeadlandIntegrals, IntegralGate, integral_kept
+from design.laws.controller import Measurement
+from design.laws.curvature import PREVIEW_MAX, Reference
+from design.core.errors import DesignInputError
+from design.laws.estimate_schedule import EstimateSchedule
+from design.core.speed_latch import SpeedLatch
+from design.mpc.backends import SolverSettings, make_backend
+from design.mpc.problem import MPCProblem
 
 KEEP_TIMES = 72_000          # solve times kept for the diagnostics (an hour of ticks at 20 Hz)
 RATE_TOLERANCE = 1e-3       # a first move within 0.1 % of the rate limit is the solver's tolerance: clipped, used
@@ -82,7 +82,7 @@ class FallbackEvent:
 
 
 class MPCController:
-    """Linear MPC implementing :class:`design.controller.Controller`.
+    """Linear MPC implementing :class:`design.laws.controller.Controller`.
 
     Parameters
     ----------
@@ -101,15 +101,15 @@ class MPCController:
     name
         Controller name (``name`` attribute is ``"mpc:<name>"``).
     latency
-        Look-ahead of the wheel-angle feed-forward, s (:class:`design.curvature.Reference`:
+        Look-ahead of the wheel-angle feed-forward, s (:class:`design.laws.curvature.Reference`:
         the QP acts on deviations from the reference, the curve's steady state and, on every
         engage and after a headland turn, the approach path to the line that the linear
         controllers follow; its integral is held until the path's end). Before that, the MPC
         had no approach path: from 0.3 m off at 1.00 m/s it was still 10-15 cm off the line when
         the scoring starts (5 s after engage), which cost 1.00-1.04x the paper's method there
         (random-5, none/disker/ripper 2.26/2.39/2.26 cm; with the path 1.80/1.84/1.80 cm). A
-        re-engage within :data:`design.acquisition.INTEGRAL_MEMORY_S` of the last step (the integral
-        kept) takes the line as acquired (:meth:`design.curvature.Reference.on_line`): the QP recovers
+        re-engage within :data:`design.laws.acquisition.INTEGRAL_MEMORY_S` of the last step (the integral
+        kept) takes the line as acquired (:meth:`design.laws.curvature.Reference.on_line`): the QP recovers
         by itself, as before (the stuck-valve faults measured with and without the approach path are in
         ``tests/design/test_windup_reengage.py``'s docstring).
     approach
@@ -134,9 +134,9 @@ class MPCController:
                  name: str = "mpc", latency: float = 0.0, schedule: EstimateSchedule | None = None,
                  approach: bool = True) -> None:
         self.problem = problem
-        #: Where the disturbance estimate acts (:mod:`design.estimate_schedule`; None: at every speed).
+        #: Where the disturbance estimate acts (:mod:`design.laws.estimate_schedule`; None: at every speed).
         self.schedule = schedule
-        #: Whether the estimate acts, switched with hysteresis and a dwell (:class:`design.speed_latch.SpeedLatch`).
+        #: Whether the estimate acts, switched with hysteresis and a dwell (:class:`design.core.speed_latch.SpeedLatch`).
         self.latch = SpeedLatch(lambda v: schedule is None or schedule.acts_at(v))
         self.settings = settings or SolverSettings()
         self.backend = make_backend(problem, self.settings)
@@ -169,7 +169,7 @@ class MPCController:
         self._kept = np.zeros(self._integral.size)     # the integral at the last step, kept over a re-engage
         self._last_t = math.inf                         # time of the last step, s
         self.gate = IntegralGate(crossing=False)
-        # the disturbance estimate (design.disturbance; the same filter as the certified unconstrained law)
+        # the disturbance estimate (design.laws.disturbance; the same filter as the certified unconstrained law)
         dis = problem.disturbance
         nw = problem.n_window_state
         self._dist = np.arange(nw, nz)
@@ -271,8 +271,8 @@ class MPCController:
         self.reference.reset()
 
     def enter_part(self, kind: str) -> None:
-        """The loop's station entered a part of a field's route (:data:`design.curvature.ROUTE_PART_METHOD`):
-        over a headland turn the integral is set aside (:class:`design.acquisition.HeadlandIntegrals`); the
+        """The loop's station entered a part of a field's route (:data:`design.laws.curvature.ROUTE_PART_METHOD`):
+        over a headland turn the integral is set aside (:class:`design.laws.acquisition.HeadlandIntegrals`); the
         disturbance estimate is held at zero over the turn (the turn's slip is not the pass's pull; with it
         running, the turns' worst deviation was 2-3x the estimate-free files') and starts from zero on the
         next pass."""

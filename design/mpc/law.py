@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..compensator import Compensator
-from ..disturbance import estimate_compensator
-from ..iostate import feedback_compensator
-from .problem import MPCProblem
+from design.core.compensator import Compensator
+from design.laws.disturbance import estimate_compensator
+from design.core.iostate import feedback_compensator
+from design.mpc.problem import MPCProblem
 
 
 def unconstrained_gain(problem: MPCProblem) -> np.ndarray:
@@ -26,8 +26,8 @@ def unconstrained_law(problem: MPCProblem, k: np.ndarray | None = None) -> Compe
     """The unconstrained law ``u = K [z; d]`` as a compensator reading measured outputs only.
 
     ``k`` (1, nz): the gain (default :func:`unconstrained_gain`). Without a disturbance estimate the
-    compensator is the window law (:func:`design.iostate.feedback_compensator`); with one it is that
-    law with the estimate of :func:`design.disturbance.estimate_compensator`, its prediction rows the
+    compensator is the window law (:func:`design.core.iostate.feedback_compensator`); with one it is that
+    law with the estimate of :func:`design.laws.disturbance.estimate_compensator`, its prediction rows the
     MPC's own prediction model's, exactly what :class:`design.mpc.controller.MPCController` runs.
     """
     k = unconstrained_gain(problem) if k is None else np.asarray(k, dtype=float)

@@ -1,7 +1,7 @@
 """The MPC's quadratic program: model, weights, limits and horizon, condensed and sparse.
 
 The prediction model is the central model rewritten in the measured coordinates of
-:mod:`design.iostate` (the robust design's state), with the integral of the first
+:mod:`design.core.iostate` (the robust design's state), with the integral of the first
 output (cross-track / speed) appended::
 
     z[k] = [y[k], y[k-1], ..., y[k-p], u[k-1], ..., u[k-p], i[k]],   z+ = A z + B u
@@ -18,7 +18,7 @@ same one the robust LMI gain acts on: the fallback command is that gain on the s
          s >= 0
 
 ``delta_j = e' z_j`` is the predicted wheel angle (rad). On a curve ``z`` holds deviations from the
-path's steady state (:class:`design.curvature.Reference`) and the controller sends ``u_j + r_j``, with
+path's steady state (:class:`design.laws.curvature.Reference`) and the controller sends ``u_j + r_j``, with
 ``d_j`` the reference wheel angle ``j`` ticks ahead from the curvature preview and ``r_j = (d_{j+1} -
 d_j) / dt`` its rate: the bounds are then ``|u_j + r_j| <= u_max`` and ``|delta_j + d_j| <= delta_max +
 s``, offset per tick by the back-ends (:mod:`design.mpc.backends`; zero offsets on a straight line). ``P`` is the Riccati
@@ -45,11 +45,11 @@ import scipy.sparse as sp
 
 from identification.model import Model
 
-from ..disturbance import DisturbanceSpec
-from ..errors import DesignInputError
-from ..iostate import IOStateLayout, io_state_model
-from ..lqr import dlqr
-from ..weights import OutputWeights
+from design.laws.disturbance import DisturbanceSpec
+from design.core.errors import DesignInputError
+from design.core.iostate import IOStateLayout, io_state_model
+from design.core.lqr import dlqr
+from design.core.weights import OutputWeights
 
 TERMINALS = ("riccati", "stage")
 WHEEL_ANGLE_OUTPUT = 2          # index of delta among the models' outputs (y/V, psi/V, delta)
@@ -135,7 +135,7 @@ class MPCProblem:
     lqr_gain
         (1, nz) ``F`` of the unconstrained LQR, ``u = -F z`` (the Riccati terminal's).
     disturbance
-        The disturbance estimate's model (:mod:`design.disturbance`), or None. With it the state is
+        The disturbance estimate's model (:mod:`design.laws.disturbance`), or None. With it the state is
         ``[z; d]``: the window state, then the estimate of the disturbance on each chosen output's
         one-step prediction, which the prediction carries forward as ``d_{j+1} = a d_j`` (known, not
         steerable: weight 0).

@@ -1,4 +1,4 @@
-"""The designs of a commissioning, made through the design library (:mod:`design.recipes`).
+"""The designs of a commissioning, made through the design library (:mod:`design.synthesis.recipes`).
 
 A :class:`Designer` holds what every design of one tractor shares: the valve's measured rate (the
 command limit and the actuator's rate in the specifications), the pass logs whose latency the
@@ -16,12 +16,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from design.disturbance import DisturbanceSpec
+from design.laws.disturbance import DisturbanceSpec
 from design.mpc.problem import MPCLimits
-from design.recipes import (MPCOptions, RobustOptions, WeightSearch, design_mpc_controller, design_robust_controller,
+from design.synthesis.recipes import (MPCOptions, RobustOptions, WeightSearch, design_mpc_controller, design_robust_controller,
                             load_models)
-from design.robust import RobustSpec, design_lqr
-from design.specs import Specifications
+from design.synthesis.robust import RobustSpec, design_lqr
+from design.synthesis.specs import Specifications
 from identification.model import Model
 from identification.workflow import identify_logs
 
@@ -61,7 +61,7 @@ class Designer:
     latency
         The latency per output, s, when it is known otherwise (it then replaces the logs').
     disk_margin, delay_reserve
-        The automatic weights' specifications (:class:`design.specs.Specifications`; delay reserve in s).
+        The automatic weights' specifications (:class:`design.synthesis.specs.Specifications`; delay reserve in s).
     integral
         Integral action in the robust design.
     estimate

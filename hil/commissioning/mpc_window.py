@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from design.limits import MAX_FILE_BYTES
+from design.core.limits import MAX_FILE_BYTES
 from identification.bounded import read_json
 from typing import Callable, Sequence
 

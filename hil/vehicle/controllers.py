@@ -1,9 +1,9 @@
 """Controllers the vehicle can run, from a spec: a controller file or a named built-in law.
 
 A spec is ``kinematic``, ``pure-pursuit`` or ``stanley``, the latter two optionally with gains
-(``pure-pursuit?lookahead_time=1.2&servo=4``, names of :class:`~design.baselines.PurePursuitGains`
-/ :class:`~design.baselines.StanleyGains`), ``aog-pure-pursuit`` or ``aog-stanley`` (AgOpenGPS's
-own laws and default settings, :mod:`design.agopengps_baselines`, same ``?name=value`` form), or a
+(``pure-pursuit?lookahead_time=1.2&servo=4``, names of :class:`~design.laws.baselines.PurePursuitGains`
+/ :class:`~design.laws.baselines.StanleyGains`), ``aog-pure-pursuit`` or ``aog-stanley`` (AgOpenGPS's
+own laws and default settings, :mod:`design.laws.agopengps_baselines`, same ``?name=value`` form), or a
 controller file (``*.json`` of kind ``linear``, ``mpc`` or ``nmpc``, see :mod:`design.files`). The bench adds the oracle (:mod:`hil.bench.runs.campaign`), which is
 designed on the simulator's truth and cannot steer a real vehicle.
 """
@@ -12,13 +12,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from design.agopengps_baselines import (AogPurePursuitController, AogPurePursuitSettings, AogStanleyController,
+from design.laws.agopengps_baselines import (AogPurePursuitController, AogPurePursuitSettings, AogStanleyController,
                                        AogStanleySettings)
-from design.baselines import PurePursuitController, PurePursuitGains, StanleyController, StanleyGains
-from design.controller import Controller, KinematicLQRController
+from design.laws.baselines import PurePursuitController, PurePursuitGains, StanleyController, StanleyGains
+from design.laws.controller import Controller, KinematicLQRController
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
-from design.errors import ControllerFileError
+from design.core.errors import ControllerFileError
 from design.files.load import load_controller
 
 from hil.vehicle.errors import VehicleConfigError

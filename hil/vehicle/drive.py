@@ -25,7 +25,7 @@ from typing import Callable, Iterator
 import numpy as np
 import serial
 
-from design.controller import Controller
+from design.laws.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
 from gnss.geodesy import LocalFrame
 from gnss.guidance import ABLine

@@ -19,8 +19,8 @@ the run (a person has to look at it before it steers again).
 Guidance: an :class:`~gnss.guidance.ABLine` (the straight-line fast path, on floats) or a
 path followed by a tracker (any object with the :class:`PathFollower` methods, e.g. the
 local nearest-point tracker of a field's route). On a path the loop fills
-:attr:`~design.controller.Measurement.curvature` and, when the controller has a
-``preview_request = (n, dt)`` attribute, :attr:`~design.controller.Measurement.preview`,
+:attr:`~design.laws.controller.Measurement.curvature` and, when the controller has a
+``preview_request = (n, dt)`` attribute, :attr:`~design.laws.controller.Measurement.preview`,
 and logs the station, the curvature and the active part of the route (pass index and
 kind: straight, curve or headland turn) every cycle. The tracker moves only on a healthy fix
 (a stale or degraded one holds the station and the errors; the next healthy one widens the
@@ -28,7 +28,7 @@ search by the time elapsed). The loop stays engaged through a
 headland turn, as AgOpenGPS keeps autosteer on through its U-turn: the turn is part of
 the one route, the controller sees its curvature like any curve's, and the same
 health checks apply (there is no separate turn mode to hand over to and back from). A
-controller with the optional method ``enter_part(kind)`` (:data:`design.curvature.ROUTE_PART_METHOD`)
+controller with the optional method ``enter_part(kind)`` (:data:`design.laws.curvature.ROUTE_PART_METHOD`)
 is told, before its step, whenever the loop's station enters a part of another kind and on the first cycle after every
 engage, so it can hold its integral over a headland turn and acquire the next pass as on engage.
 
@@ -50,8 +50,8 @@ from typing import Callable, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
-from design.controller import PREVIEW_ATTRIBUTE, Controller, Measurement
-from design.curvature import ROUTE_PART_METHOD
+from design.laws.controller import PREVIEW_ATTRIBUTE, Controller, Measurement
+from design.laws.curvature import ROUTE_PART_METHOD
 from gnss.frontend import GnssFrontEnd
 from gnss.guidance import ABLine, TrackErrors
 from gnss.integrity import IntegrityState
@@ -211,7 +211,7 @@ class VehicleLoop:
     line
         Guidance: an AB line, or a path's tracker (:class:`PathFollower`).
     controller
-        Control law (see :class:`design.controller.Controller`).
+        Control law (see :class:`design.laws.controller.Controller`).
     calibration
         Wheel-angle ADC calibration (counts to rad).
     config
@@ -565,7 +565,7 @@ def _checked_parts(parts: Sequence) -> tuple[tuple[float, float, float, float], 
 
 
 def _route_part_method(controller: Controller) -> Callable[[str], None] | None:
-    """The controller's ``enter_part`` (:data:`design.curvature.ROUTE_PART_METHOD`); None when it has none."""
+    """The controller's ``enter_part`` (:data:`design.laws.curvature.ROUTE_PART_METHOD`); None when it has none."""
     hook = getattr(controller, ROUTE_PART_METHOD, None)
     return hook if callable(hook) else None
 

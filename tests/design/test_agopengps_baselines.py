@@ -6,10 +6,10 @@ import math
 
 import pytest
 
-from design.agopengps_baselines import (AogPurePursuitController, AogPurePursuitSettings, AogStanleyController,
+from design.laws.agopengps_baselines import (AogPurePursuitController, AogPurePursuitSettings, AogStanleyController,
                                         AogStanleySettings, goal_point_distance, pure_pursuit_angle, stanley_angle)
-from design.controller import Controller, Measurement
-from design.errors import DesignInputError
+from design.laws.controller import Controller, Measurement
+from design.core.errors import DesignInputError
 from hil.bench.runs.run import RunSpec, simulated_run
 from hil.bench.runs.targets import Roles
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, vehicle_controller

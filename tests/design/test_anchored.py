@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from design.anchored import anchor_transform, anchored, best_anchor
-from design.errors import DesignInputError
-from design.plausibility import implausible, pulse_check
-from design.robust import RobustSpec, design_robust
+from design.synthesis.anchored import anchor_transform, anchored, best_anchor
+from design.core.errors import DesignInputError
+from design.core.plausibility import implausible, pulse_check
+from design.synthesis.robust import RobustSpec, design_robust
 from identification.model import Model
 
 from design_family import family, tractor_model

@@ -11,12 +11,12 @@ import control
 import numpy as np
 import pytest
 
-from design.auto_designs import auto_mpc, auto_robust
-from design.autotune import SearchOptions, relaxations, scaled_weights
-from design.errors import DesignInputError, SpecificationError
-from design.mpc_design import MPCSpec
-from design.robust import RobustSpec
-from design.specs import Specifications, delayed_model, latency_from_models
+from design.synthesis.auto_designs import auto_mpc, auto_robust
+from design.synthesis.autotune import SearchOptions, relaxations, scaled_weights
+from design.core.errors import DesignInputError, SpecificationError
+from design.synthesis.mpc_design import MPCSpec
+from design.synthesis.robust import RobustSpec
+from design.synthesis.specs import Specifications, delayed_model, latency_from_models
 
 from design_family import family, tractor_model
 
@@ -25,7 +25,7 @@ LATENCY = (0.15, 0.15, 0.0)        # three whole samples on y/V and psi/V
 
 
 def _closed_loop_poles(plant: control.StateSpace, comp) -> np.ndarray:
-    """Poles of the positive-feedback loop u = K y around ``plant`` (python-control, not design.compensator)."""
+    """Poles of the positive-feedback loop u = K y around ``plant`` (python-control, not design.core.compensator)."""
     k = control.ss(comp.Ac, comp.Bc, comp.Cc, comp.Dc, DT)
     loop = control.feedback(plant, k, sign=+1)
     return np.asarray(control.poles(loop))
@@ -80,7 +80,7 @@ def test_automatic_mpc_weights_meet_their_margin_specifications_on_every_model()
     central = tractor_model(1.79, 0.8, name="central")
     specs = Specifications(disk_margin=0.6, delay_reserve=0.1, latency=LATENCY, rate_limit=0.35)
     des, search = auto_mpc(central, models, MPCSpec(horizon=30), specs, options=SearchOptions(0.1, 30.0, 4, 2))
-    from design.iostate import feedback_compensator
+    from design.core.iostate import feedback_compensator
     comp = feedback_compensator(des.unconstrained_gain, des.problem.layout)
     for m in [central, *models]:
         dm, stable = _independent_margins(m, comp, latency_samples=3, reserve_samples=2)
@@ -127,7 +127,7 @@ def test_a_trial_unstable_on_some_model_is_recorded_in_strict_json():
     # an aggressive scale unstable on a model has an infinite peak command; the record must still be
     # JSON (a controller file refused to save with "Out of range float values are not JSON compliant")
     import json
-    from design.autotune import Trial
+    from design.synthesis.autotune import Trial
     t = Trial(50.0, scaled_weights(50.0), False, {"disk_margin": 0.0, "delay_reserve_s": 0.0,
                                                    "peak_rate": math.inf, "spectral_radius": 1.2}, ("unstable",))
     rec = json.loads(json.dumps(t.to_dict(), allow_nan=False))

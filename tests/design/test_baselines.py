@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from design.baselines import PurePursuitController, PurePursuitGains, StanleyController, StanleyGains
-from design.controller import Controller, Measurement
+from design.laws.baselines import PurePursuitController, PurePursuitGains, StanleyController, StanleyGains
+from design.laws.controller import Controller, Measurement
 
 
 def meas(e=0.0, psi=0.0, delta=0.0, v=2.0):

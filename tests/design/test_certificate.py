@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.compensator import Compensator
-from design.errors import ControllerFileError
-from design.export import export_controller
+from design.core.compensator import Compensator
+from design.core.errors import ControllerFileError
+from design.export.formats import export_controller
 from design.files.load import load_controller
-from design.mpc_design import MPCSpec, design_mpc
-from design.robust import RobustSpec, design_lqr, design_robust
-from design.verify import compensator_hash
+from design.synthesis.mpc_design import MPCSpec, design_mpc
+from design.synthesis.robust import RobustSpec, design_lqr, design_robust
+from design.core.verify import compensator_hash
 
 from design_family import family, rewrite, tractor_model
 

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.controller import Controller, Measurement
+from design.laws.controller import Controller, Measurement
 from design.files.linear import INTEGRAL_MEMORY_S, read_controller_file
 from design.files.load import load_controller
-from design.errors import ControllerFileError
-from design.robust import RobustSpec, design_robust
-from design.verify import certify
+from design.core.errors import ControllerFileError
+from design.synthesis.robust import RobustSpec, design_robust
+from design.core.verify import certify
 
 from design_family import family, rewrite
 

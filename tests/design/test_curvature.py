@@ -14,10 +14,10 @@ import math
 import numpy as np
 import pytest
 
-from design.agopengps_baselines import AogPurePursuitController, AogStanleyController
-from design.baselines import PurePursuitController, StanleyController
-from design.controller import Measurement
-from design.curvature import D2_M, WHEELBASE_M, Reference, path_heading, path_offset, steady_state
+from design.laws.agopengps_baselines import AogPurePursuitController, AogStanleyController
+from design.laws.baselines import PurePursuitController, StanleyController
+from design.laws.controller import Measurement
+from design.laws.curvature import D2_M, WHEELBASE_M, Reference, path_heading, path_offset, steady_state
 
 KAPPA = 1 / 30.0
 PSI_SS, DELTA_SS = steady_state(KAPPA)

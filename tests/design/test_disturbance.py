@@ -1,4 +1,4 @@
-"""The disturbance estimate beside the robust window law (design/disturbance.py) and its runtime hold."""
+"""The disturbance estimate beside the robust window law (design/laws/disturbance.py) and its runtime hold."""
 
 from __future__ import annotations
 
@@ -9,13 +9,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from design.controller import Measurement
-from design.disturbance import DisturbanceSpec, design_estimate, estimate_compensator, prediction_rows
-from design.errors import ControllerFileError, DesignInputError
+from design.laws.controller import Measurement
+from design.laws.disturbance import DisturbanceSpec, design_estimate, estimate_compensator, prediction_rows
+from design.core.errors import ControllerFileError, DesignInputError
 from design.files.linear import LinearController, estimate_states, read_controller_file
-from design.iostate import feedback_compensator
-from design.robust import RobustSpec, design_problem, design_robust, with_disturbance_estimate
-from design.verify import certify
+from design.core.iostate import feedback_compensator
+from design.synthesis.robust import RobustSpec, design_problem, design_robust, with_disturbance_estimate
+from design.core.verify import certify
 
 from design_family import family
 
@@ -137,7 +137,7 @@ def test_a_record_that_names_bad_states_is_refused(window_design):
         d = {**out.file.design, "disturbance_estimate": {**out.file.design["disturbance_estimate"], "states": bad}}
         with pytest.raises(ControllerFileError):
             estimate_states(replace(out.file, design=d))
-    from design.compensator import integrator_states
+    from design.core.compensator import integrator_states
     ints = list(integrator_states(out.file.compensator))
     assert ints == [res.file.compensator.order - 1]          # the window law's integral, before s and dp
     d = {**out.file.design, "disturbance_estimate": {**out.file.design["disturbance_estimate"], "states": ints}}

@@ -1,4 +1,4 @@
-"""The disturbance estimate's speed schedule: two certified laws in one file (design/estimate_schedule.py)."""
+"""The disturbance estimate's speed schedule: two certified laws in one file (design/laws/estimate_schedule.py)."""
 
 from __future__ import annotations
 
@@ -10,18 +10,18 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.controller import Measurement
-from design.disturbance import DisturbanceSpec, estimate_compensator, prediction_rows
-from design.errors import ControllerFileError, DesignInputError
-from design.estimate_schedule import EstimateSchedule, bands_for, law_without_estimate
+from design.laws.controller import Measurement
+from design.laws.disturbance import DisturbanceSpec, estimate_compensator, prediction_rows
+from design.core.errors import ControllerFileError, DesignInputError
+from design.laws.estimate_schedule import EstimateSchedule, bands_for, law_without_estimate
 from design.files.linear import LinearController, read_controller_file
 from design.files.load import load_controller
 from design.files.mpc import read_mpc_file
 from design.files.schedule import set_estimate_schedule
 from design.mpc import MPCLimits, SolverSettings
 from design.mpc.law import unconstrained_law
-from design.mpc_design import MPCSpec, design_mpc
-from design.robust import RobustSpec, design_problem, design_robust, with_disturbance_estimate
+from design.synthesis.mpc_design import MPCSpec, design_mpc
+from design.synthesis.robust import RobustSpec, design_problem, design_robust, with_disturbance_estimate
 
 from design_family import family, tractor_model
 
@@ -113,7 +113,7 @@ def test_a_schedule_is_set_by_the_command_and_checked_on_every_read(robust, tmp_
         design_main(["estimate-schedule", str(path), "--off", "fast", "--out", str(out)])
     # the C step runs one law: a file that switches is not exported to C
     with pytest.raises(DesignInputError, match="one law"):
-        from design.export_c import export_c
+        from design.export.c_code import export_c
         spec_ = read_controller_file(out)
         export_c(spec_, body["certificate"], body["checksum"], tmp_path / "c")
 
@@ -151,7 +151,7 @@ def test_the_mpc_runs_its_law_without_the_estimate_where_the_schedule_says(tmp_p
         assert u_mpc == pytest.approx(u, abs=1e-6)
     assert ctrl.fallbacks == 0 and ctrl.latch.switches == 1
     # engaged at 1.9 m/s, then the receiver's speed noise on the schedule's edge (1.955 m/s): the estimate acts
-    # throughout (design.speed_latch), as the law with it on the same measurements
+    # throughout (design.core.speed_latch), as the law with it on the same measurements
     edge = read_mpc_file(path).controller(approach=False)
     xc = None
     for j, v in enumerate([1.9] + list(1.955 + rng.uniform(-0.04, 0.04, 99))):

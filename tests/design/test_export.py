@@ -10,9 +10,9 @@ import pytest
 
 from design.cli import main as design_main
 from design.files.linear import read_controller_file
-from design.errors import DesignInputError
-from design.export import export_controller
-from design.robust import RobustSpec, design_robust
+from design.core.errors import DesignInputError
+from design.export.formats import export_controller
+from design.synthesis.robust import RobustSpec, design_robust
 
 from design_family import family
 

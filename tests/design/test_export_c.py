@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.controller import Measurement
-from design.errors import ControllerFileError, DesignInputError
-from design.export import export_controller
-from design.export_c import C_SOURCES, DATA_HEADER, VECTORS, read_vectors
+from design.laws.controller import Measurement
+from design.core.errors import ControllerFileError, DesignInputError
+from design.export.formats import export_controller
+from design.export.c_code import C_SOURCES, DATA_HEADER, VECTORS, read_vectors
 from design.files.linear import LinearController, read_controller_file
-from design.mpc_design import MPCSpec, design_mpc
-from design.robust import RobustSpec, design_robust
+from design.synthesis.mpc_design import MPCSpec, design_mpc
+from design.synthesis.robust import RobustSpec, design_robust
 
 from design_family import family, rewrite, tractor_model
 

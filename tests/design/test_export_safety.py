@@ -19,14 +19,14 @@ from pathlib import Path
 
 import pytest
 
-from design.errors import ControllerFileError
-from design.export import export_controller
-from design.export_c import DATA_HEADER, OWNED, VECTORS
+from design.core.errors import ControllerFileError
+from design.export.formats import export_controller
+from design.export.c_code import DATA_HEADER, OWNED, VECTORS
 from design.files.binding import bind
 from design.files.envelope import seal
 from design.files.load import load_controller, sign_file
 from design.files.signature import keygen, load_private_key
-from design.robust import RobustSpec, design_lqr, design_robust
+from design.synthesis.robust import RobustSpec, design_lqr, design_robust
 
 from design_family import family, tractor_model
 
@@ -94,7 +94,7 @@ def test_an_export_that_fails_part_way_leaves_the_old_file_whole(controllers, tm
     before = _snapshot(d)
     limit = min(len(export_controller(controllers[0], fmt).encode()) for fmt in formats) // 2
     done = _run_limited(f"""
-        from design.export import export_controller
+        from design.export.formats import export_controller
         for fmt in {formats!r}:
             try:
                 export_controller({str(controllers[0])!r}, fmt, {str(d)!r} + "/" + fmt)
@@ -113,7 +113,7 @@ def test_a_c_export_that_fails_part_way_leaves_the_old_folder_whole(controllers,
     limit = (out / VECTORS).stat().st_size // 2                          # the header fits, the vectors do not
     assert (out / DATA_HEADER).stat().st_size < limit
     done = _run_limited(f"""
-        from design.export import export_controller
+        from design.export.formats import export_controller
         try:
             export_controller({str(controllers[0])!r}, "c", {str(out)!r})
         except (OSError, ValueError) as exc:

@@ -1,4 +1,4 @@
-"""A model family is checked once (design.family): what it refuses, and that a family passes through."""
+"""A model family is checked once (design.synthesis.family): what it refuses, and that a family passes through."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from design.errors import DesignInputError
-from design.family import ModelFamily, as_family, model_names
-from design.limits import MAX_MODEL_ORDER
+from design.core.errors import DesignInputError
+from design.synthesis.family import ModelFamily, as_family, model_names
+from design.core.limits import MAX_MODEL_ORDER
 from identification.model import Model
 
 MODELS = Path(__file__).resolve().parents[1] / "data" / "random19_models"

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.errors import ControllerFileError, DesignInputError
+from design.core.errors import ControllerFileError, DesignInputError
 from design.files.envelope import nesting_depth, parse_json
 from design.files.load import load_controller
-from design.limits import MAX_FILE_BYTES, MAX_HORIZON, MAX_MODEL_ORDER, MAX_NESTING
-from design.mpc_design import MPCSpec, design_mpc
+from design.core.limits import MAX_FILE_BYTES, MAX_HORIZON, MAX_MODEL_ORDER, MAX_NESTING
+from design.synthesis.mpc_design import MPCSpec, design_mpc
 from design.mpc.problem import MPCLimits
-from design.robust import RobustSpec, design_lqr, design_robust
+from design.synthesis.robust import RobustSpec, design_lqr, design_robust
 from identification.model import Model
 
 from design_family import family, rewrite, tractor_model

@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from design.errors import DesignInputError
-from design.iostate import observable_past
-from design.robust import RobustSpec, design_robust
-from design.specs import delayed_model
+from design.core.errors import DesignInputError
+from design.core.iostate import observable_past
+from design.synthesis.robust import RobustSpec, design_robust
+from design.synthesis.specs import delayed_model
 from identification.model import Model
 
 from design_family import tractor_model

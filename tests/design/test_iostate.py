@@ -1,13 +1,13 @@
-"""The measured-window coordinates (design.iostate) and the compensators built on them."""
+"""The measured-window coordinates (design.core.iostate) and the compensators built on them."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from design.compensator import Compensator, closed_loop_matrix, spectral_radius
-from design.errors import DesignInputError
-from design.iostate import IOStateLayout, feedback_compensator, io_state_model
+from design.core.compensator import Compensator, closed_loop_matrix, spectral_radius
+from design.core.errors import DesignInputError
+from design.core.iostate import IOStateLayout, feedback_compensator, io_state_model
 
 from design_family import tractor_model
 

@@ -10,7 +10,7 @@ import pytest
 from scipy.linalg import solve_continuous_are
 
 from design.cli import main as design_main
-from design.kinematic import KinematicWeights, gains_versus_speed, kinematic_lqr, kinematic_model
+from design.core.kinematic import KinematicWeights, gains_versus_speed, kinematic_lqr, kinematic_model
 
 SPEEDS = np.array([1.00, 1.34, 1.79, 2.24, 2.91])
 

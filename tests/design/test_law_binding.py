@@ -14,15 +14,15 @@ import json
 import pytest
 
 from design.cli import main as design_main
-from design.errors import ControllerFileError
-from design.export import export_controller
+from design.core.errors import ControllerFileError
+from design.export.formats import export_controller
 from design.files.binding import LAW_KEY, bind, law_fields
 from design.files.envelope import seal
 from design.files.load import load_controller, sign_file
 from design.files.recheck import recheck
 from design.files.signature import keygen, load_private_key
-from design.mpc_design import MPCSpec, design_mpc
-from design.robust import RobustSpec, design_robust
+from design.synthesis.mpc_design import MPCSpec, design_mpc
+from design.synthesis.robust import RobustSpec, design_robust
 
 from design_family import family, rewrite, tractor_model
 

@@ -10,16 +10,16 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.controller import Measurement
-from design.disturbance import DisturbanceSpec
-from design.errors import ControllerFileError, DesignInputError
-from design.estimate_schedule import EstimateSchedule, law_without_estimate
+from design.laws.controller import Measurement
+from design.laws.disturbance import DisturbanceSpec
+from design.core.errors import ControllerFileError, DesignInputError
+from design.laws.estimate_schedule import EstimateSchedule, law_without_estimate
 from design.files.envelope import seal
 from design.files.law_schedule import RECORD
 from design.files.linear import LinearController, read_controller_file
 from design.files.load import load_controller
 from design.files.schedule import law_mismatch, set_estimate_schedule, set_law_schedule
-from design.robust import RobustSpec, design_robust, with_disturbance_estimate
+from design.synthesis.robust import RobustSpec, design_robust, with_disturbance_estimate
 
 from design_family import family
 
@@ -78,7 +78,7 @@ def test_the_loop_runs_each_band_s_law_on_one_state(laws, tmp_path):
 
 def test_a_speed_on_a_band_s_edge_keeps_the_law_it_engaged_with(laws, tmp_path):
     # the receiver's speed noise on the edge of a band (2.0 m/s): the law of the engage runs throughout
-    # (design.speed_latch), where the band of each cycle's speed would have switched laws every few cycles
+    # (design.core.speed_latch), where the band of each cycle's speed would have switched laws every few cycles
     a, b, _, _ = laws
     spec = read_controller_file(set_law_schedule(a, [((2.0, math.inf), b)], tmp_path / "s.json"))
     rng = np.random.default_rng(11)
@@ -160,7 +160,7 @@ def test_bad_schedules_are_refused_and_nothing_is_written(laws, tmp_path):
 def test_the_c_step_runs_one_law_so_a_scheduled_file_is_not_exported(laws, tmp_path):
     a, b, _, _ = laws
     out = set_law_schedule(a, [((2.0, math.inf), b)], tmp_path / "s.json")
-    from design.export_c import export_c
+    from design.export.c_code import export_c
     body = json.loads(out.read_text())
     with pytest.raises(DesignInputError, match="one law"):
         export_c(read_controller_file(out), body["certificate"], body["checksum"], tmp_path / "c")

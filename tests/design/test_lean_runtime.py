@@ -1,7 +1,7 @@
 """The vehicle's runtime loads only what a controller file needs.
 
 Loading a linear controller file through the vehicle's path (``hil.vehicle.controllers``)
-must not import the NMPC (``design.nmpc``, casadi) or the LMI synthesis (cvxpy): the loader
+must not import the NMPC (``design.mpc.nmpc``, casadi) or the LMI synthesis (cvxpy): the loader
 imports a file kind's module when a file of that kind is read (:mod:`design.files.load`).
 Run in a fresh interpreter, so nothing imported by other tests counts.
 """
@@ -13,12 +13,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-from design.robust import RobustSpec, design_robust
+from design.synthesis.robust import RobustSpec, design_robust
 
 from design_family import family
 
 ROOT = Path(__file__).resolve().parents[2]
-HEAVY = ("casadi", "cvxpy", "design.nmpc", "design.mpc", "design.files.mpc", "design.files.nmpc")
+HEAVY = ("casadi", "cvxpy", "design.mpc.nmpc", "design.mpc", "design.files.mpc", "design.files.nmpc")
 
 
 def test_loading_a_linear_file_for_the_vehicle_imports_no_nmpc_mpc_or_lmi_solver(tmp_path):

@@ -1,4 +1,4 @@
-"""Robust LMI synthesis (design.lmi), the LQR reference and the certificate checks."""
+"""Robust LMI synthesis (design.synthesis.lmi), the LQR reference and the certificate checks."""
 
 from __future__ import annotations
 
@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from design.errors import DesignInputError, SynthesisError, VerificationError
-from design.lmi import LMIOptions, closed_loop_cost, robust_state_feedback
-from design.lqr import dlqr
-from design.robust import RobustSpec, design_robust
-from design.verify import certify, require_stable
-from design.weights import OutputWeights
+from design.core.errors import DesignInputError, SynthesisError, VerificationError
+from design.synthesis.lmi import LMIOptions, closed_loop_cost, robust_state_feedback
+from design.core.lqr import dlqr
+from design.synthesis.robust import RobustSpec, design_robust
+from design.core.verify import certify, require_stable
+from design.core.weights import OutputWeights
 
 from design_family import family, tractor_model
 
@@ -158,7 +158,7 @@ def test_integral_action_removes_the_steady_bias_of_a_constant_pull():
         dist = np.zeros(m.order)
         dist[0] = 0.002
         acl_n = m.order
-        from design.compensator import closed_loop_matrix
+        from design.core.compensator import closed_loop_matrix
         acl = closed_loop_matrix(m.A, m.B, m.C, m.D, comp)
         xs = sla.solve(np.eye(acl.shape[0]) - acl, np.r_[dist, np.zeros(comp.order)])
         y_ss = float((m.C @ xs[:acl_n])[0])

@@ -1,4 +1,4 @@
-"""The direct conic build (design.lmi_conic / lmi_direct) against cvxpy, and the slack-update refinement."""
+"""The direct conic build (design.synthesis.lmi_conic / lmi_direct) against cvxpy, and the slack-update refinement."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from design.errors import DesignInputError
-from design.lmi import LMIOptions, closed_loop_cost, robust_state_feedback
-from design.lmi_conic import ConicProblem
-from design.lqr import dlqr
-from design.robust import RobustSpec, design_problem
+from design.core.errors import DesignInputError
+from design.synthesis.lmi import LMIOptions, closed_loop_cost, robust_state_feedback
+from design.synthesis.lmi_conic import ConicProblem
+from design.core.lqr import dlqr
+from design.synthesis.robust import RobustSpec, design_problem
 
 from design_family import family
 

@@ -14,8 +14,8 @@ import math
 import numpy as np
 import pytest
 
-from design.controller import Controller, Measurement
-from design.errors import DesignInputError
+from design.laws.controller import Controller, Measurement
+from design.core.errors import DesignInputError
 from design.mpc import MPCLimits, MPCWeights, build_mpc, mpc_problem
 from design.mpc.law import unconstrained_gain
 

@@ -7,15 +7,15 @@ import json
 import numpy as np
 import pytest
 
-from design.controller import Measurement
-from design.disturbance import DisturbanceSpec
-from design.errors import ControllerFileError
+from design.laws.controller import Measurement
+from design.laws.disturbance import DisturbanceSpec
+from design.core.errors import ControllerFileError
 from design.files.load import load_controller
 from design.files.mpc import read_mpc_file
 from design.mpc import MPCLimits, SolverSettings
 from design.mpc.law import unconstrained_law
-from design.mpc_design import MPCSpec, design_mpc, fallback_from_file
-from design.robust import RobustSpec, design_robust
+from design.synthesis.mpc_design import MPCSpec, design_mpc, fallback_from_file
+from design.synthesis.robust import RobustSpec, design_robust
 
 from design_family import family, rewrite, tractor_model
 
@@ -125,9 +125,9 @@ def test_the_estimate_is_held_while_the_command_is_at_the_rate_limit(designed):
 
 
 def test_the_estimate_starts_afresh_on_entering_and_leaving_a_headland_turn(designed, tmp_path):
-    from design.disturbance import DisturbanceSpec as DS
+    from design.laws.disturbance import DisturbanceSpec as DS
     from design.files.linear import LinearController, read_controller_file
-    from design.robust import with_disturbance_estimate
+    from design.synthesis.robust import with_disturbance_estimate
     spec = RobustSpec(integral=True)
     res = with_disturbance_estimate(design_robust(LOCAL, spec), LOCAL, spec, DS(tau_f=0.5))
     robust = LinearController(read_controller_file(res.file.save(tmp_path / "r.json")))

@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.controller import Measurement
+from design.laws.controller import Measurement
 from design.files.binding import bind
 from design.files.load import load_controller
-from design.errors import ControllerFileError, DesignInputError, VerificationError
+from design.core.errors import ControllerFileError, DesignInputError, VerificationError
 from design.mpc import MPCController, MPCLimits, SolverSettings
-from design.mpc_design import MPCSpec, design_mpc, fallback_from_file
+from design.synthesis.mpc_design import MPCSpec, design_mpc, fallback_from_file
 from design.files.mpc import read_mpc_file
-from design.robust import RobustSpec, design_robust
+from design.synthesis.robust import RobustSpec, design_robust
 
 from design_family import family, rewrite, tractor_model
 
@@ -165,7 +165,7 @@ def test_cli_refuses_ambiguous_models_and_bad_values(tmp_path, capsys):
 
 
 def test_export_writes_the_mpc_file_as_json_and_refuses_other_formats(saved, tmp_path):
-    from design.export import export_controller
+    from design.export.formats import export_controller
 
     src = saved
     out = tmp_path / "exported.json"

@@ -1,6 +1,6 @@
 """The linear MPC's curvature preview inside its horizon (issue 16 item 3).
 
-On a curve the MPC acts on deviations from the path's steady state (design.curvature.Reference) and
+On a curve the MPC acts on deviations from the path's steady state (design.laws.curvature.Reference) and
 sends its command plus the reference's own steering rate. The reference over the horizon comes from
 ``Measurement.preview`` (asked for with ``preview_request``: the horizon plus the latency): the QP's
 rate bound holds for ``u_j + r_j`` and its wheel-angle bound for ``delta_j + d_j`` (``d_j`` the reference
@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from design.controller import Measurement
-from design.curvature import steady_state
+from design.laws.controller import Measurement
+from design.laws.curvature import steady_state
 from design.mpc import build_mpc
 from hil.bench.runs.campaign import make_controller
 from hil.bench.runs.field_route import field_run
@@ -44,7 +44,7 @@ def test_the_bounds_hold_for_the_command_plus_the_reference_over_the_horizon(bac
     ctrl.reset()
     assert ctrl.solve_qp(ctrl.state(ctrl.outputs(line))).command == u_line    # a straight line: no offsets
     # a curve of 1/15 m starting 10 ticks ahead: the reference steps by ~0.19 rad there (100 s later: the
-    # integral of the straight-line step is not kept over the reset, design.acquisition.INTEGRAL_MEMORY_S)
+    # integral of the straight-line step is not kept over the reset, design.laws.acquisition.INTEGRAL_MEMORY_S)
     kappa = 1.0 / 15.0
     curve = Measurement(t=100.0, cross_track=0.0, heading_error=0.0, wheel_angle=0.0, speed=2.91,
                         curvature=0.0, preview=(0.0,) * 10 + (kappa,) * 30)

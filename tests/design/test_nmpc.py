@@ -1,4 +1,4 @@
-"""design.nmpc.NonlinearMPC: limits in closed loop, agreement with the kinematic LQR, curves, options.
+"""design.mpc.nmpc.NonlinearMPC: limits in closed loop, agreement with the kinematic LQR, curves, options.
 
 The curve tests close the loop around an independent plant: the kinematic bicycle integrated
 in Cartesian (east, north) coordinates, its errors measured against a :class:`gnss.curve.ArcPath`
@@ -13,10 +13,10 @@ import math
 import numpy as np
 import pytest
 
-from design.controller import Controller, Measurement
-from design.errors import DesignInputError
-from design.kinematic import KinematicWeights, kinematic_lqr
-from design.nmpc import NMPCSettings, NonlinearMPC, steady_state
+from design.laws.controller import Controller, Measurement
+from design.core.errors import DesignInputError
+from design.core.kinematic import KinematicWeights, kinematic_lqr
+from design.mpc.nmpc import NMPCSettings, NonlinearMPC, steady_state
 from gnss.curve import ArcPath
 
 L, D2, DT = 2.85, 1.14, 0.05

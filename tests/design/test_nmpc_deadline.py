@@ -12,10 +12,10 @@ import math
 import numpy as np
 import pytest
 
-from design.controller import Measurement
-from design.errors import DesignInputError
-from design.kinematic import KinematicWeights
-from design.nmpc import NMPCSettings, NonlinearMPC, lqr_gain, steady_state
+from design.laws.controller import Measurement
+from design.core.errors import DesignInputError
+from design.core.kinematic import KinematicWeights
+from design.mpc.nmpc import NMPCSettings, NonlinearMPC, lqr_gain, steady_state
 
 # a headland turn at 2.91 m/s (8.5 m radius) 0.35 m outside it, wheel near its limit: a state of the
 # gentle-curves field run on which two Gauss-Newton steps did not converge

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.errors import ControllerFileError, VerificationError
+from design.core.errors import ControllerFileError, VerificationError
 from design.files.load import load_controller, sign_file
 from design.files.nmpc import certify_nmpc, design_nmpc, linearised_law, read_nmpc_file
 from design.files.signature import keygen, load_private_key, load_public_key
-from design.kinematic import KinematicWeights
-from design.nmpc import NMPCSettings, NonlinearMPC, lqr_gain
+from design.core.kinematic import KinematicWeights
+from design.mpc.nmpc import NMPCSettings, NonlinearMPC, lqr_gain
 from identification.model import Model
 
 from design_family import rewrite, tractor_model
@@ -160,7 +160,7 @@ def test_no_steady_bias_on_the_simulator():
 
 def test_the_nmpc_follows_the_loops_preview():
     ctrl = NonlinearMPC(SETTINGS)
-    from design.controller import Measurement
+    from design.laws.controller import Measurement
     kappa = 1 / 40.0
     ctrl.reset()
     u_preview = ctrl.step(Measurement(0.0, 0.0, 0.0, 0.0, 2.0, 0.0, (kappa,) * 20))

@@ -1,4 +1,4 @@
-"""The NMPC's observer (design.nmpc_observer): the disturbances it estimates, the law the file certifies
+"""The NMPC's observer (design.mpc.nmpc_observer): the disturbances it estimates, the law the file certifies
 and what the vehicle runs being one law, the resets, and the file's observer settings."""
 
 from __future__ import annotations
@@ -8,14 +8,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from design.controller import Measurement
-from design.curvature import HEADLAND_KIND
-from design.errors import ControllerFileError, DesignInputError, VerificationError
+from design.laws.controller import Measurement
+from design.laws.curvature import HEADLAND_KIND
+from design.core.errors import ControllerFileError, DesignInputError, VerificationError
 from design.files.load import load_controller
 from design.files.nmpc import design_nmpc, law_feedback, linearised_law, rate_limited_tail, read_nmpc_file
-from design.kinematic import KinematicWeights
-from design.nmpc import NMPCSettings, NonlinearMPC
-from design.nmpc_observer import NMPCObserver, ObserverSettings, observer_model
+from design.core.kinematic import KinematicWeights
+from design.mpc.nmpc import NMPCSettings, NonlinearMPC
+from design.mpc.nmpc_observer import NMPCObserver, ObserverSettings, observer_model
 
 from design_family import rewrite, tractor_model
 from test_nmpc_file import with_speed

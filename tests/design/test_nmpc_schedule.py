@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.errors import ControllerFileError, DesignInputError
+from design.core.errors import ControllerFileError, DesignInputError
 from design.files.load import load_controller
 from design.files.nmpc import SETTING_KEYS, certify_nmpc, design_nmpc, settings_hash, settings_to_dict
-from design.kinematic import KinematicWeights
-from design.nmpc import NMPCSettings, NonlinearMPC, lqr_gain
-from design.nmpc_law import y_max_at
+from design.core.kinematic import KinematicWeights
+from design.mpc.nmpc import NMPCSettings, NonlinearMPC, lqr_gain
+from design.mpc.nmpc_law import y_max_at
 
 from design_family import rewrite, tractor_model
 from test_nmpc_file import SETTINGS, with_speed

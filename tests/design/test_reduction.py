@@ -1,4 +1,4 @@
-"""Design models for the robust synthesis (design/reduction.py) and the worn valve's family.
+"""Design models for the robust synthesis (design/core/reduction.py) and the worn valve's family.
 
 The worn-valve tractor's validated local models (orders 4-10) made the robust LMIs infeasible:
 their states beyond the fourth are seen by the measured window only through an ill-conditioned
@@ -11,13 +11,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from design.errors import SynthesisError
-from design.iostate import feedback_compensator
-from design.mpc_design import MPCSpec, design_mpc
+from design.core.errors import SynthesisError
+from design.core.iostate import feedback_compensator
+from design.synthesis.mpc_design import MPCSpec, design_mpc
 from design.mpc.problem import mpc_problem
-from design.reduction import WINDOW_CONDITIONING, balanced, design_model, truncated, window_conditioning
-from design.robust import RobustSpec, design_robust
-from design.verify import certify, model_hash
+from design.core.reduction import WINDOW_CONDITIONING, balanced, design_model, truncated, window_conditioning
+from design.synthesis.robust import RobustSpec, design_robust
+from design.core.verify import certify, model_hash
 
 from design_family import family
 from worn_family import worn_models
@@ -99,9 +99,9 @@ def test_the_worn_valves_models_yield_a_robust_controller_and_an_mpc_certified_o
 def test_automatic_weights_meet_their_margin_specifications_on_every_worn_valve_model():
     # the issue's test on a real identified family: the margins recomputed with python-control on every
     # model as given (orders 4-10), the latency in the loop as three whole samples on y/V and psi/V
-    from design.auto_designs import auto_mpc, auto_robust
-    from design.autotune import SearchOptions
-    from design.specs import Specifications
+    from design.synthesis.auto_designs import auto_mpc, auto_robust
+    from design.synthesis.autotune import SearchOptions
+    from design.synthesis.specs import Specifications
     from test_autotune import _independent_margins
 
     local, central, _ = worn_models()
@@ -126,8 +126,8 @@ def test_automatic_weights_meet_their_margin_specifications_on_every_worn_valve_
 def test_an_mpc_whose_prediction_model_the_window_cannot_hold_predicts_with_its_design_model():
     # a central model of order 8 with the fall-back's window of 2 samples (the commission's short test
     # identifies such a central model): before, `design mpc` refused it ("raise past")
-    from design.errors import DesignInputError
-    from design.mpc_design import prediction_model
+    from design.core.errors import DesignInputError
+    from design.synthesis.mpc_design import prediction_model
     local, _, _ = worn_models()
     big = next(m for m in local if m.order == 8)
     spec = MPCSpec(horizon=30, past=1)

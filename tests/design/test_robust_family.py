@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from design.errors import SynthesisError
-from design.robust import RobustSpec, design_lqr, design_problem, design_robust
+from design.core.errors import SynthesisError
+from design.synthesis.robust import RobustSpec, design_lqr, design_problem, design_robust
 
 from design_family import family, tractor_model
 

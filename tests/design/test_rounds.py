@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from design.lmi import LMIOptions, closed_loop_cost, robust_state_feedback_rounds
-from design.robust import RobustSpec, design_problem
+from design.synthesis.lmi import LMIOptions, closed_loop_cost, robust_state_feedback_rounds
+from design.synthesis.robust import RobustSpec, design_problem
 
 from design_family import tractor_model
 
@@ -23,7 +23,7 @@ def test_rounds_cover_every_model():
 
 
 def test_design_robust_with_rounds_verifies_every_model():
-    from design.robust import design_robust
+    from design.synthesis.robust import design_robust
     rng = np.random.default_rng(4)
     models = [tractor_model(float(v), float(a), name=f"m{i}")
               for i, (v, a) in enumerate(zip(rng.uniform(1, 3, 20), rng.uniform(0.4, 1.0, 20)))]
@@ -33,7 +33,7 @@ def test_design_robust_with_rounds_verifies_every_model():
 
 
 def test_refined_rounds_bound_every_model_and_start_from_a_stabilising_gain():
-    from design.lmi import robust_state_feedback
+    from design.synthesis.lmi import robust_state_feedback
     rng = np.random.default_rng(3)
     models = [tractor_model(float(v), float(a), tau=float(t)) for v, a, t in
               zip(rng.uniform(1, 3, 24), rng.uniform(0.4, 1.0, 24), rng.uniform(0.05, 0.2, 24))]

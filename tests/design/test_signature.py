@@ -11,10 +11,10 @@ import sys
 import pytest
 
 from design.cli import main as design_main
-from design.errors import ControllerFileError, DesignInputError
+from design.core.errors import ControllerFileError, DesignInputError
 from design.files.load import load_controller, sign_file
 from design.files.signature import PRIVATE_NAME, PUBLIC_NAME, keygen, load_private_key, load_public_key
-from design.robust import RobustSpec, design_robust
+from design.synthesis.robust import RobustSpec, design_robust
 
 from design_family import family, rewrite
 
@@ -132,7 +132,7 @@ def test_public_key_files_are_checked(tmp_path):
 
 
 def test_an_mpc_file_signs_and_loads_with_its_key(keys, tmp_path):
-    from design.mpc_design import MPCSpec, design_mpc
+    from design.synthesis.mpc_design import MPCSpec, design_mpc
     from design_family import tractor_model
 
     (priv, pub), (_, other_pub) = keys

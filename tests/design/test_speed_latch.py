@@ -1,4 +1,4 @@
-"""The speed-scheduled law switches with hysteresis and a dwell time (design/speed_latch.py)."""
+"""The speed-scheduled law switches with hysteresis and a dwell time (design/core/speed_latch.py)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from design.speed_latch import DWELL_S, HYSTERESIS_MPS, SpeedLatch
+from design.core.speed_latch import DWELL_S, HYSTERESIS_MPS, SpeedLatch
 
 EDGE = 2.0
 DT = 0.05

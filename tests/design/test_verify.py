@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from design.compensator import Compensator
-from design.errors import VerificationError
-from design.verify import certify, delay_margin_samples, gain_margins, phase_margin
+from design.core.compensator import Compensator
+from design.core.errors import VerificationError
+from design.core.verify import certify, delay_margin_samples, gain_margins, phase_margin
 from identification.model import Model
 
 # Plant P(z) = 1/(z - 1) (a discrete integrator), static compensator u = -0.5 y: closed-loop pole 0.5.

@@ -1,18 +1,18 @@
 """The automatic robust design chooses its measured window: the weights are searched with the
 one-sample window and with the observable one, and the window reaching the most aggressive weights
-within the specifications is kept (``design.auto_designs.auto_robust``, ``window_candidates``)."""
+within the specifications is kept (``design.synthesis.auto_designs.auto_robust``, ``window_candidates``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from design.auto_designs import auto_robust, window_candidates
-from design.autotune import SearchOptions
-from design.compensator import closed_loop_matrix, spectral_radius
-from design.iostate import observable_past
-from design.robust import RobustSpec
-from design.specs import Specifications, delayed_model
+from design.synthesis.auto_designs import auto_robust, window_candidates
+from design.synthesis.autotune import SearchOptions
+from design.core.compensator import closed_loop_matrix, spectral_radius
+from design.core.iostate import observable_past
+from design.synthesis.robust import RobustSpec
+from design.synthesis.specs import Specifications, delayed_model
 
 from design_family import tractor_model
 

@@ -4,8 +4,8 @@ The robust controller used to integrate the whole approach from 0.3 m and leave 
 bias over a 60 s pass at 1 m/s (-1.00 to -1.07 cm in the main job's report), and from 1.9 m it
 overshot the line by 0.4-1.1 m (measured on the old code with the committed reference file, seeds 0
 and 1: 100-110 cm at 1.00 m/s, 43-78 cm at 1.79, 51-68 cm at 2.91; from 0.3 m at 2.91 m/s 21-30 cm).
-Now it tracks a planned approach path with its integral held (:mod:`design.curvature`,
-:mod:`design.acquisition`): 1-12 cm from 1.9 m, 1-9 cm from 0.3 m, same seeds.
+Now it tracks a planned approach path with its integral held (:mod:`design.laws.curvature`,
+:mod:`design.laws.acquisition`): 1-12 cm from 1.9 m, 1-9 cm from 0.3 m, same seeds.
 
 Overshoot is the largest excursion beyond the line of the 1 s running mean of the measured
 cross-track in the 10 s after its first crossing. It includes the ordinary wander on the line
@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from design.acquisition import ACQUIRE_BAND_M, HeadlandIntegrals, IntegralGate
-from design.compensator import integrator_states
-from design.curvature import APPROACH_KAPPA_MAX, ApproachPath
-from design.errors import DesignInputError
-from design.iostate import IOStateLayout, feedback_compensator
+from design.laws.acquisition import ACQUIRE_BAND_M, HeadlandIntegrals, IntegralGate
+from design.core.compensator import integrator_states
+from design.laws.curvature import APPROACH_KAPPA_MAX, ApproachPath
+from design.core.errors import DesignInputError
+from design.core.iostate import IOStateLayout, feedback_compensator
 from hil.bench.runs.campaign import make_controller
 from hil.bench.runs.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
@@ -134,7 +134,7 @@ def test_headland_integrals_are_set_aside_over_a_turn_and_given_back():
 
 @pytest.mark.parametrize("name", ["robust", "mpc"])
 def test_the_controllers_set_their_integral_aside_on_a_headland_turn(name):
-    from design.controller import Measurement
+    from design.laws.controller import Measurement
     ctl = make_controller(str(Path(ROBUST).with_name(f"{name}.json")))
     slot = (integrator_states(ctl.spec.compensator) if name == "robust" else ctl._integral)
     state = (lambda: ctl._xc[list(slot)]) if name == "robust" else (lambda: ctl._z[slot])

@@ -8,7 +8,7 @@ clip (0.1 s x V = 0.29 m), so once it had turned back it crawled home at ~0.02 r
 after the re-engage and still 2.6 m off 9 s later, when the GPS outage disengaged it. Now, once the turn
 is recovered (or whenever the tractor is far from its path), a new approach path is planned from where
 it is, and the integral keeps the pull it had learnt before the short disengage
-(:data:`design.acquisition.INTEGRAL_MEMORY_S`): peak 1.54 m, within 20 cm 7.65 s after the re-engage
+(:data:`design.laws.acquisition.INTEGRAL_MEMORY_S`): peak 1.54 m, within 20 cm 7.65 s after the re-engage
 (before 9bf72f9, with integral windup: 1.88 m). The linear MPC (the committed demo file) had the same
 fault: it forgot the pull at the re-engage and then held its integral while the cross-track was clipped
 (2.74 m on 9bf72f9 and on 215a055; 2.52 m before 9bf72f9); keeping its integral over the re-engage: 1.09 m,
@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from design.controller import Measurement
+from design.laws.controller import Measurement
 from design.files.envelope import read_json
 from design.files.mpc import mpc_from_body
 from hil.bench.runs.campaign import make_controller

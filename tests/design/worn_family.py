@@ -3,7 +3,7 @@
 
 The worn valve: 15 local models of orders 4-10 (chosen by held-out 3 s prediction) and the central model (order 4),
 as identified by ``hil commission --tractor worn-valve --passes 2 --duration 90`` (seed 1997): the
-family on which the robust LMIs were infeasible before the design models (design/reduction.py).
+family on which the robust LMIs were infeasible before the design models (design/core/reduction.py).
 Only A, B, C, K, dt and the metadata the design reads are kept.
 """
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from design.controller import Controller
+from design.laws.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd, NavSolution
 from hil.bench.benches.agio import AgioLockstepBench
 from hil.bench.benches.bridge import LockstepBridge

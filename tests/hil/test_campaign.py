@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from design.robust import RobustSpec, design_robust
+from design.synthesis.robust import RobustSpec, design_robust
 from hil.bench.runs.campaign import Campaign
 from hil.cli import main as hil_main
 from hil.truth.conditions import condition_for

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from design.controller import KinematicLQRController
+from design.laws.controller import KinematicLQRController
 from hil.cli import main as hil_main
 from hil.devices.emulate import EmulatedTractor
 from hil.vehicle.drive import DriveConfig, drive

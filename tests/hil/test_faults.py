@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from design.controller import KinematicLQRController
+from design.laws.controller import KinematicLQRController
 from hil.bench.benches.bridge import LockstepBridge
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.vehicle.bridge.protocol import RATE_SCALE

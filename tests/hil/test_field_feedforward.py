@@ -6,10 +6,10 @@ is the controller's own steady error. The controllers are the committed demo fil
 ``tests/data/hil_reference/controllers`` run through the same loop as every bench pass:
 
 * the paper's central LQR has no integral action, so on a curve it holds a steady error unless
-  it is fed the path's curvature (``design.curvature``: the wheel angle and heading of the arc);
+  it is fed the path's curvature (``design.laws.curvature``: the wheel angle and heading of the arc);
 * the robust controller with integral action must acquire its line from 0.3 m and from 2 m off
   without winding up (the integral held during the approach) and so without overshoot;
-* and likewise the next pass after every headland turn (``design.curvature.Reference.enter_part``:
+* and likewise the next pass after every headland turn (``design.laws.curvature.Reference.enter_part``:
   the integral held over the turn, a new approach path at its exit). Before (8acdb67 and earlier)
   the integral ran through the turns, learnt the turn's own slip (the turns alternate left and
   right) and carried it into the next pass: on 60 m passes at 2.91 m/s, 12 m apart, seed 2, the
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from design.controller import KinematicLQRController
+from design.laws.controller import KinematicLQRController
 from gnss.curve import ArcPath
 from gnss.field import Field
 from gnss.field_io import field_to_dict

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from design.controller import KinematicLQRController
+from design.laws.controller import KinematicLQRController
 from gnss.curve import ArcPath
 from gnss.field import Field
 from gnss.field_io import field_to_dict

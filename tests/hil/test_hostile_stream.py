@@ -20,7 +20,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from design.controller import KinematicLQRController
+from design.laws.controller import KinematicLQRController
 from hil.cli import main as hil_main
 from hil.devices.emulate import EmulatedTractor
 from hil.links.clock import RealClock

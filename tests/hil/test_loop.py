@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from design.controller import KinematicLQRController
+from design.laws.controller import KinematicLQRController
 from hil.cli import main as hil_main
 from hil.vehicle.loop import LoopConfig
 from hil.truth.params import SimParams

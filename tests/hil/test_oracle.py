@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from design.controller import Controller, Measurement
+from design.laws.controller import Controller, Measurement
 from hil.truth.conditions import all_conditions, condition_for
 from hil.errors import SimulatorConfigError
 from hil.bench.runs.oracle import OracleLQG, OracleOptions, OracleWeights, design_oracle, oracle_for

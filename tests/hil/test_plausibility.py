@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from design.controller import KinematicLQRController
+from design.laws.controller import KinematicLQRController
 
 from hil.vehicle.errors import VehicleConfigError
 from hil.vehicle.loop import LoopConfig

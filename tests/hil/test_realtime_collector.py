@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from design.controller import KinematicLQRController, Measurement
+from design.laws.controller import KinematicLQRController, Measurement
 from hil.bench.runs.run import RunSpec, simulated_run
 
 #: Longest collector pause allowed during the run, s. A young collection takes about 1 ms and a full one

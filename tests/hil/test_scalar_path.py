@@ -12,7 +12,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from design.controller import KinematicLQRController, Measurement
+from design.laws.controller import KinematicLQRController, Measurement
 from hil.truth.conditions import condition_for
 from hil.truth.dynamics import DEL, MAX_STEPS_PER_CALL, STEP_INPUTS, Inputs, rk4_step, stepper
 from hil.truth.params import SimParams

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from design.controller import KinematicLQRController
+from design.laws.controller import KinematicLQRController
 from hil.bench.runs.oracle import OracleOptions, oracle_for
 from hil.bench.runs.run import RunSpec, simulated_run
 from hil.bench.benches.valve import characterise_on_bench, linearity_on_bench

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from design.errors import ControllerFileError
+from design.core.errors import ControllerFileError
 from design.files.load import sign_file
 from design.files.signature import keygen, load_private_key
-from design.robust import RobustSpec, design_lqr, design_robust
+from design.synthesis.robust import RobustSpec, design_lqr, design_robust
 from hil.bench.runs.campaign import make_controller
 from hil.cli import main as hil_main
 from hil.vehicle.controllers import vehicle_controller

@@ -15,7 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable, Mapping
 
-from design.robust import design_lqr
+from design.synthesis.robust import design_lqr
 from identification.model import Model
 from identification.workflow import identify_logs
 

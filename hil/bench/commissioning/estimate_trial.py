@@ -1,7 +1,7 @@
 """The trial drive that chooses, per speed, whether a file's disturbance estimate acts.
 
 A file designed with the estimate carries two certified laws, with and without it
-(:mod:`design.estimate_schedule`). Which is better at a speed depends on the tractor: on
+(:mod:`design.laws.estimate_schedule`). Which is better at a speed depends on the tractor: on
 heavy-11t the estimate helps at 1.00-2.24 m/s and costs 1.4-1.8x at 2.91 m/s, where it drives a
 slow valve into its rate limit. No model the identification gives predicts that (a rate limit
 met 20-35 % of the time is not in a linear model), so it is measured the way a technician would:
@@ -37,7 +37,7 @@ import shutil
 from pathlib import Path
 from typing import Callable, Sequence
 
-from design.estimate_schedule import RECORD, EstimateSchedule, bands_for
+from design.laws.estimate_schedule import RECORD, EstimateSchedule, bands_for
 from design.files.envelope import read_json
 from design.files.schedule import set_estimate_schedule
 

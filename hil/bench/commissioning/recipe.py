@@ -14,7 +14,7 @@ under one directory:
    :attr:`CommissionOptions.more_passes` rounds);
 4. **designs** -- the paper's central LQR (certified on the central model, as the paper's), the
    robust controller and the MPC (certified on every local model) through the design library
-   (:mod:`design.recipes`, :mod:`hil.commissioning.designs`; ``controllers/``, each with its
+   (:mod:`design.synthesis.recipes`, :mod:`hil.commissioning.designs`; ``controllers/``, each with its
    certificate), their command limits set to the valve's measured rate; the weights are chosen
    from specifications (:attr:`CommissionOptions.weights`; when no weights meet the specifications
    the step is recorded as failed and, with ``auto-if-available``, the design is made again with
@@ -81,7 +81,7 @@ class CommissionOptions:
     hil_conditions
         Conditions of the HIL comparison (default: all of the passes').
     weights
-        ``"auto"``: the designs choose their weights from specifications (:class:`design.recipes.WeightSearch`);
+        ``"auto"``: the designs choose their weights from specifications (:class:`design.synthesis.recipes.WeightSearch`);
         ``"default"``: the designs' default weights; ``"auto-if-available"``: automatic weights, and the
         defaults when no automatic design is found.
     order, markov
@@ -105,7 +105,7 @@ class CommissionOptions:
         those (``None``: do not).
     disturbance_estimate
         The robust controller and the MPC with the disturbance estimate (``design robust/mpc
-        --disturbance-estimate on``, :mod:`design.disturbance`; docs/disturbance_estimate.md).
+        --disturbance-estimate on``, :mod:`design.laws.disturbance`; docs/disturbance_estimate.md).
     estimate_trial, trial_seeds
         Choose per speed whether the estimate acts by a trial drive with and without it
         (:mod:`hil.bench.commissioning.estimate_trial`), on passes with ``trial_seeds`` (apart from ``hil_seeds``).

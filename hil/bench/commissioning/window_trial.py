@@ -4,7 +4,7 @@
 the estimate, then adds the estimate at the largest gain that keeps every specification. Where the
 searched law sits at a specification's edge, no estimate gain fits beside it, and the design backs the
 window law off (0.7, 0.5, 0.35 of the searched scale) until the estimate keeps its full gain
-(:data:`design.recipes.BACKOFF`). That order of preference, the estimate's gain before the window
+(:data:`design.synthesis.recipes.BACKOFF`). That order of preference, the estimate's gain before the window
 law's bandwidth, is a guess the models cannot settle: the estimate acts on the soil's pull, which the
 identified models do not hold.
 
@@ -44,7 +44,7 @@ from typing import Callable, Sequence
 
 from scipy.stats import t as student_t
 
-from design.estimate_schedule import bands_for
+from design.laws.estimate_schedule import bands_for
 from design.files.envelope import read_json
 from design.files.schedule import law_mismatch, set_law_schedule
 
@@ -169,7 +169,7 @@ def per_speed(rows: Sequence[dict], speeds: Sequence[float], main: int, allowed:
 
 def speed_bands(speeds: Sequence[float], chosen: Sequence[int], main: int) -> list[tuple[tuple[float, float], int]]:
     """The bands of the law schedule: consecutive design speeds (m/s) whose chosen law is not ``main``,
-    each reaching half-way to its neighbours (:func:`design.estimate_schedule.bands_for`)."""
+    each reaching half-way to its neighbours (:func:`design.laws.estimate_schedule.bands_for`)."""
     order = sorted(range(len(speeds)), key=lambda j: speeds[j])
     out: list[tuple[tuple[float, float], int]] = []
     for j in order:

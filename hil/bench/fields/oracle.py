@@ -3,7 +3,7 @@
 :class:`hil.bench.runs.oracle.OracleLQG` is designed about a straight line; on a field it is the bound
 that the pass-to-pass spacing of the other controllers is measured against. On a
 route it gets the path's curvature exactly as the linear controllers get it
-(:class:`design.curvature.Reference`: the cross-track, heading error and wheel angle relative
+(:class:`design.laws.curvature.Reference`: the cross-track, heading error and wheel angle relative
 to the kinematic equilibrium on the curvature at the nearest point, the reference wheel angle's
 change over the next step fed forward as a rate; no approach path, the oracle acquires its line
 itself as on engage). Where the reference moves (a change of curvature) the oracle's prediction is
@@ -11,9 +11,9 @@ moved with it (``OracleLQG.step``'s ``reference_shift``), so its filter does not
 reference's step for a disturbance. What the kinematic equilibrium leaves (tyre slip on a curve) is the
 oracle's disturbance states' and integral's, as a pull is.
 
-Over a headland turn (the loop's ``enter_part("turn")``, :data:`design.curvature.ROUTE_PART_METHOD`)
+Over a headland turn (the loop's ``enter_part("turn")``, :data:`design.laws.curvature.ROUTE_PART_METHOD`)
 the oracle hands the wheel to a turn law, by default the bench's pure pursuit
-(:class:`design.baselines.PurePursuitController`, its integral reset at the turn's start): a 7-9 m
+(:class:`design.laws.baselines.PurePursuitController`, its integral reset at the turn's start): a 7-9 m
 U-turn is far outside the straight-line linearisation the oracle's model and filter are made on
 and is not what it bounds. Leaving the turn, the oracle starts afresh as on engage (its filter from
 the measurement, integral zero). With ``turn_law=None`` the oracle drives the turns too, with the
@@ -27,9 +27,9 @@ controller, designed for the run's condition with the options the AB-line campai
 
 from __future__ import annotations
 
-from design.baselines import PurePursuitController
-from design.controller import Controller, Measurement
-from design.curvature import HEADLAND_KIND, Reference
+from design.laws.baselines import PurePursuitController
+from design.laws.controller import Controller, Measurement
+from design.laws.curvature import HEADLAND_KIND, Reference
 
 from hil.bench.runs.oracle import OracleLQG, OracleOptions
 from hil.errors import SimulatorConfigError
@@ -41,7 +41,7 @@ DEFAULT_TURN_LAW = "pure-pursuit"
 
 
 class FieldOracle:
-    """The oracle of one condition on a field's route (implements :class:`design.controller.Controller`).
+    """The oracle of one condition on a field's route (implements :class:`design.laws.controller.Controller`).
 
     Parameters
     ----------
@@ -99,7 +99,7 @@ class FieldOracle:
         self._ref: tuple[float, float] | None = None      # the reference's heading and wheel angle last step
 
     def enter_part(self, kind: str) -> None:
-        """The loop's station entered a part of kind ``kind`` (:data:`design.curvature.ROUTE_PART_METHOD`)."""
+        """The loop's station entered a part of kind ``kind`` (:data:`design.laws.curvature.ROUTE_PART_METHOD`)."""
         on = kind == HEADLAND_KIND
         if on and not self._turn:
             if self.turn_law is not None:

@@ -3,7 +3,7 @@
 It answers "how well could a linear controller steer *this* condition if it knew the
 simulator exactly?" (the practical limit). It knows every parameter, the
 condition, the disturbance statistics and the sensors, but sees only what every controller
-sees (:class:`design.controller.Measurement`) and steers through the same clip, bridge and valve.
+sees (:class:`design.laws.controller.Measurement`) and steers through the same clip, bridge and valve.
 
 Modelling choices (assumptions, documented here once):
 
@@ -44,7 +44,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 from scipy.linalg import expm, solve_discrete_are
 
-from design.controller import Measurement
+from design.laws.controller import Measurement
 
 from hil.truth.conditions import Condition, condition_for
 from hil.truth.disturbances import soil_force_sigma
@@ -349,7 +349,7 @@ def _closed_loop_radius(A: np.ndarray, B: np.ndarray, C: np.ndarray, K: np.ndarr
 
 
 class OracleLQG:
-    """The oracle controller of one condition (implements :class:`design.controller.Controller`).
+    """The oracle controller of one condition (implements :class:`design.laws.controller.Controller`).
 
     Parameters
     ----------
@@ -389,7 +389,7 @@ class OracleLQG:
         """One measurement update, control and time update; returns the rate command, rad/s, + left.
 
         On a curved route (:mod:`hil.bench.fields.oracle`) ``m`` is the deviation from a reference
-        (:meth:`design.curvature.Reference.track`) that moves: ``reference_shift`` is how much its
+        (:meth:`design.laws.curvature.Reference.track`) that moves: ``reference_shift`` is how much its
         cross-track, heading and wheel angle (measurement units: m, rad, calibrated rad) have moved
         since the previous step, taken off the prediction (and its delayed copies, through ``X0``)
         before the measurement update, and ``feedforward`` [rad/s] is the rate its wheel angle

@@ -15,7 +15,7 @@ from typing import Callable
 
 import numpy as np
 
-from design.controller import Controller
+from design.laws.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
 from gnss.track import PathTracker
 from identification.passlog import PassLog

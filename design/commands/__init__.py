@@ -1,0 +1,1 @@
+"""The ``design`` sub-commands' parsers and printers: parse, call the library, print."""

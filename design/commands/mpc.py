@@ -1,0 +1,96 @@
+"""Sub-command ``design mpc`` (parse, call :mod:`design.synthesis.recipes`, print).
+
+    design mpc --models models/*.npz --horizon N [--backend casadi|osqp] [--solver daqp|qpoases|...]
+               [--fallback controllers/robust.json] --out controllers/mpc.json [--json]
+
+The prediction model is the model of kind ``central`` among ``--models`` (or ``--central``);
+the unconstrained law is checked closed around every other model given.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from identification.model import Model
+
+from design.commands.robust import _weights, certificate_table, spec_lines
+from design.commands.specs import (add_disturbance_arguments, add_spec_arguments, disturbance_of, parse_past, progress_of,
+                        refuse_mixed, warn_relaxed, weight_search_of)
+from design.mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
+from design.mpc.problem import TERMINALS, MPCLimits, MPCWeights
+from design.synthesis.recipes import MPCOptions, design_mpc_controller, load_models
+
+
+def cmd_mpc(args: argparse.Namespace) -> dict:
+    refuse_mixed(args)
+    models = load_models(args.models)
+    validate = load_models(args.validate_on) if args.validate_on else []
+    central = Model.load(args.central) if args.central else None
+    options = MPCOptions(args.horizon, MPCWeights(_weights(args), args.slack_weight, args.slack_weight * 1e-2,
+                                                  args.terminal),
+                         MPCLimits(args.rate_limit, args.wheel_angle_limit),
+                         SolverSettings(args.backend, args.solver, args.max_iter, args.time_budget_ms * 1e-3),
+                         args.past, tuple(None if c <= 0 else c for c in args.output_clip), args.speed_min, args.name,
+                         disturbance_of(args), weight_search_of(args), args.fallback,
+                         require_stable=not args.allow_unstable)
+    res = design_mpc_controller(models, options, central, validate, progress_of(args))
+    warn_relaxed(res.file.design.get("auto_weights"))
+    res.save(args.out)
+    return {"out": str(args.out), **res.summary()}
+
+
+def add_parser(sub: argparse._SubParsersAction, number) -> None:
+    """Register ``mpc`` on the ``design`` parser."""
+    p = sub.add_parser("mpc", help="linear MPC on the central model (controller file of kind 'mpc')")
+    p.add_argument("--models", nargs="+", required=True, help="model files or directories (one central)")
+    p.add_argument("--central", help="prediction model (default: the one of kind 'central' in --models)")
+    p.add_argument("--out", required=True, help="controller file (.json)")
+    p.add_argument("--horizon", type=int, default=50, help="prediction steps (default 50 = 2.5 s at 20 Hz)")
+    p.add_argument("--backend", choices=BACKENDS, default="casadi",
+                   help="casadi: condensed QP through casadi.conic; osqp: sparse QP in OSQP")
+    p.add_argument("--solver", choices=CASADI_SOLVERS, default="daqp", help="casadi QP plugin")
+    p.add_argument("--max-iter", type=int, default=None,
+                   help="solver iteration cap per tick (default 1000 for casadi plugins, 4000 for osqp)")
+    p.add_argument("--time-budget-ms", type=number, default=25.0,
+                   help="per-tick solve budget, ms; a slower solve is replaced by the fallback law")
+    p.add_argument("--rate-limit", type=number, default=0.35, help="hard steering-rate limit, rad/s")
+    p.add_argument("--wheel-angle-limit", type=number, default=0.5, help="soft wheel-angle limit, rad")
+    p.add_argument("--slack-weight", type=number, default=1e5, help="exact-penalty price of the wheel-angle slack")
+    p.add_argument("--terminal", choices=TERMINALS, default="riccati")
+    p.add_argument("--fallback", help="robust controller file (window structure, --integral) whose gain is the "
+                                      "fallback law (default: the unconstrained LQR)")
+    p.add_argument("--past", type=parse_past, default=None,
+                   help="past samples in the measured state, or 'auto' (default): the fallback's window, else the "
+                        "shortest that determines the central model's state")
+    p.add_argument("--output-clip", type=number, nargs=3, default=[0.1, 0.05, 0.0],
+                   help="clip of each normalised output (0 = none)")
+    p.add_argument("--speed-min", type=number, default=0.3, help="speed floor of the normalisation, m/s")
+    p.add_argument("--y-max", type=number, nargs="+", default=None,
+                   help="Bryson output maxima in model units (y/V s, psi/V rad s/m, delta rad; default 0.05 0.03 0.09)")
+    p.add_argument("--u-max", type=number, default=None, help="Bryson steering rate, rad/s (default 0.35)")
+    p.add_argument("--i-max", type=number, default=None, help="Bryson integral of y/V, s^2 (default 0.5)")
+    add_spec_arguments(p, number)
+    add_disturbance_arguments(p, number, "carry it in the MPC's state and prediction")
+    p.add_argument("--allow-unstable", action="store_true",
+                   help="write it even if the unconstrained law is unstable on some model (recorded)")
+    p.add_argument("--name", default=None)
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.set_defaults(func=cmd_mpc, default_name="mpc")
+
+
+def render(result: dict) -> str:
+    """Text summary of ``design mpc``."""
+    w, lim, s = result["weights"], result["limits"], result["solver"]
+    solver = s["backend"] if s["backend"] == "osqp" else f"casadi conic / {s['solver']}"
+    lines = [f"MPC on {result['prediction_model']}: horizon {result['horizon']} x {result['dt']:g} s "
+             f"= {result['horizon'] * result['dt']:g} s, terminal cost {w['terminal']}",
+             f"weights: y_max {w['y_max']}, u_max {w['u_max']:g} rad/s, i_max {w['i_max']:g}; "
+             f"wheel-angle slack {w['slack_linear']:g} per rad + {w['slack_quadratic']:g} per rad^2",
+             f"limits: rate {lim['rate']:g} rad/s (hard), wheel angle {lim['wheel_angle']:g} rad (soft)",
+             f"solver: {solver}, at most {s['max_iter']} iterations and {s['time_budget'] * 1e3:g} ms per tick; "
+             f"fallback law: {result['fallback']}",
+             "unconstrained law closed around each model:",
+             certificate_table(result["certificate"]),
+             *spec_lines(result),
+             f"wrote {result['out']}"]
+    return "\n".join(lines)

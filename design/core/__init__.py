@@ -1,0 +1,1 @@
+"""Foundations of the designs: errors, stated limits, Bryson weights, the compensator and its closed-loop checks, the measured-window state, LQR (and the kinematic model's), model reduction, the speed latch."""

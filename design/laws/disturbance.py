@@ -1,0 +1,283 @@
+"""A disturbance estimate beside the robust window law: the soil's pull seen in the one-step prediction.
+
+Why (docs/tractor_gap.md): the oracle's advantage on the random tractors is its
+Kalman filter's disturbance states (a lateral force and a yaw moment of the soil and the
+implement, first order with about 2 s); without them it is no better than the identified
+controllers. The window law ``u = K z`` of :mod:`design.core.iostate` has only the integral of
+``y/V`` for a pull, which is slow by design.
+
+The estimate uses the same measured coordinates. The nominal one-step prediction of the
+outputs from the window is ``y[k+1] = F z[k] + G u[k]`` (the ``y[k+1]`` rows of the window
+models ``(A_z, B_z)``, averaged over the design's models: these rows do not depend on a
+model's state basis). A disturbance ``d`` (one entry per chosen output: the cross-track and
+heading rows) adds to that prediction, ``y[k+1] = F z[k] + G u[k] + E d[k]``, and is first
+order, ``d[k+1] = a d[k] + w[k]`` with ``a = exp(-dt / tau_d)``; in window coordinates a
+persistent offset of the heading's prediction is a yaw-rate offset, of the cross-track's a
+lateral-velocity offset (a crab), whatever drives them. The estimate is a fixed-gain filter
+of the prediction error, with time constant ``tau_f``::
+
+    s[k]    = F z[k-1] + G u_applied[k-1] + E dp[k]      (prediction of y[k])
+    dh[k]   = dp[k] + L (y[k] - s[k])                    (the estimate, L = l S, l = 1 - exp(-dt / tau_f))
+    dp[k+1] = a dh[k]
+    u[k]    = K z[k] + K_d dh[k]
+
+with ``S`` selecting the chosen outputs. All of it is linear in the measured outputs, so the
+whole law is one :class:`design.core.compensator.Compensator` (states: the window law's, then ``s``,
+then ``dp``), certified on every model like any other. ``K_d`` minimises the worst, over the
+models, ratio of the H2 cost against the disturbance to the window law's own (the closed loops of
+the window models with the disturbance entering as above, each output read as many whole samples
+late as its latency, the window law and the filter; a signed log grid, then Nelder-Mead), then is
+scaled back until the stated specifications are
+met on every model with its latency (:func:`design.synthesis.specs.check_specs`); with ``K_d = 0`` the
+law is exactly the window law, so a scale of 0 always passes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.linalg as sla
+from scipy.optimize import minimize
+
+from design.core.compensator import Compensator, closed_loop_matrix, spectral_radius
+from design.core.errors import DesignInputError
+from design.core.iostate import IOStateLayout
+
+
+@dataclass(frozen=True)
+class DisturbanceSpec:
+    """What the disturbance estimate models.
+
+    Attributes
+    ----------
+    tau_d
+        Correlation time of the disturbance, s (the soil's and implement's processes: 1-5 s).
+    tau_f
+        Time constant of the estimate's filter, s (> dt).
+    channels
+        Output indices whose one-step prediction carries a disturbance (default: cross-track
+        and heading, outputs 0 and 1).
+    """
+
+    tau_d: float = 2.0
+    tau_f: float = 2.0
+    channels: tuple[int, ...] = (0, 1)
+
+    def __post_init__(self) -> None:
+        for name in ("tau_d", "tau_f"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0 < v <= 600):
+                raise DesignInputError(f"disturbance {name} must be a time in (0, 600] s, got {v!r}")
+        ch = tuple(self.channels)
+        if not ch or len(set(ch)) != len(ch) or any(isinstance(j, bool) or not isinstance(j, (int, np.integer))
+                                                    or j < 0 for j in ch):
+            raise DesignInputError(f"disturbance channels must be distinct output indices >= 0, got {self.channels!r}")
+        object.__setattr__(self, "channels", tuple(int(j) for j in ch))
+
+    def to_dict(self) -> dict:
+        """JSON form."""
+        return {"tau_d_s": self.tau_d, "tau_f_s": self.tau_f, "channels": list(self.channels)}
+
+
+def prediction_rows(window_models: Sequence[tuple[np.ndarray, np.ndarray]],
+                    layout: IOStateLayout) -> tuple[np.ndarray, np.ndarray]:
+    """``(F, G)``: the mean over the window models of their ``y[k+1]`` rows (q x nz, q x m)."""
+    if not window_models:
+        raise DesignInputError("the disturbance estimate needs at least one window model")
+    rows = layout.output_slot(0)
+    f = np.mean([az[rows] for az, _ in window_models], axis=0)
+    g = np.mean([bz[rows] for _, bz in window_models], axis=0)
+    return f, g
+
+
+def estimate_compensator(k: np.ndarray, kd: np.ndarray, base: Compensator, layout: IOStateLayout,
+                         f: np.ndarray, g: np.ndarray, spec: DisturbanceSpec) -> Compensator:
+    """The window law ``base`` (from :func:`design.core.iostate.feedback_compensator` with gain ``k``) with the
+    disturbance estimate and its feed-forward ``kd`` (m x nd); see the module docstring.
+
+    Parameters
+    ----------
+    k
+        (m, nz) window gain of ``base``.
+    kd
+        (m, nd) gain on the estimate, rad/s per unit of the chosen outputs' prediction.
+    f, g
+        Nominal prediction rows (:func:`prediction_rows`).
+    """
+    q, m, nz, dt = layout.n_outputs, layout.n_inputs, layout.order, layout.dt
+    ch = spec.channels
+    if max(ch) >= q:
+        raise DesignInputError(f"disturbance channels {ch} name outputs beyond the models' {q}")
+    nd = len(ch)
+    kd = np.asarray(kd, dtype=float).reshape(m, nd)
+    nb = base.order
+    if k.shape != (m, nz) or nb != nz - q:
+        raise DesignInputError(f"gain {k.shape} and base compensator of order {nb} do not fit the layout (nz={nz})")
+    a = math.exp(-dt / spec.tau_d)
+    lgain = 1.0 - math.exp(-dt / spec.tau_f)
+    sel = np.zeros((nd, q))
+    sel[np.arange(nd), list(ch)] = 1.0
+    el = sel.T                                    # E (q x nd)
+    lm = lgain * sel                              # L (nd x q)
+    ky, kx = k[:, :q], k[:, q:]
+    fy, fx = f[:, :q], f[:, q:]
+    # u = Cc xc + Dc y with xc = [xb, s, dp]
+    cc = np.hstack([kx, -kd @ lm, kd])
+    dc = ky + kd @ lm
+    n = nb + q + nd
+    ac, bc, ec = np.zeros((n, n)), np.zeros((n, q)), np.zeros((n, m))
+    xb, sx, dx = slice(0, nb), slice(nb, nb + q), slice(nb + q, n)
+    ac[xb, xb], bc[xb], ec[xb] = base.Ac, base.Bc, base.Ec
+    u1 = layout.input_slot(1)
+    u1 = slice(u1.start - q, u1.stop - q)         # the window law's memory of u[k-1]
+    ac[u1], bc[u1] = cc, dc
+    ac[dx, sx], ac[dx, dx], bc[dx] = -a * lm, a * np.eye(nd), a * lm
+    ac[sx, xb] = fx + g @ kx
+    ac[sx, sx] = -g @ kd @ lm - a * el @ lm
+    ac[sx, dx] = g @ kd + a * el
+    bc[sx] = fy + g @ dc + a * el @ lm
+    ec[sx] = g
+    x0 = np.zeros((n, q))
+    x0[xb] = base.X0
+    x0[sx] = np.eye(q)                            # engage: the prediction is the present outputs
+    return Compensator(ac, bc, cc, dc, dt, ec, x0)
+
+
+def _delayed_plant(a_w: np.ndarray, b_w: np.ndarray, q: int, delays: Sequence[int]):
+    """The window plant whose measured output ``j`` is its output ``j`` ``delays[j]`` samples late.
+
+    Returns ``(A, B, C)`` with the plant's ``nw`` states first, then one delay line per output.
+    """
+    nw = a_w.shape[0]
+    nl = int(sum(delays))
+    a = np.zeros((nw + nl, nw + nl))
+    a[:nw, :nw] = a_w
+    b = np.zeros((nw + nl, b_w.shape[1]))
+    b[:nw] = b_w
+    c = np.zeros((q, nw + nl))
+    pos = nw
+    for j, dj in enumerate(delays):
+        if dj == 0:
+            c[j, j] = 1.0
+            continue
+        a[pos, j] = 1.0                            # first element of the line: y_j[k-1]
+        for i in range(1, dj):
+            a[pos + i, pos + i - 1] = 1.0
+        c[j, pos + dj - 1] = 1.0
+        pos += dj
+    return a, b, c
+
+
+def _cost(window_models, layout: IOStateLayout, comp: Compensator, qz: np.ndarray, r: np.ndarray,
+          spec: DisturbanceSpec, delays: Sequence[int]) -> np.ndarray:
+    """H2 cost ``E[z'Qz + u'Ru]`` of each closed loop driven by a unit-variance disturbance (inf if unstable);
+    the compensator reads each output ``delays[j]`` samples late (the measured latency)."""
+    q, dt = layout.n_outputs, layout.dt
+    nd = len(spec.channels)
+    a = math.exp(-dt / spec.tau_d)
+    nw = layout.n_window
+    total = []
+    for az, bz in window_models:
+        # the plant is the window part of the model (the integral is the compensator's own state)
+        a_p, b_p, c_p = _delayed_plant(az[:nw, :nw], bz[:nw], q, delays)
+        npl = a_p.shape[0]
+        acl = closed_loop_matrix(a_p, b_p, c_p, np.zeros((q, b_p.shape[1])), comp)
+        if spectral_radius(acl) >= 1.0:
+            return np.full(len(window_models), math.inf)
+        n = acl.shape[0]
+        big = np.zeros((n + nd, n + nd))
+        big[:n, :n] = acl
+        rows = layout.output_slot(0)
+        for i, j in enumerate(spec.channels):
+            big[rows.start + j, n + i] = 1.0      # d enters the prediction of output j
+        big[n:, n:] = a * np.eye(nd)
+        bw = np.zeros((n + nd, nd))
+        bw[n:] = math.sqrt(1.0 - a * a) * np.eye(nd)     # unit stationary variance of d
+        gram = sla.solve_discrete_lyapunov(big, bw @ bw.T)
+        # weights: the outputs on the plant's window, the integrals on the compensator's copies
+        wq = np.zeros((n + nd, n + nd))
+        wq[:nw, :nw] = qz[:nw, :nw]
+        ints = np.arange(len(layout.integral))
+        xi = npl + (nw - q) + ints                # compensator state of integral i
+        wq[np.ix_(xi, xi)] = qz[np.ix_(nw + ints, nw + ints)]
+        cu = np.zeros((1, n + nd))                # u = Dc y_measured + Cc xc in the linear regime
+        cu[0, :npl] = (comp.Dc @ c_p)[0]
+        cu[0, npl:n] = comp.Cc[0]
+        total.append(float(np.trace(wq @ gram) + (cu @ gram @ cu.T)[0, 0] * float(r[0, 0])))
+    return np.array(total)
+
+
+def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
+                    window_models: Sequence[tuple[np.ndarray, np.ndarray]], qz: np.ndarray, r: np.ndarray,
+                    spec: DisturbanceSpec,
+                    accept: Callable[[Compensator], bool] | None = None,
+                    latency: Sequence[float] | None = None) -> tuple[Compensator, dict]:
+    """The window law with the disturbance estimate: ``K_d`` by H2 over the models, scaled back until ``accept``.
+
+    Parameters
+    ----------
+    k, base, layout
+        The window law (gain, its compensator, its layout).
+    window_models
+        ``(A_z, B_z)`` of the design's models in the layout's coordinates.
+    qz, r
+        The synthesis weights (state and input).
+    accept
+        Called with a candidate compensator; True if it meets the specifications on every model
+        (None: only the H2 cost's closed-loop stability).
+    latency
+        Measurement latency per output, s (None: none): the H2 cost's loops read each output that
+        many whole samples late (rounded), as the loop on the tractor does.
+
+    Returns
+    -------
+    compensator, record
+        The law (``K_d`` scaled by the largest accepted of 1, 0.7, 0.5, 0.35, 0.25, 0.15, 0; at 0 the
+        estimate does not act) and what was chosen (gain, scale, H2 costs with and without it).
+    """
+    f, g = prediction_rows(window_models, layout)
+    nd = len(spec.channels)
+    q = layout.n_outputs
+    lat = [0.0] * q if latency is None else [float(v) for v in latency]
+    if len(lat) != q or any(not math.isfinite(v) or v < 0 for v in lat):
+        raise DesignInputError(f"latency needs {q} finite values >= 0 s, got {latency!r}")
+    delays = [int(round(v / layout.dt)) for v in lat]
+
+    def comp_of(kd: np.ndarray) -> Compensator:
+        return estimate_compensator(k, kd, base, layout, f, g, spec)
+
+    each0 = _cost(window_models, layout, comp_of(np.zeros((1, nd))), qz, r, spec, delays)
+
+    def obj(x: np.ndarray) -> float:
+        c = _cost(window_models, layout, comp_of(x.reshape(1, nd)), qz, r, spec, delays)
+        return float(np.max(c / each0)) if np.all(np.isfinite(c)) else 1e30
+
+    zero = np.zeros(nd)
+    c0 = obj(zero)
+    # a coarse signed log grid (the gain's scale is not known in advance), then Nelder-Mead
+    levels = np.concatenate([-np.logspace(3, -1, 9), [0.0], np.logspace(-1, 3, 9)])
+    start, c_start = zero, c0
+    for x in np.array(np.meshgrid(*([levels] * nd))).reshape(nd, -1).T:
+        c = obj(x)
+        if c < c_start:
+            start, c_start = x, c
+    simplex = np.vstack([start] + [start + np.eye(nd)[i] * max(0.3 * abs(start[i]), 0.1) for i in range(nd)])
+    best = minimize(obj, start, method="Nelder-Mead",
+                    options={"initial_simplex": simplex, "xatol": 1e-4, "fatol": 1e-7 * max(c0, 1e-12),
+                             "maxiter": 600})
+    kd = best.x.reshape(1, nd) if best.fun < c0 else zero.reshape(1, nd)
+    chosen, scale = comp_of(np.zeros((1, nd))), 0.0
+    for s in (1.0, 0.7, 0.5, 0.35, 0.25, 0.15):
+        cand = comp_of(s * kd)
+        if obj(s * kd.ravel()) < 1e30 and (accept is None or accept(cand)):
+            chosen, scale = cand, s
+            break
+    each = _cost(window_models, layout, chosen, qz, r, spec, delays)
+    record = {**spec.to_dict(), "gain_Kd": (scale * kd).tolist(), "optimal_Kd": kd.tolist(), "scale": scale,
+              "h2_cost_without": float(each0.sum()), "h2_cost": float(each.sum()),
+              "h2_ratio_worst": float(np.max(each / each0)), "h2_ratio_mean": float(np.mean(each / each0)), "latency_samples": delays, "prediction": "mean of the design models' y[k+1] rows",
+              "states": list(range(base.order + layout.n_outputs, base.order + layout.n_outputs + nd))}
+    return chosen, record

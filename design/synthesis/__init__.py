@@ -1,0 +1,1 @@
+"""Synthesis and its recipes: robust LMI synthesis (and its solvers), output-anchored coordinates, weights from specifications, the model family, the MPC's design, and the recipes as library functions."""

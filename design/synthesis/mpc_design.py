@@ -1,0 +1,170 @@
+"""From the central model to a checked MPC controller file.
+
+:func:`design_mpc` builds the QP, checks the MPC's unconstrained law (the linear law
+the MPC is wherever no limit binds: ``u = K z`` from the condensed QP, equal to the
+LQR with the Riccati terminal) closed around every model it is given, as the robust
+design does for its compensator (:mod:`design.core.verify`), sets the solver up once and
+checks that its first move from a small state is that law's, and returns the file.
+The constrained closed loop is non-linear; the tests and the HIL bench check it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from identification.model import Model
+
+from design.core.errors import DesignInputError, SynthesisError
+from design.laws.estimate_schedule import RECORD, schedule_record, trailing_states
+from design.files.linear import read_controller_file
+from design.files.mpc import MPCFile
+from design.core.iostate import window_to_state
+from design.synthesis.family import as_family
+from design.core.reduction import design_model
+from design.core.verify import Certificate, certify, model_hash, require_stable
+from design.mpc.backends import SolverSettings
+from design.mpc.controller import MPCController
+from design.mpc.law import unconstrained_gain, unconstrained_law
+from design.laws.disturbance import DisturbanceSpec
+from design.mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
+
+
+@dataclass(frozen=True)
+class MPCSpec:
+    """What :func:`design_mpc` designs (see :func:`design.mpc.build_mpc` for the fields)."""
+
+    horizon: int = 50
+    weights: MPCWeights = field(default_factory=MPCWeights)
+    limits: MPCLimits = field(default_factory=MPCLimits)
+    settings: SolverSettings = field(default_factory=SolverSettings)
+    past: int = 1
+    output_clip: tuple[float | None, ...] = (0.1, 0.05, None)
+    speed_min: float = 0.3
+    name: str = "mpc"
+    disturbance: DisturbanceSpec | None = None
+
+
+@dataclass(frozen=True)
+class MPCDesign:
+    """A checked MPC design: the file, the problem and the certificate of its unconstrained law."""
+
+    file: MPCFile
+    problem: MPCProblem
+    certificate: Certificate
+    unconstrained_gain: np.ndarray
+
+
+def fallback_from_file(path: str | Path, problem: MPCProblem) -> np.ndarray:
+    """The robust LMI gain of a window-structure controller file, checked against ``problem``'s state.
+
+    Raises :class:`DesignInputError` if the file is not a robust design on the same
+    measured state (structure ``window``, the same ``past``, integral action, same dt).
+    """
+    spec = read_controller_file(path, dt=problem.dt)
+    d = spec.design
+    lay = problem.layout
+    if "guaranteed_cost" not in d or d.get("structure", "window") != "window" or not d.get("integral") \
+            or d.get("past") != lay.past:
+        raise DesignInputError(f"{path}: the fallback must be a robust LMI design on the same measured state "
+                               f"(design robust --structure window --integral --past {lay.past}); got structure "
+                               f"{d.get('structure')!r}, integral {d.get('integral')!r}, past {d.get('past')!r}"
+                               + ("" if "guaranteed_cost" in d else ", and no robust synthesis record"))
+    k = np.array(d.get("gain_K"), dtype=float)
+    nw = problem.n_window_state
+    if k.shape != (1, nw) or not np.all(np.isfinite(k)):
+        raise DesignInputError(f"{path}: gain_K has shape {k.shape}, expected (1, {nw})")
+    return np.pad(k, ((0, 0), (0, problem.nz - nw)))       # the window law: no gain on a disturbance estimate
+
+
+def prediction_model(model: Model, past: int) -> tuple[Model, dict | None]:
+    """The MPC's prediction model for a window of ``past`` samples: ``model`` itself when the window
+    determines its state, else its design model (:func:`design.core.reduction.design_model`: balanced and
+    truncated to what the window observes), renamed ``<name>_order<r>``, with the record of the
+    truncation. The caller certifies the law on ``model`` as given too.
+    """
+    try:
+        window_to_state(model.A, model.B, model.C, past)
+        return model, None
+    except DesignInputError:
+        pass
+    pred, rec = design_model(model, past)
+    name = f"{model.meta.get('name', 'model')}_order{rec['design_order']}"
+    return pred.with_meta(name=name), {"name": str(model.meta.get("name", "model")), **rec}
+
+
+def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | None = None,
+               fallback_gain: np.ndarray | None = None, fallback_law: str | None = None,
+               require: bool = True) -> MPCDesign:
+    """A checked MPC controller file on ``model`` (normally the central model).
+
+    Parameters
+    ----------
+    model
+        Prediction model.
+    verify_on
+        Further models (e.g. the local ones) to check the unconstrained law on.
+    spec
+        Horizon, weights, limits, solver, normalisation.
+    fallback_gain
+        (1, nz) ``u = K z`` used when a solve fails (e.g. :func:`fallback_from_file`);
+        None = the unconstrained LQR of the Riccati solution.
+    require
+        Refuse (``VerificationError``) if the unconstrained law is unstable on any model;
+        with False the certificate records it (the design model must still pass).
+
+    Raises
+    ------
+    VerificationError
+        The unconstrained law does not stabilise a model.
+    SynthesisError
+        The solver (given time to converge) does not reproduce the unconstrained law's
+        first move from a small state: its settings are wrong.
+    """
+    spec = spec or MPCSpec()
+    family = as_family([model, *verify_on])
+    problem = mpc_problem(model, spec.horizon, spec.weights, spec.limits, spec.past, spec.disturbance)
+    k = unconstrained_gain(problem)
+    names = list(family.names)
+    ulaw = unconstrained_law(problem, k)
+    cert = certify(ulaw, family, names)
+    require_stable(cert if require else Certificate(cert.checks[:1]))
+    law = fallback_law or ("robust-lmi" if fallback_gain is not None else "lqr")
+    fb = -problem.lqr_gain if fallback_gain is None else np.asarray(fallback_gain, dtype=float)
+    lay = problem.layout
+    design = {"method": "linear-mpc", "design_model": names[0], "model_hash": model_hash(model),
+              "coordinates": "measured window z = " + ", ".join(
+                  lay.state_names(list(model.meta.get("output_names", ["y/V", "psi/V", "delta"])), ["u"])),
+              "weights": asdict(spec.weights.outputs), "terminal": spec.weights.terminal,
+              "unconstrained_gain": k.tolist(), "lqr_gain": (-problem.lqr_gain).tolist(),
+              "unconstrained_passed": cert.passed}
+    if spec.disturbance is not None:
+        design["coordinates"] += ", disturbance estimate " + ", ".join(f"d{j}" for j in spec.disturbance.channels)
+        design["disturbance_estimate"] = spec.disturbance.to_dict()
+        design[RECORD] = schedule_record(ulaw, trailing_states(ulaw, len(spec.disturbance.channels)), family, names)
+    file = MPCFile(spec.name, model, spec.horizon, spec.weights, spec.limits, spec.settings, fb, law, spec.past,
+                   spec.output_clip, spec.speed_min, design, cert.to_dict(),
+                   tuple({"name": n, "hash": model_hash(m)} for n, m in zip(names, family)), spec.disturbance)
+    _check_solver(file, k)
+    return MPCDesign(file, problem, cert, k)
+
+
+def _check_solver(file: MPCFile, k: np.ndarray) -> None:
+    """The solver, with the file's settings but time to converge, reproduces the unconstrained law."""
+    relaxed = replace(file.settings, time_budget=max(file.settings.time_budget, 5.0),
+                      max_iter=max(file.settings.max_iter, 20000))
+    ctrl = MPCController(mpc_problem(file.model, file.horizon, file.weights, file.limits, file.past,
+                                     file.disturbance), relaxed,
+                         file.fallback_gain, file.fallback_law, file.output_clip, file.speed_min, file.name)
+    nz = ctrl.problem.nz
+    z = np.zeros(nz)
+    z[ctrl.problem.layout.output_slot(0)] = (1e-3, 5e-4, 1e-3)       # small: no limit binds
+    info = ctrl.solve_qp(z)
+    want = float(k[0] @ z)
+    if info.fallback or abs(info.u0 - want) > 1e-4 * max(abs(want), 1e-3):
+        raise SynthesisError(f"the {ctrl.backend.name} solver's first move from a small state is {info.u0!r} rad/s "
+                             f"({info.status}; {info.reason or 'no fallback'}), the unconstrained law gives {want!r}; "
+                             "check the solver settings")

@@ -281,7 +281,7 @@ class Deframer:
         sync = fmt.sync
         header_len, id_at, tag_at, length_at = fmt.header_len, fmt.id_at, fmt.tag_at, fmt.length_at
         layouts, trailer, order, checked = fmt.table.layouts, fmt.checksum_len, fmt.checksum_order, fmt.checked_from
-        checksum, n = fmt.checksum, self._n
+        checksum, n, hook, decode_from = fmt.checksum, self._n, fmt.decode, fmt.table.decode_from
         buf = self._buf
         buf += data
         events: list[tuple[int, int | None, Any]] = []
@@ -319,7 +319,10 @@ class Deframer:
                 continue
             tag = buf[tag_at]
             try:
-                message = fmt.decode_payload(msg_id, bytes(buf[header_len:stop]), tag)
+                if hook is None:
+                    message = decode_from(layout, buf, header_len)
+                else:
+                    message = hook(msg_id, bytes(buf[header_len:stop]), tag)
             except self._content as err:
                 self._refuse(err, next(k for c, k in fmt.content_errors if isinstance(err, c)), events, end)
                 # A frame whose checksum is right but whose content is refused is consumed whole.

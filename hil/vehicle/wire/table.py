@@ -262,6 +262,11 @@ class MessageTable:
                                      f"{self.payload_text.format(layout.size)}, got {len(payload)}")
         return self.values_to_message(layout, self._structs[msg_id].unpack(payload))
 
+    def decode_from(self, layout: Layout, buffer: bytes | bytearray, offset: int) -> Any:
+        """The message of a layout whose payload starts at ``buffer[offset]`` (its length already
+        checked); raises as :meth:`decode_payload` for a forbidden field value."""
+        return self.values_to_message(layout, self._structs[layout.msg_id].unpack_from(buffer, offset))
+
     def values_to_message(self, layout: Layout, raws: tuple[int, ...]) -> Any:
         """The message of a layout from its unpacked wire integers (checked as :meth:`decode_payload`)."""
         values: dict[str, Any] = {}

@@ -12,8 +12,22 @@ import json
 
 import pytest
 
+from design.laws.controller import KinematicLQRController
+from hil.bench.runs.run import RunSpec, simulated_run
 from hil.cli import main as hil_main
 from hil.devices.emulate import EmulatedTractor
+from hil.truth.params import SimParams
+
+
+def test_a_field_run_through_the_module_engages_again_after_the_driver_hands_back():
+    """Lockstep: RTK float 5-8 s on a field through the steer module; the driver takes the wheel (the module
+    kicks out) and hands back on the line. The loop used to stay off for the rest of the run."""
+    params = SimParams().with_overrides({"gps.float_rate": 0.0})
+    log = simulated_run(RunSpec(bridge="agopengps", field="straight-300", speed=1.79, duration=25.0, seed=1,
+                                rtk_float=((5.0, 8.0),)), KinematicLQRController(), params)
+    events = [(e["t"], e["event"]) for e in log.meta["events"]]
+    assert log.meta["field"]["driver_takeovers"] >= 1
+    assert any(event == "engage" and t > 8.0 for t, event in events), events
 
 
 @pytest.mark.slow

@@ -110,7 +110,7 @@ class IsobusControllerConfig:
     max_curvature: float = 0.25
     max_curvature_rate: float = 0.2
     speed_window: tuple[float, float] = (0.3, 12.0)
-    kp: float = 10.0
+    kp: float = 25.0
     min_duty: float = 0.1
     address: int = 0x13
     name: Name = field(default=CONTROLLER_NAME)

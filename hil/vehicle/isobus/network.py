@@ -220,7 +220,8 @@ class Node:
         self.clock = clock
         self.address: int | None = address
         self._range = (lo, hi)
-        self._on_lost = on_lost
+        self.on_lost = on_lost
+        """Called with no argument when the node loses its address (settable)."""
         self._claimed_at = math.inf     # time of our last claim; the address is usable CLAIM_WAIT later
         self._silent = False            # lost and cannot claim: sends nothing but Cannot Claim Address
         self._tried: set[int] = set()
@@ -235,6 +236,11 @@ class Node:
         """Whether the node holds its address and may send guidance messages now."""
         return (not self._silent and self.address is not None
                 and self.clock.now() >= self._claimed_at + CLAIM_WAIT)
+
+    @property
+    def claiming(self) -> bool:
+        """Whether a claim has been sent for the current address (it may still be in its 250 ms)."""
+        return not self._silent and self.address is not None and self._claimed_at < math.inf
 
     @property
     def silent(self) -> bool:
@@ -333,8 +339,8 @@ class Node:
     def _lose(self) -> None:
         self.address = None
         self._claimed_at = math.inf
-        if self._on_lost is not None:
-            self._on_lost()
+        if self.on_lost is not None:
+            self.on_lost()
         if self.name.self_configurable:
             lo, hi = self._range
             free = [a for a in range(lo, hi + 1) if a not in self._tried]

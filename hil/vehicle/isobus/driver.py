@@ -1,0 +1,343 @@
+"""Host driver of an ISO 11783 steering-ready tractor: what the vehicle loop uses in place of the HC11 driver.
+
+The toolkit's controllers command a wheel-angle *rate*; the steering controller takes a path
+*curvature*. The driver integrates the rate into a wheel-angle setpoint and sends its curvature,
+``tan(setpoint) / wheelbase``, in Guidance System Command (PGN 44288) "intended to steer": on engage
+the setpoint starts at the angle of the measured curvature (bumpless); every
+:meth:`IsobusDriver.send_rate` adds ``rate x dt`` (``dt`` on the clock since the previous command, at
+most ``max_dt``), limited to ``max_angle``, to the curvature limit and to ``max_windup`` from the
+measured angle (anti-windup: a wheel that cannot follow does not leave the setpoint running ahead).
+
+The handshake, as valve controllers implement it: while the loop is disengaged the driver sends a
+command "not intended to steer" every ``period`` from :meth:`poll` (with the measured curvature),
+so a controller that asks for a reset after power-up, an override or a timeout has seen one before
+the loop engages again; "intended" commands are sent only between :meth:`engage` and
+:meth:`disengage`. When no rate command came for ``max_dt``, or the controller has been silent for
+``report_timeout``, the driver drops to "not intended" by itself.
+
+Reports look like the HC11 driver's to the loop: ``adc_counts`` is the wheel angle of the estimated
+curvature, ``atan(wheelbase x curvature)``, in units of :data:`ANGLE_CALIBRATION` (0.1 mrad, + = left);
+``engaged`` is "intended commanded and the controller follows" (ready, not locked out, no reset
+required); ``manual_override`` is the operator steering (limit status operator-limited, or exit code
+3 with a reset pending); ``watchdog_tripped`` is the controller's command timeout (exit code 5 with
+a reset pending).
+
+Link and address faults do not raise out of :meth:`poll` and :meth:`send_rate` (the loop's list
+of link errors holds the serial bridges'): a failed send or a lost address claim counts, drops
+the driver to disengaged and makes :meth:`is_alive` false (until a send succeeds again, and the
+node holds an address again), which the loop sees as a silent bridge and disengages on within
+one cycle.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+from hil.links.clock import Clock
+from hil.vehicle.calibration import WheelAngleCalibration
+from hil.vehicle.isobus.errors import AddressClaimError, IsobusConfigError, IsobusLinkError
+from hil.vehicle.isobus.network import Node
+from hil.vehicle.isobus.protocol import (
+    CommandStatus,
+    ExitCode,
+    GuidanceMachineInfo,
+    GuidanceSystemCommand,
+    LimitStatus,
+    Lockout,
+    Readiness,
+    ResetStatus,
+    saturate,
+)
+
+__all__ = ["ANGLE_CALIBRATION", "IsobusDriverConfig", "IsobusReport", "IsobusDriver"]
+
+ANGLE_CALIBRATION = WheelAngleCalibration(center_counts=0.0, rad_per_count=1e-4)
+"""How the loop reads :attr:`IsobusReport.adc_counts`: 0.1 mrad per count, 0 = straight, + = left."""
+
+
+def _positive(name: str, value: object, unit: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
+        raise IsobusConfigError(f"IsobusDriverConfig.{name} must be a finite number > 0 {unit}, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class IsobusDriverConfig:
+    """Settings of the driver.
+
+    Parameters
+    ----------
+    wheelbase : float
+        m, of the tractor (curvature = tan(wheel angle) / wheelbase).
+    controller_address : int
+        Source address of the steering controller (commands go to it, its reports are taken).
+    max_angle : float
+        Setpoint limit, rad (default 0.52).
+    max_curvature : float
+        Largest curvature commanded, 1/m (default 0.25).
+    max_rate : float
+        Largest rate command integrated, rad/s (default 0.35).
+    max_windup : float
+        Largest distance of the setpoint from the measured angle, rad (default 0.05).
+    max_dt : float
+        Longest time step integrated at once, and the longest gap between rate commands before the
+        driver drops to "not intended", s (default 0.2).
+    period : float
+        Period of the "not intended" commands while disengaged, s (default 0.1, as ISO 11783-7).
+    report_timeout : float
+        The controller counts as silent when no machine info arrived for this long, s (default
+        0.25: two and a half report periods).
+    max_pending_reports : int
+        Reports kept for :meth:`IsobusDriver.poll` (default 64).
+    """
+
+    wheelbase: float
+    controller_address: int = 0x13
+    max_angle: float = 0.52
+    max_curvature: float = 0.25
+    max_rate: float = 0.35
+    max_windup: float = 0.05
+    max_dt: float = 0.2
+    period: float = 0.1
+    report_timeout: float = 0.25
+    max_pending_reports: int = 64
+
+    def __post_init__(self) -> None:
+        for name, unit in (("wheelbase", "m"), ("max_angle", "rad"), ("max_curvature", "1/m"), ("max_rate", "rad/s"),
+                           ("max_windup", "rad"), ("max_dt", "s"), ("period", "s"), ("report_timeout", "s")):
+            _positive(name, getattr(self, name), unit)
+        a = self.controller_address
+        if isinstance(a, bool) or not isinstance(a, int) or not 0 <= a <= 253:
+            raise IsobusConfigError(f"IsobusDriverConfig.controller_address must be an int in [0, 253], got {a!r}")
+        n = self.max_pending_reports
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise IsobusConfigError(f"IsobusDriverConfig.max_pending_reports must be a positive int, got {n!r}")
+
+
+@dataclass(frozen=True)
+class IsobusReport:
+    """A Guidance Machine Info as received by the host.
+
+    Parameters
+    ----------
+    received_at : float
+        Host clock time of the poll that read it, s.
+    message : GuidanceMachineInfo
+        The decoded report.
+    engaged : bool
+        "Intended" was being commanded and the controller follows (ready, not locked out, no reset).
+    wheelbase : float
+        m, to turn the curvature into a wheel angle.
+    """
+
+    received_at: float
+    message: GuidanceMachineInfo
+    engaged: bool
+    wheelbase: float
+
+    @property
+    def angle(self) -> float:
+        """Wheel angle of the estimated curvature, rad, + = left."""
+        return math.atan(self.wheelbase * self.message.curvature)
+
+    @property
+    def adc_counts(self) -> int:
+        """:attr:`angle` in units of :data:`ANGLE_CALIBRATION` (0.1 mrad)."""
+        return round(self.angle / ANGLE_CALIBRATION.rad_per_count)
+
+    @property
+    def manual_override(self) -> bool:
+        """The operator is steering (or overrode and the controller has not been reset since)."""
+        m = self.message
+        return m.limit is LimitStatus.OPERATOR_LIMITED or (m.exit_code == ExitCode.OPERATOR_OVERRIDE
+                                                           and m.reset is ResetStatus.REQUIRED)
+
+    @property
+    def watchdog_tripped(self) -> bool:
+        """The controller ended guidance because commands stopped (exit code 5, reset pending)."""
+        m = self.message
+        return m.exit_code == ExitCode.REMOTE_COMMAND_TIMEOUT and m.reset is ResetStatus.REQUIRED
+
+
+class IsobusDriver:
+    """Steer an ISO 11783 steering controller through one CAN node.
+
+    Parameters
+    ----------
+    node : Node
+        This guidance system's node on the bus (the driver claims its address if not yet done).
+    clock : Clock
+        Time source (the node's).
+    config : IsobusDriverConfig
+        Wheelbase, limits, timeouts.
+    """
+
+    def __init__(self, node: Node, clock: Clock, config: IsobusDriverConfig) -> None:
+        self.node, self._clock, self.config = node, clock, config
+        self._reports: deque[IsobusReport] = deque()
+        self._latest: IsobusReport | None = None
+        self._engaged = False
+        self._setpoint = 0.0            # integral of the rate commands, rad
+        self._sent_curvature = 0.0      # last curvature commanded, 1/m
+        self._t_last = -math.inf        # last rate command
+        self._t_keepalive = -math.inf   # last "not intended"
+        self._link_failed = False       # the last send or receive failed
+        self.counts = dict(intended_sent=0, not_intended_sent=0, reports=0, refused=0, link_errors=0,
+                           address_lost=0, overflowed=0, limited=0)
+        """Counters since construction."""
+        previous = node.on_lost
+        node.on_lost = self._address_lost if previous is None else (lambda: (previous(), self._address_lost()))
+        if not node.claiming and not node.silent:
+            node.claim()
+
+    # -- sending ------------------------------------------------------------------------------
+    def _address_lost(self) -> None:
+        self.counts["address_lost"] += 1
+        self._engaged = False
+
+    def _send(self, curvature: float, status: CommandStatus) -> bool:
+        if not self.node.claimed:
+            return False
+        try:
+            self.node.send(GuidanceSystemCommand(saturate(curvature), status), self.config.controller_address)
+        except (IsobusLinkError, AddressClaimError):
+            self.counts["link_errors"] += 1
+            self._engaged = False
+            self._link_failed = True
+            return False
+        self._link_failed = False
+        self.counts["intended_sent" if status is CommandStatus.INTENDED else "not_intended_sent"] += 1
+        return True
+
+    def _not_intended(self) -> None:
+        self._t_keepalive = self._clock.now()
+        self._send(self._measured_curvature(), CommandStatus.NOT_INTENDED)
+
+    def engage(self) -> None:
+        """Start steering: the setpoint starts at the measured angle (sent with the first rate command)."""
+        self._engaged = True
+        self._setpoint = self._measured()
+        self._t_last = self._clock.now()
+
+    def disengage(self) -> None:
+        """Stop steering: send "not intended to steer" at once (the controller stops following)."""
+        self._engaged = False
+        self._not_intended()
+
+    def send_rate(self, rate: float) -> float:
+        """Integrate a steering-rate command into the setpoint and send its curvature "intended".
+
+        Parameters
+        ----------
+        rate : float
+            Wheel-angle rate, rad/s, + = left (limited to ``max_rate``).
+
+        Returns
+        -------
+        float
+            The curvature sent, 1/m, + = left (0 when nothing could be sent).
+
+        Raises
+        ------
+        IsobusConfigError
+            Not engaged (the driver never sends "intended" while disengaged), or ``rate`` not finite.
+        """
+        if not self._engaged:
+            raise IsobusConfigError("send_rate while disengaged: call engage() first")
+        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate):
+            raise IsobusConfigError(f"rate must be a finite number of rad/s, got {rate!r}")
+        cfg = self.config
+        now = self._clock.now()
+        dt = min(max(now - self._t_last, 0.0), cfg.max_dt)
+        self._t_last = now
+        u = min(max(float(rate), -cfg.max_rate), cfg.max_rate)
+        wanted = self._setpoint + u * dt
+        measured = self._measured()
+        limit = min(cfg.max_angle, math.atan(cfg.wheelbase * cfg.max_curvature))
+        setpoint = min(max(wanted, measured - cfg.max_windup), measured + cfg.max_windup)
+        setpoint = min(max(setpoint, -limit), limit)
+        if setpoint != wanted or u != rate:
+            self.counts["limited"] += 1
+        self._setpoint = setpoint
+        curvature = math.tan(setpoint) / cfg.wheelbase
+        if not self._send(curvature, CommandStatus.INTENDED):
+            return 0.0
+        self._sent_curvature = curvature
+        return curvature
+
+    # -- receiving ----------------------------------------------------------------------------
+    def _measured(self) -> float:
+        return self._latest.angle if self._latest is not None else 0.0
+
+    def _measured_curvature(self) -> float:
+        return self._latest.message.curvature if self._latest is not None else 0.0
+
+    def poll(self) -> list[IsobusReport]:
+        """Read what is waiting (never blocks); drop to "not intended" when the loop stopped commanding
+        or the controller went silent; while disengaged, send "not intended" every ``period``.
+        Returns the reports not yet returned, oldest first."""
+        cfg = self.config
+        try:
+            received = self.node.poll()
+        except IsobusLinkError:
+            self.counts["link_errors"] += 1
+            self._engaged, self._link_failed = False, True
+            received = []
+        for r in received:
+            if r.source != cfg.controller_address:
+                continue
+            if not isinstance(r.message, GuidanceMachineInfo):
+                if not isinstance(r.message, GuidanceSystemCommand):
+                    self.counts["refused"] += 1
+                continue
+            m = r.message
+            follows = (self._engaged and m.reset is ResetStatus.NOT_REQUIRED and m.readiness is Readiness.READY
+                       and m.lockout is not Lockout.ACTIVE)
+            report = IsobusReport(r.time, m, follows, cfg.wheelbase)
+            self.counts["reports"] += 1
+            self._latest = report
+            self._reports.append(report)
+            if len(self._reports) > cfg.max_pending_reports:
+                self._reports.popleft()
+                self.counts["overflowed"] += 1
+        now = self._clock.now()
+        if self._engaged and (now - self._t_last > cfg.max_dt or not self.is_alive()):
+            self._engaged = False       # the loop stopped commanding, or the controller went silent
+            self._not_intended()
+        elif not self._engaged and now - self._t_keepalive >= cfg.period - 1e-9:
+            self._not_intended()
+        out = list(self._reports)
+        self._reports.clear()
+        return out
+
+    # -- health -------------------------------------------------------------------------------
+    @property
+    def engaged(self) -> bool:
+        """"Intended to steer" is being commanded."""
+        return self._engaged
+
+    @property
+    def setpoint(self) -> float:
+        """The integral of the rate commands (bumpless from the measured angle, limited), rad, + = left."""
+        return self._setpoint
+
+    @property
+    def sent_curvature(self) -> float:
+        """The curvature last commanded "intended", 1/m, + = left."""
+        return self._sent_curvature
+
+    @property
+    def latest(self) -> IsobusReport | None:
+        """The newest report (None before the first)."""
+        return self._latest
+
+    def report_age(self) -> float:
+        """Seconds since the newest report (inf before the first)."""
+        return math.inf if self._latest is None else self._clock.now() - self._latest.received_at
+
+    def is_alive(self) -> bool:
+        """A report arrived within ``report_timeout``, the node holds its address and the bus works."""
+        return (not self._link_failed and self.node.claimed
+                and self.report_age() <= self.config.report_timeout)

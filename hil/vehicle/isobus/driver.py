@@ -83,7 +83,9 @@ class IsobusDriverConfig:
         Largest distance of the setpoint from the measured angle, rad (default 0.05).
     max_dt : float
         Longest time step integrated at once, and the longest gap between rate commands before the
-        driver drops to "not intended", s (default 0.2).
+        driver drops to "not intended", s (default 0.15: under the controller's 0.2 s command
+        timeout less its 20 ms sample, so a stalled loop ends guidance with "not intended", not
+        with the controller's timeout).
     period : float
         Period of the "not intended" commands while disengaged, s (default 0.1, as ISO 11783-7).
     report_timeout : float
@@ -99,7 +101,7 @@ class IsobusDriverConfig:
     max_curvature: float = 0.25
     max_rate: float = 0.35
     max_windup: float = 0.05
-    max_dt: float = 0.2
+    max_dt: float = 0.15
     period: float = 0.1
     report_timeout: float = 0.25
     max_pending_reports: int = 64
@@ -212,8 +214,8 @@ class IsobusDriver:
         return True
 
     def _not_intended(self) -> None:
-        self._t_keepalive = self._clock.now()
-        self._send(self._measured_curvature(), CommandStatus.NOT_INTENDED)
+        if self._send(self._measured_curvature(), CommandStatus.NOT_INTENDED):
+            self._t_keepalive = self._clock.now()
 
     def engage(self) -> None:
         """Start steering: the setpoint starts at the measured angle (sent with the first rate command)."""
@@ -303,7 +305,7 @@ class IsobusDriver:
                 self._reports.popleft()
                 self.counts["overflowed"] += 1
         now = self._clock.now()
-        if self._engaged and (now - self._t_last > cfg.max_dt or not self.is_alive()):
+        if self._engaged and (now - self._t_last > cfg.max_dt + 1e-9 or not self.is_alive()):
             self._engaged = False       # the loop stopped commanding, or the controller went silent
             self._not_intended()
         elif not self._engaged and now - self._t_keepalive >= cfg.period - 1e-9:

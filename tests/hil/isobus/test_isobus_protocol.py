@@ -165,5 +165,6 @@ def test_any_curvature_in_range_round_trips_within_half_a_bit(c, s):
 
 def test_the_committed_document_equals_the_rendering():
     text = DOC.read_text(encoding="utf-8")
-    assert docgen.replace_block(text) == text, "run: python -m hil.vehicle.isobus.docgen docs/isobus_protocol.md --write"
+    assert docgen.replace_block(text) == text, \
+        "run: python -m hil.vehicle.isobus.docgen docs/isobus_protocol.md --write"
     assert docgen.main([str(DOC)]) == 0

@@ -5,18 +5,11 @@ from __future__ import annotations
 
 import sys
 
+from hil import toolkit_version
+
 
 #: Exit status after Ctrl-C (128 + SIGINT), as shells report it.
 EXIT_INTERRUPTED = 130
-
-
-def _version() -> str:
-    """The installed toolkit's version (pyproject.toml's ``version``), or ``unknown`` outside an installation."""
-    from importlib import metadata
-    try:
-        return metadata.version("tractor-autosteer")
-    except metadata.PackageNotFoundError:
-        return "unknown"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -28,7 +21,7 @@ def main(argv: list[str] | None = None) -> int:
     """
     args = sys.argv[1:] if argv is None else list(argv)
     if args[:1] == ["--version"]:
-        print(f"hil {_version()}")
+        print(f"hil {toolkit_version()}")
         return 0
     try:
         if args[:1] == ["drive"]:

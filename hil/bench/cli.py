@@ -31,6 +31,7 @@ from identification.outputs import write_stdout
 from identification.passlog import PassLog
 
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS
+from hil import toolkit_version
 from hil.errors import HilError, SimulatorConfigError
 from hil.devices.faults import LinkFault
 from hil.truth.params import SimParams, parameter_markdown, parameter_table
@@ -236,7 +237,8 @@ def _cmd_compare(args: argparse.Namespace) -> dict:
     bar.close()
     realtime = campaign.run_realtime(args.realtime, controllers=args.realtime_controllers,
                                      duration=args.realtime_duration) if args.realtime else []
-    rep = write_report(results, args.out, extra={"campaign": campaign.identity}, realtime=realtime)
+    tractor = getattr(args, "tractor", None) or "default"
+    rep = write_report(results, args.out, extra={"campaign": campaign.identity, "tractor": tractor}, realtime=realtime)
     return {"out": args.out, "passes": len(results), "tables": rep["tables"], "files": rep["files"]}
 
 
@@ -386,6 +388,8 @@ def _cmd_emulate(args: argparse.Namespace) -> dict:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="hil", description="Truth simulator and hardware-in-the-loop bench.")
+    p.add_argument("--version", action="version", version=f"hil {toolkit_version()}",
+                   help="print the toolkit's version and exit")
     sub = p.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--json", action="store_true", help="print the result as JSON on stdout")

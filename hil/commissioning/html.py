@@ -21,16 +21,16 @@ import json
 import re
 import subprocess
 from dataclasses import dataclass, field
-from importlib import metadata
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 from identification.outputs import atomic_write
 
-__all__ = ["Table", "Cell", "blocks", "provenance", "render_page", "write_page", "file_sha256", "toolkit_version"]
+from hil import toolkit_version
+
+__all__ = ["Table", "Cell", "blocks", "provenance", "render_page", "write_page", "file_sha256"]
 
 #: The distribution whose version the pages name.
-DISTRIBUTION = "tractor-autosteer"
 #: Largest controller file hashed for the provenance, bytes (a controller file is a few kB).
 HASH_MAX_BYTES = 64 * 2 ** 20
 #: Seconds allowed to each ``git`` call of the provenance.
@@ -185,14 +185,6 @@ def blocks(lines: Iterable[str | Table]) -> list:
         i += 1
     flush()
     return out
-
-
-def toolkit_version() -> str:
-    """The installed version of the toolkit (``pyproject.toml``'s ``version``), or ``"unknown"``."""
-    try:
-        return metadata.version(DISTRIBUTION)
-    except metadata.PackageNotFoundError:
-        return "unknown"
 
 
 def git_commit(where: Path | None = None) -> str:

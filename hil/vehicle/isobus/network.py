@@ -256,7 +256,8 @@ class Node:
                                   f"({exc}); check the interface is up") from exc
 
     def claim(self) -> None:
-        """Send the address claim for the current address (call once at start)."""
+        """Send the address claim for the current address (call once at start; a node that lost its
+        address and found no other sends Cannot Claim Address from 254 instead)."""
         if self._silent or self.address is None:
             self._send(CanId(6, PGN_ADDRESS_CLAIMED, NULL_ADDRESS), self.name.to_bytes())
             return
@@ -310,8 +311,7 @@ class Node:
                 self._on_claim(cid.source, data)
             elif cid.pgn == PGN_REQUEST:
                 if data[:3] == PGN_ADDRESS_CLAIMED.to_bytes(3, "little") and cid.destination in (GLOBAL, self.address):
-                    self.claim() if not self._silent else self._send(
-                        CanId(6, PGN_ADDRESS_CLAIMED, NULL_ADDRESS), self.name.to_bytes())
+                    self.claim()            # silent: Cannot Claim Address from 254
             elif cid.pgn in CLASSES and cid.source != self.address and cid.destination in (GLOBAL, self.address):
                 try:
                     message: Message | FrameError = decode(cid.pgn, data)

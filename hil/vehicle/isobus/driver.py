@@ -51,7 +51,7 @@ from hil.vehicle.isobus.protocol import (
     saturate,
 )
 
-__all__ = ["ANGLE_CALIBRATION", "IsobusDriverConfig", "IsobusReport", "IsobusDriver"]
+__all__ = ["ANGLE_CALIBRATION", "IsobusDriverConfig", "IsobusReport", "IsobusDriverStats", "IsobusDriver"]
 
 ANGLE_CALIBRATION = WheelAngleCalibration(center_counts=0.0, rad_per_count=1e-4)
 """How the loop reads :attr:`IsobusReport.adc_counts`: 0.1 mrad per count, 0 = straight, + = left."""
@@ -161,6 +161,44 @@ class IsobusReport:
         """The controller ended guidance because commands stopped (exit code 5, reset pending)."""
         m = self.message
         return m.exit_code == ExitCode.REMOTE_COMMAND_TIMEOUT and m.reset is ResetStatus.REQUIRED
+
+
+@dataclass(frozen=True)
+class IsobusDriverStats:
+    """Counters since construction.
+
+    Parameters
+    ----------
+    intended_sent, not_intended_sent : int
+        Commands sent "intended to steer" / "not intended to steer".
+    reports, refused : int
+        Machine-info reports taken from the controller; guidance frames from it refused (malformed).
+    link_errors : int
+        Sends or receives that failed on the bus.
+    address_lost : int
+        Times another NAME took this node's address.
+    overflowed : int
+        Reports dropped because nobody polled.
+    limited : int
+        Rate commands whose setpoint was limited (rate, angle, curvature or windup).
+    conflicts : int
+        Address claims for this node's address received from another NAME.
+    """
+
+    intended_sent: int
+    not_intended_sent: int
+    reports: int
+    refused: int
+    link_errors: int
+    address_lost: int
+    overflowed: int
+    limited: int
+    conflicts: int
+
+    @property
+    def bad_frames(self) -> int:
+        """Frames refused for any reason."""
+        return self.refused
 
 
 class IsobusDriver:
@@ -334,6 +372,10 @@ class IsobusDriver:
     def latest(self) -> IsobusReport | None:
         """The newest report (None before the first)."""
         return self._latest
+
+    def stats(self) -> IsobusDriverStats:
+        """Statistics snapshot."""
+        return IsobusDriverStats(**self.counts, conflicts=self.node.conflicts)
 
     def report_age(self) -> float:
         """Seconds since the newest report (inf before the first)."""

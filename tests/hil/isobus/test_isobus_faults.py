@@ -173,7 +173,9 @@ def test_a_clean_pass_engages_after_the_handshake_and_stays_engaged():
     assert_handshake_before_each_engagement(loop, commands)
     assert controller.state.engaged and controller.state.exit_code == 0 and controller.state.refused == 0
     assert np.std(log.channels["truth_cross_track"][150:]) < 0.1
-    assert driver.counts["link_errors"] == 0 and driver.counts["address_lost"] == 0
+    stats = driver.stats()
+    assert stats.link_errors == 0 and stats.address_lost == 0 and stats.bad_frames == 0 and stats.conflicts == 0
+    assert stats.intended_sent > 250 and stats.reports > 140
 
 
 def test_an_override_mid_pass_disengages_within_a_cycle_and_the_handshake_is_redone():
@@ -216,7 +218,7 @@ def test_an_address_conflict_disengages_the_loop_and_steering_resumes_from_the_n
     log, loop, driver, controller, commands, _ = isobus_pass(20.0, actions=[(8.0, intrude)])
     first = disengagements(loop)[0]
     assert 8.0 <= first["t"] <= 8.0 + PERIOD and "silent" in first["reason"]
-    assert driver.counts["address_lost"] == 1 and driver.node.address == 129
+    assert driver.stats().address_lost == 1 and driver.stats().conflicts == 1 and driver.node.address == 129
     assert {src for when, src, _ in commands if when > 8.01} == {129}     # 0x80 = 128 was tried
     assert_never_intended_while_disengaged(log, commands)
     assert_handshake_before_each_engagement(loop, commands)

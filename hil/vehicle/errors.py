@@ -7,3 +7,8 @@ from hil.errors import HilError
 
 class VehicleConfigError(HilError, ValueError):
     """A vehicle-loop, drive or host-calibration setting is invalid."""
+
+
+class SteeringLinkError(ConnectionError):
+    """Reading from or writing to a steering device's link failed (port gone, socket closed, bus down). Every
+    bridge's own link error subclasses it, so the loop handles them all alike without knowing the bridges."""

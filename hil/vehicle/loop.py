@@ -57,9 +57,8 @@ from gnss.guidance import ABLine, TrackErrors
 from gnss.integrity import IntegrityState
 from identification.passlog import PassLog
 
-from hil.vehicle.agio.errors import AgioLinkError
-from hil.vehicle.bridge.driver import BridgeDriver, BridgeLinkError
-from hil.vehicle.errors import VehicleConfigError
+from hil.vehicle.bridge.driver import BridgeDriver
+from hil.vehicle.errors import SteeringLinkError, VehicleConfigError
 from hil.links.clock import Clock, RealClock
 from hil.links.realtime import collector_held
 from hil.vehicle.calibration import WheelAngleCalibration
@@ -69,7 +68,7 @@ INTEGRITY_CODES = {"RTK_FIXED": 0, "RTK_FLOAT": 1, "DEGRADED": 2, "STALE": 3, "L
 # by id(): hashing an Enum member runs Python code (Enum.__hash__), id() does not
 _INTEGRITY_BY_ID = {id(s): float(INTEGRITY_CODES.get(s.name, 9)) for s in IntegrityState}
 #: What a bridge driver raises when its link fails (the HC11 board's or the AgOpenGPS module's)
-LINK_ERRORS = (BridgeLinkError, AgioLinkError)
+LINK_ERRORS = SteeringLinkError
 
 
 @dataclass(frozen=True)

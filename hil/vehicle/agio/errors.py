@@ -7,6 +7,7 @@ decoder returns them (it never raises on bad bytes) so that the driver can count
 
 from __future__ import annotations
 
+from hil.vehicle.errors import SteeringLinkError
 from hil.vehicle.wire.errors import FrameRefusal
 
 __all__ = [
@@ -60,5 +61,5 @@ class AgioConfigError(AgioError, ValueError):
     """An option of the module emulation, the driver or a bridge specification is unknown or bad."""
 
 
-class AgioLinkError(AgioError, ConnectionError):
+class AgioLinkError(AgioError, SteeringLinkError):
     """Reading from or writing to the module's link failed (socket closed, port gone, ...)."""

@@ -8,6 +8,7 @@ decoder returns them (it never raises on bad bytes) so that they can be counted.
 
 from __future__ import annotations
 
+from hil.vehicle.errors import SteeringLinkError
 from hil.vehicle.wire.errors import FrameRefusal
 
 __all__ = [
@@ -66,5 +67,5 @@ class PlantInterfaceError(BridgeError, ValueError):
     """The plant answered the firmware with a value its hardware could not produce."""
 
 
-class BridgeLinkError(BridgeError, ConnectionError):
+class BridgeLinkError(BridgeError, SteeringLinkError):
     """Reading from or writing to the bridge's link failed (port gone, pty closed, ...)."""

@@ -8,6 +8,7 @@ without importing this module. The decoding errors subclass :class:`FrameError` 
 from __future__ import annotations
 
 from hil.vehicle.wire.errors import FrameRefusal
+from hil.vehicle.errors import SteeringLinkError
 
 __all__ = [
     "IsobusError", "FrameError", "LengthError", "UnknownPgnError", "FieldError", "ChecksumError", "EncodeError",
@@ -47,9 +48,9 @@ class IsobusConfigError(IsobusError, ValueError):
     """An option of the transport, the emulated controller, the driver or a bus specification is bad."""
 
 
-class IsobusLinkError(IsobusError, ConnectionError):
+class IsobusLinkError(IsobusError, SteeringLinkError):
     """Sending on or receiving from the CAN bus failed (interface down, bus closed)."""
 
 
-class AddressClaimError(IsobusError, ConnectionError):
+class AddressClaimError(IsobusError, SteeringLinkError):
     """The node lost its address to a NAME of higher priority and has no address to send from."""

@@ -56,8 +56,9 @@ def test_hil_drive_loads_nothing_of_the_simulator_or_the_bench():
     itself; no module of ours does (the vehicle contract forbids it)."""
     code = ("import sys\n"
             "from hil.cli import main\n"
-            "try:\n    main(['drive', '--help'])\nexcept SystemExit:\n    pass\n"
-            "import hil.vehicle.drive, hil.vehicle.loop\n"
+            "for command in ('drive', 'valve-test'):\n"
+            "    try:\n        main([command, '--help'])\n    except SystemExit:\n        pass\n"
+            "import hil.vehicle.drive, hil.vehicle.loop, hil.vehicle.valve_run, hil.vehicle.procedure\n"
             "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('tqdm', 'dask', 'distributed')"
             " or m.startswith(('hil.truth', 'hil.devices', 'hil.bench')))\n"
             "print('LOADED', bad)\n")

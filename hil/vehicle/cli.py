@@ -121,6 +121,76 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
     return d
 
 
+def add_valve_test_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add the ``valve-test`` sub-command to a ``hil`` parser."""
+    v = sub.add_parser("valve-test", help="characterise the steering valve through the tractor's HC11 bridge at "
+                       "standstill and write the commissioning file (on a tractor)")
+    v.add_argument("--bridge", required=True, help="the HC11 bridge's serial device (or hc11:PORT)")
+    v.add_argument("--wheel-calibration", type=parse_floats(2), default=(128.0, 0.0061),
+                   metavar="CENTER,RAD_PER_COUNT", help="the wheel-angle potentiometer's centre, counts, and rad "
+                   "per count (default 128,0.0061)")
+    v.add_argument("--full-scale", type=parse_float, default=0.35, metavar="RAD_PER_S",
+                   help="the bridge's steering rate at full duty, rad/s (its firmware setting; default 0.35)")
+    v.add_argument("--duties", type=_duties, default=None, metavar="D,D,...",
+                   help="duties stepped each way, fractions of full duty (default: 16 from 0.03 to 1; at most "
+                        "5.3 min at standstill)")
+    v.add_argument("--no-linearity", action="store_true", help="skip the check of the inverse map (14 steps)")
+    v.add_argument("--tractor", default="tractor", help="the tractor's name, for the commissioning file")
+    v.add_argument("--bridge-baud", type=int, default=9600, help="line rate, bit/s (default 9600)")
+    v.add_argument("--out", required=True, help="directory for commissioning.json and valve_steps.json")
+    v.add_argument("--json", action="store_true", help="print the result as JSON")
+    v.set_defaults(func=_cmd_valve_test)
+    return v
+
+
+def _duties(text: str) -> tuple[float, ...]:
+    values = tuple(parse_float(p) for p in text.split(","))
+    if not values or not all(0 < d <= 1 for d in values):
+        raise argparse.ArgumentTypeError(f"expected duties in (0, 1] separated by commas, got {text!r}")
+    return values
+
+
+def _cmd_valve_test(args: argparse.Namespace) -> dict:
+    from hil.vehicle.valve_run import ValveTestConfig, valve_test
+    from hil.vehicle.valve_test import ValveTestPlan
+    cfg = ValveTestConfig(args.bridge, tuple(args.wheel_calibration), args.full_scale, args.bridge_baud, args.tractor,
+                          not args.no_linearity)
+    plan = ValveTestPlan(duties=args.duties) if args.duties else ValveTestPlan()
+    prepare_out_dir(args.out)                # after every option is checked: a refused one creates nothing
+    return {"out": args.out, **valve_test(cfg, args.out, plan)}
+
+
+def valve_test_text(result: dict) -> str:
+    """The operator's lines after a valve test."""
+    v = result["valve"]
+    lines = [f"valve: deadband {v['deadband']:.3f} duty, full-scale rate {v['full_scale']:.3f} rad/s, "
+             f"lag {v['lag']:.3f} s ({result['steps']} steps in {result['seconds']:.0f} s)"]
+    lin = result.get("linearity")
+    if lin:
+        lines.append(f"inverse map: largest error {100 * lin['max_error_fraction']:.1f} % of the rate asked")
+    lines.append(f"wrote {result['commissioning']}")
+    return "\n".join(lines)
+
+
+def valve_test_main(argv: list[str] | None = None) -> int:
+    """``hil valve-test ...`` (``argv`` without the leading ``valve-test``). Exit 0, 1 (refused value, a port that
+    cannot be opened, a test stopped by Ctrl-C or SIGTERM: the bridge disengaged, nothing written) or 2 (usage)."""
+    parser = argparse.ArgumentParser(prog="hil", description="The valve test on a tractor.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_valve_test_parser(sub)
+    args = parser.parse_args(["valve-test", *(sys.argv[2:] if argv is None else argv)])
+    try:
+        result = args.func(args)
+    except (HilError, ValueError) as exc:
+        print(f"hil valve-test: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        print(f"hil valve-test: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
+        return 1
+    print(json.dumps(result, indent=2) if args.json else valve_test_text(result), flush=True)
+    return 0
+
+
 def solver_text(s: dict) -> str:
     """One line of an optimisation-based controller's diagnostics (``controller.diagnostics()``): ticks,
     fall-backs and the solve times in ms, wall-clock and, where the controller measures it, CPU."""

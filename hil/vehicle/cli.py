@@ -49,6 +49,15 @@ def parse_floats(n: int):
     return parse
 
 
+def _commissioning_file(text: str):
+    """argparse type: a commissioning file, read and checked before anything is opened or driven."""
+    from hil.vehicle.commissioning import load_commissioning
+    try:
+        return load_commissioning(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _vehicle_spec(text: str) -> str:
     if text.endswith(".json"):
         if not Path(text).is_file():
@@ -67,7 +76,8 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
     cfg = DriveConfig(bridge_port=args.bridge, position_port=args.position, attitude_port=args.attitude,
                       line_a=a, line_b=b, height=args.height, lever_arm=args.lever_arm,
                       wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
-                      gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time))
+                      gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time),
+                      commissioning=args.commissioning)
     key = load_public_key(args.require_signature) if args.require_signature else None
     controller = vehicle_controller(args.controller, key)
     log = drive(cfg, controller, args.duration, implement=args.implement, nominal_speed=args.speed)
@@ -102,6 +112,9 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
     d.add_argument("--line", required=True, type=parse_floats(4), metavar="LAT_A,LON_A,LAT_B,LON_B",
                    help="guidance line ends in degrees; A is the local origin (write --line=... when a "
                         "value is negative)")
+    d.add_argument("--commissioning", metavar="FILE", default=None, type=_commissioning_file,
+                   help="the tractor's commissioning file (hil valve-test): the loop's rate limit and steering "
+                        "monitor from the measured valve, and an HC11 bridge's commands through its inverse map")
     d.add_argument("--height", type=parse_float, default=0.0, help="field ellipsoidal height, m")
     d.add_argument("--lever-arm", type=parse_floats(3), default=(0.0, 0.0, 3.0), metavar="X,Y,Z",
                    help="antenna from the control point, body frame (fwd, left, up), m")

@@ -148,7 +148,7 @@ def load_commissioning(path: str | Path) -> Commissioning:
     path = Path(path)
     if not path.exists():
         raise VehicleConfigError(f"commissioning file {str(path)!r} does not exist; make one with "
-                                 "`hil commission` (or the valve characterisation)")
+                                 "`hil valve-test` on the tractor (or `hil commission` on the bench)")
     d = read_json(path, MAX_FILE_BYTES, "commissioning file", VehicleConfigError)
     return Commissioning.from_dict(d, where=f"commissioning file {str(path)!r}")
 

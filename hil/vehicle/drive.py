@@ -41,6 +41,7 @@ from hil.vehicle.errors import VehicleConfigError
 from hil.links.clock import RealClock
 from hil.vehicle.loop import LoopConfig, VehicleLoop
 from hil.vehicle.calibration import WheelAngleCalibration
+from hil.vehicle.commissioning import Commissioning, MappedBridge
 
 
 def _finite(name: str, values: tuple[float, ...], n: int) -> tuple[float, ...]:
@@ -77,6 +78,11 @@ class DriveConfig:
         Line rates, bit/s.
     agio
         Settings of the AgOpenGPS driver (setpoint limits and lead), used with an ``agopengps`` bridge.
+    commissioning
+        The tractor's commissioning (``hil valve-test``): the loop's rate limit and steering-response monitor
+        come from the measured valve, and an HC11 bridge's rate commands go through its inverse map
+        (:class:`hil.vehicle.commissioning.MappedBridge`); an AgOpenGPS module closes its own angle loop, so
+        only the loop's settings apply to it.
     """
 
     bridge_port: str
@@ -91,6 +97,7 @@ class DriveConfig:
     gnss_baud: int = 38400
     loop: LoopConfig = field(default_factory=LoopConfig)
     agio: AgioDriverConfig = field(default_factory=AgioDriverConfig)
+    commissioning: Commissioning | None = None
 
     def __post_init__(self) -> None:
         for name in ("bridge_port", "position_port"):
@@ -211,9 +218,15 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
                                     clock=clock.now)
             if agio:   # the module takes the ground speed in PGN 254 and reports its angle in 0.01 degree
                 driver.set_speed_source(lambda: frontend.solution(clock.now()).speed)
-            loop = VehicleLoop(clock, driver, frontend, line, controller,
+            loop_config = module_loop_config(cfg.loop) if agio and cfg.commissioning is None else cfg.loop
+            steering = driver
+            if cfg.commissioning is not None:
+                loop_config = cfg.commissioning.loop_config(loop_config)
+                if not agio:          # the valve's inverse map: the loop's rate becomes the command the valve needs
+                    steering = MappedBridge(driver, cfg.commissioning.valve)
+            loop = VehicleLoop(clock, steering, frontend, line, controller,
                                ANGLE_CALIBRATION if agio else WheelAngleCalibration(*cfg.wheel_calibration),
-                               module_loop_config(cfg.loop) if agio else cfg.loop)
+                               loop_config)
             try:
                 loop.run(duration, start=clock.now(), progress=progress, stop_request=request)
                 interrupted = request.reason
@@ -233,6 +246,7 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
     meta = {"implement": implement, "nominal_speed": nominal_speed, "source": "hil.vehicle.drive (real serial ports)",
             "mode": "vehicle", "interrupted": bool(interrupted), "stop_reason": interrupted, "aborted": aborted,
             "ports": {"bridge": cfg.bridge_port, "position": cfg.position_port, "attitude": cfg.attitude_port},
+            "commissioning": None if cfg.commissioning is None else cfg.commissioning.to_dict(),
             "line": {"a": list(cfg.line_a), "b": list(cfg.line_b)}, "lever_arm": list(cfg.lever_arm),
             "bridge_stats": {k: v for k, v in stats.__dict__.items() if k != "ping_rtts"},
             "link_stats": _link_stats(bridge)}

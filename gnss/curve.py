@@ -15,7 +15,7 @@ station is arc length from the start, m. The first and last segments are extende
 straight lines along their end tangents, so a point before the start gets a negative
 station and one past the end a station beyond :attr:`ArcPath.length`.
 
-Building paths (the field API, issue 16; :mod:`gnss.field` and :mod:`gnss.uturn` use it):
+Building paths (the field API; :mod:`gnss.field` and :mod:`gnss.uturn` use it):
 
 * :meth:`ArcPath.offset` ``(d)``: the exact parallel path ``d`` m to the left (right if < 0);
   each arc's curvature ``k`` becomes ``k / (1 - k d)`` and its length ``length (1 - k d)``. An

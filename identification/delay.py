@@ -24,7 +24,7 @@ channels (position: ``cross_track`` and ``speed``; attitude: ``heading_error``):
     implements). With a single speed the shift is an upper bound, said so in
     a warning. Measured on ``hil sysid`` passes (15 conditions, 3 passes of 120 s,
     seed 1997): 0.055 s for the default tractor's 0.05 s, 0.148 s for ``heavy-11t``'s
-    0.15 s, 0.159 s for issue 14's heavy tractor made with ``--set`` (0.15 s), 0.126 s
+    0.15 s, 0.159 s for a heavy tractor made with ``--set`` (0.15 s), 0.126 s
     for ``worn-valve``'s 0.12 s; stated tolerance :data:`TOLERANCE_S`.
     The position latency is not separable this way from the lateral dynamics
     (tried: the cross track against the heading gives 0.2-0.6 s for 0.08-0.15 s),

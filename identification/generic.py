@@ -28,7 +28,7 @@ the whole fit data. A full output-error fit that overfits the selection data
 loses to the simpler one.
 
 :data:`INNER_FIT` is 85 %: the candidates are judged on models fitted to most of
-what the chosen one will be fitted to. With 70 % (before issue 19's second
+what the chosen one will be fitted to. With 70 % (before the second
 round), on the 433- to 1024-sample halves of the DaISy records, the output-error
 fits and the subspace methods, which need the most data, were judged on models
 much worse than the ones they finally give (docs/identification_inputs.md).

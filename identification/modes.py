@@ -10,13 +10,13 @@ loop gain at the Nyquist frequency about 50 times the other models' (the steerin
 ``|P(-1)|`` 0.078 against 0.0004-0.012 rad per rad/s), so one extra sample of delay flips
 its sign and the design's delay reserve fails there: the weight search of the worn valve's MPC
 stopped at scale 1.70 on that one model. The same MPC at scale 3.5 (every other specification
-met on every other model) held the 15 HIL cells of that tractor within both of issue 14's bounds (worst
+met on every other model) held the 15 HIL cells of that tractor within both commissioning bounds (worst
 1.27x the oracle, against 1.31-1.43x at 1.70): the mode was not the tractor's.
 
 :func:`sampling_artefact` names such a mode; :func:`identification.selection.fit_select` does
 not choose a candidate that has one when another candidate is free of it (the tractor
 identification asks it to, :mod:`identification.tractor`; a generic identification does not,
-since a plant may have real fast resonances). Over session 11's campaign (22 tractors) 49 of 418
+since a plant may have real fast resonances). Over a campaign of 22 tractors 49 of 418
 models had one.
 """
 

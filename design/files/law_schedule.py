@@ -1,9 +1,9 @@
-"""A linear controller file's window laws by speed (``design["law_schedule"]``; issue 14).
+"""A linear controller file's window laws by speed (``design["law_schedule"]``).
 
 Why: on random-1 the robust window laws the estimate's back-off makes are ordered by their bandwidth
 (the window weights' scale), and the order turns over with speed: over 12 HIL seeds the law of scale
 1.48 is 0.93x the paper's method at 2.91 m/s where the law chosen for every speed (1.05) is 1.04x, and
-at 1.00 m/s the wider laws cost (docs/tractor_campaign.md, session 15). One law for every speed takes
+at 1.00 m/s the wider laws cost (docs/tractor_campaign.md). One law for every speed takes
 the middle; the window trial (:mod:`hil.bench.commissioning.window_trial`) now chooses per speed, and the file
 carries the laws it chose.
 

@@ -342,7 +342,7 @@ def write_field_report(results: list[dict], comparison: FieldComparison) -> dict
     return {"rows": len(rows), "files": files}
 
 
-#: Conditions of ``hil compare --fields`` by default: issue 16's acceptance speeds with each implement.
+#: Conditions of ``hil compare --fields`` by default: the field targets' speeds with each implement.
 DEFAULT_FIELD_CONDITIONS = (("none", 1.79), ("disker", 1.79), ("ripper", 1.79),
                             ("none", 2.91), ("disker", 2.91), ("ripper", 2.91))
 

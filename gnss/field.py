@@ -20,6 +20,7 @@ inflection) counts as curve.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -29,7 +30,7 @@ from .curve import ArcPath
 from .errors import GeometryError
 from .uturn import TurnLimits, plan_uturn
 
-__all__ = ["STRAIGHT_CURVATURE", "MIN_STRAIGHT_LENGTH", "KINDS", "RoutePart", "Route", "Field"]
+__all__ = ["STRAIGHT_CURVATURE", "MIN_STRAIGHT_LENGTH", "KINDS", "RoutePart", "Route", "Field", "line_to_enu", "place_on_line"]
 
 #: Below this |curvature| (1/m; radius 1 km) a stretch of a pass counts as straight.
 STRAIGHT_CURVATURE = 1e-3
@@ -37,6 +38,30 @@ STRAIGHT_CURVATURE = 1e-3
 MIN_STRAIGHT_LENGTH = 20.0
 KINDS = ("straight", "curve", "turn")
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}\Z")
+
+
+def line_to_enu(x: float, y: float, line_yaw: float) -> tuple[float, float]:
+    """A point of a guidance line's frame (x along the line from A towards B, y to its left, m) as local ENU
+    east, north about A, m (``line_yaw``: heading of A to B, rad, 0 = north, clockwise)."""
+    s, c = math.sin(line_yaw), math.cos(line_yaw)
+    return x * s - y * c, x * c + y * s
+
+
+def place_on_line(path: ArcPath, line_yaw: float) -> ArcPath:
+    """A path given in a guidance line's frame (x along the line from A towards B, y to its left, m; directions
+    CCW from x) in the local ENU frame about A (east, north, m): the same segments from the placed start point
+    and direction.
+
+    Parameters
+    ----------
+    path
+        The path in the line's frame (a field's route, its passes).
+    line_yaw
+        Heading of the line A to B, rad, 0 = north, clockwise.
+    """
+    start = line_to_enu(float(path.start[0]), float(path.start[1]), line_yaw)
+    # the line frame's x axis points at ENU angle pi/2 - line_yaw
+    return ArcPath(start, path.start_angle + math.pi / 2 - line_yaw, path.segments)
 
 
 @dataclass(frozen=True, slots=True)

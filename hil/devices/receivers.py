@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gnss.curve import ArcPath
+from gnss.field import line_to_enu, place_on_line
 from gnss.geodesy import LocalFrame
 from gnss.geodesy_scalar import ScalarFrame
 from gnss.guidance import ABLine
@@ -65,8 +66,7 @@ class FieldGeometry:
 
     def line_to_enu(self, x: float, y: float) -> tuple[float, float]:
         """Line frame (x along, y left; m) to ENU east, north (m)."""
-        s, c = math.sin(self.line_yaw), math.cos(self.line_yaw)
-        return x * s - y * c, x * c + y * s
+        return line_to_enu(x, y, self.line_yaw)
 
     def yaw(self, psi: float) -> float:
         """Vehicle yaw (rad, 0 = north, clockwise) from heading relative to the line (rad, CCW +)."""
@@ -79,9 +79,7 @@ class FieldGeometry:
     def place(self, path: ArcPath) -> ArcPath:
         """A path given in the simulator's frame (x, y in m; directions CCW from x) as the vehicle
         computer knows it: the same segments from the start point and direction in ENU."""
-        east, north = self.line_to_enu(float(path.start[0]), float(path.start[1]))
-        # the frame's x axis points at ENU angle pi/2 - line_yaw (yaw 0 = north, clockwise)
-        return ArcPath((east, north), path.start_angle + math.pi / 2 - self.line_yaw, path.segments)
+        return place_on_line(path, self.line_yaw)
 
 
 class _Receiver:

@@ -49,6 +49,29 @@ def parse_floats(n: int):
     return parse
 
 
+def _route(args: argparse.Namespace):
+    """The field's route for ``--field`` (None without one), planned for the tractor's wheelbase, its wheel stop,
+    its rate limit (the commissioned valve's, when given) and the nominal speed."""
+    if args.field is None:
+        if args.passes is not None:
+            raise HilError("--passes goes with --field")
+        return None
+    from gnss.errors import GeometryError
+    from gnss.field_io import load_field
+    from gnss.uturn import TurnLimits
+    from hil.vehicle.loop import LoopConfig
+    if not args.speed > 0:
+        raise HilError("--field needs --speed, the nominal speed the headland turns are planned for, m/s")
+    loop = args.commissioning.loop_config() if args.commissioning is not None else LoopConfig()
+    try:
+        fld = load_field(args.field)
+        limits = TurnLimits(wheelbase=args.wheelbase, max_wheel_angle=loop.wheel_stop, max_steer_rate=loop.max_rate,
+                            speed=args.speed)
+        return fld.route(limits, count=args.passes)
+    except (GeometryError, ValueError, OSError) as exc:
+        raise HilError(f"--field {args.field}: {exc}") from None
+
+
 def _commissioning_file(text: str):
     """argparse type: a commissioning file, read and checked before anything is opened or driven."""
     from hil.vehicle.commissioning import load_commissioning
@@ -77,7 +100,7 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
                       line_a=a, line_b=b, height=args.height, lever_arm=args.lever_arm,
                       wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
                       gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time),
-                      commissioning=args.commissioning)
+                      commissioning=args.commissioning, route=args.route if "route" in args else _route(args))
     key = load_public_key(args.require_signature) if args.require_signature else None
     controller = vehicle_controller(args.controller, key)
     log = drive(cfg, controller, args.duration, implement=args.implement, nominal_speed=args.speed)
@@ -115,6 +138,14 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
     d.add_argument("--commissioning", metavar="FILE", default=None, type=_commissioning_file,
                    help="the tractor's commissioning file (hil valve-test): the loop's rate limit and steering "
                         "monitor from the measured valve, and an HC11 bridge's commands through its inverse map")
+    d.add_argument("--field", metavar="NAME|FILE.json", default=None,
+                   help="follow a field's route (curved or straight passes one implement width apart, joined by "
+                        "headland U-turns) instead of the line: its first pass starts at A towards B; needs --speed "
+                        "(the turns are planned for it)")
+    d.add_argument("--passes", type=int, default=None, metavar="N",
+                   help="with --field: only its first N passes (default: all)")
+    d.add_argument("--wheelbase", type=parse_float, default=2.85,
+                   help="with --field: the tractor's wheelbase, m, for the headland turns (default 2.85)")
     d.add_argument("--height", type=parse_float, default=0.0, help="field ellipsoidal height, m")
     d.add_argument("--lever-arm", type=parse_floats(3), default=(0.0, 0.0, 3.0), metavar="X,Y,Z",
                    help="antenna from the control point, body frame (fwd, left, up), m")
@@ -252,6 +283,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         from hil.vehicle.drive import check_run_labels
         check_run_labels(args.duration, args.implement, args.speed)   # before anything is created or driven
+        args.route = _route(args)
         prepare_out_dir(args.out)
         result = args.func(args)
     except (HilError, PassLogError, ValueError) as exc:

@@ -28,7 +28,10 @@ import serial
 from design.laws.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
 from gnss.geodesy import LocalFrame
+from gnss.curve import ArcPath
+from gnss.field import Route, place_on_line
 from gnss.guidance import ABLine
+from gnss.track import PathTracker
 from identification.errors import OptionError
 from identification.outputs import check_name
 from identification.passlog import MAX_NOMINAL_SPEED, PassLog
@@ -78,6 +81,9 @@ class DriveConfig:
         Line rates, bit/s.
     agio
         Settings of the AgOpenGPS driver (setpoint limits and lead), used with an ``agopengps`` bridge.
+    route
+        A field's route (passes and headland turns, :meth:`gnss.field.Field.route`): the loop follows it instead
+        of the line, its first pass starting at A towards B (the route's own segments from there).
     commissioning
         The tractor's commissioning (``hil valve-test``): the loop's rate limit and steering-response monitor
         come from the measured valve, and an HC11 bridge's rate commands go through its inverse map
@@ -98,6 +104,7 @@ class DriveConfig:
     loop: LoopConfig = field(default_factory=LoopConfig)
     agio: AgioDriverConfig = field(default_factory=AgioDriverConfig)
     commissioning: Commissioning | None = None
+    route: Route | None = None
 
     def __post_init__(self) -> None:
         for name in ("bridge_port", "position_port"):
@@ -224,9 +231,15 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
                 loop_config = cfg.commissioning.loop_config(loop_config)
                 if not agio:          # the valve's inverse map: the loop's rate becomes the command the valve needs
                     steering = MappedBridge(driver, cfg.commissioning.valve)
-            loop = VehicleLoop(clock, steering, frontend, line, controller,
+            guidance, parts = line, ()
+            if cfg.route is not None:     # the route starts at A towards B: its segments from there
+                yaw = math.atan2(float(line.b[0] - line.a[0]), float(line.b[1] - line.a[1]))
+                start = ArcPath((0.0, 0.0), 0.0, cfg.route.path.segments)
+                guidance = PathTracker(place_on_line(start, yaw), station=0.0, cycle=1.0 / loop_config.rate)
+                parts = cfg.route.parts
+            loop = VehicleLoop(clock, steering, frontend, guidance, controller,
                                ANGLE_CALIBRATION if agio else WheelAngleCalibration(*cfg.wheel_calibration),
-                               loop_config)
+                               loop_config, parts=parts)
             try:
                 loop.run(duration, start=clock.now(), progress=progress, stop_request=request)
                 interrupted = request.reason
@@ -247,6 +260,8 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
             "mode": "vehicle", "interrupted": bool(interrupted), "stop_reason": interrupted, "aborted": aborted,
             "ports": {"bridge": cfg.bridge_port, "position": cfg.position_port, "attitude": cfg.attitude_port},
             "commissioning": None if cfg.commissioning is None else cfg.commissioning.to_dict(),
+            "route": None if cfg.route is None else {"passes": list(cfg.route.pass_indices),
+                                                     "length_m": float(cfg.route.path.length)},
             "line": {"a": list(cfg.line_a), "b": list(cfg.line_b)}, "lever_arm": list(cfg.lever_arm),
             "bridge_stats": {k: v for k, v in stats.__dict__.items() if k != "ping_rtts"},
             "link_stats": _link_stats(bridge)}

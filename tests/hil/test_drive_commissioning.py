@@ -43,3 +43,32 @@ def test_a_commissioning_file_that_cannot_be_read_is_a_usage_error_before_anythi
                   "--line=0,0,0,0.001", "--duration", "1", "--commissioning", str(bad), "--out", str(out)])
     assert done.value.code == 2
     assert "argument --commissioning" in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+@pytest.mark.timeout(90)
+def test_drive_follows_a_field_placed_on_the_line(tmp_path, capsys):
+    with EmulatedTractor(implement="none", speed=1.34, duration=30.0, seed=12) as tractor:
+        rc = hil_main(["drive", *tractor.setup.drive_args(), "--controller", "kinematic", "--duration", "6",
+                       "--field", "gentle-curves", "--passes", "2", "--implement", "none", "--speed", "1.34",
+                       "--out", str(tmp_path / "run"), "--json"])
+    assert rc == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["events"][0]["event"] == "engage" and result["summary"]["engaged_fraction"] > 0.6
+    log = PassLog.load(tmp_path / "run" / "run_log.npz")
+    assert log.meta["route"]["passes"] == [0, 1] and log.meta["route"]["length_m"] > 100
+    station = log.channels["station"]
+    assert station[-1] > station[0] + 4.0                 # it moved along the route (about 1.34 m/s for 6 s)
+    assert max(abs(log.channels["cross_track"])) < 1.0
+
+
+def test_a_field_needs_the_speed_its_turns_are_planned_for(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert hil_main(["drive", "--bridge", "/dev/null", "--position", "/dev/null", "--controller", "kinematic",
+                     "--line=0,0,0,0.001", "--duration", "1", "--field", "gentle-curves", "--out", str(out)]) == 1
+    assert "--field needs --speed" in capsys.readouterr().err and not out.exists()
+    assert hil_main(["drive", "--bridge", "/dev/null", "--position", "/dev/null", "--controller", "kinematic",
+                     "--line=0,0,0,0.001", "--duration", "1", "--field", "no-such-field", "--speed", "1.3",
+                     "--out", str(out)]) == 1
+    assert "--field no-such-field" in capsys.readouterr().err and not out.exists()

@@ -1,4 +1,4 @@
-"""The ``hil`` command: ``hil drive`` and ``hil valve-test`` go to the vehicle's CLI (:mod:`hil.vehicle.cli`),
+"""The ``hil`` command: ``hil drive``, ``hil valve-test`` and ``hil procedure`` go to the vehicle's CLI (:mod:`hil.vehicle.cli`),
 which loads nothing of the simulator or the bench; every other sub-command is the bench's (:mod:`hil.bench.cli`)."""
 
 from __future__ import annotations
@@ -30,6 +30,9 @@ def main(argv: list[str] | None = None) -> int:
         if args[:1] == ["valve-test"]:              # on the tractor too: nothing of the simulator or the bench
             from hil.vehicle.cli import valve_test_main
             return valve_test_main(args[1:])
+        if args[:1] == ["procedure"]:
+            from hil.vehicle.cli import procedure_main
+            return procedure_main(args[1:])
         from hil.bench.cli import main as bench_main
         return bench_main(args)
     except KeyboardInterrupt:

@@ -43,7 +43,7 @@ from hil.bench.runs.campaign import BUILTIN_CONTROLLERS, EXECUTORS, Campaign, co
 from hil.truth.conditions import condition_for
 from hil.bench.runs.report import write_report
 from hil.bench.runs.sysid import SysidPlan, make_passes
-from hil.vehicle.cli import add_drive_parser, add_valve_test_parser, print_run_result
+from hil.vehicle.cli import add_drive_parser, add_procedure_parser, add_valve_test_parser, print_run_result
 from hil.vehicle.commissioning import load_commissioning
 from hil.bench.commissioning.cli import add_commission_parser
 from hil.vehicle.outputs import prepare_out_dir, prepare_out_file, write_text_atomic
@@ -538,6 +538,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_drive_parser(sub)
     add_valve_test_parser(sub)
+    add_procedure_parser(sub)
     add_commission_parser(sub, _float, _override)
 
     pa = sub.add_parser("params", parents=[common], help="list the simulator's parameters")

@@ -235,6 +235,60 @@ def valve_test_main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def add_procedure_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Add the ``procedure`` sub-command to a ``hil`` parser."""
+    p = sub.add_parser("procedure", help="the commissioning's field procedure: what is recorded, what a fault "
+                       "spoiled, minutes of driving so far, and what to do next (on a tractor)")
+    p.add_argument("folder", help="the procedure's folder (commissioning.json, logs/, spoiled/, plan.json)")
+    p.add_argument("--review", action="store_true",
+                   help="first move every recorded pass a fault spoiled (RTK float or lost, a takeover, cut short) to "
+                        "spoiled/, with its reason, so that it is driven again")
+    p.add_argument("--implements", nargs="+", default=None, metavar="NAME",
+                   help="a new plan's implements (default none disker ripper; an existing plan.json is kept)")
+    p.add_argument("--speeds", nargs="+", type=parse_float, default=None, metavar="M_PER_S",
+                   help="a new plan's speeds, m/s (default 1.0 1.79 2.91)")
+    p.add_argument("--passes", type=int, default=None, help="a new plan's passes per speed (default 2)")
+    p.add_argument("--duration", type=parse_float, default=None, help="a new plan's seconds per pass (default 80)")
+    p.add_argument("--json", action="store_true", help="print the status as JSON")
+    p.set_defaults(func=_cmd_procedure)
+    return p
+
+
+def _cmd_procedure(args: argparse.Namespace) -> dict:
+    from hil.vehicle.procedure import FieldPlan, Procedure
+    given = {k: v for k, v in (("implements", args.implements), ("speeds", args.speeds), ("passes", args.passes),
+                               ("duration", args.duration)) if v is not None}
+    plan = None
+    if given:
+        d = FieldPlan()
+        plan = FieldPlan(tuple(given.get("implements", d.implements)), tuple(given.get("speeds", d.speeds)),
+                         given.get("passes", d.passes), given.get("duration", d.duration))
+    proc = Procedure.open(args.folder, plan)
+    moved = proc.review() if args.review else []
+    return {"folder": args.folder, "moved": moved, "plan": proc.plan.to_dict(),
+            "plan_minutes": {k: v / 60 for k, v in proc.plan.seconds().items()}, **proc.status()}
+
+
+def procedure_main(argv: list[str] | None = None) -> int:
+    """``hil procedure FOLDER ...``: exit 0, 1 (a plan over its budget, a folder that cannot be read) or 2 (usage)."""
+    from hil.vehicle.procedure import status_text
+    parser = argparse.ArgumentParser(prog="hil", description="The commissioning's field procedure.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    add_procedure_parser(sub)
+    args = parser.parse_args(["procedure", *(sys.argv[2:] if argv is None else argv)])
+    try:
+        result = args.func(args)
+    except (HilError, ValueError) as exc:
+        print(f"hil procedure: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        print(f"hil procedure: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
+        return 1
+    lines = [f"spoiled: {m['file']}: {'; '.join(m['faults'])}" for m in result["moved"]]
+    print(json.dumps(result, indent=2) if args.json else "\n".join([*lines, status_text(result)]), flush=True)
+    return 0
+
+
 def solver_text(s: dict) -> str:
     """One line of an optimisation-based controller's diagnostics (``controller.diagnostics()``): ticks,
     fall-backs and the solve times in ms, wall-clock and, where the controller measures it, CPU."""

@@ -17,6 +17,7 @@ pass), or it stopped early; :meth:`Procedure.review` moves such a log to
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from identification.bounded import read_json
 from identification.errors import IdentificationError
 from identification.outputs import atomic_write
 from identification.passlog import PassLog
@@ -94,6 +96,29 @@ class FieldPlan:
         if isinstance(self.duration, bool) or not isinstance(self.duration, (int, float)) or not (
                 math.isfinite(self.duration) and 10.0 <= self.duration <= 600.0):
             raise ProcedureError(f"duration must be 10-600 s per pass, got {self.duration!r}")
+
+    def to_dict(self) -> dict:
+        """The plan as ``plan.json`` holds it (the valve test by its duties and step time)."""
+        vt = self.valve_test
+        return {"implements": list(self.implements), "speeds": [float(v) for v in self.speeds], "passes": self.passes,
+                "duration": float(self.duration),
+                "valve_test": None if vt is None else {"duties": list(vt.duties), "step_time": vt.step_time}}
+
+    @classmethod
+    def from_dict(cls, d: object, where: str = "plan") -> "FieldPlan":
+        """A plan from :meth:`to_dict`'s form; unknown or missing keys are refused."""
+        keys = {"implements", "speeds", "passes", "duration", "valve_test"}
+        if not isinstance(d, dict) or set(d) != keys:
+            raise ProcedureError(f"{where}: expected the keys {sorted(keys)}, got "
+                                 f"{sorted(d) if isinstance(d, dict) else type(d).__name__}")
+        vt = d["valve_test"]
+        if vt is not None and (not isinstance(vt, dict) or set(vt) != {"duties", "step_time"}):
+            raise ProcedureError(f"{where}: valve_test must be null or {{duties, step_time}}, got {vt!r}")
+        try:
+            valve = None if vt is None else ValveTestPlan(duties=tuple(vt["duties"]), step_time=vt["step_time"])
+            return cls(tuple(d["implements"]), tuple(d["speeds"]), d["passes"], d["duration"], valve)
+        except (TypeError, ValueError) as exc:
+            raise ProcedureError(f"{where}: {exc}") from None
 
     def planned(self) -> list[PlannedPass]:
         """Every pass, implement by implement (one hitch each), speed by speed."""
@@ -168,6 +193,24 @@ class Procedure:
     folder: Path
     plan: FieldPlan = FieldPlan()
 
+    @classmethod
+    def open(cls, folder: str | Path, plan: FieldPlan | None = None) -> "Procedure":
+        """The procedure of ``folder``: its ``plan.json`` when it has one (``plan``, if given, must be the same), else
+        ``plan`` (default :class:`FieldPlan`), checked against the budget and saved there."""
+        folder = Path(folder)
+        saved = folder / "plan.json"
+        if saved.is_file():
+            stored = FieldPlan.from_dict(read_json(saved, 2**16, "procedure plan", ProcedureError), str(saved))
+            if plan is not None and plan != stored:
+                raise ProcedureError(f"{saved} holds another plan ({stored.to_dict()}); finish that procedure, or "
+                                     "start the new plan in another folder")
+            return cls(folder, stored)
+        plan = plan or FieldPlan()
+        plan.check_budget()
+        with atomic_write(saved, "w") as fh:
+            fh.write(json.dumps(plan.to_dict(), indent=1) + "\n")
+        return cls(folder, plan)
+
     @property
     def logs(self) -> Path:
         return Path(self.folder) / "logs"
@@ -219,14 +262,16 @@ class Procedure:
             driven += self.plan.seconds()["valve test"]
         remaining = [p for p in planned if p.key not in good]
         if not valve_done and self.plan.valve_test is not None:
-            nxt = "valve test at standstill: engine running, implement up, wheels free to turn"
+            nxt = (f"valve test at standstill (hil valve-test --bridge PORT --out {self.folder}): engine running, "
+                   "implement up, wheels free to turn")
         elif remaining:
             p = remaining[0]
             hitch = "" if any(q.implement == p.implement and q.key in good for q in planned) else \
                 f"hitch the {p.implement} (none: no implement); "
-            nxt = f"{hitch}drive {p.label()} along the line"
+            nxt = f"{hitch}drive {p.label()} along the line, recorded into {self.logs}"
         else:
-            nxt = "every pass is recorded: commission from the logs (hil commission --logs)"
+            nxt = (f"every pass is recorded: hil commission --logs {self.logs} --commissioning "
+                   f"{Path(self.folder) / 'commissioning.json'} --out DIR")
         return {"valve_test_done": valve_done, "recorded": [p.label() for p in planned if p.key in good],
                 "remaining": [p.label() for p in remaining], "spoiled": len(spoiled), "driven_s": driven,
                 "planned_s": self.plan.seconds()["total"], "next": nxt}

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from hil.commissioning.steps import Steps
-from hil.bench.commissioning.report import _mpc_window_trial_lines
+from hil.bench.commissioning.report import mpc_window_trial_lines
 from hil.commissioning.mpc_window import WINDOWS, auto_record
 from hil.bench.commissioning.mpc_window_trial import mpc_window_trial
 from hil.bench.commissioning.window_trial import lowest
@@ -62,7 +62,7 @@ def test_the_window_that_drove_best_is_kept_with_a_fall_back_on_it(tmp_path):
         assert json.loads(Path(rec["fallback"]).read_text())["design"]["past"] == kept
         assert json.loads(current.read_text())["fallback"]["law"] == "robust-lmi"
     assert all(s["ok"] for s in steps.record)
-    text = "\n".join(_mpc_window_trial_lines(rec))
+    text = "\n".join(mpc_window_trial_lines(rec))
     assert "## The MPC's window" in text and f"kept: window {kept}" in text
 
 
@@ -75,4 +75,4 @@ def test_nothing_is_driven_when_every_other_window_relaxes_more(tmp_path):
                            resolve_tractor("random-19").params(), None, [2.24], ["disker"], seeds=(3,), duration=20.0)
     assert rec["trial"] is None and rec["kept"] == 3 and current.read_bytes() == before
     assert all(t["relaxed"] for t in rec["tries"][1:] if "error" not in t)
-    assert _mpc_window_trial_lines(rec) == []
+    assert mpc_window_trial_lines(rec) == []

@@ -13,7 +13,7 @@ import pytest
 
 from design.cli import main as design_main
 from design.files.load import load_controller
-from hil.bench.commissioning.report import _window_trial_lines
+from hil.bench.commissioning.report import window_trial_lines
 from hil.bench.commissioning.estimate_trial import trial_sigma
 from hil.bench.commissioning.window_trial import (WINDOW_SEEDS, candidate_files, choose_window, geometric_mean, paired_t,
                                    per_speed, speed_bands, speed_means, window_record)
@@ -90,7 +90,7 @@ def test_the_trial_keeps_the_law_with_the_lowest_geometric_mean(backed_off, tmp_
     assert again == pytest.approx(r["candidates"][best]["sigma_cm"]["ripper:2.24"], rel=1e-9)
     if r["changed"]:
         assert (tmp_path / "trial" / "robust.as-designed.json").read_bytes() == out.read_bytes()
-    lines = "\n".join(_window_trial_lines(r))
+    lines = "\n".join(window_trial_lines(r))
     assert "## The robust controller's window law" in lines and f"Kept: `{r['chosen']}`" in lines
 
 
@@ -108,7 +108,7 @@ def test_records_and_folders_that_are_not_there(tmp_path):
     assert window_record(bad) == {}
     bad.write_text("[1, 2]")
     assert window_record(bad) == {}
-    assert _window_trial_lines(None) == []
+    assert window_trial_lines(None) == []
 
 
 def _row(name, per_seed):
@@ -165,5 +165,5 @@ def test_the_trial_runs_the_best_law_of_each_speed_from_one_file(backed_off, tmp
     assert r["law_schedule"] and sched is not None
     assert [law["source"] for law in sched["laws"]] == [b["file"] if b["file"] != "robust.json" else
                                                         "robust.as-designed.json" for b in r["law_schedule"]]
-    lines = "\n".join(_window_trial_lines(r))
+    lines = "\n".join(window_trial_lines(r))
     assert "Per speed" in lines

@@ -17,7 +17,7 @@ from hil.commissioning.html import provenance, write_page
 from hil.bench.commissioning.table import CONTROLLERS, hil_ratios
 from hil.vehicle.valve_map import ValveCurve
 
-__all__ = ["write_commission_report"]
+__all__ = ["write_commission_report", "window_trial_lines", "mpc_window_trial_lines"]
 
 
 
@@ -88,7 +88,7 @@ def _sigma_figure(cells: list[dict], path: Path) -> Path:
     return path
 
 
-def _window_trial_lines(tr: dict | None) -> list[str]:
+def window_trial_lines(tr: dict | None) -> list[str]:
     """The robust controller's window trial (:mod:`hil.bench.commissioning.window_trial`) as a section, or nothing."""
     if not tr:
         return []
@@ -128,7 +128,7 @@ def _window_trial_lines(tr: dict | None) -> list[str]:
     return lines
 
 
-def _mpc_window_trial_lines(tr: dict | None) -> list[str]:
+def mpc_window_trial_lines(tr: dict | None) -> list[str]:
     """The MPC's window trial (:mod:`hil.bench.commissioning.mpc_window_trial`) as a section, or nothing."""
     if not tr or not tr.get("trial"):
         return []
@@ -217,8 +217,8 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
             for t in search["tries"]:
                 lines.append(f"| {t.get('past')} | " + (f"{t['scale']:.3g} | {'; '.join(t['relaxed']) or 'none'} |"
                                                         if "error" not in t else f"- | {t['error']} |"))
-    lines += _window_trial_lines(res.get("window_trial"))
-    lines += _mpc_window_trial_lines((res.get("designs", {}).get("mpc") or {}).get("window_trial"))
+    lines += window_trial_lines(res.get("window_trial"))
+    lines += mpc_window_trial_lines((res.get("designs", {}).get("mpc") or {}).get("window_trial"))
     for name, tr in (res.get("estimate_trial") or {}).items():
         lines += ["", f"## Where the disturbance estimate acts: `{name}`", "",
                   f"A trial drive at each speed with each implement, the estimate on and off (both laws certified), "

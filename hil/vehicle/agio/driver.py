@@ -45,6 +45,7 @@ from hil.vehicle.agio.protocol import (
 from hil.vehicle.calibration import WheelAngleCalibration
 from hil.vehicle.commissioning import loop_settings
 from hil.vehicle.loop import LoopConfig
+from hil.vehicle.setpoint import setpoint_step
 from hil.vehicle.valve_map import ValveCurve
 
 __all__ = ["ANGLE_CALIBRATION", "LEAD_TIME", "MAX_WINDUP", "MODULE_LAG", "AgioDriverConfig", "AgioReport", "AgioDriverStats", "AgioDriver",
@@ -333,17 +334,14 @@ class AgioDriver:
             raise AgioConfigError(f"rate must be a finite number of rad/s, got {rate!r}")
         cfg = self.config
         now = self._clock.now()
-        dt = min(max(now - self._t_last, 0.0), cfg.max_dt)
-        self._t_last = now
-        u = min(max(float(rate), -cfg.max_rate), cfg.max_rate)
-        wanted = self._setpoint + u * dt
         measured = self._measured()
-        integral = min(max(wanted, measured - cfg.max_windup), measured + cfg.max_windup)
-        integral = min(max(integral, -cfg.max_angle), cfg.max_angle)
+        integral, u, limited = setpoint_step(self._setpoint, rate, now - self._t_last, measured, max_dt=cfg.max_dt,
+                                             max_rate=cfg.max_rate, max_windup=cfg.max_windup, limit=cfg.max_angle)
+        self._t_last = now
         self._setpoint = integral
         sent = integral + cfg.lead_time * u
         sp = min(max(min(max(sent, measured - cfg.max_lead), measured + cfg.max_lead), -cfg.max_angle), cfg.max_angle)
-        if integral != wanted or u != rate or sp != sent:
+        if limited or sp != sent:
             self._n["setpoints_limited"] += 1
         self._sent = sp
         self._steer_frame(True, sp)

@@ -39,6 +39,7 @@ from hil.links.clock import Clock
 from hil.vehicle.calibration import WheelAngleCalibration
 from hil.vehicle.isobus.errors import AddressClaimError, IsobusConfigError, IsobusLinkError
 from hil.vehicle.isobus.network import Node
+from hil.vehicle.setpoint import setpoint_step
 from hil.vehicle.isobus.protocol import (
     CommandStatus,
     ExitCode,
@@ -290,15 +291,11 @@ class IsobusDriver:
             raise IsobusConfigError(f"rate must be a finite number of rad/s, got {rate!r}")
         cfg = self.config
         now = self._clock.now()
-        dt = min(max(now - self._t_last, 0.0), cfg.max_dt)
+        setpoint, _, limited = setpoint_step(self._setpoint, rate, now - self._t_last, self._measured(),
+                                             max_dt=cfg.max_dt, max_rate=cfg.max_rate, max_windup=cfg.max_windup,
+                                             limit=min(cfg.max_angle, math.atan(cfg.wheelbase * cfg.max_curvature)))
         self._t_last = now
-        u = min(max(float(rate), -cfg.max_rate), cfg.max_rate)
-        wanted = self._setpoint + u * dt
-        measured = self._measured()
-        limit = min(cfg.max_angle, math.atan(cfg.wheelbase * cfg.max_curvature))
-        setpoint = min(max(wanted, measured - cfg.max_windup), measured + cfg.max_windup)
-        setpoint = min(max(setpoint, -limit), limit)
-        if setpoint != wanted or u != rate:
+        if limited:
             self.counts["limited"] += 1
         self._setpoint = setpoint
         curvature = math.tan(setpoint) / cfg.wheelbase

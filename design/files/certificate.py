@@ -198,7 +198,7 @@ def check_estimate_schedule(design: Any, cert: Any, law: Compensator, dp_states:
         raise ControllerFileError(f"design.{RECORD} is given but the file has no disturbance estimate")
     if not schedule.off:
         return schedule
-    what = "the law without the disturbance estimate (design.laws.estimate_schedule.certificate_off)"
+    what = "the law without the disturbance estimate (design.estimate_schedule.certificate_off)"
     try:
         off = law_without_estimate(law, dp_states)
     except DesignInputError as exc:

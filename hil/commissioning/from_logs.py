@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable
 
+from identification.delay import VALID_TIME_CHANNELS
 from identification.errors import IdentificationError
 from identification.outputs import atomic_write
 from identification.passlog import PassLog
@@ -105,8 +106,10 @@ def driving_seconds(logs: list[PassLog]) -> dict:
     return {"passes": sum(per.values()), "per_implement": per, "total": sum(per.values())}
 
 
-def _load_inputs(logs: Path, commissioning: Path) -> tuple[Commissioning, list[Path], list[PassLog]]:
-    """The commissioning file and every pass log, each checked; one line naming the file on a refusal."""
+def _load_inputs(logs: Path, commissioning: Path, latency: str = "auto") -> tuple[Commissioning, list[Path],
+                                                                                 list[PassLog]]:
+    """The commissioning file and every pass log, each checked; one line naming the file on a refusal. With
+    ``latency="valid-time"`` every log must carry the receivers' valid times."""
     com = load_commissioning(commissioning)
     try:
         files = expand_logs([logs])
@@ -119,6 +122,11 @@ def _load_inputs(logs: Path, commissioning: Path) -> tuple[Commissioning, list[P
         except (IdentificationError, ValueError, OSError) as exc:
             raise CommissioningError(f"pass log {str(f)!r}: {exc}; remove it from {logs} or record the pass "
                                      "again") from None
+        if latency == "valid-time" and not set(VALID_TIME_CHANNELS) <= set(passes[-1].channels):
+            missing = sorted(set(VALID_TIME_CHANNELS) - set(passes[-1].channels))
+            raise CommissioningError(f"pass log {str(f)!r} has no {', '.join(missing)}: the GPS latency cannot be "
+                                     "measured from it; record the passes with the receivers' valid times, or give "
+                                     "--latency auto to use the logs' declared latency or identify it")
     return com, files, passes
 
 
@@ -154,7 +162,7 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
     logs, out = Path(logs), Path(out)
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
     tick = progress or (lambda step, done, total: None)
-    com, files, passes = _load_inputs(logs, Path(commissioning))
+    com, files, passes = _load_inputs(logs, Path(commissioning), opts.latency)
     out.mkdir(parents=True, exist_ok=True)
     steps = Steps(say)
     res: dict = {"tractor": com.tractor, "logs": [str(f) for f in files], "commissioning": str(commissioning),

@@ -88,3 +88,14 @@ def test_bench_only_options_do_not_go_with_logs(tmp_path, capsys):
 def test_options_are_checked():
     with pytest.raises(CommissioningError, match="latency must be one of"):
         LogOptions(latency="guess")
+
+
+def test_logs_without_the_receivers_valid_times_are_refused_when_the_latency_must_be_measured(recorded, tmp_path,
+                                                                                               capsys):
+    logs, com = recorded
+    out = tmp_path / "out"
+    assert hil_main(["commission", "--logs", str(logs), "--commissioning", str(com), "--out", str(out),
+                     "--latency", "valid-time"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "has no attitude_valid_time, position_valid_time" in err[0] and "--latency auto" in err[0]
+    assert not out.exists()

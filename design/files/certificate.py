@@ -11,7 +11,7 @@ give the recorded spectral radii when the loop is closed again here (the models'
 matrices are in the certificate, their hashes are checked, the eigenvalues recomputed).
 That is cheap (one eigenvalue problem per model) and catches an edited gain, an edited
 sample time or a swapped certificate. The margins are re-computed by ``design verify``
-(:func:`design.core.verify.recheck`), which takes longer.
+(:func:`design.files.recheck.recheck`), which takes longer.
 """
 
 from __future__ import annotations

@@ -17,7 +17,8 @@ import os
 import sys
 from pathlib import Path
 
-from identification.errors import PassLogError
+from identification.errors import OutputError, PassLogError
+from identification.outputs import write_stdout
 
 from design.files.signature import load_public_key
 
@@ -216,23 +217,32 @@ def valve_test_text(result: dict) -> str:
     return "\n".join(lines)
 
 
-def valve_test_main(argv: list[str] | None = None) -> int:
-    """``hil valve-test ...`` (``argv`` without the leading ``valve-test``). Exit 0, 1 (refused value, a port that
-    cannot be opened, a test stopped by Ctrl-C or SIGTERM: the bridge disengaged, nothing written) or 2 (usage)."""
-    parser = argparse.ArgumentParser(prog="hil", description="The valve test on a tractor.")
-    sub = parser.add_subparsers(dest="command", required=True)
-    add_valve_test_parser(sub)
-    args = parser.parse_args(["valve-test", *(sys.argv[2:] if argv is None else argv)])
+def _run(command: str, add_parser, render, argv: list[str] | None) -> int:
+    """Parse ``hil COMMAND ...`` (``argv`` without the command), run it and print its result (JSON with
+    ``--json``, else ``render(result)``). Exit 0, 1 (a refused value, a port or file that cannot be used, a
+    stdout that cannot be written) or 2 (usage)."""
+    parser = argparse.ArgumentParser(prog="hil")
+    add_parser(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args([command, *(sys.argv[2:] if argv is None else argv)])
     try:
         result = args.func(args)
+        write_stdout(json.dumps(result, indent=2) if args.json else render(result), f"hil {command}")
+    except OutputError as exc:
+        print(exc, file=sys.stderr)
+        return 1
     except (HilError, ValueError) as exc:
-        print(f"hil valve-test: error: {exc}", file=sys.stderr)
+        print(f"hil {command}: error: {exc}", file=sys.stderr)
         return 1
     except OSError as exc:
-        print(f"hil valve-test: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
+        print(f"hil {command}: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
         return 1
-    print(json.dumps(result, indent=2) if args.json else valve_test_text(result), flush=True)
     return 0
+
+
+def valve_test_main(argv: list[str] | None = None) -> int:
+    """``hil valve-test ...``: exit 0, 1 (refused value, a port that cannot be opened, a test stopped by Ctrl-C or
+    SIGTERM: the bridge disengaged, nothing written) or 2 (usage)."""
+    return _run("valve-test", add_valve_test_parser, valve_test_text, argv)
 
 
 def add_procedure_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -272,21 +282,11 @@ def _cmd_procedure(args: argparse.Namespace) -> dict:
 def procedure_main(argv: list[str] | None = None) -> int:
     """``hil procedure FOLDER ...``: exit 0, 1 (a plan over its budget, a folder that cannot be read) or 2 (usage)."""
     from hil.vehicle.procedure import status_text
-    parser = argparse.ArgumentParser(prog="hil", description="The commissioning's field procedure.")
-    sub = parser.add_subparsers(dest="command", required=True)
-    add_procedure_parser(sub)
-    args = parser.parse_args(["procedure", *(sys.argv[2:] if argv is None else argv)])
-    try:
-        result = args.func(args)
-    except (HilError, ValueError) as exc:
-        print(f"hil procedure: error: {exc}", file=sys.stderr)
-        return 1
-    except OSError as exc:
-        print(f"hil procedure: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
-        return 1
-    lines = [f"spoiled: {m['file']}: {'; '.join(m['faults'])}" for m in result["moved"]]
-    print(json.dumps(result, indent=2) if args.json else "\n".join([*lines, status_text(result)]), flush=True)
-    return 0
+
+    def render(result: dict) -> str:
+        lines = [f"spoiled: {m['file']}: {'; '.join(m['faults'])}" for m in result["moved"]]
+        return "\n".join([*lines, status_text(result)])
+    return _run("procedure", add_procedure_parser, render, argv)
 
 
 def solver_text(s: dict) -> str:

@@ -78,6 +78,7 @@ def _check_seconds(text: str, times: int) -> float:
     return best
 
 
+@pytest.mark.realtime            # a ratio of wall-clock times (best of three each); the speed itself is a benchmark's
 @pytest.mark.parametrize("unit", ['"\\', "[1],", '"a\\"]",'])
 def test_the_nesting_check_is_linear_in_the_file_size(unit):
     # '"\\' repeated: a string that never ends, with an escaped quote every two characters; the old

@@ -34,6 +34,16 @@ def timed_fit(pts: np.ndarray, repeats: int) -> tuple[float, ArcPath]:
 
 
 @pytest.mark.timeout(120)
+def test_a_field_file_of_the_most_points_fits_within_its_tolerance():
+    # 5,000 points (2 km, the most a field file holds), 5 mm of noise, 0.4 m apart: the old dense solve of the
+    # whole chain did not finish within the timeout
+    pts = meander(5000, 0.4, 0.005, np.random.default_rng(7))
+    path = fit_arcs(pts, 0.02)
+    assert max_deviation(path, pts) <= 0.02 and 100 <= len(path.segments) <= 400
+
+
+@pytest.mark.realtime            # a ratio of wall-clock times (best of several each); the speed is bench_gnss's row
+@pytest.mark.timeout(120)
 def test_the_time_of_a_fit_grows_about_linearly_with_the_points():
     # 5 mm of noise, 0.4 m apart (a 5 Hz recording at 2 m/s): 1,250 points (500 m, 50 segments),
     # then 5,000 (2 km, the most a field file holds; about 200 segments)

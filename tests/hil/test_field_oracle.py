@@ -1,4 +1,4 @@
-"""The oracle on a field's route (hil/bench/fields/oracle.py): the bound for issue 16's pass-to-pass spacing.
+"""The oracle on a field's route (hil/bench/fields/oracle.py): the bound for the pass-to-pass spacing.
 
 On an AB line it is the AB-line oracle, command for command; on a circle it holds the arc with the
 curvature the linear controllers get (the bare oracle, designed about a straight line, does not);

@@ -1,5 +1,5 @@
 """The recipe follows the refusal's fix: more passes of the refused conditions, then identify again
-(hil.bench.commissioning.identify, issue 14)."""
+(hil.bench.commissioning.identify)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The MPC's own measured window when the robust controller's leaves it short of its specifications
-(hil.commissioning.mpc_window, issue 14)."""
+(hil.commissioning.mpc_window)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The MPC's window chosen by a trial drive among the windows that meet as many specifications
-(hil.bench.commissioning.mpc_window_trial, issue 14)."""
+(hil.bench.commissioning.mpc_window_trial)."""
 
 from __future__ import annotations
 

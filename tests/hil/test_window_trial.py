@@ -1,6 +1,6 @@
 """The robust controller's window law: the estimate's back-off in ``design robust`` keeps every law it made as a
 candidate file (``--window-candidates``), and a trial drive on the tractor chooses among them
-(hil/bench/commissioning/window_trial.py; issue 14)."""
+(hil/bench/commissioning/window_trial.py)."""
 
 from __future__ import annotations
 

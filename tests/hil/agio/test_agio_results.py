@@ -1,4 +1,4 @@
-"""Issue 15's table from two comparison reports (hil.bench.benches.agio_results), on hand-made cells."""
+"""The bridge comparison table from two comparison reports (hil.bench.benches.agio_results), on hand-made cells."""
 
 from __future__ import annotations
 

@@ -39,7 +39,8 @@ from .errors import FieldFileError, GeometryError
 from .field import Field
 from .guidance import CurvedLine
 
-__all__ = ["SCHEMA", "MAX_FILE_BYTES", "field_names", "load_field", "field_from_dict", "field_to_dict"]
+__all__ = ["SCHEMA", "MAX_FILE_BYTES", "field_folder", "field_names", "load_field", "field_from_dict",
+           "field_to_dict"]
 
 SCHEMA = "tractor-autosteer/field/1"
 MAX_FILE_BYTES = 4 * 1024 * 1024
@@ -52,13 +53,20 @@ _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}\Z")
 _TOP = {"schema", "name", "description", "implement_width", "passes", "reference_pass", "reference"}
 
 
-def _files() -> Path:
+def field_folder() -> Path:
+    """The folder of the shipped field files (``gnss/field_files``, one ``<name>.json`` per field).
+
+    Returns
+    -------
+    Path
+        The installed package's folder; :func:`load_field` looks plain names up there.
+    """
     return Path(str(resources.files("gnss") / "field_files"))
 
 
 def field_names() -> list[str]:
     """Names of the fields shipped in ``gnss/field_files``."""
-    return sorted(p.stem for p in _files().glob("*.json") if _NAME.match(p.stem))
+    return sorted(p.stem for p in field_folder().glob("*.json") if _NAME.match(p.stem))
 
 
 def _number(v: Any, where: str, lo: float, hi: float) -> float:
@@ -174,7 +182,7 @@ def load_field(name_or_path: str | Path) -> Field:
     if isinstance(name_or_path, Path) or "/" in text or text.endswith(".json"):
         path = Path(text)
     elif _NAME.match(text):
-        path = _files() / f"{text}.json"
+        path = field_folder() / f"{text}.json"
         if not path.is_file():
             raise FieldFileError(f"field {text!r}: no such named field; named fields: {', '.join(field_names())} "
                                  "(or give a path to a .json file)")

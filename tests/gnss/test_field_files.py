@@ -11,8 +11,7 @@ import pytest
 
 from gnss.arcfit import max_deviation
 from gnss.errors import FieldFileError, GeometryError
-from gnss.field_io import field_from_dict, field_names, field_to_dict, load_field
-from gnss.field_io import _files as shipped_folder
+from gnss.field_io import field_folder, field_from_dict, field_names, field_to_dict, load_field
 
 
 def test_the_named_fields_exist_and_match_their_descriptions():
@@ -33,7 +32,7 @@ def test_the_named_fields_exist_and_match_their_descriptions():
 
 
 def test_the_contour_is_fitted_within_2_cm_of_its_recorded_points():
-    doc = json.loads((shipped_folder() / "contour.json").read_text())
+    doc = json.loads((field_folder() / "contour.json").read_text())
     pts = np.array(doc["reference"]["points"])
     field = load_field("contour")
     assert max_deviation(field.reference, pts) <= 0.02

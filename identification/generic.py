@@ -85,10 +85,32 @@ class Selection:
                           "on the rest)"}
 
 
-def _identify(data: IOData, order: int, refine: str, okid_options: dict[str, Any],
-              meta: dict[str, Any] | None = None, realisation: str = "era") -> Model:
-    """One candidate: ``realisation``'s A, C (OKID/ERA or a subspace weighting) with ``refine``'s B, D, or all
-    matrices refined by output error from there (``"oe-all"``)."""
+def identify_candidate(data: IOData, order: int, refine: str, okid_options: dict[str, Any],
+                       meta: dict[str, Any] | None = None, realisation: str = "era") -> Model:
+    """One candidate structure identified on ``data``, as :func:`fit_record` identifies each.
+
+    Parameters
+    ----------
+    data : IOData
+        The record to identify on (every experiment).
+    order : int
+        Number of states.
+    refine : str
+        ``"pem"`` (ERA only), ``"none"`` (subspace only), ``"oe"`` (least-squares B, D for the realised A, C)
+        or ``"oe-all"`` (every matrix refined by output error from there), see :data:`REALISATIONS`.
+    okid_options : dict
+        Options of :class:`~identification.okid.OKID` (``feedthrough`` also applies to the subspace methods).
+    meta : dict, optional
+        Extra metadata stored in the model.
+    realisation : str
+        ``"era"`` (OKID/ERA) or a subspace weighting (``"cva"``, ``"n4sid"``, ``"moesp"``).
+
+    Returns
+    -------
+    Model
+        The model, its sample time that of ``data`` [s]; an ``"oe-all"`` refinement that finds no stable
+        improvement keeps its start and says so in ``meta["refine"]``.
+    """
     feedthrough = bool(okid_options.get("feedthrough", True))
     if realisation in WEIGHTINGS:
         sub = subspace(data, order, realisation, feedthrough=feedthrough)
@@ -160,8 +182,8 @@ def select_structure(data: IOData, okid_options: dict[str, Any], orders: list[in
     for n in orders:
         for real, r in kinds:
             try:
-                scores[(n, real, r)] = float(np.mean([_score(_identify(f, n, r, okid_options, realisation=real),
-                                                             s) for f, s in folds]))
+                scores[(n, real, r)] = float(np.mean(
+                    [_score(identify_candidate(f, n, r, okid_options, realisation=real), s) for f, s in folds]))
             except (RealizationError, DataError, np.linalg.LinAlgError) as exc:
                 scores[(n, real, r)], last = -np.inf, str(exc)
     best = max(scores.values())
@@ -213,4 +235,4 @@ def fit_record(data: IOData, order: int | str = "validate", refine: str = "valid
     else:
         kinds = (("era", refine),)
     extra = {**(meta or {}), **({"selection": selection.as_dict()} if selection else {})}
-    return _identify(data, int(order), kinds[0][1], opts, extra, realisation=kinds[0][0]), selection
+    return identify_candidate(data, int(order), kinds[0][1], opts, extra, realisation=kinds[0][0]), selection

@@ -201,7 +201,7 @@ def subspace(data: IOData, order: int, weighting: str = "cva", horizon: int = HO
         c, d = np.linalg.lstsq(rs[:n, :n], rs[:n, iy], rcond=None)[0].T, np.zeros((q, m))
     reflected = 0
     if stable:
-        a, reflected = _reflect_unstable(a)
+        a, reflected = reflect_unstable(a)
         if reflected:     # B again for the stabilised A: x(k+1) - A x(k) = B u(k) in least squares
             b = np.linalg.lstsq(rs[:, iu], rs[:, ixn] - rs[:, ix] @ a.T, rcond=None)[0].T
     return SubspaceModel(a, b / su[None, :], c * sy[:, None], d * sy[:, None] / su[None, :], s, f,
@@ -209,11 +209,21 @@ def subspace(data: IOData, order: int, weighting: str = "cva", horizon: int = HO
 
 
 
-def _reflect_unstable(a: np.ndarray) -> tuple[np.ndarray, int]:
+def reflect_unstable(a: np.ndarray) -> tuple[np.ndarray, int]:
     """``A`` with every eigenvalue of modulus > 1 moved to ``1 / conj(λ)``, and how many moved.
 
     The eigenvectors are kept (``A = V diag(λ) V⁻¹``); conjugate pairs stay pairs, so the
     result is real up to round-off, which is dropped.
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        Square state matrix ``(n, n)`` of a discrete-time model.
+
+    Returns
+    -------
+    tuple of (numpy.ndarray, int)
+        The stabilised matrix (``a`` itself when nothing moved) and the number of eigenvalues moved.
     """
     lam, vec = np.linalg.eig(a)
     mod = np.abs(lam)

@@ -7,9 +7,9 @@ import pytest
 
 from identification.data import IOData
 from identification.errors import DataError, RealizationError
-from identification.generic import RANK, PARSIMONY_POINTS, _identify, select_structure
+from identification.generic import PARSIMONY_POINTS, RANK, identify_candidate, select_structure
 from identification.simulate import simulate
-from identification.subspace import WEIGHTINGS, _reflect_unstable, cva, subspace
+from identification.subspace import WEIGHTINGS, cva, reflect_unstable, subspace
 from identification.validation import validate
 from idtest_synth import DATA, simulate_data, true_markov, true_system
 
@@ -43,8 +43,8 @@ def test_cva_recovers_the_reference_system_at_least_as_well_as_era():
     for seed in range(5):
         rng = np.random.default_rng(seed)
         fit = IOData.from_arrays(*simulate_data(1000, rng))
-        sub = _identify(fit, 4, "none", {}, realisation="cva")
-        era = _identify(fit, 4, "oe", {}, realisation="era")
+        sub = identify_candidate(fit, 4, "none", {}, realisation="cva")
+        era = identify_candidate(fit, 4, "oe", {}, realisation="era")
         assert _pole_error(sub.A) < 0.01
         cva_fit.append(_noise_free_fit(sub, np.random.default_rng(100 + seed)))
         era_fit.append(_noise_free_fit(era, np.random.default_rng(100 + seed)))
@@ -100,14 +100,14 @@ def test_cva_refuses_what_it_cannot_realise():
 def test_unstable_eigenvalues_are_reflected_into_the_unit_circle():
     a = np.array([[1.05, 0.0, 0.0], [0.0, 0.9, 0.3], [0.0, -0.3, 0.9]])
     t = np.array([[1.0, 2.0, 0.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]])
-    stable, moved = _reflect_unstable(t @ a @ np.linalg.inv(t))
+    stable, moved = reflect_unstable(t @ a @ np.linalg.inv(t))
     assert moved == 1
     lam = np.sort_complex(np.linalg.eigvals(stable))
     np.testing.assert_allclose(np.sort(np.abs(lam)), sorted([1 / 1.05, abs(0.9 + 0.3j), abs(0.9 + 0.3j)]),
                                rtol=1e-10)
     np.testing.assert_allclose(np.sort(np.angle(lam)), np.sort(np.angle([1.05, 0.9 + 0.3j, 0.9 - 0.3j])),
                                atol=1e-10)
-    same, none = _reflect_unstable(np.diag([0.5, -0.99]))
+    same, none = reflect_unstable(np.diag([0.5, -0.99]))
     assert none == 0 and np.array_equal(same, np.diag([0.5, -0.99]))
 
 
@@ -151,8 +151,8 @@ def test_selection_picks_the_refined_n4sid_model_where_it_predicts_the_held_out_
     simple = {k: v for k, v in sel.scores.items() if RANK[k.split("/")[2]] == 0}
     assert sel.scores["4/n4sid/oe-all"] > max(simple.values()) + PARSIMONY_POINTS and tied
     runner_up = max(simple, key=simple.get).split("/")
-    chosen = _identify(fit, 4, "oe-all", {}, realisation="n4sid")
-    other = _identify(fit, 4, runner_up[2], {}, realisation=runner_up[1])
+    chosen = identify_candidate(fit, 4, "oe-all", {}, realisation="n4sid")
+    other = identify_candidate(fit, 4, runner_up[2], {}, realisation=runner_up[1])
     fits = [validate(m.A, m.B, m.C, m.D, m.K, val).free_run_fit.mean() for m in (chosen, other)]
     assert fits[0] > fits[1] + 5.0
 
@@ -198,9 +198,9 @@ def test_every_weighting_recovers_the_reference_system_at_least_as_well_as_era(w
     for seed in range(5):
         fit = IOData.from_arrays(*simulate_data(1000, np.random.default_rng(seed)))
         s = subspace(fit, 4, weighting)
-        model = _identify(fit, 4, "none", {}, realisation=weighting)
+        model = identify_candidate(fit, 4, "none", {}, realisation=weighting)
         np.testing.assert_array_equal(model.A, s.A)
-        era = _identify(fit, 4, "oe", {}, realisation="era")
+        era = identify_candidate(fit, 4, "oe", {}, realisation="era")
         assert _pole_error(s.A) < 0.01
         sub_fit.append(_noise_free_fit(model, np.random.default_rng(100 + seed)))
         era_fit.append(_noise_free_fit(era, np.random.default_rng(100 + seed)))
@@ -246,8 +246,8 @@ def test_output_error_from_an_n4sid_start_beats_era_where_the_input_is_coloured(
     # low-pass input, output error at SNR 2 (the record of test_pem.py where OKID's short observer is
     # biased): every matrix refined from the N4SID realisation judges better on a fresh noise-free record
     data, fresh = _coloured_records(3000, 0, 9)
-    era = _identify(data, 4, "oe", {"markov": 3}, realisation="era")
-    refined = _identify(data, 4, "oe-all", {"markov": 3}, realisation="n4sid")
+    era = identify_candidate(data, 4, "oe", {"markov": 3}, realisation="era")
+    refined = identify_candidate(data, 4, "oe-all", {"markov": 3}, realisation="n4sid")
     assert refined.meta["refine"] == "oe-all"
     fits = [validate(m.A, m.B, m.C, m.D, m.K, fresh).free_run_fit.min() for m in (era, refined)]
     assert fits[1] >= fits[0] and fits[1] > 95.0
@@ -261,7 +261,7 @@ def _tail_score(data, order, kind, options):
     folds = (((u[:k], y[:k]), (u[k:], y[k:])), ((u[j:], y[j:]), (u[:j], y[:j])))
     out = []
     for (uf, yf), (us, ys) in folds:
-        m = _identify(IOData.from_arrays(uf, yf), order, kind[1], options, realisation=kind[0])
+        m = identify_candidate(IOData.from_arrays(uf, yf), order, kind[1], options, realisation=kind[0])
         out.append(validate(m.A, m.B, m.C, m.D, m.K, IOData.from_arrays(us, ys)).free_run_fit.mean())
     return float(np.mean(out))
 
@@ -285,6 +285,6 @@ def test_selection_takes_the_candidate_that_simulates_the_held_out_tails_better(
     sel_simple = select_structure(data, options, [4], (("era", "oe"), ("era", "pem")))
     tails = {r: sel_simple.scores[f"4/era/{r}"] for r in ("oe", "pem")}
     assert sel_simple.refine == max(tails, key=tails.get)
-    chosen, other = (_identify(data, 4, r, options, realisation=real) for real, r in (kinds[1], kinds[0]))
+    chosen, other = (identify_candidate(data, 4, r, options, realisation=real) for real, r in (kinds[1], kinds[0]))
     assert (validate(chosen.A, chosen.B, chosen.C, chosen.D, chosen.K, fresh).free_run_fit.mean()
             > validate(other.A, other.B, other.C, other.D, other.K, fresh).free_run_fit.mean())

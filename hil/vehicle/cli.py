@@ -101,7 +101,8 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
                       line_a=a, line_b=b, height=args.height, lever_arm=args.lever_arm,
                       wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
                       gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time),
-                      commissioning=args.commissioning, route=args.route if "route" in args else _route(args))
+                      commissioning=args.commissioning, route=args.route if "route" in args else _route(args),
+                      wheelbase=args.wheelbase)
     key = load_public_key(args.require_signature) if args.require_signature else None
     controller = vehicle_controller(args.controller, key)
     log = drive(cfg, controller, args.duration, implement=args.implement, nominal_speed=args.speed)
@@ -125,8 +126,10 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
     """Add the ``drive`` sub-command to a ``hil`` parser."""
     d = sub.add_parser("drive", help="run the vehicle loop on real serial ports (on a tractor)")
     d.add_argument("--bridge", required=True,
-                   help="steering bridge: a serial device of the HC11 board (or hc11:PORT), or an AgOpenGPS steer "
-                        "module, agopengps:udp:HOST:PORT (192.168.5.126:8888) or agopengps:serial:PORT")
+                   help="steering bridge: a serial device of the HC11 board (or hc11:PORT), an AgOpenGPS steer "
+                        "module, agopengps:udp:HOST:PORT (192.168.5.126:8888) or agopengps:serial:PORT, or an "
+                        "ISO 11783 steering-ready tractor, isobus:socketcan:can0 or isobus:udp_multicast:GROUP[:PORT] "
+                        "(hil emulate --bridge isobus; isobus alone is its default bus)")
     d.add_argument("--position", required=True, help="position receiver serial device")
     d.add_argument("--attitude", help="attitude receiver serial device (default: same as --position)")
     d.add_argument("--controller", required=True, type=_vehicle_spec,
@@ -146,7 +149,8 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
     d.add_argument("--passes", type=int, default=None, metavar="N",
                    help="with --field: only its first N passes (default: all)")
     d.add_argument("--wheelbase", type=parse_float, default=2.85,
-                   help="with --field: the tractor's wheelbase, m, for the headland turns (default 2.85)")
+                   help="the tractor's wheelbase, m: with --field for the headland turns, with an isobus bridge for "
+                        "the curvature commanded and reported (default 2.85)")
     d.add_argument("--height", type=parse_float, default=0.0, help="field ellipsoidal height, m")
     d.add_argument("--lever-arm", type=parse_floats(3), default=(0.0, 0.0, 3.0), metavar="X,Y,Z",
                    help="antenna from the control point, body frame (fwd, left, up), m")

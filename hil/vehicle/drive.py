@@ -38,6 +38,8 @@ from identification.passlog import MAX_NOMINAL_SPEED, PassLog
 
 from hil.vehicle.agio.driver import ANGLE_CALIBRATION, AgioDriver, AgioDriverConfig, module_loop_config
 from hil.vehicle.agio.spec import open_agio_link, parse_bridge
+from hil.vehicle.isobus.driver import ANGLE_CALIBRATION as ISOBUS_CALIBRATION, IsobusDriverConfig
+from hil.vehicle.isobus.link import isobus_loop_config, open_isobus_link
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.errors import HilError
 from hil.vehicle.errors import VehicleConfigError
@@ -63,7 +65,8 @@ class DriveConfig:
         The steering bridge (:func:`hil.vehicle.agio.spec.parse_bridge`): a serial device of the HC11
         board (``/dev/ttyS0`` or ``hc11:/dev/ttyS0``), or an AgOpenGPS steer module,
         ``agopengps:udp:192.168.5.126:8888`` or ``agopengps:serial:/dev/ttyACM0`` (its angle comes in
-        0.01 degree: ``wheel_calibration`` is not used).
+        0.01 degree: ``wheel_calibration`` is not used), or an ISO 11783 steering-ready tractor,
+        ``isobus:socketcan:can0`` (its angle is that of its estimated curvature, see ``wheelbase``).
     position_port
         Serial device of the position receiver (GGA/VTG, or UBX).
     attitude_port
@@ -81,6 +84,8 @@ class DriveConfig:
         Line rates, bit/s.
     agio
         Settings of the AgOpenGPS driver (setpoint limits and lead), used with an ``agopengps`` bridge.
+    wheelbase
+        The tractor's wheelbase, m: an ``isobus`` bridge commands and reports curvature, tan(angle) / wheelbase.
     route
         A field's route (passes and headland turns, :meth:`gnss.field.Field.route`): the loop follows it instead
         of the line, its first pass starting at A towards B (the route's own segments from there).
@@ -105,6 +110,7 @@ class DriveConfig:
     agio: AgioDriverConfig = field(default_factory=AgioDriverConfig)
     commissioning: Commissioning | None = None
     route: Route | None = None
+    wheelbase: float = 2.85
 
     def __post_init__(self) -> None:
         for name in ("bridge_port", "position_port"):
@@ -116,7 +122,8 @@ class DriveConfig:
             raise VehicleConfigError(f"line ends must be (lat, lon) in degrees, got {a}, {b}")
         _finite("lever_arm", self.lever_arm, 3)
         WheelAngleCalibration(*_finite("wheel_calibration", self.wheel_calibration, 2))
-        parse_bridge(self.bridge_port)
+        if parse_bridge(self.bridge_port).kind == "isobus":
+            IsobusDriverConfig(wheelbase=self.wheelbase)      # checks the wheelbase
         for name in ("bridge_baud", "gnss_baud"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or not 300 <= v <= 4_000_000:
@@ -208,8 +215,8 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
         try:
             try:
                 spec = parse_bridge(cfg.bridge_port)
-                agio = spec.kind == "agopengps"
-                bridge = (open_agio_link(spec, open_port, cfg.bridge_baud) if agio
+                agio, isobus = spec.kind == "agopengps", spec.kind == "isobus"
+                bridge = (open_isobus_link(spec) if isobus else open_agio_link(spec, open_port, cfg.bridge_baud) if agio
                           else open_port(spec.device, baudrate=cfg.bridge_baud, timeout=0))
                 ports.append(bridge)
                 sources = [open_port(cfg.position_port, baudrate=cfg.gnss_baud, timeout=0)]
@@ -220,16 +227,19 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
             except (serial.SerialException, OSError) as exc:
                 raise HilError(f"cannot open a serial port: {exc}") from None
             clock = RealClock()
-            driver = AgioDriver(bridge, clock, cfg.agio) if agio else BridgeDriver(bridge, clock)
+            driver = (bridge.driver(clock, IsobusDriverConfig(wheelbase=cfg.wheelbase)) if isobus
+                      else AgioDriver(bridge, clock, cfg.agio) if agio else BridgeDriver(bridge, clock))
             frontend = GnssFrontEnd(FrontEndConfig(origin=origin, lever_arm=cfg.lever_arm), sources=sources,
                                     clock=clock.now)
             if agio:   # the module takes the ground speed in PGN 254 and reports its angle in 0.01 degree
                 driver.set_speed_source(lambda: frontend.solution(clock.now()).speed)
             loop_config = module_loop_config(cfg.loop) if agio and cfg.commissioning is None else cfg.loop
+            if isobus and cfg.commissioning is None:   # the steering controller closes its own angle loop
+                loop_config = isobus_loop_config(cfg.loop)
             steering = driver
             if cfg.commissioning is not None:
                 loop_config = cfg.commissioning.loop_config(loop_config)
-                if not agio:          # the valve's inverse map: the loop's rate becomes the command the valve needs
+                if spec.kind == "hc11":   # the valve's inverse map: the loop's rate becomes the command the valve needs
                     steering = MappedBridge(driver, cfg.commissioning.valve)
             guidance, parts = line, ()
             if cfg.route is not None:     # the route starts at A towards B: its segments from there
@@ -238,7 +248,8 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
                 guidance = PathTracker(place_on_line(start, yaw), station=0.0, cycle=1.0 / loop_config.rate)
                 parts = cfg.route.parts
             loop = VehicleLoop(clock, steering, frontend, guidance, controller,
-                               ANGLE_CALIBRATION if agio else WheelAngleCalibration(*cfg.wheel_calibration),
+                               ISOBUS_CALIBRATION if isobus else ANGLE_CALIBRATION if agio
+                               else WheelAngleCalibration(*cfg.wheel_calibration),
                                loop_config, parts=parts)
             try:
                 loop.run(duration, start=clock.now(), progress=progress, stop_request=request)

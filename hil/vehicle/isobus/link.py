@@ -1,0 +1,104 @@
+"""The vehicle's end of an ISO 11783 steering link: the CAN bus of a ``--bridge isobus...`` specification,
+this guidance system's node on it, and the driver and loop settings the vehicle loop steers with.
+
+:func:`open_isobus_link` opens the bus a parsed specification names
+(:func:`hil.vehicle.agio.spec.parse_bridge`: ``isobus:socketcan:can0`` on a tractor,
+``isobus:udp_multicast:GROUP[:PORT]`` against ``hil emulate --bridge isobus``, ``isobus:virtual:NAME`` in
+one process); :meth:`IsobusLink.driver` puts the guidance system's node on it (NAME
+:data:`GUIDANCE_NAME`, preferred address :data:`GUIDANCE_ADDRESS`, self-configurable) and returns the
+:class:`~hil.vehicle.isobus.driver.IsobusDriver` the loop steers through. The loop reads the wheel angle
+of the controller's estimated curvature, ``atan(wheelbase x curvature)``, through
+:data:`~hil.vehicle.isobus.driver.ANGLE_CALIBRATION`, and takes its rate limit and steering-response
+monitor from :func:`isobus_loop_config` (the steer-module rule with the controller's delay
+:data:`ISOBUS_LAG`).
+"""
+
+from __future__ import annotations
+
+import can
+
+from hil.links.clock import Clock
+from hil.vehicle.agio.driver import module_loop_config
+from hil.vehicle.agio.spec import BridgeSpec
+from hil.vehicle.isobus.driver import IsobusDriver, IsobusDriverConfig
+from hil.vehicle.isobus.errors import IsobusConfigError, IsobusLinkError
+from hil.vehicle.isobus.network import Name, Node
+from hil.vehicle.loop import LoopConfig
+
+__all__ = ["GUIDANCE_NAME", "GUIDANCE_ADDRESS", "ISOBUS_LAG", "open_isobus_bus", "IsobusLink", "open_isobus_link",
+           "isobus_loop_config"]
+
+GUIDANCE_NAME = Name(identity=0x7A5, manufacturer=0, function=0x83, vehicle_system=1, industry_group=2,
+                     self_configurable=True)
+"""NAME of the toolkit's guidance system (function 131; self-configurable, so it moves to a free address of
+128-247 when a NAME of higher priority holds its own)."""
+GUIDANCE_ADDRESS = 0x80
+"""Preferred source address of the guidance system (the first of the self-configurable range)."""
+ISOBUS_LAG = 0.3
+"""Delay of the measured angle behind the commanded one through a steering controller, s: its curvature
+filter (0.1 s), rate limit and valve loop (20 ms), and one report period (0.1 s). On a tractor, measure it."""
+
+
+def open_isobus_bus(spec: BridgeSpec) -> can.BusABC:
+    """Open the python-can bus of an ``isobus`` specification (the caller shuts it down).
+
+    Raises
+    ------
+    IsobusConfigError
+        ``spec`` is not an ``isobus`` bridge.
+    IsobusLinkError
+        The interface cannot be opened (a ``ConnectionError``, so an ``OSError``).
+    """
+    if spec.kind != "isobus":
+        raise IsobusConfigError(f"not an ISOBUS bridge: {spec}; expected isobus:INTERFACE:CHANNEL")
+    options = {"port": spec.port} if spec.transport == "udp_multicast" else {}
+    try:
+        return can.Bus(interface=spec.transport, channel=spec.device, **options)
+    except (can.CanError, OSError, ImportError) as exc:
+        raise IsobusLinkError(f"bridge isobus:{spec.transport}:{spec.device}: cannot open the CAN bus ({exc}); check "
+                              "the interface exists and is up (ip link show), or name another") from exc
+
+
+class IsobusLink:
+    """An open CAN bus for the guidance system (``close`` shuts it down, as a serial port's would).
+
+    Parameters
+    ----------
+    bus : can.BusABC
+        The bus (owned from now on).
+    """
+
+    def __init__(self, bus: can.BusABC) -> None:
+        self.bus = bus
+        self.node: Node | None = None
+
+    def driver(self, clock: Clock, config: IsobusDriverConfig, name: Name = GUIDANCE_NAME,
+               address: int = GUIDANCE_ADDRESS) -> IsobusDriver:
+        """The guidance system's node on the bus and the driver steering through it (the claim is sent now).
+
+        Raises
+        ------
+        IsobusConfigError
+            A second driver on the same link.
+        IsobusLinkError
+            The address claim cannot be sent.
+        """
+        if self.node is not None:
+            raise IsobusConfigError("this ISOBUS link already has the guidance system's node; open another link")
+        self.node = Node(self.bus, name, address, clock)
+        return IsobusDriver(self.node, clock, config)
+
+    def close(self) -> None:
+        """Shut the bus down (python-can logs, never raises)."""
+        self.bus.shutdown()
+
+
+def open_isobus_link(spec: BridgeSpec) -> IsobusLink:
+    """:func:`open_isobus_bus` as an :class:`IsobusLink`."""
+    return IsobusLink(open_isobus_bus(spec))
+
+
+def isobus_loop_config(base: LoopConfig | None = None, lag: float = ISOBUS_LAG) -> LoopConfig:
+    """The loop's rate limit and steering-response monitor for a steering controller: the steer-module rule
+    (:func:`hil.vehicle.agio.driver.module_loop_config`, full rate 0.35 rad/s both ways) with delay ``lag``, s."""
+    return module_loop_config(base, lag=lag)

@@ -159,6 +159,26 @@ def derivative(s: np.ndarray, u: Inputs, p: SimParams) -> np.ndarray:
     return np.stack(np.broadcast_arrays(*_rates(_ArrayOps, s.T, u, p)), axis=1)
 
 
+def derivative_scalar(x, u: Inputs, p: SimParams) -> tuple[float, ...]:
+    """Time derivative of one tractor's state, in floats (the truth linearisation's differences, the trim).
+
+    Parameters
+    ----------
+    x : sequence of float
+        The 8 state components in the order of :data:`STATE_NAMES` (SI units, see the module's table).
+    u : Inputs
+        The inputs as floats.
+    p : SimParams
+        The simulator's parameters.
+
+    Returns
+    -------
+    tuple of float
+        The 8 derivatives (units of the state per second); the same equations as :func:`derivative`.
+    """
+    return _rates(_ScalarOps, x, u, p)
+
+
 def _rk4(f, x, h: float):
     """One classical Runge-Kutta step of length ``h`` of ``x' = f(x)`` (arrays or casadi expressions)."""
     k1 = f(x)

@@ -5,7 +5,7 @@
   disker the line is not an equilibrium with the wheel straight: :func:`find_trim` solves
   for the steady heading, lateral velocity, wheel angle and hitch angle (zero yaw rate,
   zero cross-track rate).
-* **Linearisation.** Central differences of :func:`hil.truth.dynamics._rates` about the trim, ``X``
+* **Linearisation.** Central differences of :func:`hil.truth.dynamics.derivative_scalar` about the trim, ``X``
   dropped (nothing depends on it), the hitch angle kept with the disker only; the valve lag
   is the ``OM`` state. Hop's 1.8 Hz load variation and the 2 % speed variation are left out.
 * **Valve.** The deadband makes the derivative at zero duty 0. :class:`Linearization` carries
@@ -26,7 +26,7 @@ from scipy.optimize import least_squares
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import Condition
 from hil.truth.disturbances import hop_depth
-from hil.truth.dynamics import DEL, OM, PHI, PSI, R, STATE_NAMES, V, Y, Inputs, _rates, _ScalarOps
+from hil.truth.dynamics import DEL, OM, PHI, PSI, R, STATE_NAMES, V, Y, Inputs, derivative_scalar
 from hil.truth.params import SimParams
 from hil.truth.steering import nominal_duty, valve_rate
 
@@ -116,7 +116,7 @@ def find_trim(condition: Condition, params: SimParams | None = None) -> np.ndarr
     def residual(z: np.ndarray) -> np.ndarray:
         x = np.zeros(8)
         x[free] = z
-        d = _rates(_ScalarOps, x.tolist(), u, p)
+        d = derivative_scalar(x.tolist(), u, p)
         return np.array([d[Y], d[V], d[R]] + ([d[PHI]] if u.disker else []))
 
     sol = least_squares(residual, np.zeros(len(free)), xtol=1e-14, ftol=1e-14, gtol=1e-14)
@@ -179,7 +179,7 @@ def linearize(condition: Condition, params: SimParams | None = None, typical_rat
     gain = valve_secant_gain(typical_rate, p)
 
     def f(x: np.ndarray, u: Inputs) -> np.ndarray:
-        return np.array(_rates(_ScalarOps, x.tolist(), u, p), dtype=float)[keep]
+        return np.array(derivative_scalar(x.tolist(), u, p), dtype=float)[keep]
 
     A = np.zeros((len(keep), len(keep)))
     for j, i in enumerate(keep):

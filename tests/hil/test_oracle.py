@@ -15,7 +15,7 @@ from hil.bench.runs.oracle import OracleLQG, OracleOptions, OracleWeights, desig
 from hil.truth.linearize import EXOGENOUS, find_trim, linearize, mean_inputs, valve_command, valve_secant_gain
 from hil.truth.params import SimParams
 from hil.truth.steering import nominal_duty, valve_rate
-from hil.truth.dynamics import Inputs, _rates, _ScalarOps, rk4_step_scalar
+from hil.truth.dynamics import Inputs, derivative_scalar, rk4_step_scalar
 
 P = SimParams()
 
@@ -64,7 +64,7 @@ def test_the_linearisation_matches_the_simulator_for_small_steps(implement, spee
 def test_the_trim_is_an_equilibrium_and_the_disker_steers_against_its_pull():
     for cond in (condition_for("none", 1.0), condition_for("disker", 2.91)):
         x = find_trim(cond, P)
-        d = np.array(_rates(_ScalarOps, x.tolist(), mean_inputs(cond, P), P))
+        d = np.array(derivative_scalar(x.tolist(), mean_inputs(cond, P), P))
         assert np.max(np.abs(d[1:])) < 1e-8          # everything but the along-track motion is steady
     assert np.all(find_trim(condition_for("ripper", 1.34), P) == 0.0)
     disker = find_trim(condition_for("disker", 1.79), P)

@@ -1,6 +1,6 @@
 """The one-tractor path (HIL lockstep): the compiled equations, the chunked steps, the float helpers.
 
-The tractor's equations exist once, :func:`hil.truth.dynamics._rates`; the one-tractor path evaluates
+The tractor's equations exist once (:mod:`hil.truth.dynamics`); the one-tractor path evaluates
 them compiled (:class:`hil.truth.dynamics.Stepper`, casadi) and the batch path on numpy arrays. The
 two agree to rounding; steps taken many at a time are the steps taken one at a time. The loop's,
 the GPS epochs' and the kinematic LQR's float helpers give what their array code gives.

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from .bounded import parse_json
+from .cliutil import Parser, RawDescriptionFormatter, add_option
 from .errors import IdentificationError, OptionError
 from .outputs import output_file, write_stdout
 from .passlog import PassLog, check_physical
@@ -114,11 +115,11 @@ def _columns(text: str) -> list[str]:
     return cols
 
 
-class _Parser(argparse.ArgumentParser):
-    """Usage errors in one line (``<prog>: error: ... (see --help)``), exit status 2."""
+class _Parser(Parser):
+    """Usage errors in one line (``<prog>: error: ... (see --help)``), with the closest spellings, exit status 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {message}{self.hint(message)} (see {self.prog} --help)\n")
 
 
 def _okid(args: argparse.Namespace) -> dict:
@@ -178,10 +179,11 @@ def _version() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="identification", description=__doc__.splitlines()[0])
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+                   help="print the toolkit's version and exit")
     sub = p.add_subparsers(dest="command", required=True)
     c = sub.add_parser("convert", help="convert a pass log between .npz and .csv",
-                       description=CONVERT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+                       description=CONVERT_HELP, formatter_class=RawDescriptionFormatter)
     c.add_argument("src", help="input pass log (.npz or .csv)")
     c.add_argument("dst", help="output pass log (.npz or .csv)")
     c.add_argument("--meta", help="JSON metadata for a CSV from elsewhere, e.g. "
@@ -194,7 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--out", required=True, help="directory for models/<name>.npz")
     o.add_argument("--order", type=_order, default="auto",
                    help="model order, 'auto' (default, Hankel gap) or 'validate' (held-out 3 s prediction)")
-    o.add_argument("--markov", "--past", type=_markov, default="auto", dest="markov",
+    add_option(o, "--markov", "--past", type=_markov, default="auto", dest="markov",
                    help="observer Markov parameters p (the past window), 'auto' (default, Akaike) or 'validate'")
     o.add_argument("--latency", choices=("auto", "declared", "identified", "valid-time"), default="auto",
                    help="GPS latency source (default auto: valid times, else declared, attitude checked)")
@@ -205,9 +207,12 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--normalize", choices=("velocity", "none"), default="velocity",
                    help="outputs y/V, psi/V, delta (default) or y, psi, delta")
     o.add_argument("--dt", type=_seconds(0.005, 1.0), default=0.05, help="sample time, s (default 0.05; 0.005-1)")
-    o.add_argument("--method", choices=("era-dc", "era"), default="era-dc")
+    o.add_argument("--method", choices=("era-dc", "era"), default="era-dc",
+                   help="realisation: ERA with data correlation (era-dc, default) or plain ERA")
     o.add_argument("--kinds", nargs="+", choices=("local", "velocity-invariant", "central"),
-                   default=["local", "velocity-invariant", "central"])
+                   default=["local", "velocity-invariant", "central"],
+                   help="kinds of model to write: one per condition (local), per implement (velocity-invariant), "
+                        "one of all the logs (central); default all three")
     o.add_argument("--json", action="store_true", help="print the result as JSON")
     o.set_defaults(func=_okid)
 
@@ -219,10 +224,12 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--order", type=_order, default="auto",
                    help="model order, 'auto' (default, Hankel gap) or 'validate' (1-10, the order whose "
                    "model simulates the held-back 15 %% of the fit data best, both ways)")
-    f.add_argument("--markov", type=_markov, default="auto")
+    f.add_argument("--markov", type=_markov, default="auto",
+                   help="observer Markov parameters p (the past window), 'auto' (default, Akaike) or 'validate'")
     f.add_argument("--dt", type=_seconds(1e-9, 1e6), default=None,
                    help="sample time, s (default: from a time column, else 1)")
-    f.add_argument("--method", choices=("era-dc", "era"), default="era-dc")
+    f.add_argument("--method", choices=("era-dc", "era"), default="era-dc",
+                   help="realisation: ERA with data correlation (era-dc, default) or plain ERA")
     f.add_argument("--no-feedthrough", action="store_true", help="fix D = 0")
     f.add_argument("--refine", choices=("pem", "oe", "oe-all", "none", "validate"), default="pem",
                    help="re-estimate B, D for one-step prediction (pem, default) or simulation (oe); "
@@ -234,17 +241,17 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--split", type=_fraction, default=None,
                    help="fit on this leading fraction of each experiment and validate on the rest")
     f.add_argument("--experiment-column", default=None, help="column that numbers separate experiments")
-    f.add_argument("--json", action="store_true")
+    f.add_argument("--json", action="store_true", help="print the result as JSON")
     f.set_defaults(func=_fit)
 
     v = sub.add_parser("validate", help="free-run and one-step fits of a model on a CSV record")
     v.add_argument("model", help="model file (.npz)")
     v.add_argument("data", help="CSV file with a header row")
-    v.add_argument("--inputs", type=_columns, required=True)
-    v.add_argument("--outputs", type=_columns, required=True)
+    v.add_argument("--inputs", type=_columns, required=True, help="input columns, comma-separated")
+    v.add_argument("--outputs", type=_columns, required=True, help="output columns, comma-separated")
     v.add_argument("--dt", type=_seconds(1e-9, 1e6), default=None, help="sample time, s")
-    v.add_argument("--experiment-column", default=None)
-    v.add_argument("--json", action="store_true")
+    v.add_argument("--experiment-column", default=None, help="column that numbers separate experiments")
+    v.add_argument("--json", action="store_true", help="print the result as JSON")
     v.set_defaults(func=_validate)
 
     r = sub.add_parser("report", help="figures 6-8: Hankel and modal singular values, reconstruction")
@@ -252,7 +259,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="directory for the figures")
     r.add_argument("--logs", nargs="*", default=None,
                    help="pass logs for the reconstruction figure (held-out passes are best)")
-    r.add_argument("--json", action="store_true")
+    r.add_argument("--json", action="store_true", help="print the result as JSON")
     r.set_defaults(func=_report)
     return p
 

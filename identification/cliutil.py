@@ -1,0 +1,233 @@
+"""Command-line conventions shared by the toolkit's commands (``identification``, ``design``, ``hil``).
+
+One parser class for every command and sub-command:
+
+- a mistyped sub-command, choice or option gets the closest spellings
+  (``hil comission`` -> ``did you mean: commission?``);
+- an option's old spelling stays accepted but is left out of the usage line and shown
+  in the help as deprecated (:func:`add_option`);
+
+and the value types the commands share: seed lists (``0-19``, ``0,1,2``, ``0-4,7``) and
+conditions (``all`` or ``IMPLEMENT:SPEED,...``).
+
+This module imports nothing of the project (it sits at the bottom of ``identification``,
+which ``design`` and ``hil`` import).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import difflib
+import math
+import re
+from collections import Counter
+from typing import Any, Sequence
+
+__all__ = ["Parser", "Formatter", "RawDescriptionFormatter", "add_option", "deprecated_strings", "suggestion",
+           "option_names", "seed_list", "seeds_or_count", "resolve_seeds", "condition_pairs", "MAX_SEEDS_PER_RANGE", "MAX_SEED"]
+
+#: Largest seed accepted (numpy's SeedSequence takes any non-negative integer; this keeps seeds in 32 bits).
+MAX_SEED = 2 ** 31
+#: Most seeds in one option.
+MAX_SEEDS = 10_000
+#: Most seeds one range may name (a campaign of more is a typo, e.g. 0-10000 for 0-100).
+MAX_SEEDS_PER_RANGE = 1000
+
+
+def deprecated_strings(action: argparse.Action) -> tuple[str, ...]:
+    """The old spellings of an option (accepted, hidden from the usage line), set by :func:`add_option`."""
+    return tuple(getattr(action, "deprecated_strings", ()))
+
+
+def add_option(parser: argparse.ArgumentParser, name: str, *old: str, **kwargs: Any) -> argparse.Action:
+    """``parser.add_argument(name, *old, **kwargs)`` with ``old`` marked as deprecated spellings of ``name``.
+
+    The old spellings keep working; the help shows ``name`` only, with the old ones listed as
+    deprecated after its text.
+    """
+    action = parser.add_argument(name, *old, **kwargs)
+    action.deprecated_strings = tuple(old)  # type: ignore[attr-defined]
+    return action
+
+
+class Formatter(argparse.HelpFormatter):
+    """Help without the deprecated spellings in the option column; they are named after the help text."""
+
+    def _format_action_invocation(self, action: argparse.Action) -> str:
+        old = deprecated_strings(action)
+        if old:
+            action = copy.copy(action)
+            action.option_strings = [s for s in action.option_strings if s not in old]
+        return super()._format_action_invocation(action)
+
+    def _expand_help(self, action: argparse.Action) -> str:
+        text = super()._expand_help(action)
+        old = deprecated_strings(action)
+        return f"{text} (deprecated spelling: {', '.join(old)})" if old else text
+
+
+class RawDescriptionFormatter(Formatter, argparse.RawDescriptionHelpFormatter):
+    """:class:`Formatter` that keeps the description's line breaks."""
+
+
+_INVALID_CHOICE = re.compile(r"invalid choice: '(?P<value>[^']*)' \(choose from (?P<choices>.*)\)")
+
+
+def _close(word: str, candidates: Sequence[str]) -> list[str]:
+    return difflib.get_close_matches(word, list(candidates), n=3, cutoff=0.6)
+
+
+def option_names(parser: argparse.ArgumentParser, namespace: argparse.Namespace | None = None) -> dict[str, str]:
+    """Every option string of ``parser`` and of the sub-parsers the namespace chose -> its canonical spelling."""
+    names: dict[str, str] = {}
+    for action in parser._actions:
+        for s in action.option_strings:
+            names[s] = action.option_strings[0]
+        if isinstance(action, argparse._SubParsersAction) and namespace is not None:
+            chosen = getattr(namespace, action.dest, None) if action.dest is not argparse.SUPPRESS else None
+            sub = action.choices.get(chosen) if isinstance(chosen, str) else None
+            if sub is not None:
+                names.update(option_names(sub, namespace))
+    return names
+
+
+def suggestion(message: str, options: dict[str, str] | None = None) -> str:
+    """``"; did you mean: ...?"`` for an argparse error ``message`` (an invalid choice, unrecognised
+    options among ``options``: spelling -> canonical spelling), or ``""`` when nothing is close."""
+    m = _INVALID_CHOICE.search(message)
+    if m:
+        choices = re.findall(r"'([^']*)'", m.group("choices"))
+        close = _close(m.group("value"), choices)
+        return f"; did you mean: {', '.join(close)}?" if close else ""
+    if message.startswith("unrecognized arguments:") and options:
+        hints = []
+        for token in message.split(":", 1)[1].split():
+            name = token.split("=", 1)[0]
+            close = list(dict.fromkeys(options[c] for c in _close(name, list(options)))) if name[:1] == "-" else []
+            if close:
+                hints.append(f"{name} -> {' or '.join(close)}")
+        if len(hints) == 1:
+            return f"; did you mean: {hints[0].split(' -> ', 1)[1]}?"
+        if hints:
+            return f"; did you mean: {'; '.join(hints)}?"
+    return ""
+
+
+class Parser(argparse.ArgumentParser):
+    """The toolkit's argument parser: close-match suggestions in usage errors, deprecated spellings hidden.
+
+    Sub-parsers made with ``add_subparsers().add_parser`` are of the same class (argparse makes them
+    of the parent's class) and use the same help formatter unless another is given.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", Formatter)
+        super().__init__(*args, **kwargs)
+        self._options_for_hint: dict[str, str] | None = None
+
+    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                   namespace: argparse.Namespace | None = None) -> argparse.Namespace:
+        ns, extras = self.parse_known_args(args, namespace)
+        if extras:
+            self._options_for_hint = option_names(self, ns)
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return ns
+
+    def hint(self, message: str) -> str:
+        """The closest spellings for a usage error's ``message`` (``"; did you mean: ...?"``), or ``""``."""
+        return suggestion(message, self._options_for_hint or option_names(self))
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        super().error(message + self.hint(message))
+
+
+# --- shared value types -------------------------------------------------------------------------------
+
+
+def seed_list(text: str) -> tuple[int, ...]:
+    """argparse type: seeds as ``0-19``, ``3``, ``0,1,2`` or ``0-4,7`` (ranges inclusive, in the order given).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        If a part is not an integer or a range ``FIRST-LAST`` with ``0 <= FIRST <= LAST <= 2**31``,
+        a range holds more than :data:`MAX_SEEDS_PER_RANGE` seeds, all more than :data:`MAX_SEEDS`,
+        or a seed is named twice.
+    """
+    seeds: list[int] = []
+    for part in text.split(","):
+        lo, sep, hi = part.strip().partition("-")
+        try:
+            a = int(lo)
+            b = int(hi) if sep else a
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected seeds like 0-19, 3 or 0-4,7, got {text!r}") from None
+        if not 0 <= a <= b <= MAX_SEED:
+            raise argparse.ArgumentTypeError(f"expected seeds 0 <= FIRST <= LAST <= {MAX_SEED}, got {part!r}")
+        if b - a >= MAX_SEEDS_PER_RANGE:
+            raise argparse.ArgumentTypeError(f"at most {MAX_SEEDS_PER_RANGE} seeds in a range, got {part!r}")
+        seeds.extend(range(a, b + 1))
+        if len(seeds) > MAX_SEEDS:
+            raise argparse.ArgumentTypeError(f"at most {MAX_SEEDS} seeds, got more in {text[:80]!r}")
+    twice = sorted(s for s, n in Counter(seeds).items() if n > 1)
+    if twice:
+        raise argparse.ArgumentTypeError(f"seed(s) {twice} named more than once in {text!r}")
+    return tuple(seeds)
+
+
+def seeds_or_count(text: str) -> tuple[int, ...] | int:
+    """argparse type of an option that took a count before it took seeds: a bare integer ``N`` is the
+    old count (an ``int``: ``N`` seeds from the first seed), anything else :func:`seed_list`
+    (``0-1``, ``0,1``; one seed ``7`` as ``7-7``)."""
+    if text.strip().isdigit():
+        n = int(text)
+        if not 1 <= n <= MAX_SEEDS_PER_RANGE:
+            raise argparse.ArgumentTypeError(f"expected a count of seeds from 1 to {MAX_SEEDS_PER_RANGE} or seeds "
+                                             f"like 0-19 or 0,1,2, got {text!r}")
+        return n
+    return seed_list(text)
+
+
+def resolve_seeds(value: tuple[int, ...] | int, first: int | None, default_first: int,
+                  option: str = "--seeds", first_option: str = "--seed") -> tuple[int, ...]:
+    """The seeds of ``value`` (from :func:`seeds_or_count`): a count runs from ``first`` (``default_first``
+    when not given); a list is taken as given, and refused beside an explicit ``first``.
+
+    Raises
+    ------
+    ValueError
+        If seeds are listed and a first seed is given too (it would be ignored).
+    """
+    if isinstance(value, int):
+        start = default_first if first is None else first
+        return tuple(range(start, start + value))
+    if first is not None:
+        raise ValueError(f"{first_option} {first} is the first seed of a count ({option} N); with the seeds "
+                         f"listed ({option} {','.join(map(str, value[:5]))}{',...' if len(value) > 5 else ''}) "
+                         f"drop {first_option}")
+    return tuple(value)
+
+
+def condition_pairs(text: str) -> list[tuple[str, float]] | None:
+    """argparse type: conditions as ``all`` (None) or ``IMPLEMENT:SPEED[,IMPLEMENT:SPEED...]`` (speed in m/s).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        If a part is not ``NAME:SPEED`` with a finite speed > 0.
+    """
+    if text.strip() == "all":
+        return None
+    out = []
+    for part in text.split(","):
+        name, sep, speed = part.strip().partition(":")
+        try:
+            v = float(speed)
+        except ValueError:
+            v = math.nan
+        if not sep or not name or not (math.isfinite(v) and v > 0):
+            raise argparse.ArgumentTypeError(f"expected 'all' or IMPLEMENT:SPEED[,...] with the speed in m/s "
+                                             f"(e.g. none:1.79,disker:2.91), got {text!r}")
+        out.append((name, v))
+    return out

@@ -40,7 +40,7 @@ def test_a_file_without_automatic_weights_is_refused(tmp_path):
         auto_record(path)
 
 
-def _designers(models: Path, designer: Designer = RECIPE):
+def designers(models: Path, designer: Designer = RECIPE):
     """The MPC's and the robust fall-back's designs on random-19's five models (automatic weights)."""
     def mpc(fallback: Path | None, past: int, out: Path) -> dict:
         return designer.mpc(models, DesignTry(True, past), out, fallback)
@@ -55,7 +55,7 @@ def _designers(models: Path, designer: Designer = RECIPE):
 def test_the_mpc_short_of_its_specifications_on_one_sample_gets_the_window_that_meets_them(tmp_path):
     models = tmp_path / "models"
     shutil.copytree(MODELS, models, ignore=shutil.ignore_patterns("*.txt"))
-    mpc, robust = _designers(models)
+    mpc, robust = designers(models)
     current = tmp_path / "mpc.json"
     mpc(None, 1, current)                        # the MPC on the robust controller's one-sample window
     past, relaxed, scale = auto_record(current)
@@ -77,7 +77,7 @@ def test_the_mpc_short_of_its_specifications_on_one_sample_gets_the_window_that_
 def test_an_mpc_that_relaxed_nothing_is_left_alone(tmp_path):
     models = tmp_path / "models"
     shutil.copytree(MODELS, models, ignore=shutil.ignore_patterns("*.txt"))
-    mpc, robust = _designers(models)
+    mpc, robust = designers(models)
     current = tmp_path / "mpc.json"
     mpc(None, 3, current)
     before = current.read_bytes()

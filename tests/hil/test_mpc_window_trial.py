@@ -17,7 +17,7 @@ from hil.bench.commissioning.mpc_window_trial import mpc_window_trial
 from hil.bench.commissioning.window_trial import lowest
 from hil.truth.tractors import resolve_tractor
 
-from test_mpc_window import MODELS, RECIPE, _designers  # noqa: E402 - random-19's five models
+from test_mpc_window import MODELS, RECIPE, designers  # noqa: E402 - random-19's five models
 
 #: random-19's latency and valve rate; a disk margin and delay reserve low enough that more than one window
 #: meets them on these five models (with the recipe's 0.6 and 0.1 s only window 3 does: test_mpc_window.py)
@@ -29,7 +29,7 @@ def _designed(tmp_path: Path, specs, past: int):
     on ``past`` samples without a fall-back (``tmp_path/mpc.json``)."""
     models = tmp_path / "models"
     shutil.copytree(MODELS, models, ignore=shutil.ignore_patterns("*.txt"))
-    mpc, robust = _designers(models, specs)
+    mpc, robust = designers(models, specs)
     current = tmp_path / "mpc.json"
     mpc(None, past, current)
     return mpc, robust, current

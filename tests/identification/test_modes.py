@@ -7,7 +7,7 @@ import pytest
 
 from identification.modes import ARTEFACT_DECAY_S, ARTEFACT_HZ, sampling_artefact
 from identification.selection import fit_select
-from test_selection import _data, _system
+from test_selection import random_system, simulated_record
 
 DT = 0.05
 
@@ -48,9 +48,9 @@ def test_bad_sample_time_is_refused():
 
 def test_the_choice_skips_a_candidate_with_an_artefact():
     # four modes, the fastest at 6.0 Hz with radius 0.8 (decays in 0.22 s): the true order 8 carries it
-    sys_ = _system(4, seed=4)
+    sys_ = random_system(4, seed=4)
     assert sampling_artefact(sys_[0], DT) is not None
-    fit, held = _data(sys_, 2, 3000, 1), _data(sys_, 1, 2000, 2)
+    fit, held = simulated_record(sys_, 2, 3000, 1), simulated_record(sys_, 1, 2000, 2)
     opts = {"order": "validate", "markov": "validate", "feedthrough": False}
     est0, _, sel0 = fit_select(fit, held, opts)
     assert est0.order_ == 8 and "implausible" not in str(sel0)
@@ -65,8 +65,8 @@ def test_the_choice_skips_a_candidate_with_an_artefact():
 
 
 def test_with_no_clean_candidate_the_choice_is_made_over_all_and_said():
-    sys_ = _system(4, seed=4)
-    fit, held = _data(sys_, 2, 3000, 1), _data(sys_, 1, 2000, 2)
+    sys_ = random_system(4, seed=4)
+    fit, held = simulated_record(sys_, 2, 3000, 1), simulated_record(sys_, 1, 2000, 2)
     opts = {"order": "validate", "markov": "validate", "feedthrough": False}
     est, _, sel = fit_select(fit, held, opts, implausible=lambda a, dt: "every mode")
     assert est.order_ == 8 and sel["implausible_all"] is True

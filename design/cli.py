@@ -3,16 +3,19 @@
     design kinematic [--speeds ...] [--dt S | --continuous] [--plot FILE] [--json]
     design robust --models models/*.npz [--formulation common|extended] [--integral] [--solver clarabel|scs]
                   [--pole-radius R] [--rate-limit U] --out controllers/robust.json [--json]
-    design lqr --model models/central.npz [--verify-on models/local_*.npz] --out controllers/central-lqr.json
+    design lqr --models models/central.npz [--validate-on models/local_*.npz] --out controllers/central-lqr.json
     design verify CONTROLLER --models models/*.npz
     design export CONTROLLER --format json|c-header|csv|c [--out FILE | DIR]
     design mpc --models models/*.npz --horizon N [--backend casadi|osqp] [--solver daqp|...] --out controllers/mpc.json
-    design nmpc --models models/local_*.npz [--horizon N] [--integral-max MS] --out controllers/nmpc.json
+    design nmpc --models models/local_*.npz [--horizon N] [--integral-max M_S] --out controllers/nmpc.json
     design keygen --out DIR                       # Ed25519 key pair for signing controller files
     design sign CONTROLLER --key DIR/controller-signing.key [--out FILE]
 
 ``robust``, ``lqr``, ``mpc`` and ``nmpc`` take ``--sign KEY`` to sign the file they write. ``verify``
 exits 1 when anything in the file's certificate does not hold on the given models.
+
+``--y-max`` is the cross-track's Bryson bound in metres (``kinematic``, ``nmpc``); ``robust``, ``lqr`` and
+``mpc`` take the bounds of the model's outputs, in the model's units, as ``--output-max``.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import sys
 
 import numpy as np
 
+from identification.cliutil import Parser, add_deprecated_option
 from identification.errors import OutputError
 from identification.outputs import write_stdout
 
@@ -49,7 +53,7 @@ def _float(text: str) -> float:
 
 def _cmd_kinematic(args: argparse.Namespace) -> dict:
     w = KinematicWeights(y_max=args.y_max, psi_max=math.radians(args.psi_max_deg),
-                         delta_max=math.radians(args.delta_max_deg), u_max=math.radians(args.u_max_deg_s))
+                         delta_max=math.radians(args.delta_max_deg), u_max=args.u_max)
     dt = None if args.continuous else args.dt
     speeds = np.asarray(args.speeds, dtype=float)
     if not np.all(np.isfinite(speeds)) or np.any(speeds <= 0):
@@ -125,17 +129,21 @@ def _version() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="design", description="Controller design for the tractor.")
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    p = Parser(prog="design", description="Controller design for the tractor.")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+                   help="print the toolkit's version and exit")
     sub = p.add_subparsers(dest="command", required=True)
     k = sub.add_parser("kinematic", help="LQR gains of the paper's kinematic model versus speed")
-    k.add_argument("--speeds", nargs="+", type=_float, default=[1.00, 1.34, 1.79, 2.24, 2.91], metavar="M_PER_S")
+    k.add_argument("--speeds", nargs="+", type=_float, default=[1.00, 1.34, 1.79, 2.24, 2.91], metavar="M_PER_S",
+                   help="speeds, m/s (default: the paper's five gears, 1.00 1.34 1.79 2.24 2.91)")
     k.add_argument("--dt", type=_float, default=0.05, help="sample time, s (default 0.05 = 20 Hz)")
     k.add_argument("--continuous", action="store_true", help="continuous-time design instead")
-    k.add_argument("--y-max", type=_float, default=0.15, help="Bryson: cross-track, m")
+    k.add_argument("--y-max", type=_float, default=0.15, help="Bryson: cross-track, m (default 0.15)")
     k.add_argument("--psi-max-deg", type=_float, default=5.0, help="Bryson: heading, deg")
     k.add_argument("--delta-max-deg", type=_float, default=5.0, help="Bryson: wheel angle, deg")
-    k.add_argument("--u-max-deg-s", type=_float, default=20.0, help="Bryson: steering rate, deg/s")
+    u_max = k.add_argument("--u-max", type=_float, default=math.radians(20.0),
+                           help="Bryson: steering rate, rad/s (default 0.349 = 20 deg/s)")
+    add_deprecated_option(k, "--u-max-deg-s", u_max, type=lambda t: math.radians(_float(t)), metavar="DEG_PER_S")
     k.add_argument("--plot", help="write a figure of the gains (png/pdf/svg)")
     k.add_argument("--json", action="store_true", help="print the result as JSON")
     k.set_defaults(func=_cmd_kinematic)
@@ -150,7 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--json", action="store_true", help="print the result as JSON")
     g.set_defaults(func=_cmd_keygen)
     s = sub.add_parser("sign", help="sign a checked controller file (Ed25519)")
-    s.add_argument("controller")
+    s.add_argument("controller", help="controller file (.json) to sign")
     s.add_argument("--key", required=True, help="private key file (design keygen)")
     s.add_argument("--out", default=None, help="signed file (default: replace CONTROLLER)")
     s.add_argument("--json", action="store_true", help="print the result as JSON")

@@ -24,8 +24,9 @@ import re
 from collections import Counter
 from typing import Any, Sequence
 
-__all__ = ["Parser", "Formatter", "RawDescriptionFormatter", "add_option", "deprecated_strings", "suggestion",
-           "option_names", "seed_list", "seeds_or_count", "resolve_seeds", "condition_pairs", "MAX_SEEDS_PER_RANGE", "MAX_SEED"]
+__all__ = ["Parser", "Formatter", "RawDescriptionFormatter", "add_option", "add_deprecated_option",
+           "deprecated_strings", "suggestion", "option_names", "seed_list", "seeds_or_count", "resolve_seeds",
+           "condition_pairs", "MAX_SEEDS", "MAX_SEEDS_PER_RANGE", "MAX_SEED"]
 
 #: Largest seed accepted (numpy's SeedSequence takes any non-negative integer; this keeps seeds in 32 bits).
 MAX_SEED = 2 ** 31
@@ -36,8 +37,9 @@ MAX_SEEDS_PER_RANGE = 1000
 
 
 def deprecated_strings(action: argparse.Action) -> tuple[str, ...]:
-    """The old spellings of an option (accepted, hidden from the usage line), set by :func:`add_option`."""
-    return tuple(getattr(action, "deprecated_strings", ()))
+    """The old spellings of an option (accepted, hidden from the usage line), set by :func:`add_option`
+    and :func:`add_deprecated_option`."""
+    return tuple(getattr(action, "deprecated_strings", ())) + tuple(getattr(action, "deprecated_aliases", ()))
 
 
 def add_option(parser: argparse.ArgumentParser, name: str, *old: str, **kwargs: Any) -> argparse.Action:
@@ -51,12 +53,24 @@ def add_option(parser: argparse.ArgumentParser, name: str, *old: str, **kwargs: 
     return action
 
 
+def add_deprecated_option(parser: argparse.ArgumentParser, old: str, canonical: argparse.Action,
+                          **kwargs: Any) -> argparse.Action:
+    """An old spelling that takes its value another way than ``canonical`` (e.g. degrees where the option now
+    takes radians: give the converting ``type``): a hidden option storing into ``canonical``'s destination,
+    named as deprecated in ``canonical``'s help."""
+    action = parser.add_argument(old, dest=canonical.dest, default=argparse.SUPPRESS, help=argparse.SUPPRESS,
+                                 **kwargs)
+    action.canonical = canonical.option_strings[0]  # type: ignore[attr-defined]
+    canonical.deprecated_aliases = (*getattr(canonical, "deprecated_aliases", ()), old)  # type: ignore[attr-defined]
+    return action
+
+
 class Formatter(argparse.HelpFormatter):
     """Help without the deprecated spellings in the option column; they are named after the help text."""
 
     def _format_action_invocation(self, action: argparse.Action) -> str:
         old = deprecated_strings(action)
-        if old:
+        if any(s in old for s in action.option_strings):
             action = copy.copy(action)
             action.option_strings = [s for s in action.option_strings if s not in old]
         return super()._format_action_invocation(action)
@@ -83,7 +97,7 @@ def option_names(parser: argparse.ArgumentParser, namespace: argparse.Namespace 
     names: dict[str, str] = {}
     for action in parser._actions:
         for s in action.option_strings:
-            names[s] = action.option_strings[0]
+            names[s] = getattr(action, "canonical", action.option_strings[0])
         if isinstance(action, argparse._SubParsersAction) and namespace is not None:
             chosen = getattr(namespace, action.dest, None) if action.dest is not argparse.SUPPRESS else None
             sub = action.choices.get(chosen) if isinstance(chosen, str) else None

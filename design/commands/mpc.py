@@ -1,6 +1,7 @@
 """Sub-command ``design mpc`` (parse, call :mod:`design.synthesis.recipes`, print).
 
     design mpc --models models/*.npz --horizon N [--backend casadi|osqp] [--solver daqp|qpoases|...]
+               [--output-max Y PSI DELTA] [--wheel-limit RAD]
                [--fallback controllers/robust.json] --out controllers/mpc.json [--json]
 
 The prediction model is the model of kind ``central`` among ``--models`` (or ``--central``);
@@ -11,9 +12,10 @@ from __future__ import annotations
 
 import argparse
 
+from identification.cliutil import add_option
 from identification.model import Model
 
-from design.commands.robust import _weights, certificate_table, spec_lines
+from design.commands.robust import _weights, add_bryson_arguments, certificate_table, spec_lines
 from design.commands.specs import (add_disturbance_arguments, add_spec_arguments, disturbance_of, parse_past, progress_of,
                         refuse_mixed, warn_relaxed, weight_search_of)
 from design.mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
@@ -54,9 +56,11 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--time-budget-ms", type=number, default=25.0,
                    help="per-tick solve budget, ms; a slower solve is replaced by the fallback law")
     p.add_argument("--rate-limit", type=number, default=0.35, help="hard steering-rate limit, rad/s")
-    p.add_argument("--wheel-angle-limit", type=number, default=0.5, help="soft wheel-angle limit, rad")
+    add_option(p, "--wheel-limit", "--wheel-angle-limit", dest="wheel_angle_limit", type=number, default=0.5,
+               help="soft wheel-angle limit, rad (default 0.5)")
     p.add_argument("--slack-weight", type=number, default=1e5, help="exact-penalty price of the wheel-angle slack")
-    p.add_argument("--terminal", choices=TERMINALS, default="riccati")
+    p.add_argument("--terminal", choices=TERMINALS, default="riccati",
+                   help="terminal cost of the horizon (default riccati: the unconstrained LQR's cost to go)")
     p.add_argument("--fallback", help="robust controller file (window structure, --integral) whose gain is the "
                                       "fallback law (default: the unconstrained LQR)")
     p.add_argument("--past", type=parse_past, default=None,
@@ -65,15 +69,12 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--output-clip", type=number, nargs=3, default=[0.1, 0.05, 0.0],
                    help="clip of each normalised output (0 = none)")
     p.add_argument("--speed-min", type=number, default=0.3, help="speed floor of the normalisation, m/s")
-    p.add_argument("--y-max", type=number, nargs="+", default=None,
-                   help="Bryson output maxima in model units (y/V s, psi/V rad s/m, delta rad; default 0.05 0.03 0.09)")
-    p.add_argument("--u-max", type=number, default=None, help="Bryson steering rate, rad/s (default 0.35)")
-    p.add_argument("--i-max", type=number, default=None, help="Bryson integral of y/V, s^2 (default 0.5)")
+    add_bryson_arguments(p, number)
     add_spec_arguments(p, number)
     add_disturbance_arguments(p, number, "carry it in the MPC's state and prediction")
     p.add_argument("--allow-unstable", action="store_true",
                    help="write it even if the unconstrained law is unstable on some model (recorded)")
-    p.add_argument("--name", default=None)
+    p.add_argument("--name", default=None, help="the controller's name in its file (default: mpc)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=cmd_mpc, default_name="mpc")
 

@@ -1,7 +1,7 @@
 """Sub-command ``design nmpc`` (thin layer over :mod:`design.files.nmpc`).
 
     design nmpc --models models/local_*.npz --out controllers/nmpc.json [--horizon N] [--y-max M]
-                [--y-max-speed V|none] [--integral-max MS] [--rate-limit R] [--wheel-limit W] [--solver gauss-newton|sqp|ipopt]
+                [--y-max-speed V|none] [--integral-max M_S] [--rate-limit R] [--wheel-limit W] [--solver gauss-newton|sqp|ipopt]
                 [--qpsol daqp|...] [--max-calls N] [--observer on|off] [--name NAME] [--json]
 
 The NMPC (:class:`design.mpc.nmpc.NonlinearMPC`, kinematic bicycle in path coordinates, curvature
@@ -61,14 +61,15 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--integral-max", type=number, default=1.0,
                    help="Bryson: integral of the cross-track, m s (default 1.0)")
     p.add_argument("--rate-limit", type=number, default=0.35, help="hard steering-rate limit, rad/s")
-    p.add_argument("--wheel-limit", type=number, default=0.5, help="soft wheel-angle limit, rad")
-    p.add_argument("--solver", choices=SOLVERS, default="gauss-newton")
+    p.add_argument("--wheel-limit", type=number, default=0.5, help="soft wheel-angle limit, rad (default 0.5)")
+    p.add_argument("--solver", choices=SOLVERS, default="gauss-newton",
+                   help="gauss-newton (default: Gauss-Newton QPs with at most --max-calls per tick), sqp or ipopt")
     p.add_argument("--qpsol", default="daqp", help="QP plugin of gauss-newton and sqp (default daqp)")
     p.add_argument("--max-calls", type=int, default=4,
                    help="Gauss-Newton calls per tick at most before the certified linear law steers (default 4)")
     p.add_argument("--observer", choices=("on", "off"), default="on",
                    help="Kalman filter with a steering offset and a lateral drift (design.mpc.nmpc_observer; default on)")
-    p.add_argument("--name", default=None)
+    p.add_argument("--name", default=None, help="the controller's name in its file (default: nmpc)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=cmd_nmpc, default_name="nmpc")
 

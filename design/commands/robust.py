@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from identification.cliutil import add_option
+
 from identification.model import Model
 
 from design.files.recheck import recheck
@@ -94,7 +96,7 @@ def cmd_robust(args: argparse.Namespace) -> dict:
 
 def cmd_lqr(args: argparse.Namespace) -> dict:
     model = Model.load(args.model)
-    others = load_models(args.verify_on) if args.verify_on else []
+    others = load_models(args.validate_on) if args.validate_on else []
     file, cert = design_lqr(model, others, _weights(args), name=args.name, command_limit=args.command_limit,
                             require=not args.allow_unstable)
     file.save(args.out)
@@ -120,19 +122,18 @@ def cmd_export(args: argparse.Namespace) -> dict:
 def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     """Register ``robust``, ``lqr`` and ``verify`` on the ``design`` parser."""
     def common(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--y-max", type=number, nargs="+", default=None,
-                       help="Bryson output maxima in model units (y/V s, psi/V rad s/m, delta rad; default 0.05 0.03 0.09)")
-        p.add_argument("--u-max", type=number, default=None, help="Bryson steering rate, rad/s (default 0.35)")
-        p.add_argument("--i-max", type=number, default=None, help="Bryson integral of y/V, s^2 (default 0.5)")
-        p.add_argument("--command-limit", type=number, default=0.35, help="command clip, rad/s")
-        p.add_argument("--name", default=None)
+        add_bryson_arguments(p, number)
+        p.add_argument("--command-limit", type=number, default=0.35, help="command clip, rad/s (default 0.35)")
+        p.add_argument("--name", default=None, help="the controller's name in its file (default: the command's)")
         p.add_argument("--json", action="store_true", help="print the result as JSON")
 
     r = sub.add_parser("robust", help="one LMI controller verified on every model")
     r.add_argument("--models", nargs="+", required=True, help="model files or directories")
     r.add_argument("--out", required=True, help="controller file (.json)")
-    r.add_argument("--formulation", choices=("common", "extended"), default="extended")
-    r.add_argument("--solver", choices=("clarabel", "scs"), default="clarabel")
+    r.add_argument("--formulation", choices=("common", "extended"), default="extended",
+                   help="LMI formulation: one Lyapunov matrix for all models (common) or per-model matrices with "
+                        "a slack (extended, default; less conservative)")
+    r.add_argument("--solver", choices=("clarabel", "scs"), default="clarabel", help="SDP solver (default clarabel)")
     r.add_argument("--method", choices=("all", "rounds"), default="rounds",
                    help="one LMI over all models, or a subset plus worst-violator rounds")
     r.add_argument("--backend", choices=("auto", "direct", "cvxpy"), default="auto",
@@ -170,26 +171,41 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     r.set_defaults(func=cmd_robust, default_name="robust")
 
     q = sub.add_parser("lqr", help="LQR + Kalman predictor on one model (the paper's controller)")
-    q.add_argument("--model", required=True)
-    q.add_argument("--verify-on", nargs="*", default=[], help="further models to certify it on")
+    add_option(q, "--models", "--model", dest="model", required=True, metavar="MODEL",
+               help="the one model file the LQR and its Kalman predictor are designed on (e.g. the central model)")
+    add_option(q, "--validate-on", "--verify-on", dest="validate_on", nargs="*", default=[], metavar="MODEL",
+               help="further models to certify it on")
     q.add_argument("--allow-unstable", action="store_true",
-                   help="write it even if unstable on some --verify-on model (recorded in the certificate)")
-    q.add_argument("--out", required=True)
+                   help="write it even if unstable on some --validate-on model (recorded in the certificate)")
+    q.add_argument("--out", required=True, help="controller file (.json)")
     common(q)
     q.set_defaults(func=cmd_lqr, default_name="lqr")
 
     v = sub.add_parser("verify", help="re-check a controller file on models")
-    v.add_argument("controller")
-    v.add_argument("--models", nargs="+", required=True)
-    v.add_argument("--json", action="store_true")
+    v.add_argument("controller", help="controller file (.json)")
+    v.add_argument("--models", nargs="+", required=True, help="model files or directories to re-check it on")
+    v.add_argument("--json", action="store_true", help="print the result as JSON")
     v.set_defaults(func=cmd_verify)
 
     e = sub.add_parser("export", help="write a controller file as JSON, a C header or CSV")
-    e.add_argument("controller")
-    e.add_argument("--format", choices=FORMATS, default="json")
-    e.add_argument("--out", help="output file (default: print)")
-    e.add_argument("--json", action="store_true")
+    e.add_argument("controller", help="controller file (.json)")
+    e.add_argument("--format", choices=FORMATS, default="json",
+                   help="json (default), c-header, csv, or c (a folder of C sources)")
+    e.add_argument("--out", help="output file, or folder for --format c (default: print)")
+    e.add_argument("--json", action="store_true", help="print the result as JSON")
     e.set_defaults(func=cmd_export)
+
+
+def add_bryson_arguments(p: argparse.ArgumentParser, number) -> None:
+    """``--output-max``, ``--u-max`` and ``--integral-max``: the explicit weights of ``robust``, ``lqr`` and ``mpc``
+    (old spellings ``--y-max``, ``--i-max``); None when not given (the defaults of
+    :class:`~design.core.weights.OutputWeights`)."""
+    add_option(p, "--output-max", "--y-max", dest="y_max", type=number, nargs="+", default=None, metavar="MAX",
+               help="Bryson maxima of the model's outputs, in the model's units (velocity-normalised models: y/V s, "
+                    "psi/V rad s/m, delta rad; default 0.05 0.03 0.09)")
+    p.add_argument("--u-max", type=number, default=None, help="Bryson steering rate, rad/s (default 0.35)")
+    add_option(p, "--integral-max", "--i-max", dest="i_max", type=number, default=None,
+               help="Bryson integral of the model's cross-track output, its unit x s (s^2 for y/V; default 0.5)")
 
 
 def render(result: dict) -> str:

@@ -4,7 +4,7 @@
                    [--latency S [S S] | --latency-from-logs LOGS...] [--validate-on MODELS...]
                    [--scale-range LO HI] [--scan N] [--search-steps N]
 
-``--weights explicit`` (the default) designs with ``--y-max/--u-max/--i-max`` as given and,
+``--weights explicit`` (the default) designs with ``--output-max/--u-max/--integral-max`` as given and,
 when a latency is known, reports the specifications it meets without enforcing them.
 """
 
@@ -37,7 +37,7 @@ def parse_past(text: str) -> int | None:
 def add_spec_arguments(p: argparse.ArgumentParser, number: Callable[[str], float]) -> None:
     """Register the weights mode, the specifications and the search options on ``p``."""
     p.add_argument("--weights", choices=WEIGHT_MODES, default="explicit",
-                   help="explicit: --y-max/--u-max/--i-max as given; auto: the most aggressive weights that meet "
+                   help="explicit: --output-max/--u-max/--integral-max as given; auto: the most aggressive weights that meet "
                         "the specifications below on every model")
     p.add_argument("--disk-margin", type=number, default=Specifications.disk_margin,
                    help="smallest balanced disk margin at the plant input, with the latency in the loop")
@@ -106,8 +106,9 @@ def progress_of(args: argparse.Namespace) -> Callable[[str], None] | None:
 
 
 def refuse_mixed(args: argparse.Namespace) -> None:
-    """``--weights auto`` with an explicit ``--y-max/--u-max/--i-max`` is refused (never silently ignored)."""
-    given = [f"--{n.replace('_', '-')}" for n in ("y_max", "u_max", "i_max") if getattr(args, n) is not None]
+    """``--weights auto`` with an explicit ``--output-max/--u-max/--integral-max`` is refused (never silently ignored)."""
+    names = {"y_max": "--output-max", "u_max": "--u-max", "i_max": "--integral-max"}
+    given = [option for dest, option in names.items() if getattr(args, dest) is not None]
     if args.weights == "auto" and given:
         raise DesignInputError(f"--weights auto chooses the weights itself, but {', '.join(given)} were given; "
                                "drop them, or use --weights explicit")

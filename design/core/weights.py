@@ -9,18 +9,13 @@ The paper: "the quadratic cost minimized the weighted sum of the outputs
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from identification.checks import positive
+
 from design.core.errors import DesignInputError
-
-
-def _positive(value: object, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise DesignInputError(f"{name} must be a finite number > 0, got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -45,9 +40,9 @@ class OutputWeights:
     def __post_init__(self) -> None:
         if not isinstance(self.y_max, (tuple, list)) or not self.y_max:
             raise DesignInputError(f"y_max must be a non-empty tuple of numbers, got {self.y_max!r}")
-        object.__setattr__(self, "y_max", tuple(_positive(v, "y_max entry") for v in self.y_max))
-        object.__setattr__(self, "u_max", _positive(self.u_max, "u_max"))
-        object.__setattr__(self, "i_max", _positive(self.i_max, "i_max"))
+        object.__setattr__(self, "y_max", tuple(positive(v, "y_max entry", error=DesignInputError) for v in self.y_max))
+        object.__setattr__(self, "u_max", positive(self.u_max, "u_max", error=DesignInputError))
+        object.__setattr__(self, "i_max", positive(self.i_max, "i_max", error=DesignInputError))
 
     def output_matrix(self, q: int) -> np.ndarray:
         """``Q_y`` (q x q); refuses a length mismatch."""

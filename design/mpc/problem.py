@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from identification.checks import positive
 from identification.model import Model
 
 from design.laws.disturbance import DisturbanceSpec
@@ -53,12 +54,6 @@ from design.core.weights import OutputWeights
 
 TERMINALS = ("riccati", "stage")
 WHEEL_ANGLE_OUTPUT = 2          # index of delta among the models' outputs (y/V, psi/V, delta)
-
-
-def _positive(value: object, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise DesignInputError(f"{name} must be a finite number > 0, got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -85,8 +80,8 @@ class MPCWeights:
     terminal: str = "riccati"
 
     def __post_init__(self) -> None:
-        _positive(self.slack_linear, "slack_linear")
-        _positive(self.slack_quadratic, "slack_quadratic")
+        positive(self.slack_linear, "slack_linear", error=DesignInputError)
+        positive(self.slack_quadratic, "slack_quadratic", error=DesignInputError)
         if self.terminal not in TERMINALS:
             raise DesignInputError(f"terminal must be one of {TERMINALS}, got {self.terminal!r}")
 
@@ -107,8 +102,8 @@ class MPCLimits:
     wheel_angle: float = 0.5
 
     def __post_init__(self) -> None:
-        _positive(self.rate, "rate limit (rad/s)")
-        _positive(self.wheel_angle, "wheel-angle limit (rad)")
+        positive(self.rate, "rate limit", unit="rad/s", error=DesignInputError)
+        positive(self.wheel_angle, "wheel-angle limit", unit="rad", error=DesignInputError)
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import scipy.linalg as sla
 
+from identification.checks import finite
 from identification.model import Model
 
 from design.core.compensator import Compensator, closed_loop_matrix
@@ -43,17 +44,6 @@ from design.core.verify import check_model
 
 #: Pass-log channel of each model output, in the models' output order.
 OUTPUT_CHANNELS: tuple[str, ...] = ("cross_track", "heading_error", "wheel_angle")
-
-
-def _finite(value: object, name: str, low: float, high: float = math.inf, strict_low: bool = False) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
-    if ok:
-        ok = (value > low if strict_low else value >= low) and value <= high
-    if not ok:
-        sign = ">" if strict_low else ">="
-        raise DesignInputError(f"{name} must be a finite number {sign} {low:g}"
-                               + (f" and <= {high:g}" if math.isfinite(high) else "") + f", got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -87,16 +77,21 @@ class Specifications:
     integral: bool = True
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "disk_margin", _finite(self.disk_margin, "disk_margin", 0.0, 2.0, strict_low=True))
-        object.__setattr__(self, "delay_reserve", _finite(self.delay_reserve, "delay_reserve", 0.0, 2.0))
-        object.__setattr__(self, "rate_limit", _finite(self.rate_limit, "rate_limit", 0.0, 10.0, strict_low=True))
+        err = DesignInputError
+        object.__setattr__(self, "disk_margin", finite(self.disk_margin, "disk_margin", lo=0.0, hi=2.0, lo_open=True,
+                                                       error=err))
+        object.__setattr__(self, "delay_reserve", finite(self.delay_reserve, "delay_reserve", lo=0.0, hi=2.0,
+                                                         error=err))
+        object.__setattr__(self, "rate_limit", finite(self.rate_limit, "rate_limit", lo=0.0, hi=10.0, lo_open=True,
+                                                      error=err))
         if self.latency is not None:
             if not isinstance(self.latency, (tuple, list)) or not self.latency:
                 raise DesignInputError(f"latency must be a tuple of seconds per output, got {self.latency!r}")
-            object.__setattr__(self, "latency", tuple(_finite(v, "latency entry", 0.0, 2.0) for v in self.latency))
+            object.__setattr__(self, "latency", tuple(finite(v, "latency entry", lo=0.0, hi=2.0, error=err)
+                                                      for v in self.latency))
         if not isinstance(self.initial_errors, (tuple, list)) or not self.initial_errors:
             raise DesignInputError(f"initial_errors must be a tuple of half-widths, got {self.initial_errors!r}")
-        errs = tuple(_finite(v, "initial_errors entry", 0.0) for v in self.initial_errors)
+        errs = tuple(finite(v, "initial_errors entry", lo=0.0, error=DesignInputError) for v in self.initial_errors)
         if not any(errs):
             raise DesignInputError("initial_errors are all zero: the rate-limit specification needs a non-empty set")
         object.__setattr__(self, "initial_errors", errs)
@@ -123,7 +118,7 @@ def _latency_vector(values: object, q: int, where: str) -> tuple[float, ...]:
     else:
         raise DesignInputError(f"{where}: latency_s must map channels {OUTPUT_CHANNELS[:q]} to seconds, "
                                f"or list {q} values; got {values!r}")
-    return tuple(_finite(v, f"{where}: latency", 0.0, 2.0) for v in out)
+    return tuple(finite(v, f"{where}: latency", lo=0.0, hi=2.0, error=DesignInputError) for v in out)
 
 
 def latency_from_models(models: Sequence[Model]) -> tuple[float, ...] | None:
@@ -170,7 +165,8 @@ def _latency_of_delay_record(rec: object, model: Model, where: str) -> tuple[flo
             not isinstance(outs.get(n), Mapping) or "latency_s" not in outs[n] for n in names):
         raise DesignInputError(f"{where}: meta['delay']['outputs'] must give latency_s for each output {names}, "
                                f"got {outs!r:.160}")
-    return tuple(_finite(outs[n]["latency_s"], f"{where}: latency of {n}", 0.0, 2.0) for n in names)
+    return tuple(finite(outs[n]["latency_s"], f"{where}: latency of {n}", lo=0.0, hi=2.0, error=DesignInputError)
+                 for n in names)
 
 
 def latency_from_logs(paths: Sequence[str | Path], q: int = 3) -> tuple[float, ...]:

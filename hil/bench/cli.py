@@ -1,18 +1,23 @@
 """``hil`` bench sub-commands: the truth simulator and the bench, as a thin layer over :mod:`hil`.
 
     hil sysid --out logs/ [--speeds ...] [--implements ...] [--passes N] [--duration S] [--seed S]
+    hil compare CONTROLLER... --out DIR [--conditions all|IMPLEMENT:SPEED,...] [--seeds 0-1]
     hil plot LOG.npz --out figure.png
     hil params [--tractor NAME|FILE] [--set group.name=value ...]
-    hil tractors [--markdown] [--random SEED ... --out DIR]
-    hil commission --tractor NAME|FILE --out DIR [--passes N] [--duration S] [--hil-seeds N] ...
+    hil tractors [--markdown] [--random SEEDS ... --out DIR]
+    hil commission --tractor NAME|FILE --out DIR [--passes N] [--duration S] [--hil-seeds 0-2] ...
     hil commission --logs DIR --commissioning FILE --out DIR [--latency auto|valid-time|declared|identified]
-    hil calibrate --out out/calibration [--controller central-lqr.json] [--budget 30] [--seeds 2]
+    hil calibrate --out out/calibration [--controller central-lqr.json] [--budget 30] [--seeds 0-1]
     hil run --controller kinematic --implement none --speed 1.79 --duration 60 --out runs/NAME
         [--realtime] [--seed N] [--fault KIND:START-END ...]
     hil drive ...      (the vehicle's own CLI, :mod:`hil.vehicle.cli`; listed here for --help)
 
 Unknown options and bad values exit with status 2 (usage) or 1 (a value the
 library refused), with a message saying what was expected.
+
+Seeds are one seed (``--seed N``) or a list (``--seeds 0-19``, ``0,1,2``, ``0-4,7``); a bare
+``--seeds N`` is the old count, N seeds from ``--seed`` (the defaults are such counts). Conditions
+are ``all`` or ``IMPLEMENT:SPEED,...`` (m/s) wherever they are given as one option.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from identification.cliutil import Parser, condition_pairs, resolve_seeds, seed_list, seeds_or_count
 from identification.errors import OutputError, PassLogError
 from identification.outputs import write_stdout
 from identification.passlog import PassLog
@@ -47,6 +53,10 @@ from hil.vehicle.cli import add_drive_parser, add_procedure_parser, add_valve_te
 from hil.vehicle.commissioning import load_commissioning
 from hil.bench.commissioning.cli import add_commission_parser
 from hil.vehicle.outputs import prepare_out_dir, prepare_out_file, write_text_atomic
+
+#: First seed of ``--seeds N`` (the old count) in compare, and in tune (apart from compare's: the gains are not
+#: tuned on the passes a comparison reports); first seed of calibrate's confirmation.
+COMPARE_FIRST_SEED, TUNE_FIRST_SEED, CONFIRM_FIRST_SEED = 0, 100, 10
 
 #: Sub-commands whose --out is a directory, and those whose --out is a file (checked before any work).
 OUT_DIRS = ("sysid", "run", "compare", "tune", "calibrate", "tractors", "commission", "commission-campaign")
@@ -93,10 +103,16 @@ def _params(args: argparse.Namespace) -> SimParams:
     return base.with_overrides(dict(args.set or []))
 
 
+def _seeds(args: argparse.Namespace, default_first: int) -> list[int]:
+    """The seeds of ``--seeds`` (a list, or the old count from ``--seed``, ``default_first`` when not given)."""
+    return list(resolve_seeds(args.seeds, args.seed, default_first))
+
+
 def _cmd_tractors(args: argparse.Namespace) -> dict:
     if args.random and not args.out:
         raise SimulatorConfigError("--random needs --out DIR (the tractor files are written there)")
-    files = [str(save_tractor(random_tractor(s), Path(args.out) / f"random-{s}.json")) for s in args.random or []]
+    seeds = list(dict.fromkeys(s for group in args.random or [] for s in group))
+    files = [str(save_tractor(random_tractor(s), Path(args.out) / f"random-{s}.json")) for s in seeds]
     out: dict = {"family": {n: t.description for n, t in builtin_tractors().items()}, "files": files}
     if args.markdown:
         out["markdown"] = tractors_markdown()
@@ -191,18 +207,14 @@ def _fault(text: str) -> tuple[str, object]:
 
 
 def _conditions(text: str):
-    if text == "all":
+    """``all`` (None: the paper's 15) or ``IMPLEMENT:SPEED,...`` (:func:`identification.cliutil.condition_pairs`)."""
+    pairs = condition_pairs(text)
+    if pairs is None:
         return None
-    out = []
-    for part in text.split(","):
-        imp, sep, speed = part.partition(":")
-        if not sep:
-            raise argparse.ArgumentTypeError(f"expected 'all' or IMPLEMENT:SPEED[,...], got {text!r}")
-        try:
-            out.append(condition_for(imp, _float(speed)))
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-    return out
+    try:
+        return [condition_for(imp, speed) for imp, speed in pairs]
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _names(text: str) -> list[str]:
@@ -220,7 +232,7 @@ def _cmd_compare(args: argparse.Namespace) -> dict:
         raise SimulatorConfigError("--passes needs --fields")
     _refuse_oracle_weights(args.controllers, "--fields")
     campaign = Campaign(Path(args.out) / "campaign", args.controllers, args.conditions,
-                        seeds=list(range(args.seed, args.seed + args.seeds)),
+                        seeds=_seeds(args, COMPARE_FIRST_SEED),
                         duration=60.0 if args.duration is None else args.duration,
                         params=_params(args), bridge=args.bridge)
     if (args.realtime_controllers or args.realtime_duration is not None) and not args.realtime:
@@ -262,7 +274,7 @@ def _cmd_compare_fields(args: argparse.Namespace) -> dict:
         bar.refresh()
 
     res = compare_fields(args.out, args.controllers, args.fields, args.conditions,
-                         list(range(args.seed, args.seed + args.seeds)), _params(args), args.passes, args.workers,
+                         _seeds(args, COMPARE_FIRST_SEED), _params(args), args.passes, args.workers,
                          progress)
     bar.close()
     return {**res, "tables": {"fields": res.pop("table")}}
@@ -285,7 +297,7 @@ def _cmd_tune(args: argparse.Namespace) -> dict:
         bar.refresh()
 
     result = tune(args.controller, dict(args.param), args.out, args.conditions,
-                  seeds=list(range(args.seed, args.seed + args.seeds)), duration=args.duration,
+                  seeds=_seeds(args, TUNE_FIRST_SEED), duration=args.duration,
                   params=_params(args), executor=args.executor, scheduler=args.scheduler, workers=args.workers,
                   progress=progress)
     bar.close()
@@ -296,7 +308,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> dict:
     from hil.bench.calibration.calibrate import CalibrationOptions, knob_text
     from hil.bench.calibration.pipeline import run_calibration
     knobs = {"knobs": tuple(args.knobs)} if args.knobs else {}
-    opts = CalibrationOptions(seeds=tuple(range(args.seed, args.seed + args.seeds)), duration=args.duration,
+    seeds = _seeds(args, 0)
+    opts = CalibrationOptions(seeds=tuple(seeds), duration=args.duration,
                               budget=args.budget, step=args.step, min_improvement=args.min_improvement,
                               start=dict(args.start or []), clean_passes=not args.all_passes, band=args.band, **knobs)
 
@@ -307,7 +320,11 @@ def _cmd_calibrate(args: argparse.Namespace) -> dict:
             print(f"evaluation {i:3d}: objective {ob['value']:.4f}, {ob['within_30pct']:2d}/15 within +-30 % "
                   f"{'accepted' if accepted else '        '} scales {moved}", file=sys.stderr, flush=True)
 
-    confirm = None if args.no_confirm else tuple(range(args.confirm_seed, args.confirm_seed + args.seeds))
+    if args.confirm_seeds is not None and args.confirm_seed is not None:
+        raise SimulatorConfigError(f"--confirm-seed {args.confirm_seed} is the first of as many seeds as --seeds; with "
+                                   "--confirm-seeds listed, drop it")
+    first = CONFIRM_FIRST_SEED if args.confirm_seed is None else args.confirm_seed
+    confirm = None if args.no_confirm else (args.confirm_seeds or tuple(range(first, first + len(seeds))))
     res = run_calibration(args.out, opts, args.controller, confirm, args.workers, report)
     return {"out": args.out, "objective": res["objective"], "values": res["values"],
             "confirmation": None if not res["confirmation"] else res["confirmation"]["objective"]}
@@ -387,7 +404,7 @@ def _cmd_emulate(args: argparse.Namespace) -> dict:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="hil", description="Truth simulator and hardware-in-the-loop bench.")
+    p = Parser(prog="hil", description="Truth simulator and hardware-in-the-loop bench.")
     p.add_argument("--version", action="version", version=f"hil {toolkit_version()}",
                    help="print the toolkit's version and exit")
     sub = p.add_subparsers(dest="command", required=True)
@@ -403,7 +420,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="directory for the pass logs (.npz)")
     s.add_argument("--speeds", nargs="+", type=_float, default=list(GEAR_SPEEDS.values()),
                    metavar="M_PER_S", help="nominal speeds, m/s (default: the paper's five gears)")
-    s.add_argument("--implements", nargs="+", choices=IMPLEMENTS, default=list(IMPLEMENTS))
+    s.add_argument("--implements", nargs="+", choices=IMPLEMENTS, default=list(IMPLEMENTS),
+                   help="implements (default: all three); a pass is made at every speed with every implement")
     s.add_argument("--passes", type=int, default=3, help="passes per condition (default 3)")
     s.add_argument("--duration", type=_float, default=120.0, help="seconds per pass (default 120)")
     s.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
@@ -424,7 +442,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="kinematic (the paper's LQR on the kinematic model at the measured speed), pure-pursuit, "
                         "stanley, oracle (with --field: the field oracle, its weights as oracle?cross_track=0.025), "
                         "or a controller file (.json) from `design`")
-    r.add_argument("--implement", choices=IMPLEMENTS, default="none")
+    r.add_argument("--implement", choices=IMPLEMENTS, default="none", help="implement (default none)")
     r.add_argument("--speed", type=_float, default=1.79, help="nominal speed, m/s (default 1.79)")
     r.add_argument("--duration", type=_float, default=None,
                    help="seconds (default 60; with --field, the route's length at the speed plus 5 s)")
@@ -432,11 +450,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="drive a field's route (passes and headland turns) instead of the AB line: "
                         "straight-300, gentle-curves, s-curve, contour or a field file")
     r.add_argument("--passes", type=int, default=None, help="with --field: drive only its first N passes")
-    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--seed", type=int, default=0, help="seed of the simulated tractor's noise (default 0)")
     r.add_argument("--realtime", action="store_true", help="real time over pseudo-terminals (default: lockstep)")
-    r.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
-                   help="steering bridge: the emulated HC11 board or an emulated AgOpenGPS steer module "
-                        "(in real time over UDP on 127.0.0.1)")
+    r.add_argument("--bridge", choices=("hc11", "agopengps", "isobus"), default="hc11",
+                   help="steering bridge: the emulated HC11 board, an emulated AgOpenGPS steer module "
+                        "(in real time over UDP on 127.0.0.1) or an emulated ISO 11783 steering controller "
+                        "(lockstep, on a virtual CAN bus)")
     r.add_argument("--initial-cross-track", type=_float, default=0.3, help="start offset from the line, m")
     r.add_argument("--fault", action="append", type=_fault, metavar="KIND:START-END",
                    help=f"inject a fault, KIND in {sorted(FAULT_KINDS) + list(LINK_FAULT_KINDS)}; link "
@@ -452,17 +471,21 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("controllers", nargs="+", type=_controller_spec, metavar="CONTROLLER",
                     help=f"one or more of {list(BUILTIN_CONTROLLERS)} or controller files (.json)")
     cp.add_argument("--conditions", type=_conditions, default=None, metavar="all|IMPLEMENT:SPEED,...",
-                    help="default: the paper's 15")
-    cp.add_argument("--seeds", type=int, default=2, help="passes per condition and controller (default 2)")
-    cp.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
-                    help="steering bridge of every pass: the emulated HC11 board or an AgOpenGPS steer module")
-    cp.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+                    help="conditions, all (the paper's 15, default) or IMPLEMENT:SPEED,... (m/s)")
+    cp.add_argument("--seeds", type=seeds_or_count, default=2, metavar="SEEDS",
+                    help="seeds, one pass per condition and controller each: 0-19, 0,1,2 or 0-4,7 (default 0-1; a "
+                         "bare N is the old count: N seeds from the old --seed FIRST)")
+    cp.add_argument("--bridge", choices=("hc11", "agopengps", "isobus"), default="hc11",
+                    help="steering bridge of every pass: the emulated HC11 board, an AgOpenGPS steer module or "
+                         "an ISO 11783 steering controller (isobus: lockstep only)")
+    cp.add_argument("--seed", type=int, default=None, help=argparse.SUPPRESS)
     cp.add_argument("--duration", type=_float, default=None, help="seconds per pass (default 60)")
     cp.add_argument("--fields", type=_names, default=None, metavar="NAME,...",
                     help="drive whole field routes instead of AB lines (named fields or files); conditions default "
                          "to none/disker/ripper at 1.79 and 2.91 m/s; report OUT/fields.md")
     cp.add_argument("--passes", type=int, default=None, help="with --fields: drive only the first N passes")
-    cp.add_argument("--executor", choices=EXECUTORS, default="local")
+    cp.add_argument("--executor", choices=EXECUTORS, default="local",
+                    help="where the passes run: local processes (default) or a Dask cluster (dask)")
     cp.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://10.0.0.5:8786 (with --executor dask)")
     cp.add_argument("--workers", type=_workers, default=None, help="local processes (default: all cores)")
     cp.add_argument("--realtime", type=_conditions, default=None, metavar="IMPLEMENT:SPEED,...",
@@ -475,22 +498,27 @@ def build_parser() -> argparse.ArgumentParser:
                     help="seconds per real-time pass (default: --duration)")
     cp.add_argument("--out", required=True, help="report directory (the campaign's runs are kept in OUT/campaign "
                     "and an interrupted campaign resumes there)")
-    cp.add_argument("--quiet", action="store_true")
+    cp.add_argument("--quiet", action="store_true", help="no progress bar")
     cp.set_defaults(func=_cmd_compare)
 
     tu = sub.add_parser("tune", parents=[common], help="grid-search a baseline's gains on the bench")
-    tu.add_argument("controller", choices=["pure-pursuit", "stanley"])
+    tu.add_argument("controller", choices=["pure-pursuit", "stanley"], help="the baseline whose gains are searched")
     tu.add_argument("--param", action="append", type=_grid, required=True, metavar="GAIN=V1,V2,...",
                     help="values to try for one gain; repeat for a grid")
-    tu.add_argument("--conditions", type=_conditions, default=None, metavar="all|IMPLEMENT:SPEED,...")
-    tu.add_argument("--seeds", type=int, default=1)
-    tu.add_argument("--seed", type=int, default=100, help="first seed (default 100: apart from compare's)")
-    tu.add_argument("--duration", type=_float, default=40.0)
-    tu.add_argument("--executor", choices=EXECUTORS, default="local")
-    tu.add_argument("--scheduler")
-    tu.add_argument("--workers", type=_workers, default=None)
-    tu.add_argument("--out", required=True)
-    tu.add_argument("--quiet", action="store_true")
+    tu.add_argument("--conditions", type=_conditions, default=None, metavar="all|IMPLEMENT:SPEED,...",
+                    help="conditions, all (the paper's 15, default) or IMPLEMENT:SPEED,... (m/s)")
+    tu.add_argument("--seeds", type=seeds_or_count, default=1, metavar="SEEDS",
+                    help="seeds: 0-19, 0,1,2 or 0-4,7 (default 100: apart from compare's, so that the gains are not "
+                         "tuned on the passes a comparison reports; a bare N is the old count: N seeds from the old "
+                         "--seed FIRST, default 100)")
+    tu.add_argument("--seed", type=int, default=None, help=argparse.SUPPRESS)
+    tu.add_argument("--duration", type=_float, default=40.0, help="seconds per pass (default 40)")
+    tu.add_argument("--executor", choices=EXECUTORS, default="local",
+                    help="where the passes run: local processes (default) or a Dask cluster (dask)")
+    tu.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://10.0.0.5:8786 (with --executor dask)")
+    tu.add_argument("--workers", type=_workers, default=None, help="local processes (default: all cores)")
+    tu.add_argument("--out", required=True, help="directory of the search's runs and its ranking")
+    tu.add_argument("--quiet", action="store_true", help="no progress bar")
     tu.set_defaults(func=_cmd_tune)
 
     ca = sub.add_parser("calibrate", help="tune the disturbance parameters so the paper's method lands on "
@@ -498,9 +526,14 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--out", required=True, help="directory of the search; an interrupted search resumes there")
     ca.add_argument("--controller", type=_controller_spec, default=None,
                     help="the paper's central LQR (.json); default: identified at the reference parameters")
-    ca.add_argument("--seeds", type=int, default=2, help="seeds per evaluation (default 2)")
-    ca.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
-    ca.add_argument("--confirm-seed", type=int, default=10, help="first seed of the confirmation (default 10)")
+    ca.add_argument("--seeds", type=seeds_or_count, default=2, metavar="SEEDS",
+                    help="seeds of every evaluation: 0-19, 0,1,2 or 0-4,7 (default 0-1; a bare N is the old count: "
+                         "N seeds from the old --seed FIRST)")
+    ca.add_argument("--seed", type=int, default=None, help=argparse.SUPPRESS)
+    ca.add_argument("--confirm-seeds", type=seed_list, default=None, metavar="SEEDS",
+                    help="seeds of the confirmation (default: as many as --seeds from 10, e.g. 10-11; the old "
+                         "--confirm-seed FIRST still sets where they start)")
+    ca.add_argument("--confirm-seed", type=int, default=None, help=argparse.SUPPRESS)
     ca.add_argument("--no-confirm", action="store_true", help="skip the re-identification at the end")
     ca.add_argument("--duration", type=_float, default=60.0, help="seconds per pass (default 60)")
     ca.add_argument("--budget", type=int, default=30, help="evaluations (default 30)")
@@ -515,16 +548,16 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--all-passes", action="store_true",
                     help="score cells on every pass, also those with a disengagement (default: clean passes)")
     ca.add_argument("--workers", type=_workers, default=None, help="local processes (default: all cores)")
-    ca.add_argument("--quiet", action="store_true")
+    ca.add_argument("--quiet", action="store_true", help="no progress lines")
     ca.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     ca.set_defaults(func=_cmd_calibrate)
 
     em = sub.add_parser("emulate", parents=[common], help="an emulated tractor behind three pseudo-terminals, "
                         "in real time (for hil drive)")
-    em.add_argument("--implement", choices=IMPLEMENTS, default="none")
-    em.add_argument("--speed", type=_float, default=1.34, help="nominal speed, m/s")
-    em.add_argument("--duration", type=_float, default=600.0, help="seconds before it stops by itself")
-    em.add_argument("--seed", type=int, default=0)
+    em.add_argument("--implement", choices=IMPLEMENTS, default="none", help="implement (default none)")
+    em.add_argument("--speed", type=_float, default=1.34, help="nominal speed, m/s (default 1.34)")
+    em.add_argument("--duration", type=_float, default=600.0, help="seconds before it stops by itself (default 600)")
+    em.add_argument("--seed", type=int, default=0, help="seed of the simulated tractor's noise (default 0)")
     em.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
                     help="the HC11 board on a pty, or an AgOpenGPS steer module on UDP 127.0.0.1")
     em.add_argument("--module-port", type=int, default=0, metavar="PORT",
@@ -547,7 +580,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     tr = sub.add_parser("tractors", help="the named tractors of the bench; write generated ones")
     tr.add_argument("--markdown", action="store_true", help="print docs/tractors.md")
-    tr.add_argument("--random", nargs="+", type=int, metavar="SEED", help="write random_tractor(SEED) files")
+    tr.add_argument("--random", nargs="+", type=seed_list, metavar="SEEDS",
+                    help="write the random tractors of these seeds (random-SEED.json): 0-19, 3, 0-4,7")
     tr.add_argument("--out", help="directory for the --random tractor files")
     tr.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
     tr.set_defaults(func=_cmd_tractors)

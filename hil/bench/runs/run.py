@@ -22,6 +22,7 @@ from identification.passlog import PassLog
 
 from hil.bench.benches.agio import AgioLockstepBench, AgioUdpBench
 from hil.bench.benches.bridge import LockstepBridge, PtyBridge
+from hil.bench.benches.isobus import IsobusLockstepBench
 from hil.devices.field_driver import FieldDriver, autosteer_on
 from hil.bench.runs.field_route import RouteTruth, field_run
 from hil.truth.conditions import condition_for
@@ -33,6 +34,8 @@ from hil.links.memory import memory_link_pair
 from hil.links.pty import PtyPair
 from hil.vehicle.commissioning import Commissioning, MappedBridge
 from hil.vehicle.agio.driver import ANGLE_CALIBRATION, module_loop_config
+from hil.vehicle.isobus.driver import ANGLE_CALIBRATION as ISOBUS_CALIBRATION
+from hil.vehicle.isobus.link import isobus_loop_config
 from hil.vehicle.loop import LoopConfig, VehicleLoop
 from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
@@ -43,6 +46,8 @@ from hil.devices.valve_faults import ValveFaults
 
 #: Speeds a bench pass may run at, m/s: field work; below 0.5 m/s the loop does not engage.
 SPEED_RANGE = (0.5, 6.0)
+#: Steering bridges a bench pass may steer through.
+BRIDGES = ("hc11", "agopengps", "isobus")
 #: Largest start offset from the line, m, and heading error, rad, of a pass.
 MAX_INITIAL_CROSS_TRACK = 5.0
 MAX_INITIAL_HEADING = 0.5
@@ -71,8 +76,10 @@ class RunSpec:
     link_faults
         Faults on the bridge link, host side (see :mod:`hil.devices.faults`).
     bridge
-        ``hc11`` (the emulated HC11 board) or ``agopengps`` (an emulated AgOpenGPS steer module:
-        in-memory link in lockstep, UDP on 127.0.0.1 in real time; :mod:`hil.bench.benches.agio`).
+        ``hc11`` (the emulated HC11 board), ``agopengps`` (an emulated AgOpenGPS steer module:
+        in-memory link in lockstep, UDP on 127.0.0.1 in real time; :mod:`hil.bench.benches.agio`) or
+        ``isobus`` (an emulated ISO 11783 steering controller on a python-can virtual bus, in lockstep
+        only; :mod:`hil.bench.benches.isobus`).
     geometry
         Where the simulator's frame lies on the Earth.
     field, field_passes
@@ -119,8 +126,12 @@ class RunSpec:
                 math.isfinite(self.speed) and SPEED_RANGE[0] <= self.speed <= SPEED_RANGE[1]):
             raise SimulatorConfigError(f"speed must be {SPEED_RANGE[0]:g}-{SPEED_RANGE[1]:g} m/s (field work; the "
                                        f"paper's gears are 1.00-2.91 m/s), got {self.speed!r}")
-        if self.bridge not in ("hc11", "agopengps"):
-            raise SimulatorConfigError(f"bridge must be 'hc11' or 'agopengps', got {self.bridge!r}")
+        if self.bridge not in BRIDGES:
+            raise SimulatorConfigError(f"bridge must be one of {', '.join(BRIDGES)}, got {self.bridge!r}")
+        if self.bridge == "isobus" and (self.realtime or self.link_faults):
+            raise SimulatorConfigError("the isobus bench runs in lockstep on a virtual CAN bus, without byte-link "
+                                       "faults: drop realtime and the link faults (hil emulate --bridge isobus "
+                                       "runs it in real time)")
         condition_for(self.implement, self.speed)   # validates implement
         if self.field is not None and (not isinstance(self.field, str) or not self.field):
             raise SimulatorConfigError(f"field must be a field name or file, got {self.field!r}")
@@ -136,13 +147,15 @@ class RunSpec:
 def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | None = None,
                   loop_config: LoopConfig | None = None,
                   progress: Callable[[float, float], None] | None = None,
-                  commissioning: Commissioning | None = None, map_valve: bool = True) -> PassLog:
+                  commissioning: Commissioning | None = None, map_valve: bool = True,
+                  epochs: bool = False) -> PassLog:
     """Run one closed-loop pass on the simulated tractor and return its run log.
 
     With ``commissioning`` (a tractor's commissioning file), the loop's rate limit and
     steering-response monitor come from the measured valve (:func:`hil.vehicle.commissioning.loop_settings`)
     and, unless ``map_valve`` is false, its rate commands go through the valve's inverse map
-    (:class:`hil.vehicle.commissioning.MappedBridge`).
+    (:class:`hil.vehicle.commissioning.MappedBridge`). With ``epochs`` the log's GPS channels are the
+    receivers' epochs with their valid times (:meth:`hil.vehicle.loop.VehicleLoop.run_log`; an AB line only).
     """
     cond = condition_for(spec.implement, spec.speed)
     fld = None if spec.field is None else field_run(spec.field, params or SimParams(), spec.speed, spec.field_passes)
@@ -161,7 +174,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
     vp = p.vehicle
     fe_config = FrontEndConfig(origin=geo.origin, lever_arm=(vp.antenna_ahead_of_cg, vp.antenna_left_of_cg,
                                                              vp.antenna_height))
-    agio = spec.bridge == "agopengps"
+    agio, isobus = spec.bridge == "agopengps", spec.bridge == "isobus"
     with ExitStack() as stack:
         if spec.realtime:
             pos_pty, att_pty = stack.enter_context(PtyPair()), stack.enter_context(PtyPair())
@@ -176,8 +189,10 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
         else:
             # The simulator integrates on its own dt grid whatever the advance; the scheduler need not
             # stop between device wake-ups for it (at most every loop period).
-            bench = stack.enter_context(AgioLockstepBench(valve, cal, p.steering, max_step=0.05) if agio
-                                        else LockstepBridge(valve, config_for_tractor(p.steering), max_step=0.05))
+            bench = stack.enter_context(
+                IsobusLockstepBench(valve, cal, vp.wheelbase, speed=lambda: plant.truth()["speed"], max_step=0.05)
+                if isobus else AgioLockstepBench(valve, cal, p.steering, max_step=0.05) if agio
+                else LockstepBridge(valve, config_for_tractor(p.steering), max_step=0.05))
             # the firmware and the receivers share only the plant; each has its own link to the host
             bench.scheduler.independent = True
             receivers, sources = [], []
@@ -207,9 +222,13 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
             cal = ANGLE_CALIBRATION
             if commissioning is None:
                 loop_config = module_loop_config(loop_config)
+        if isobus:   # the controller closes its own angle loop; the loop reads its estimated curvature's angle
+            cal = ISOBUS_CALIBRATION
+            if commissioning is None:
+                loop_config = isobus_loop_config(loop_config)
         if commissioning is not None:
             loop_config = commissioning.loop_config(loop_config)
-            if map_valve and not agio:   # the AgOpenGPS module closes its own angle loop
+            if map_valve and spec.bridge == "hc11":   # a module or a steering controller closes its own angle loop
                 driver = MappedBridge(driver, commissioning.valve)
         if fld is None:
             loop = VehicleLoop(clock, driver, frontend, geo.ab_line(), controller, cal, loop_config,
@@ -240,7 +259,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
     if fld is not None:
         meta["field"] = {**fld.describe(), "source": spec.field, "start_station_m": spec.start_station,
                          "driver_takeovers": None if driver_layer is None else driver_layer.takeovers}
-    return loop.run_log(meta)
+    return loop.run_log(meta, epochs=epochs)
 
 
 def _refused(frontend: GnssFrontEnd) -> dict:

@@ -36,6 +36,8 @@ from dataclasses import dataclass, field
 
 import can
 
+from identification.checks import positive
+
 from hil.devices.firmware import SteeringPlant
 from hil.vehicle.calibration import WheelAngleCalibration
 from hil.vehicle.isobus.errors import IsobusConfigError
@@ -59,11 +61,6 @@ __all__ = ["IsobusControllerConfig", "IsobusControllerState", "IsobusController"
 CONTROLLER_NAME = Name(identity=0x1C0DE, manufacturer=0, function=130, vehicle_system=1, industry_group=2,
                        self_configurable=False)
 """NAME of the emulated controller (function 130, steering control; not self-configurable)."""
-
-
-def _positive(owner: str, name: str, value: object, unit: str) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
-        raise IsobusConfigError(f"{owner}.{name} must be a finite number > 0 {unit}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -119,7 +116,7 @@ class IsobusControllerConfig:
         for name, unit in (("wheelbase", "m"), ("lag", "s"), ("period", "s"), ("report_period", "s"),
                            ("timeout", "s"), ("max_curvature", "1/m"), ("max_curvature_rate", "1/m/s"),
                            ("kp", "per rad")):
-            _positive("IsobusControllerConfig", name, getattr(self, name), unit)
+            positive(getattr(self, name), name, unit=unit, where="IsobusControllerConfig", error=IsobusConfigError)
         if not (isinstance(self.min_duty, (int, float)) and 0 <= self.min_duty < 1):
             raise IsobusConfigError(f"IsobusControllerConfig.min_duty must be in [0, 1), got {self.min_duty!r}")
         lo, hi = self.speed_window

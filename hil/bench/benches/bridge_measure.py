@@ -12,6 +12,8 @@ import statistics
 import time
 from dataclasses import asdict, dataclass
 
+from identification.checks import positive
+
 from hil.bench.benches.bridge import LockstepBridge, PtyBridge
 from hil.vehicle.bridge.config import DriverConfig, FirmwareConfig
 from hil.vehicle.bridge.errors import ConfigError
@@ -19,11 +21,6 @@ from hil.devices.firmware import SteeringPlant
 from hil.links.clock import Clock
 
 __all__ = ["LockstepSpeed", "PtyLatency", "measure_lockstep_speed", "measure_pty_latency"]
-
-
-def _positive(name: str, value: float) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise ConfigError(f"{name} must be a positive number, got {value!r}")
 
 
 def _percentile(values: list[float], q: float) -> float:
@@ -100,8 +97,8 @@ def measure_lockstep_speed(plant: SteeringPlant, duration: float = 60.0, period:
     firmware_config : FirmwareConfig, optional
         Bridge settings (default 9600 baud, 20 Hz, 250 ms watchdog).
     """
-    _positive("duration", duration)
-    _positive("period", period)
+    positive(duration, "duration", unit="s", error=ConfigError)
+    positive(period, "period", unit="s", error=ConfigError)
     bench = LockstepBridge(plant, firmware_config)
     drv, clock = bench.driver, bench.clock
     n = int(round(duration / period))
@@ -160,7 +157,7 @@ def measure_pty_latency(plant: SteeringPlant, samples: int = 50, timeout: float 
     """
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise ConfigError(f"samples must be a positive int, got {samples!r}")
-    _positive("timeout", timeout)
+    positive(timeout, "timeout", unit="s", error=ConfigError)
     probe = _ValveClock(plant)
     with PtyBridge(probe, firmware_config, driver_config) as bench:
         probe.clock = bench.clock

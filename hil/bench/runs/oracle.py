@@ -45,6 +45,7 @@ import numpy as np
 from scipy.linalg import expm, solve_discrete_are
 
 from design.laws.controller import Measurement
+from identification.checks import positive
 
 from hil.truth.conditions import Condition, condition_for
 from hil.truth.disturbances import soil_force_sigma
@@ -56,14 +57,12 @@ from hil.truth.dynamics import DEL, PSI, Y
 from hil.truth.linearize import EXOGENOUS, Linearization, _check, _frozen, linearize, valve_command
 
 #: Exogenous channels of :class:`hil.truth.dynamics.Inputs` the linearisation differentiates, SI units.
-def _positive(obj: object, skip: tuple[str, ...] = ()) -> None:
-    """Refuse numeric fields of a frozen options dataclass that are not finite numbers > 0 (``None`` passes)."""
+def _fields_positive(obj: object, skip: tuple[str, ...] = ()) -> None:
+    """Refuse fields of a frozen options dataclass that are not finite numbers > 0 (``None`` and ``skip`` pass)."""
     for f in fields(obj):  # type: ignore[arg-type]
         v = getattr(obj, f.name)
-        if f.name in skip or v is None:
-            continue
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-            raise SimulatorConfigError(f"{type(obj).__name__}.{f.name} must be a finite number > 0, got {v!r}")
+        if f.name not in skip and v is not None:
+            positive(v, f.name, where=type(obj).__name__, error=SimulatorConfigError)
 
 
 @dataclass(frozen=True)
@@ -91,7 +90,7 @@ class OracleWeights:
     integral: float = 0.5
 
     def __post_init__(self) -> None:
-        _positive(self)
+        _fields_positive(self)
 
 
 @dataclass(frozen=True)
@@ -156,7 +155,8 @@ class OracleOptions:
             raise SimulatorConfigError(f"OracleOptions.host_map must be a bool, got {self.host_map!r}")
         if not isinstance(self.invert_valve, bool):
             raise SimulatorConfigError(f"OracleOptions.invert_valve must be a bool, got {self.invert_valve!r}")
-        _positive(self, skip=("weights", "invert_valve", "host_map", "position_delay", "attitude_delay", "wheel_delay"))
+        _fields_positive(self, skip=("weights", "invert_valve", "host_map", "position_delay", "attitude_delay",
+                                     "wheel_delay"))
         for name in ("position_delay", "attitude_delay", "wheel_delay"):
             v = getattr(self, name)
             if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))

@@ -29,6 +29,8 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 
+from identification.checks import positive
+
 from hil.links.clock import Clock
 from hil.links.link import ByteLink, read_bounded
 from hil.vehicle.agio.errors import AgioConfigError, AgioLinkError
@@ -82,12 +84,6 @@ _WIRE_LIMIT = math.radians(327.0)
 _MAX_CROSS = 2.54
 
 
-def _positive(name: str, value: object, unit: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise AgioConfigError(f"AgioDriverConfig.{name} must be a positive finite number ({unit}), got {value!r}")
-    return float(value)
-
-
 @dataclass(frozen=True)
 class AgioDriverConfig:
     """Settings of the driver.
@@ -132,7 +128,8 @@ class AgioDriverConfig:
     def __post_init__(self) -> None:
         for name, unit in (("max_angle", "rad"), ("max_rate", "rad/s"), ("max_lead", "rad"), ("max_windup", "rad"),
                            ("max_dt", "s"), ("report_timeout", "s")):
-            _positive(name, getattr(self, name), unit)
+            positive(getattr(self, name), name, unit=unit, where="AgioDriverConfig",
+                     error=AgioConfigError)
         if self.max_angle > _WIRE_LIMIT:
             raise AgioConfigError(f"max_angle {self.max_angle} rad exceeds what PGN 254 carries ({_WIRE_LIMIT:.3f} rad)")
         for name in ("max_pending_reports", "read_chunk"):

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
+
+from identification.checks import positive
 
 from hil.vehicle.bridge.errors import ConfigError
 from hil.vehicle.bridge.protocol import MAX_PAYLOAD, MESSAGE_TABLE, RATE_SCALE
@@ -13,11 +14,6 @@ from hil.links.errors import LinkConfigError
 from hil.links.uart import LineConfig
 
 __all__ = ["FirmwareConfig", "DriverConfig"]
-
-
-def _positive(name: str, value: object, unit: str = "s") -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise ConfigError(f"{name} must be a positive finite number ({unit}), got {value!r}")
 
 
 _LARGEST = max(layout.size for layout in MESSAGE_TABLE.values())
@@ -77,10 +73,10 @@ class FirmwareConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.line, LineConfig):
             raise ConfigError(f"line must be a LineConfig, got {type(self.line).__name__}")
-        _positive("report_period", self.report_period)
-        _positive("watchdog_timeout", self.watchdog_timeout)
-        _positive("max_rate", self.max_rate, "rad/s")
-        _positive("input_poll_period", self.input_poll_period)
+        positive(self.report_period, "report_period", unit="s", error=ConfigError)
+        positive(self.watchdog_timeout, "watchdog_timeout", unit="s", error=ConfigError)
+        positive(self.max_rate, "max_rate", unit="rad/s", error=ConfigError)
+        positive(self.input_poll_period, "input_poll_period", unit="s", error=ConfigError)
         if self.watchdog_timeout < self.report_period:
             raise ConfigError(f"watchdog_timeout ({self.watchdog_timeout} s) shorter than report_period "
                               f"({self.report_period} s) would trip between two host cycles; lengthen it")
@@ -122,8 +118,8 @@ class DriverConfig:
     max_payload: int = MAX_PAYLOAD
 
     def __post_init__(self) -> None:
-        _positive("poll_interval", self.poll_interval)
-        _positive("report_timeout", self.report_timeout)
+        positive(self.poll_interval, "poll_interval", unit="s", error=ConfigError)
+        positive(self.report_timeout, "report_timeout", unit="s", error=ConfigError)
         for name in ("max_pending_reports", "read_chunk"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:

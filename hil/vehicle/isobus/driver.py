@@ -35,6 +35,8 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+from identification.checks import positive
+
 from hil.links.clock import Clock
 from hil.vehicle.calibration import WheelAngleCalibration
 from hil.vehicle.isobus.errors import AddressClaimError, IsobusConfigError, IsobusLinkError
@@ -56,12 +58,6 @@ __all__ = ["ANGLE_CALIBRATION", "IsobusDriverConfig", "IsobusReport", "IsobusDri
 
 ANGLE_CALIBRATION = WheelAngleCalibration(center_counts=0.0, rad_per_count=1e-4)
 """How the loop reads :attr:`IsobusReport.adc_counts`: 0.1 mrad per count, 0 = straight, + = left."""
-
-
-def _positive(name: str, value: object, unit: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
-        raise IsobusConfigError(f"IsobusDriverConfig.{name} must be a finite number > 0 {unit}, got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -110,7 +106,7 @@ class IsobusDriverConfig:
     def __post_init__(self) -> None:
         for name, unit in (("wheelbase", "m"), ("max_angle", "rad"), ("max_curvature", "1/m"), ("max_rate", "rad/s"),
                            ("max_windup", "rad"), ("max_dt", "s"), ("period", "s"), ("report_timeout", "s")):
-            _positive(name, getattr(self, name), unit)
+            positive(getattr(self, name), name, unit=unit, where="IsobusDriverConfig", error=IsobusConfigError)
         a = self.controller_address
         if isinstance(a, bool) or not isinstance(a, int) or not 0 <= a <= 253:
             raise IsobusConfigError(f"IsobusDriverConfig.controller_address must be an int in [0, 253], got {a!r}")

@@ -209,7 +209,7 @@ def test_reports_carry_the_adc_counts_and_the_duty_being_applied(bench, plant):
 def test_firmware_config_refuses_unknown_options_and_bad_values():
     with pytest.raises(ConfigError, match=r"unknown FirmwareConfig option\(s\) \['watchdog'\]"):
         FirmwareConfig.from_mapping({"watchdog": 0.2})
-    with pytest.raises(ConfigError, match="watchdog_timeout must be a positive"):
+    with pytest.raises(ConfigError, match="watchdog_timeout must be a finite number > 0 s, got -1"):
         FirmwareConfig(watchdog_timeout=-1)
     with pytest.raises(ConfigError, match="shorter than report_period"):
         FirmwareConfig(watchdog_timeout=0.01)

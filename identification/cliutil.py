@@ -196,8 +196,8 @@ def seeds_or_count(text: str) -> tuple[int, ...] | int:
     (``0-1``, ``0,1``; one seed ``7`` as ``7-7``)."""
     if text.strip().isdigit():
         n = int(text)
-        if not 1 <= n <= MAX_SEEDS_PER_RANGE:
-            raise argparse.ArgumentTypeError(f"expected a count of seeds from 1 to {MAX_SEEDS_PER_RANGE} or seeds "
+        if not 0 <= n <= MAX_SEEDS_PER_RANGE:
+            raise argparse.ArgumentTypeError(f"expected a count of seeds from 0 to {MAX_SEEDS_PER_RANGE} or seeds "
                                              f"like 0-19 or 0,1,2, got {text!r}")
         return n
     return seed_list(text)

@@ -67,11 +67,22 @@ class VehicleSetup:
     wheel_calibration: tuple[float, float]
 
     def drive_args(self) -> list[str]:
-        """The matching ``hil drive`` options."""
-        fmt = lambda xs: ",".join(repr(float(x)) for x in xs)  # noqa: E731
+        """The matching ``hil drive`` options, each number rounded to what it means: degrees to 1e-8
+        (about 1 mm on the ground), metres to the millimetre, the centre to 1e-3 count and the
+        wheel-angle scale to 1e-9 rad per count (under 0.3 urad over the 8-bit range)."""
         return ["--bridge", self.bridge, "--position", self.position, "--attitude", self.attitude,
-                f"--line={fmt(self.line)}", "--height", repr(self.height), f"--lever-arm={fmt(self.lever_arm)}",
-                f"--wheel-calibration={fmt(self.wheel_calibration)}"]
+                f"--line={_numbers(self.line, 8)}", "--height", _numbers((self.height,), 3),
+                f"--lever-arm={_numbers(self.lever_arm, 3)}",
+                f"--wheel-calibration={_numbers(self.wheel_calibration[:1], 3)},"
+                f"{_numbers(self.wheel_calibration[1:], 9)}"]
+
+
+def _numbers(values, decimals: int) -> str:
+    """``values`` rounded to ``decimals`` places, comma-separated, without trailing zeros (``-122.1697``)."""
+    def one(x: float) -> str:
+        text = f"{float(x):.{decimals}f}".rstrip("0").rstrip(".")
+        return "0" if text in ("-0", "") else text
+    return ",".join(one(x) for x in values)
 
 
 @dataclass

@@ -17,6 +17,7 @@ import os
 import sys
 from pathlib import Path
 
+from identification.cliutil import Parser
 from identification.errors import OutputError, PassLogError
 from identification.outputs import write_stdout
 
@@ -155,9 +156,10 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
     d.add_argument("--lever-arm", type=parse_floats(3), default=(0.0, 0.0, 3.0), metavar="X,Y,Z",
                    help="antenna from the control point, body frame (fwd, left, up), m")
     d.add_argument("--wheel-calibration", type=parse_floats(2), default=(128.0, 0.0061),
-                   metavar="CENTER,RAD_PER_COUNT")
-    d.add_argument("--bridge-baud", type=int, default=9600)
-    d.add_argument("--gnss-baud", type=int, default=38400)
+                   metavar="CENTER,RAD_PER_COUNT", help="the wheel-angle potentiometer's centre, counts, and rad "
+                   "per count (default 128,0.0061)")
+    d.add_argument("--bridge-baud", type=int, default=9600, help="bridge's line rate, bit/s (default 9600)")
+    d.add_argument("--gnss-baud", type=int, default=38400, help="receivers' line rate, bit/s (default 38400)")
     d.add_argument("--lead-time", type=parse_float, default=LEAD_TIME, metavar="S",
                    help=f"AgOpenGPS module: the setpoint leads the integrated rate by S x rate, about the module's "
                         f"measured lag (default {LEAD_TIME} s)")
@@ -225,7 +227,7 @@ def _run(command: str, add_parser, render, argv: list[str] | None) -> int:
     """Parse ``hil COMMAND ...`` (``argv`` without the command), run it and print its result (JSON with
     ``--json``, else ``render(result)``). Exit 0, 1 (a refused value, a port or file that cannot be used, a
     stdout that cannot be written) or 2 (usage)."""
-    parser = argparse.ArgumentParser(prog="hil")
+    parser = Parser(prog="hil")
     add_parser(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args([command, *(sys.argv[2:] if argv is None else argv)])
     try:
@@ -334,7 +336,7 @@ def print_run_result(result: dict) -> None:
 def main(argv: list[str] | None = None) -> int:
     """``hil drive ...`` (``argv`` without the leading ``drive``). Exit 0 (also after Ctrl-C or SIGTERM: the loop
     disengaged and the log is saved), 1 (refused value; or a run that aborted, its log saved) or 2 (usage)."""
-    parser = argparse.ArgumentParser(prog="hil", description="The vehicle loop on a tractor.")
+    parser = Parser(prog="hil", description="The vehicle loop on a tractor.")
     sub = parser.add_subparsers(dest="command", required=True)
     add_drive_parser(sub)
     args = parser.parse_args(["drive", *(sys.argv[2:] if argv is None else argv)])

@@ -3,7 +3,7 @@ tractor, and on many (thin layers over :func:`hil.bench.commissioning.recipe.com
 :func:`hil.bench.commissioning.campaign.commission_campaign`).
 
     hil commission --tractor NAME|FILE --out DIR [--speeds ...] [--implements ...] [--passes N]
-        [--duration S] [--seed S] [--hil-seeds N] [--hil-duration S] [--hil-conditions IMPLEMENT:SPEED,...]
+        [--duration S] [--seed S] [--hil-seeds SEEDS] [--hil-duration S] [--hil-conditions all|IMPLEMENT:SPEED,...]
         [--weights auto-if-available|auto|default] [--order N|auto|validate] [--markov N|auto|validate]
         [--acceptance refuse|warn] [--set group.name=value ...] [--quiet] [--json]
     hil commission-campaign [--random 0-19 ...] [--tractor NAME|FILE ...] --out DIR [the recipe's options]
@@ -16,12 +16,14 @@ import sys
 
 from tqdm import tqdm
 
+from identification.cliutil import condition_pairs, resolve_seeds, seed_list, seeds_or_count
+
 from hil.bench.commissioning.campaign import commission_campaign
 from hil.bench.commissioning.recipe import CommissionOptions, commission
 from hil.commissioning.designs import WEIGHTS
 from hil.commissioning.from_logs import LATENCY_SOURCES, LogOptions, commission_from_logs
 from hil.errors import SimulatorConfigError
-from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, condition_for
+from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, all_conditions, condition_for
 from hil.truth.tractors import Tractor, random_tractor, resolve_tractor
 
 __all__ = ["add_commission_parser", "run_commission", "run_commission_campaign"]
@@ -41,33 +43,32 @@ def _int_or(words: tuple[str, ...]):
     return parse
 
 
-def _hil_conditions(number):
-    def parse(text: str):
-        out = []
-        for part in text.split(","):
-            imp, sep, speed = part.partition(":")
-            if not sep:
-                raise argparse.ArgumentTypeError(f"expected IMPLEMENT:SPEED[,...], got {text!r}")
-            try:
-                out.append(condition_for(imp, number(speed)))
-            except ValueError as exc:
-                raise argparse.ArgumentTypeError(str(exc)) from None
-        return tuple(out)
-    return parse
+def _hil_conditions(text: str):
+    """``all`` (the paper's 15) or ``IMPLEMENT:SPEED,...`` (:func:`identification.cliutil.condition_pairs`)."""
+    pairs = condition_pairs(text)
+    try:
+        return tuple(all_conditions() if pairs is None else (condition_for(imp, speed) for imp, speed in pairs))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     """The recipe's options, shared by ``commission`` and ``commission-campaign``."""
-    c.add_argument("--speeds", nargs="+", type=number, default=list(GEAR_SPEEDS.values()), metavar="M_PER_S")
-    c.add_argument("--implements", nargs="+", choices=IMPLEMENTS, default=list(IMPLEMENTS))
+    c.add_argument("--speeds", nargs="+", type=number, default=list(GEAR_SPEEDS.values()), metavar="M_PER_S",
+                   help="speeds of the identification passes, m/s (default: the paper's five gears)")
+    c.add_argument("--implements", nargs="+", choices=IMPLEMENTS, default=list(IMPLEMENTS),
+                   help="implements of the identification passes (default: all three), each at every speed")
     c.add_argument("--passes", type=int, default=3, help="identification passes per condition (default 3)")
     c.add_argument("--duration", type=number, default=120.0, help="seconds per identification pass (default 120)")
     c.add_argument("--seed", type=int, default=1997, help="seed of the passes and the valve test (default 1997)")
-    c.add_argument("--hil-seeds", type=int, default=3, help="closed-loop passes per condition and controller "
-                   "(seeds 0..N-1, default 3; a cell's 1-sigma is pooled over them)")
+    c.add_argument("--hil-seeds", type=seeds_or_count, default=3, metavar="SEEDS",
+                   help="seeds of the closed-loop passes, one per condition and controller each: 0-2, 0,1,2 or 0-4,7 "
+                   "(default 0-2; a cell's 1-sigma is pooled over them; a bare N is the old count, seeds 0..N-1, "
+                   "0: no HIL comparison)")
     c.add_argument("--hil-duration", type=number, default=60.0, help="seconds per closed-loop pass (default 60)")
-    c.add_argument("--hil-conditions", type=_hil_conditions(number), default=None, metavar="IMPLEMENT:SPEED,...",
-                   help="conditions of the HIL comparison (default: those of the passes)")
+    c.add_argument("--hil-conditions", type=_hil_conditions, default=None, metavar="all|IMPLEMENT:SPEED,...",
+                   help="conditions of the HIL comparison, all (the paper's 15) or IMPLEMENT:SPEED,... (m/s) "
+                   "(default: those of the passes)")
     c.add_argument("--weights", choices=WEIGHTS, default="auto-if-available",
                    help="robust/MPC weights: from specifications (auto) or the design commands' defaults")
     c.add_argument("--order", type=_int_or(("auto", "validate")), default="validate",
@@ -93,23 +94,6 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     c.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
 
 
-def _seed_ranges(text: str) -> list[int]:
-    """``0-19``, ``3`` or ``0-4,7``: random tractors' seeds."""
-    seeds: list[int] = []
-    for part in text.split(","):
-        lo, sep, hi = part.partition("-")
-        try:
-            a, b = int(lo), int(hi) if sep else int(lo)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected seeds like 0-19 or 3 or 0-4,7, got {text!r}") from None
-        if not 0 <= a <= b <= 2 ** 31:
-            raise argparse.ArgumentTypeError(f"expected seeds 0 <= FIRST <= LAST, got {part!r}")
-        if b - a >= 1000:
-            raise argparse.ArgumentTypeError(f"at most 1000 seeds in a range, got {part!r}")
-        seeds.extend(range(a, b + 1))
-    return seeds
-
-
 def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> argparse.ArgumentParser:
     """Add ``commission`` and ``commission-campaign`` to the bench's sub-commands (``number``/``override``: the
     CLI's value parsers); returns the ``commission`` parser."""
@@ -133,7 +117,7 @@ def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> 
 
     m = sub.add_parser("commission-campaign", help="commission many tractors (OUT/<tractor>/, resumable) and "
                        "write their table and figure (campaign.md, campaign_ratios.png)")
-    m.add_argument("--random", type=_seed_ranges, action="append", metavar="SEEDS",
+    m.add_argument("--random", type=seed_list, action="append", metavar="SEEDS",
                    help="random tractors random-SEED for SEEDS like 0-19 or 0-4,7; repeatable")
     m.add_argument("--tractor", action="append", metavar="NAME|FILE.json",
                    help="a tractor of the family, random-SEED or a tractor file; repeatable")
@@ -148,7 +132,7 @@ def commission_options(args: argparse.Namespace) -> CommissionOptions:
     """The recipe's options from the parsed command line."""
     return CommissionOptions(speeds=tuple(args.speeds), implements=tuple(args.implements), passes=args.passes,
                              pass_duration=args.duration, seed=args.seed,
-                             hil_seeds=tuple(range(args.hil_seeds)) if args.hil_seeds >= 1 else (),
+                             hil_seeds=resolve_seeds(args.hil_seeds, None, 0),
                              hil_duration=args.hil_duration, hil_conditions=args.hil_conditions,
                              weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance,
                              more_passes=args.more_passes, disturbance_estimate=args.disturbance_estimate == "on",

@@ -2,13 +2,18 @@
 
 Commands
 --------
-``gnss decode FILE [--json] [--plot OUT.png]``   summary of a capture (``replay`` is an alias)
+``gnss decode FILE [--summary | --json] [--plot OUT.png]``   the capture's messages as JSON lines, one object per
+    message (``--summary``: the summary as text, ``--json``: the summary as one JSON object)
+``gnss replay FILE [--json] [--plot OUT.png]``   the summary of a capture (messages per type, rates, fix quality,
+    track), as text or JSON
 ``gnss xtrack FILE --a LAT,LON --b LAT,LON [--offset M] [--json]``   cross-track against an AB line
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import datetime
 import json
 import math
 import os
@@ -16,6 +21,7 @@ import sys
 from pathlib import Path
 
 from .errors import GNSSError
+from .messages import Message, message_key
 from .summary import CaptureSummary, cross_track_of_capture, summarize_capture
 
 __all__ = ["main"]
@@ -42,15 +48,20 @@ def _version() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gnss", description="GNSS receiver captures: decode, summarise, cross-track.")
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+                   help="print the toolkit's version and exit")
     sub = p.add_subparsers(dest="command", required=True)
-    for name in ("decode", "replay"):
-        d = sub.add_parser(name, help="summarise a capture (messages per type, rates, fix quality, track)")
+    for name, what in (("decode", "the capture's messages as JSON lines, one object per message (--summary: its "
+                                  "summary)"),
+                       ("replay", "summarise a capture (messages per type, rates, fix quality, track)")):
+        d = sub.add_parser(name, help=what)
         d.add_argument("file", type=Path, help="capture with NMEA / UBX / RTCM 3 bytes (gpsd '#' header allowed)")
-        d.add_argument("--json", action="store_true", help="print the summary as JSON")
+        if name == "decode":
+            d.add_argument("--summary", action="store_true", help="print the summary as text instead (as replay)")
+        d.add_argument("--json", action="store_true", help="print the summary as one JSON object")
         d.add_argument("--plot", type=Path, metavar="OUT.png", help="draw the track (ENU about the first fix)")
     x = sub.add_parser("xtrack", help="cross-track error of a capture's fixes against an AB line")
-    x.add_argument("file", type=Path)
+    x.add_argument("file", type=Path, help="capture with NMEA / UBX bytes (gpsd '#' header allowed)")
     x.add_argument("--a", type=_latlon, required=True, metavar="LAT,LON", help="point A, degrees")
     x.add_argument("--b", type=_latlon, required=True, metavar="LAT,LON", help="point B, degrees")
     x.add_argument("--offset", type=float, default=0.0, help="use the parallel line OFFSET m left of AB")
@@ -64,8 +75,9 @@ def _print_summary(s: CaptureSummary, path: Path) -> None:
     for k, v in s.messages.items():
         rate = f"  {s.rates_hz[k]:.2f} Hz" if k in s.rates_hz else ""
         print(f"    {k:<16}{v:>6}{rate}")
-    print(f"  refused frames: {sum(s.errors.values())} {s.errors or ''}  garbage bytes: {s.garbage_bytes}")
-    print(f"  fix quality: {s.fix_quality}")
+    refused = f" ({_counts(s.errors)})" if s.errors else ""
+    print(f"  refused frames: {sum(s.errors.values())}{refused}  garbage bytes: {s.garbage_bytes}")
+    print(f"  fix quality: {_counts(s.fix_quality) or 'no fix'}")
     if s.duration is not None:
         print(f"  time span: {s.t_first:.2f} .. {s.t_last:.2f} s ({s.duration:.2f} s), "
               f"median interval {s.median_interval_s:.3f} s, max gap {s.max_gap_s:.3f} s")
@@ -81,6 +93,47 @@ def _print_summary(s: CaptureSummary, path: Path) -> None:
     if s.heading_deg:
         h = s.heading_deg
         print(f"  heading: {h['min']:.2f}..{h['max']:.2f} deg (mean {h['mean']:.2f})")
+
+
+def _counts(counts: dict) -> str:
+    """``{"gga4": 20, "gga5": 3}`` as ``gga4 20, gga5 3``."""
+    return ", ".join(f"{k} {v}" for k, v in counts.items())
+
+
+def _json_value(value):
+    """A message field as JSON: bytes as hex, dates as ISO 8601, non-finite numbers as null."""
+    if isinstance(value, bytes):
+        return value.hex()
+    if isinstance(value, (datetime.date, datetime.time)):
+        return value.isoformat()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, (tuple, list)):
+        return [_json_value(v) for v in value]
+    return value
+
+
+def message_record(msg: Message) -> dict:
+    """One decoded message as a JSON-ready object: ``type`` (:func:`gnss.messages.message_key`) and the
+    message's fields in the decoder's units (SI: rad, m, s, m/s; see :mod:`gnss.messages`)."""
+    fields = {f.name: _json_value(getattr(msg, f.name)) for f in dataclasses.fields(msg)}
+    return {"type": message_key(msg), **fields}
+
+
+def _print_lines(lines) -> int:
+    """Write ``lines`` to standard output, one per line; a closed pipe or a full disk is one line, exit 1."""
+    try:
+        for line in lines:
+            sys.stdout.write(line + "\n")
+        sys.stdout.flush()
+    except OSError as exc:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+        os.close(null)
+        print(f"gnss: error: cannot write to standard output ({exc.strerror or exc}); keep the reader open or "
+              "redirect to a file on a disk with room", file=sys.stderr)
+        return 1
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -129,8 +182,10 @@ def _main(args: argparse.Namespace) -> int:
                 plot_track(messages, args.plot)
             if args.json:
                 print(json.dumps(summary.to_dict(), indent=2))
-            else:
+            elif args.command == "replay" or args.summary:
                 _print_summary(summary, args.file)
+            else:
+                return _print_lines(json.dumps(message_record(m), allow_nan=False) for m in messages)
             return 0
         res = cross_track_of_capture(data, args.a, args.b, args.offset)
         st = res.stats()

@@ -32,6 +32,7 @@ from gnss.curve import ArcPath
 from gnss.field import Route, place_on_line
 from gnss.guidance import ABLine
 from gnss.track import PathTracker
+from identification.checks import finite_tuple
 from identification.errors import OptionError
 from identification.outputs import check_name
 from identification.passlog import MAX_NOMINAL_SPEED, PassLog
@@ -47,12 +48,6 @@ from hil.links.clock import RealClock
 from hil.vehicle.loop import LoopConfig, VehicleLoop
 from hil.vehicle.calibration import WheelAngleCalibration
 from hil.vehicle.commissioning import Commissioning, MappedBridge
-
-
-def _finite(name: str, values: tuple[float, ...], n: int) -> tuple[float, ...]:
-    if len(values) != n or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
-        raise VehicleConfigError(f"{name} must be {n} finite numbers, got {values!r}")
-    return tuple(float(v) for v in values)
 
 
 @dataclass(frozen=True)
@@ -116,12 +111,13 @@ class DriveConfig:
         for name in ("bridge_port", "position_port"):
             if not isinstance(getattr(self, name), str) or not getattr(self, name):
                 raise VehicleConfigError(f"{name} must name a serial device")
-        a = _finite("line_a", self.line_a, 2)
-        b = _finite("line_b", self.line_b, 2)
+        a = finite_tuple(self.line_a, "line_a", n=2, unit="deg", error=VehicleConfigError)
+        b = finite_tuple(self.line_b, "line_b", n=2, unit="deg", error=VehicleConfigError)
         if abs(a[0]) > 90 or abs(b[0]) > 90 or abs(a[1]) > 180 or abs(b[1]) > 180:
             raise VehicleConfigError(f"line ends must be (lat, lon) in degrees, got {a}, {b}")
-        _finite("lever_arm", self.lever_arm, 3)
-        WheelAngleCalibration(*_finite("wheel_calibration", self.wheel_calibration, 2))
+        finite_tuple(self.lever_arm, "lever_arm", n=3, unit="m", error=VehicleConfigError)
+        WheelAngleCalibration(*finite_tuple(self.wheel_calibration, "wheel_calibration", n=2,
+                                            error=VehicleConfigError))
         if parse_bridge(self.bridge_port).kind == "isobus":
             IsobusDriverConfig(wheelbase=self.wheelbase)      # checks the wheelbase
         for name in ("bridge_baud", "gnss_baud"):

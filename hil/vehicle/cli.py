@@ -203,7 +203,7 @@ def _duties(text: str) -> tuple[float, ...]:
 
 def _cmd_valve_test(args: argparse.Namespace) -> dict:
     from hil.vehicle.valve_run import ValveTestConfig, valve_test
-    from hil.vehicle.valve_test import ValveTestPlan
+    from hil.vehicle.valve_steps import ValveTestPlan
     cfg = ValveTestConfig(args.bridge, tuple(args.wheel_calibration), args.full_scale, args.bridge_baud, args.tractor,
                           not args.no_linearity)
     plan = ValveTestPlan(duties=args.duties) if args.duties else ValveTestPlan()

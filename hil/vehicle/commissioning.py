@@ -61,7 +61,7 @@ class Commissioning:
     valve
         The measured valve curve (its inverse map is applied by :class:`MappedBridge`).
     linearity
-        Result of :func:`~hil.vehicle.valve_test.linearity_check` (``None`` if not run).
+        Result of :func:`~hil.vehicle.valve_steps.linearity_check` (``None`` if not run).
     notes
         Free text.
     """

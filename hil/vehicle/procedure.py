@@ -31,7 +31,7 @@ from identification.outputs import atomic_write
 from identification.passlog import PassLog
 
 from hil.vehicle.errors import VehicleConfigError
-from hil.vehicle.valve_test import ValveTestPlan
+from hil.vehicle.valve_steps import ValveTestPlan
 
 __all__ = ["BUDGET_TOTAL_S", "BUDGET_PER_IMPLEMENT_S", "MAX_NOT_FIXED", "PlannedPass", "FieldPlan", "pass_faults",
            "pass_key", "Procedure", "ProcedureError", "status_text"]

@@ -1,7 +1,7 @@
 """The valve test on the tractor's own bridge: ``hil valve-test``.
 
 At standstill, engine running, implement up, wheels free to turn: the steering-valve characterisation
-(:func:`hil.vehicle.valve_test.characterise_valve`) through the HC11 bridge on its serial port (or the
+(:func:`hil.vehicle.valve_steps.characterise_valve`) through the HC11 bridge on its serial port (or the
 pseudo-terminal of ``hil emulate``), then the linearity of the inverse map (what the loop will see), and
 the commissioning file ``commissioning.json`` that ``hil drive --commissioning`` and ``hil commission
 --logs`` read. Ctrl-C or SIGTERM stops the test with the bridge disengaged; nothing half-written is left.
@@ -30,7 +30,7 @@ from hil.vehicle.bridge.driver import BridgeDriver
 from hil.vehicle.calibration import WheelAngleCalibration
 from hil.vehicle.commissioning import Commissioning, save_commissioning
 from hil.vehicle.errors import VehicleConfigError
-from hil.vehicle.valve_test import ValveTestPlan, characterise_valve, linearity_check
+from hil.vehicle.valve_steps import ValveTestPlan, characterise_valve, linearity_check
 
 __all__ = ["ValveTestConfig", "valve_test"]
 

@@ -3,7 +3,7 @@
 :func:`characterise_on_bench` stands a simulated tractor still (or at a low speed, no implement),
 puts the emulated bridge firmware in front of it on an in-memory link in lockstep, calibrates the
 wheel-angle sensor as a technician would (two points), and runs
-:func:`hil.vehicle.valve_test.characterise_valve` through the bridge driver, exactly the code that
+:func:`hil.vehicle.valve_steps.characterise_valve` through the bridge driver, exactly the code that
 would run on the tractor. :func:`linearity_on_bench` does the same for the inverse map's check.
 """
 
@@ -18,7 +18,7 @@ from hil.devices.technician import two_point_calibration
 from hil.truth.conditions import condition_for
 from hil.truth.params import SimParams
 from hil.vehicle.valve_map import RateStep, ValveCurve
-from hil.vehicle.valve_test import ValveTestPlan, characterise_valve, linearity_check
+from hil.vehicle.valve_steps import ValveTestPlan, characterise_valve, linearity_check
 
 __all__ = ["characterise_on_bench", "linearity_on_bench"]
 

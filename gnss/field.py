@@ -22,15 +22,18 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .curve import ArcPath
 from .errors import GeometryError
+from .geodesy import LocalFrame
+from .guidance import ABLine
 from .uturn import TurnLimits, plan_uturn
 
-__all__ = ["STRAIGHT_CURVATURE", "MIN_STRAIGHT_LENGTH", "KINDS", "RoutePart", "Route", "Field", "line_to_enu", "place_on_line"]
+__all__ = ["STRAIGHT_CURVATURE", "MIN_STRAIGHT_LENGTH", "KINDS", "RoutePart", "Route", "Field", "FieldGeometry",
+           "line_to_enu", "place_on_line"]
 
 #: Below this |curvature| (1/m; radius 1 km) a stretch of a pass counts as straight.
 STRAIGHT_CURVATURE = 1e-3
@@ -62,6 +65,50 @@ def place_on_line(path: ArcPath, line_yaw: float) -> ArcPath:
     start = line_to_enu(float(path.start[0]), float(path.start[1]), line_yaw)
     # the line frame's x axis points at ENU angle pi/2 - line_yaw
     return ArcPath(start, path.start_angle + math.pi / 2 - line_yaw, path.segments)
+
+
+@dataclass(frozen=True)
+class FieldGeometry:
+    """Where a guidance line's frame (x along the line from A towards B, y to its left) lies on the Earth.
+
+    The emulated receivers place the simulated tractor with it, and a field's route, defined in that
+    frame, is placed in the vehicle's ENU frame by :meth:`place`.
+
+    Attributes
+    ----------
+    origin
+        Field origin (point A of the line), WGS-84.
+    line_yaw
+        Heading of the line A to B, rad, 0 = north, clockwise.
+    utc_start
+        UTC time of day at time 0 of the run, s (time tags of the receivers' messages).
+    """
+
+    origin: LocalFrame = field(default_factory=lambda: LocalFrame.from_degrees(37.4275, -122.1697, 30.0))
+    line_yaw: float = math.radians(20.0)
+    utc_start: float = 12 * 3600.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.line_yaw) and math.isfinite(self.utc_start) and 0 <= self.utc_start < 86400):
+            raise GeometryError(f"FieldGeometry: line_yaw must be finite (rad) and utc_start in [0, 86400) s, got "
+                                f"{self.line_yaw!r:.30}, {self.utc_start!r:.30}")
+
+    def line_to_enu(self, x: float, y: float) -> tuple[float, float]:
+        """Line frame (x along, y left; m) to ENU east, north (m)."""
+        return line_to_enu(x, y, self.line_yaw)
+
+    def yaw(self, psi: float) -> float:
+        """Vehicle yaw (rad, 0 = north, clockwise) from heading relative to the line (rad, CCW +)."""
+        return (self.line_yaw - psi) % (2 * math.pi)
+
+    def ab_line(self, length: float = 1000.0) -> ABLine:
+        """The guidance line as the vehicle computer knows it (A at the origin, B ``length`` m along), ENU."""
+        return ABLine(np.zeros(2), np.array(self.line_to_enu(length, 0.0)))
+
+    def place(self, path: ArcPath) -> ArcPath:
+        """A path given in the line's frame (x, y in m; directions CCW from x) as the vehicle
+        computer knows it: the same segments from the start point and direction in ENU."""
+        return place_on_line(path, self.line_yaw)
 
 
 @dataclass(frozen=True, slots=True)

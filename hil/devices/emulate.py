@@ -17,6 +17,7 @@ from types import TracebackType
 import numpy as np
 
 from gnss.curve import ArcPath
+from gnss.field import FieldGeometry
 
 from hil.devices.field_driver import FieldDriver, autosteer_on
 from hil.devices.firmware import BridgeFirmware, config_for_tractor
@@ -29,7 +30,7 @@ from hil.links.pty import PtyPair
 from hil.links.realtime import RealTimeRunner
 from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
-from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from hil.devices.receivers import AttitudeReceiver, PositionReceiver
 from hil.devices.technician import two_point_calibration
 
 

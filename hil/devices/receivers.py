@@ -13,73 +13,31 @@ in-memory link in lockstep or a pseudo-terminal in real time.
 * :class:`AttitudeReceiver` - Trimble ``$PTNL,AVR`` at 10 Hz (yaw, tilt, roll).
 
 The simulator's frame (x along the AB line or the first pass of a field's route, y left) is
-placed on the Earth by :class:`FieldGeometry`: a field origin (WGS-84) and the heading of the
-frame's x axis. A field's route is defined in that frame; :meth:`FieldGeometry.place` gives
-the same route in the vehicle's ENU frame.
+placed on the Earth by :class:`gnss.field.FieldGeometry`: a field origin (WGS-84) and the heading
+of the frame's x axis. A field's route is defined in that frame; :meth:`~gnss.field.FieldGeometry.place`
+gives the same route in the vehicle's ENU frame.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gnss.curve import ArcPath
-from gnss.field import line_to_enu, place_on_line
-from gnss.geodesy import LocalFrame
 from gnss.geodesy_scalar import ScalarFrame
-from gnss.guidance import ABLine
 from gnss.messages import Avr, Gga, Vtg
 from gnss.nmea_encode import encode_avr, encode_gga, encode_vtg
 
-from hil.errors import SimulatorConfigError
 from hil.links.link import ByteLink
 from hil.links.uart import LineConfig, UartTx
 from hil.devices.gps_faults import ReceiverFaults
 from hil.devices.plant import SimulatedTractor
 
+if TYPE_CHECKING:      # annotations only: the geometry lives with the fields, it is not re-exported here
+    from gnss.field import FieldGeometry
+
 _EPS = 1e-9
-
-
-@dataclass(frozen=True)
-class FieldGeometry:
-    """Where the simulator's straight guidance line lies on the Earth.
-
-    Attributes
-    ----------
-    origin
-        Field origin (point A of the line), WGS-84.
-    line_yaw
-        Heading of the line A to B, rad, 0 = north, clockwise.
-    utc_start
-        UTC time of day at simulation time 0, s (time tags of the receivers).
-    """
-
-    origin: LocalFrame = field(default_factory=lambda: LocalFrame.from_degrees(37.4275, -122.1697, 30.0))
-    line_yaw: float = math.radians(20.0)
-    utc_start: float = 12 * 3600.0
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.line_yaw) and math.isfinite(self.utc_start) and 0 <= self.utc_start < 86400):
-            raise SimulatorConfigError("FieldGeometry: line_yaw must be finite and utc_start in [0, 86400) s")
-
-    def line_to_enu(self, x: float, y: float) -> tuple[float, float]:
-        """Line frame (x along, y left; m) to ENU east, north (m)."""
-        return line_to_enu(x, y, self.line_yaw)
-
-    def yaw(self, psi: float) -> float:
-        """Vehicle yaw (rad, 0 = north, clockwise) from heading relative to the line (rad, CCW +)."""
-        return (self.line_yaw - psi) % (2 * math.pi)
-
-    def ab_line(self, length: float = 1000.0) -> ABLine:
-        """The guidance line as the vehicle computer knows it (A at the origin)."""
-        return ABLine(np.zeros(2), np.array(self.line_to_enu(length, 0.0)))
-
-    def place(self, path: ArcPath) -> ArcPath:
-        """A path given in the simulator's frame (x, y in m; directions CCW from x) as the vehicle
-        computer knows it: the same segments from the start point and direction in ENU."""
-        return place_on_line(path, self.line_yaw)
 
 
 class _Receiver:

@@ -21,11 +21,12 @@ import numpy as np
 
 from design.laws.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd, NavSolution
+from gnss.field import FieldGeometry
 from hil.bench.benches.agio import AgioLockstepBench
 from hil.bench.benches.bridge import LockstepBridge
 from hil.devices.firmware import config_for_tractor
 from hil.devices.plant import SimulatedTractor
-from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from hil.devices.receivers import AttitudeReceiver, PositionReceiver
 from hil.devices.technician import two_point_calibration
 from hil.links.memory import memory_link_pair
 from hil.truth.conditions import condition_for

@@ -275,7 +275,7 @@ def test_hil_compare_on_fields_writes_a_report(tmp_path, hairpin):
 
 
 def test_field_geometry_places_a_route_as_the_receivers_place_the_simulator_frame(curved):
-    from hil.devices.receivers import FieldGeometry
+    from gnss.field import FieldGeometry
     fr = field_run(curved, SimParams(), 1.79)
     for geo in (FieldGeometry(), FieldGeometry(line_yaw=math.radians(-135.0))):
         placed = geo.place(fr.path)

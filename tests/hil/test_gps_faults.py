@@ -7,9 +7,10 @@ import pytest
 
 from gnss.messages import Gga
 from gnss.reader import StreamDecoder
+from gnss.field import FieldGeometry
 from hil.devices.gps_faults import RTK_FLOAT_QUALITY, ReceiverFaults
 from hil.devices.plant import SimulatedTractor
-from hil.devices.receivers import FieldGeometry, PositionReceiver
+from hil.devices.receivers import PositionReceiver
 from hil.errors import SimulatorConfigError
 from hil.links.clock import VirtualClock
 from hil.links.memory import memory_link_pair

@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 from gnss.reader import read_messages
+from gnss.field import FieldGeometry
 from hil.truth.conditions import condition_for
 from hil.links.clock import VirtualClock
 from hil.links.memory import memory_link_pair
 from hil.devices.plant import SimulatedTractor
-from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from hil.devices.receivers import AttitudeReceiver, PositionReceiver
 
 
 def _drive(step: float, firmware: bool, which: tuple[int, ...] = (0, 1),

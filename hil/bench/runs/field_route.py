@@ -4,9 +4,9 @@ The simulator's frame (x, y in m, directions counter-clockwise from x; :mod:`hil
 is the frame the field's route is defined in: :meth:`gnss.field.Field.route` gives one
 tangent-continuous :class:`~gnss.curve.ArcPath` of all the passes and the headland U-turns
 between them, planned within this tractor's steering limits at the run's speed
-(:func:`turn_limits`). :class:`~hil.devices.receivers.FieldGeometry` places that frame on the
+(:func:`turn_limits`). :class:`~gnss.field.FieldGeometry` places that frame on the
 Earth, so the vehicle loop follows the same route in ENU
-(:meth:`~hil.devices.receivers.FieldGeometry.place`) with its own tracker, while the bench
+(:meth:`~gnss.field.FieldGeometry.place`) with its own tracker, while the bench
 scores the true CG against the route in the simulator's frame (:class:`RouteTruth`), with a
 tracker of its own (the same local search, never the vehicle's).
 

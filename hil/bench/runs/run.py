@@ -18,6 +18,7 @@ import numpy as np
 from design.laws.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
 from gnss.track import PathTracker
+from gnss.field import FieldGeometry
 from identification.passlog import PassLog
 
 from hil.bench.benches.agio import AgioLockstepBench, AgioUdpBench
@@ -39,7 +40,7 @@ from hil.vehicle.isobus.link import isobus_loop_config
 from hil.vehicle.loop import LoopConfig, VehicleLoop
 from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
-from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from hil.devices.receivers import AttitudeReceiver, PositionReceiver
 from hil.devices.technician import two_point_calibration
 from hil.devices.valve_faults import ValveFaults
 

@@ -15,10 +15,11 @@ import numpy as np
 import pytest
 
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
+from gnss.field import FieldGeometry
 from hil.bench.benches.agio import module_settings
 from hil.devices.datagram_faults import DatagramFaultRates, DatagramFaults
 from hil.devices.plant import SimulatedTractor
-from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from hil.devices.receivers import AttitudeReceiver, PositionReceiver
 from hil.devices.steer_module import SteerModule, SteerModuleConfig
 from hil.devices.technician import two_point_calibration
 from hil.links.clock import VirtualClock

@@ -18,9 +18,10 @@ import numpy as np
 import pytest
 
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
+from gnss.field import FieldGeometry
 from hil.devices.isobus_controller import IsobusController, IsobusControllerConfig
 from hil.devices.plant import SimulatedTractor
-from hil.devices.receivers import AttitudeReceiver, FieldGeometry, PositionReceiver
+from hil.devices.receivers import AttitudeReceiver, PositionReceiver
 from hil.devices.technician import two_point_calibration
 from hil.devices.valve_faults import ValveFaults
 from hil.links.clock import VirtualClock

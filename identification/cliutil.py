@@ -89,7 +89,13 @@ _INVALID_CHOICE = re.compile(r"invalid choice: '(?P<value>[^']*)' \(choose from 
 
 
 def _close(word: str, candidates: Sequence[str]) -> list[str]:
-    return difflib.get_close_matches(word, list(candidates), n=3, cutoff=0.6)
+    """The candidates closest to ``word`` (similarity >= 0.6, within 0.05 of the best), best first; the
+    leading dashes of options are left out of the comparison, so that ``--`` alone matches nothing."""
+    def score(c: str) -> float:
+        return difflib.SequenceMatcher(None, word.lstrip("-"), c.lstrip("-")).ratio()
+    scored = sorted(((score(c), c) for c in candidates), key=lambda sc: -sc[0])
+    best = scored[0][0] if scored else 0.0
+    return [c for sc, c in scored[:3] if sc >= 0.6 and sc >= best - 0.05]
 
 
 def option_names(parser: argparse.ArgumentParser, namespace: argparse.Namespace | None = None) -> dict[str, str]:

@@ -119,7 +119,8 @@ class _Parser(Parser):
     """Usage errors in one line (``<prog>: error: ... (see --help)``), with the closest spellings, exit status 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message}{self.hint(message)} (see {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {self.without_old_spellings(message)}{self.hint(message)} "
+                     f"(see {self.prog} --help)\n")
 
 
 def _okid(args: argparse.Namespace) -> dict:

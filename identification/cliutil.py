@@ -159,7 +159,17 @@ class Parser(argparse.ArgumentParser):
         return suggestion(message, self._options_for_hint or option_names(self))
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        super().error(message + self.hint(message))
+        super().error(self.without_old_spellings(message) + self.hint(message))
+
+    def without_old_spellings(self, message: str) -> str:
+        """``message`` with an option named by its shown spellings only (argparse names a missing required
+        option by all its strings, ``--models/--model``)."""
+        for action in self._actions:
+            old = deprecated_strings(action)
+            shown = [s for s in action.option_strings if s not in old]
+            if shown and len(shown) < len(action.option_strings):
+                message = message.replace("/".join(action.option_strings), "/".join(shown))
+        return message
 
 
 # --- shared value types -------------------------------------------------------------------------------

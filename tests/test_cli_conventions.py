@@ -114,6 +114,13 @@ def test_old_spellings_are_out_of_the_usage_and_named_as_deprecated_in_the_help(
     assert "(deprecated spelling: --model)" in help_text and "(deprecated spelling: --verify-on)" in help_text
 
 
+def test_a_missing_option_is_named_by_its_shown_spelling(capsys):
+    from design.cli import main
+    with pytest.raises(SystemExit):
+        main(["lqr", "--out", "c.json"])
+    assert "required: --models\n" in capsys.readouterr().err
+
+
 def test_y_max_is_metres_wherever_it_is_shown(actions):
     y = [(p.prog, a) for _, p, a in actions if "--y-max" in _visible(a)]
     assert sorted(prog for prog, _ in y) == ["design kinematic", "design nmpc"]

@@ -7,6 +7,5 @@ protocol   Guidance System Command (PGN 44288) and Guidance Machine Info (PGN 44
 network    ISO 11783-5 NAME, address claim and one node's guidance traffic on a python-can bus.
 driver     The host driver the vehicle loop steers through: rate commands integrated into a
            curvature command (bumpless, limited, anti-windup), the reset handshake, health.
-docgen     The generated part of ``docs/isobus_protocol.md``.
 errors     The package's exceptions.
 """

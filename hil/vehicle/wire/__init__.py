@@ -5,7 +5,6 @@ Modules
 table    Fields, message layouts and :class:`MessageTable`: the generic strict payload codec.
 frame    :class:`FrameFormat` (a frame grammar: encode, strict decode) and :class:`Deframer`
          (the resynchronising stream decoder with counted, typed refusals).
-doc      The generated layout tables and example frames of a protocol document.
 errors   :class:`TableError` (a table or grammar that cannot work) and :class:`ErrorSet`.
 
 A protocol keeps only what is its own: its message dataclasses, its table, its error classes,
@@ -35,8 +34,8 @@ Plugging in a new protocol
    ``fmt.decode_frame(data)`` and ``Deframer(fmt).feed_tuples(data)`` then work unchanged; a
    protocol that checks its tag byte against the message (a source address) passes a
    ``decode`` hook and lists its extra content errors with the counter each one increments.
-4. Its document: ``doc.render_block(fmt, examples, begin, end, heading)`` between the markers of
-   :mod:`hil.vehicle.docblock`, and a test that the committed document equals the rendering.
+4. Its document: ``hil.bench.docgen.tables.render_block(fmt, examples, begin, end, heading)`` between the
+   markers of :mod:`hil.bench.docgen.block`, and a test that the committed document equals the rendering.
 """
 
 from hil.vehicle.wire.errors import ErrorSet, FrameRefusal, TableError

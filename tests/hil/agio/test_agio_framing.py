@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hil.vehicle.agio.docgen import BEGIN, EXAMPLES, main, replace_block
+from hil.bench.docgen.agio import BEGIN, EXAMPLES, main, replace_block
 from hil.vehicle.agio.errors import ChecksumError, FrameError, LengthError, UnknownPgnError
 from hil.vehicle.agio.framing import PgnStreamDecoder
 from hil.vehicle.agio.protocol import (
@@ -131,7 +131,7 @@ def test_fuzz_one_changed_byte_is_never_accepted(frame, data):
 
 def test_generated_block_of_the_protocol_document_is_current():
     text = DOC.read_text(encoding="utf-8")
-    assert replace_block(text) == text, "run: python -m hil.vehicle.agio.docgen docs/agopengps_protocol.md --write"
+    assert replace_block(text) == text, "run: python -m hil.bench.docgen.agio docs/agopengps_protocol.md --write"
     assert main([str(DOC)]) == 0
 
 

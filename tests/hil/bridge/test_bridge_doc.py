@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.vehicle.bridge.docgen import BEGIN, EXAMPLES, main, render, replace_block
+from hil.bench.docgen.bridge import BEGIN, EXAMPLES, main, render, replace_block
 from hil.vehicle.bridge.protocol import MESSAGE_TABLE, decode_frame, encode_frame
 
 pytestmark = pytest.mark.timeout(20)
@@ -17,7 +17,7 @@ DOC = Path(__file__).resolve().parents[3] / "docs" / "bridge_protocol.md"
 
 def test_generated_block_of_the_protocol_document_is_current():
     text = DOC.read_text(encoding="utf-8")
-    assert replace_block(text) == text, "run: python -m hil.vehicle.bridge.docgen docs/bridge_protocol.md --write"
+    assert replace_block(text) == text, "run: python -m hil.bench.docgen.bridge docs/bridge_protocol.md --write"
     assert render() in text
     assert main([str(DOC)]) == 0
 

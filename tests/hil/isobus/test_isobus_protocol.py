@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from hil.vehicle.isobus import docgen
+from hil.bench.docgen import isobus as docgen
 from hil.vehicle.isobus.errors import EncodeError, FieldError, FrameError, LengthError, UnknownPgnError
 from hil.vehicle.isobus.protocol import (
     CURVATURE_MAX,
@@ -166,5 +166,5 @@ def test_any_curvature_in_range_round_trips_within_half_a_bit(c, s):
 def test_the_committed_document_equals_the_rendering():
     text = DOC.read_text(encoding="utf-8")
     assert docgen.replace_block(text) == text, \
-        "run: python -m hil.vehicle.isobus.docgen docs/isobus_protocol.md --write"
+        "run: python -m hil.bench.docgen.isobus docs/isobus_protocol.md --write"
     assert docgen.main([str(DOC)]) == 0

@@ -1,14 +1,14 @@
 """Generate the layout tables and example frames of ``docs/agopengps_protocol.md`` from the PGN table.
 
-The rendering is the shared one of :mod:`hil.vehicle.wire.doc`; this module names the examples.
+The rendering is the shared one of :mod:`hil.bench.docgen.tables`; this module names the examples.
 
 The document holds a block between two markers that this module writes; a test checks that the
 block equals what the encoder produces now, so the document cannot drift from the code.
 
 Usage::
 
-    python -m hil.vehicle.agio.docgen docs/agopengps_protocol.md           # check (exit 1 if stale)
-    python -m hil.vehicle.agio.docgen docs/agopengps_protocol.md --write   # rewrite the block
+    python -m hil.bench.docgen.agio docs/agopengps_protocol.md           # check (exit 1 if stale)
+    python -m hil.bench.docgen.agio docs/agopengps_protocol.md --write   # rewrite the block
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import sys
 
-from hil.vehicle import docblock
+from hil.bench.docgen import block
 from hil.vehicle.agio.protocol import (
     FORMAT,
     ConfigBits0,
@@ -32,11 +32,12 @@ from hil.vehicle.agio.protocol import (
     Switches,
     layout_of,
 )
-from hil.vehicle.wire import Layout, doc
+from hil.bench.docgen import tables
+from hil.vehicle.wire import Layout
 
 __all__ = ["BEGIN", "END", "EXAMPLES", "render", "replace_block", "main"]
 
-END = docblock.END
+END = block.END
 
 EXAMPLES: list[tuple[str, Message]] = [
     ("steer data: 7.2 km/h, autosteer on, setpoint 1.5 deg left, 10 cm left of the line",
@@ -60,7 +61,7 @@ def _source(layout: Layout) -> str:
     return "source module's last IP octet" if layout.tag is None else f"source 0x{layout.tag:02X}"
 
 
-_DOC = doc.DocGenerator("hil.vehicle.agio.docgen", FORMAT,
+_DOC = tables.DocGenerator("hil.bench.docgen.agio", FORMAT,
                         [(title, message, layout_of(message).tag) for title, message in EXAMPLES],
                         lambda layout: f"PGN {layout.msg_id} (0x{layout.msg_id:02X}) {layout.cls.__name__}", _source)
 BEGIN = _DOC.begin

@@ -1,6 +1,6 @@
 """Generate the tables and example frames of ``docs/bridge_protocol.md`` from the message table.
 
-The rendering is the shared one of :mod:`hil.vehicle.wire.doc`; this module names the examples.
+The rendering is the shared one of :mod:`hil.bench.docgen.tables`; this module names the examples.
 
 The protocol document holds a block between two markers that this module
 writes; a test checks that the block in the document equals what the encoder
@@ -8,21 +8,21 @@ produces now, so the document cannot drift from the code.
 
 Usage::
 
-    python -m hil.vehicle.bridge.docgen docs/bridge_protocol.md           # check (exit 1 if stale)
-    python -m hil.vehicle.bridge.docgen docs/bridge_protocol.md --write   # rewrite the block
+    python -m hil.bench.docgen.bridge docs/bridge_protocol.md           # check (exit 1 if stale)
+    python -m hil.bench.docgen.bridge docs/bridge_protocol.md --write   # rewrite the block
 """
 
 from __future__ import annotations
 
 import sys
 
-from hil.vehicle import docblock
+from hil.bench.docgen import block
 from hil.vehicle.bridge.protocol import FORMAT, Engage, Message, Ping, StatusFlags, SteerRateCommand, WheelAngleReport
-from hil.vehicle.wire import doc
+from hil.bench.docgen import tables
 
 __all__ = ["BEGIN", "END", "EXAMPLES", "render", "replace_block"]
 
-END = docblock.END
+END = block.END
 
 EXAMPLES: list[tuple[str, Message, int]] = [
     ("steer left at 0.1234 rad/s, host sequence 7", SteerRateCommand(rate=0.1234), 7),
@@ -35,7 +35,7 @@ EXAMPLES: list[tuple[str, Message, int]] = [
 ]
 
 
-_DOC = doc.DocGenerator("hil.vehicle.bridge.docgen", FORMAT, EXAMPLES,
+_DOC = tables.DocGenerator("hil.bench.docgen.bridge", FORMAT, EXAMPLES,
                         lambda layout: f"0x{layout.msg_id:02X} {layout.cls.__name__}")
 BEGIN = _DOC.begin
 render = _DOC.render

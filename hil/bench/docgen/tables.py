@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
-from hil.vehicle import docblock
+from hil.bench.docgen import block
 from hil.vehicle.wire.frame import FrameFormat
 from hil.vehicle.wire.table import Field, Layout
 
@@ -106,18 +106,18 @@ class DocGenerator:
     def __init__(self, module: str, fmt: FrameFormat, examples: Sequence[tuple[str, object, int]],
                  heading: Callable[[Layout], str], tag: Callable[[Layout], str] | None = None) -> None:
         self.module = module
-        self.begin = docblock.begin_marker(module)
+        self.begin = block.begin_marker(module)
         self._args = (fmt, examples, heading, tag)
 
     def render(self) -> str:
         """The generated block, markers included."""
         fmt, examples, heading, tag = self._args
-        return render_block(fmt, examples, self.begin, docblock.END, heading, tag)
+        return render_block(fmt, examples, self.begin, block.END, heading, tag)
 
     def replace_block(self, text: str) -> str:
-        """``text`` with its generated block replaced by :meth:`render` (see :mod:`hil.vehicle.docblock`)."""
-        return docblock.replace_block(text, self.begin, self.render())
+        """``text`` with its generated block replaced by :meth:`render` (see :mod:`hil.bench.docgen.block`)."""
+        return block.replace_block(text, self.begin, self.render())
 
     def main(self, argv: list[str] | None = None) -> int:
         """Check or rewrite the generated block of a protocol document; 0 when up to date."""
-        return docblock.docgen_main(argv, self.module, self.replace_block)
+        return block.docgen_main(argv, self.module, self.replace_block)

@@ -3,19 +3,19 @@
 Byte offsets, types, scales, bit positions, states and the example bytes are read from
 :data:`~hil.vehicle.isobus.protocol.TABLE` and :data:`~hil.vehicle.isobus.protocol.BITS` and
 produced by the encoder, so the document cannot drift from the code. The block sits between the
-markers of :mod:`hil.vehicle.docblock`; a test checks that the committed document equals it.
+markers of :mod:`hil.bench.docgen.block`; a test checks that the committed document equals it.
 
 Usage::
 
-    python -m hil.vehicle.isobus.docgen docs/isobus_protocol.md           # check (exit 1 if stale)
-    python -m hil.vehicle.isobus.docgen docs/isobus_protocol.md --write   # rewrite the block
+    python -m hil.bench.docgen.isobus docs/isobus_protocol.md           # check (exit 1 if stale)
+    python -m hil.bench.docgen.isobus docs/isobus_protocol.md --write   # rewrite the block
 """
 
 from __future__ import annotations
 
 import sys
 
-from hil.vehicle import docblock
+from hil.bench.docgen import block
 from hil.vehicle.isobus.protocol import (
     BITS,
     CLASSES,
@@ -35,12 +35,12 @@ from hil.vehicle.isobus.protocol import (
     ResetStatus,
     encode,
 )
-from hil.vehicle.wire.doc import type_name
+from hil.bench.docgen.tables import type_name
 
 __all__ = ["BEGIN", "END", "EXAMPLES", "render", "replace_block", "main"]
 
-BEGIN = docblock.begin_marker("hil.vehicle.isobus.docgen")
-END = docblock.END
+BEGIN = block.begin_marker("hil.bench.docgen.isobus")
+END = block.END
 
 _READY = dict(lockout=Lockout.NOT_ACTIVE, readiness=Readiness.READY, input_position=InputPosition.CORRECT,
               limit=LimitStatus.NOT_LIMITED, remote_engage=RemoteEngage.NOT_AVAILABLE)
@@ -110,13 +110,13 @@ def render() -> str:
 
 
 def replace_block(text: str) -> str:
-    """``text`` with its generated block replaced by :func:`render` (see :mod:`hil.vehicle.docblock`)."""
-    return docblock.replace_block(text, BEGIN, render())
+    """``text`` with its generated block replaced by :func:`render` (see :mod:`hil.bench.docgen.block`)."""
+    return block.replace_block(text, BEGIN, render())
 
 
 def main(argv: list[str] | None = None) -> int:
     """Check or rewrite the generated block of the protocol document; 0 when up to date."""
-    return docblock.docgen_main(argv, "hil.vehicle.isobus.docgen", replace_block)
+    return block.docgen_main(argv, "hil.bench.docgen.isobus", replace_block)
 
 
 if __name__ == "__main__":

@@ -43,7 +43,10 @@ PENDING = {
 
 
 def _markdown_files() -> list[Path]:
-    return sorted(ROOT.glob("docs/**/*.md")) + [ROOT / "CHANGELOG.md"]
+    # build output and templates live in folders whose names start with "_" or "."
+    pages = [p for p in ROOT.glob("docs/**/*.md")
+             if not any(part.startswith(("_", ".")) for part in p.relative_to(ROOT / "docs").parts)]
+    return sorted(pages) + [ROOT / "CHANGELOG.md"]
 
 
 def _cites_upstream(line: str) -> bool:

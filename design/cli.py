@@ -32,6 +32,7 @@ import numpy as np
 from identification.cliutil import Parser, add_deprecated_option
 from identification.errors import OutputError
 from identification.outputs import write_stdout
+from identification.version import toolkit_version
 
 from design.commands import mpc as cli_mpc
 from design.commands import nmpc as cli_nmpc
@@ -119,18 +120,9 @@ def _cmd_law_schedule(args: argparse.Namespace) -> dict:
 SIGNED_COMMANDS = ("robust", "lqr", "mpc", "nmpc")
 
 
-def _version() -> str:
-    """The installed toolkit's version (pyproject.toml's ``version``), or ``unknown`` outside an installation."""
-    from importlib import metadata
-    try:
-        return metadata.version("tractor-autosteer")
-    except metadata.PackageNotFoundError:
-        return "unknown"
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="design", description="Controller design for the tractor.")
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+    p.add_argument("--version", action="version", version=f"%(prog)s {toolkit_version()}",
                    help="print the toolkit's version and exit")
     sub = p.add_subparsers(dest="command", required=True)
     k = sub.add_parser("kinematic", help="LQR gains of the paper's kinematic model versus speed")

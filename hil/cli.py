@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from hil import toolkit_version
+from identification.version import toolkit_version
 
 
 #: Exit status after Ctrl-C (128 + SIGINT), as shells report it.

@@ -17,6 +17,7 @@ from .cliutil import Parser, RawDescriptionFormatter, add_option
 from .errors import IdentificationError, OptionError
 from .outputs import output_file, write_stdout
 from .passlog import PassLog, check_physical
+from .version import toolkit_version
 
 
 CONVERT_HELP = """\
@@ -169,18 +170,9 @@ def _report(args: argparse.Namespace) -> dict:
     return make_report(args.models, args.out, logs=args.logs)
 
 
-def _version() -> str:
-    """The installed toolkit's version (pyproject.toml's ``version``), or ``unknown`` outside an installation."""
-    from importlib import metadata
-    try:
-        return metadata.version("tractor-autosteer")
-    except metadata.PackageNotFoundError:
-        return "unknown"
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="identification", description=__doc__.splitlines()[0])
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+    p.add_argument("--version", action="version", version=f"%(prog)s {toolkit_version()}",
                    help="print the toolkit's version and exit")
     sub = p.add_subparsers(dest="command", required=True)
     c = sub.add_parser("convert", help="convert a pass log between .npz and .csv",

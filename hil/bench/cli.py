@@ -35,9 +35,9 @@ from identification.cliutil import Parser, condition_pairs, resolve_seeds, seed_
 from identification.errors import OutputError, PassLogError
 from identification.outputs import write_stdout
 from identification.passlog import PassLog
+from identification.version import toolkit_version
 
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS
-from hil import toolkit_version
 from hil.errors import HilError, SimulatorConfigError
 from hil.devices.faults import LinkFault
 from hil.truth.params import SimParams, parameter_markdown, parameter_table

@@ -25,12 +25,10 @@ from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 from identification.outputs import atomic_write
-
-from hil import toolkit_version
+from identification.version import toolkit_version
 
 __all__ = ["Table", "Cell", "blocks", "provenance", "render_page", "write_page", "file_sha256"]
 
-#: The distribution whose version the pages name.
 #: Largest controller file hashed for the provenance, bytes (a controller file is a few kB).
 HASH_MAX_BYTES = 64 * 2 ** 20
 #: Seconds allowed to each ``git`` call of the provenance.

@@ -37,8 +37,8 @@ def parse_past(text: str) -> int | None:
 def add_spec_arguments(p: argparse.ArgumentParser, number: Callable[[str], float]) -> None:
     """Register the weights mode, the specifications and the search options on ``p``."""
     p.add_argument("--weights", choices=WEIGHT_MODES, default="explicit",
-                   help="explicit: --output-max/--u-max/--integral-max as given; auto: the most aggressive weights that meet "
-                        "the specifications below on every model")
+                   help="explicit: --output-max/--u-max/--integral-max as given; auto: the most aggressive weights "
+                        "that meet the specifications below on every model")
     p.add_argument("--disk-margin", type=number, default=Specifications.disk_margin,
                    help="smallest balanced disk margin at the plant input, with the latency in the loop")
     p.add_argument("--delay-reserve", type=number, default=Specifications.delay_reserve,
@@ -106,7 +106,8 @@ def progress_of(args: argparse.Namespace) -> Callable[[str], None] | None:
 
 
 def refuse_mixed(args: argparse.Namespace) -> None:
-    """``--weights auto`` with an explicit ``--output-max/--u-max/--integral-max`` is refused (never silently ignored)."""
+    """``--weights auto`` with an explicit ``--output-max/--u-max/--integral-max`` is refused (never silently
+    ignored)."""
     names = {"y_max": "--output-max", "u_max": "--u-max", "i_max": "--integral-max"}
     given = [option for dest, option in names.items() if getattr(args, dest) is not None]
     if args.weights == "auto" and given:

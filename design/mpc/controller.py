@@ -334,6 +334,20 @@ class MPCController:
         """The measured state ``z`` of the latest step (model units)."""
         return tuple(float(v) for v in self._z)
 
+    @property
+    def integral_states(self) -> tuple[int, ...]:
+        """Indices of the integral states in :meth:`estimate` (empty without integral action)."""
+        return tuple(int(i) for i in self._integral)
+
+    @property
+    def disturbance_states(self) -> tuple[int, ...]:
+        """Indices of the disturbance estimate in :meth:`estimate` and :meth:`state` (empty without one)."""
+        return tuple(int(i) for i in self._dist)
+
+    def disturbance_estimate(self) -> tuple[float, ...]:
+        """The disturbance estimate carried to the next step (model units; zero over a headland turn)."""
+        return tuple(float(v) for v in self._dp)
+
     def diagnostics(self) -> dict:
         """Counters since construction and statistics of the kept solve times (ms)."""
         t = np.asarray(self.solve_times) * 1e3

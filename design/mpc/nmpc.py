@@ -337,7 +337,8 @@ class NonlinearMPC:
         self._p_table = np.array([self._terminal(v) for v in self.speeds])
         #: The certified law's gain (:func:`lqr_gain`) on the same grid: the fallback's, interpolated.
         self._k_table = np.array([self._gain_at(v, pm) for v, pm in zip(self.speeds, self._p_table)])
-        self._solver = self._build()
+        #: The compiled problem (casadi), built once here: each tick only sets its parameters (speed, weights).
+        self.solver = self._build()
         self._n_w = n + 1
         self._triu = np.triu_indices(self.nx)
         self._p = np.zeros(self.nx + 1 + n + len(self._triu[0]) + self.nx)
@@ -569,13 +570,13 @@ class NonlinearMPC:
         if warm and s.solver != "gauss-newton":
             args["lam_x0"], args["lam_g0"] = self._lam_x, self._lam_g
         t0, c0 = time.perf_counter(), time.thread_time()
-        out = self._solver(**args)
+        out = self.solver(**args)
         calls, elapsed = 1, time.perf_counter() - t0
         if s.solver == "gauss-newton":          # refine from the iterate until converged, at most max_calls calls
             tol = 1e3 * s.tol
             while calls < s.max_calls and not float(out["step"]) <= tol and np.all(np.isfinite(np.asarray(out["x"]))):
                 args["x0"] = out["x"]
-                out = self._solver(**args)
+                out = self.solver(**args)
                 calls += 1
             elapsed = time.perf_counter() - t0
         cpu = time.thread_time() - c0
@@ -586,7 +587,7 @@ class NonlinearMPC:
             success = bool(np.all(np.isfinite(w))) and last_step <= 1e3 * s.tol
             status, iterations = f"last step {last_step:.1e} rad/s after {calls} call(s)", s.max_iter * calls
         else:
-            st = self._solver.stats()
+            st = self.solver.stats()
             success, status = bool(st.get("success", False)), str(st.get("return_status", ""))
             iterations = int(st.get("iter_count", -1))
         if not np.all(np.isfinite(w)):

@@ -115,13 +115,13 @@ def test_the_estimate_is_held_while_the_command_is_at_the_rate_limit(designed):
     ctrl = designed.file.controller()
     for j in range(40):
         ctrl.step(Measurement(j * 0.05, 0.003 * np.sin(j / 4), 0.001, 0.0, 1.79))
-    before = ctrl._dp.copy()
+    before = np.array(ctrl.disturbance_estimate())
     assert np.any(before != 0)
     lim = designed.problem.limits.rate
     for j in range(40, 44):
         u = ctrl.step(Measurement(j * 0.05, 0.0, 0.07, 0.0, 1.79))
         assert abs(u) == pytest.approx(lim)
-        np.testing.assert_array_equal(ctrl._dp, before)
+        np.testing.assert_array_equal(ctrl.disturbance_estimate(), before)
 
 
 def test_the_estimate_starts_afresh_on_entering_and_leaving_a_headland_turn(designed, tmp_path):
@@ -139,16 +139,19 @@ def test_the_estimate_starts_afresh_on_entering_and_leaving_a_headland_turn(desi
             robust.step(m)
             mpc.step(m)
 
+    def pulls():           # the robust law's and the MPC's disturbance estimates
+        return np.array(robust.estimate())[states], np.array(mpc.disturbance_estimate())
+
     drive(0)
-    assert np.any(np.array(robust.estimate())[states] != 0) and np.any(mpc._dp != 0)
+    assert all(np.any(p != 0) for p in pulls())
     robust.enter_part("turn")
     mpc.enter_part("turn")
-    assert np.all(np.array(robust.estimate())[states] == 0) and np.all(mpc._dp == 0)
-    drive(30)               # over the whole turn the estimate stays at zero (F, session 8: it had run on in
-    assert np.all(np.array(robust.estimate())[states] == 0) and np.all(mpc._dp == 0)   # turns, 2-3x worse)
-    assert np.all(mpc.state(np.zeros(3))[mpc._dist] == 0)     # and the QP's state carries it as zero
+    assert all(np.all(p == 0) for p in pulls())
+    drive(30)               # over the whole turn the estimate stays at zero (one that ran on in turns was 2-3x worse)
+    assert all(np.all(p == 0) for p in pulls())
+    assert np.all(mpc.state(np.zeros(3))[list(mpc.disturbance_states)] == 0)   # the QP's state carries it as zero
     robust.enter_part("pass")
     mpc.enter_part("pass")
-    assert np.all(np.array(robust.estimate())[states] == 0) and np.all(mpc._dp == 0)
+    assert all(np.all(p == 0) for p in pulls())
     drive(60)               # and on the next pass it learns again
-    assert np.any(np.array(robust.estimate())[states] != 0) and np.any(mpc._dp != 0)
+    assert all(np.any(p != 0) for p in pulls())

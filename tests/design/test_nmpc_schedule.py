@@ -42,7 +42,7 @@ def test_one_problem_gives_the_law_of_each_speed():
     # the scheduled NMPC's first move at a speed is the LQR with that speed's weights, and the move of an
     # NMPC with those weights fixed: the stage weights are parameters set per tick, not a rebuilt problem
     ctrl = NonlinearMPC(SCHEDULED)
-    solver = ctrl._solver
+    solver = ctrl.solver
     x = np.array([0.02, -0.004, 0.003, 0.01])
     for v in (1.0, 1.8, 2.9):                                            # speeds of the grid
         fixed = NonlinearMPC(dataclasses.replace(SETTINGS, weights=KinematicWeights(y_max=y_max_at(SCHEDULED, v))))
@@ -50,7 +50,7 @@ def test_one_problem_gives_the_law_of_each_speed():
         assert ctrl.solve(x, v, warm=False).u[0] == pytest.approx(first, abs=1e-6)
         assert ctrl.solve(x, v, warm=False).u[0] == pytest.approx(fixed.solve(x, v, warm=False).u[0], abs=1e-9)
         assert ctrl.fallback_command(x, v) == pytest.approx(fixed.fallback_command(x, v), abs=1e-9)
-    assert ctrl._solver is solver
+    assert ctrl.solver is solver
     slow, fast = (float((-lqr_gain(SCHEDULED, v) @ x)[0]) for v in (1.0, 2.9))
     unscheduled = [float((-lqr_gain(SETTINGS, v) @ x)[0]) for v in (1.0, 2.9)]
     assert abs(slow - unscheduled[0]) > 1e-3 and fast == pytest.approx(unscheduled[1], rel=0.02)

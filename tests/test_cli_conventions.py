@@ -216,3 +216,10 @@ def test_hil_emulate_flushes_its_lines_through_a_pipe_with_numbers_rounded():
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+
+
+def test_seeds_listed_beside_the_first_seed_of_the_old_count_are_refused_before_anything_is_made(tmp_path, capsys):
+    from hil.cli import main
+    out = tmp_path / "cmp"
+    assert main(["compare", "kinematic", "--seeds", "0-1", "--seed", "3", "--out", str(out), "--quiet"]) == 1
+    assert "drop --seed" in capsys.readouterr().err and not out.exists()

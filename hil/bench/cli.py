@@ -637,6 +637,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        if hasattr(args, "seeds") and hasattr(args, "seed"):     # seeds listed beside --seed: refused before --out
+            _seeds(args, 0)
         check_outputs(args)
         result = args.func(args)
     except (HilError, PassLogError, ValueError) as exc:

@@ -383,6 +383,7 @@ def _cmd_emulate(args: argparse.Namespace) -> dict:
     from hil.devices.emulate import EmulatedTractor
     with EmulatedTractor(implement=args.implement, speed=args.speed, duration=args.duration, seed=args.seed,
                          params=_params(args), bridge=args.bridge, module_port=args.module_port,
+                         can_bus=args.can_bus,
                          driver=args.driver) as tractor:
         drive = "hil drive " + " ".join(tractor.setup.drive_args()) + " --controller kinematic --duration 60 --out runs/x"
         info = {"bridge": tractor.setup.bridge, "position": tractor.setup.position,
@@ -558,11 +559,16 @@ def build_parser() -> argparse.ArgumentParser:
     em.add_argument("--speed", type=_float, default=1.34, help="nominal speed, m/s (default 1.34)")
     em.add_argument("--duration", type=_float, default=600.0, help="seconds before it stops by itself (default 600)")
     em.add_argument("--seed", type=int, default=0, help="seed of the simulated tractor's noise (default 0)")
-    em.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
-                    help="the HC11 board on a pty, or an AgOpenGPS steer module on UDP 127.0.0.1")
+    em.add_argument("--bridge", choices=("hc11", "agopengps", "isobus"), default="hc11",
+                    help="the HC11 board on a pty, an AgOpenGPS steer module on UDP 127.0.0.1, or an ISO 11783 "
+                         "steering-ready controller on a CAN bus (--can-bus)")
     em.add_argument("--module-port", type=int, default=0, metavar="PORT",
                     help="UDP port of the emulated AgOpenGPS module (default: chosen by the system; 8888 as on "
                          "a tractor)")
+    em.add_argument("--can-bus", default="isobus", metavar="isobus[:udp_multicast:GROUP[:PORT]]",
+                    help="the emulated ISO 11783 controller's bus (--bridge isobus): python-can's UDP multicast "
+                         "bus, by default group 239.74.163.2 port 43113 (TTL 1); one bus per group and port, so "
+                         "emulators side by side each need their own; or isobus:socketcan:IFACE")
     em.add_argument("--no-driver", dest="driver", action="store_false",
                     help="no driver: the tractor runs on its own wheel from 0.3 m off the line until hil drive "
                          "engages (by default a driver holds it on the line until then, and takes the wheel "

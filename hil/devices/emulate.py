@@ -21,6 +21,7 @@ from gnss.field import FieldGeometry
 
 from hil.devices.field_driver import FieldDriver, autosteer_on
 from hil.devices.firmware import BridgeFirmware, config_for_tractor
+from hil.devices.isobus_controller import IsobusController, IsobusControllerConfig
 from hil.errors import SimulatorConfigError
 from hil.devices.steer_module import SteerModule, SteerModuleConfig, module_settings
 from hil.links.udp import UdpLink
@@ -32,8 +33,13 @@ from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, PositionReceiver
 from hil.devices.technician import two_point_calibration
+from hil.vehicle.agio.errors import AgioConfigError
+from hil.vehicle.agio.spec import parse_bridge
+from hil.vehicle.isobus.bus import bus_text, open_isobus_bus
 
 
+#: Steering bridges the emulated tractor can carry.
+BRIDGES = ("hc11", "agopengps", "isobus")
 #: The driver's line (simulator frame) starts this far behind the start and ends this far beyond the run, m.
 LINE_BEHIND, LINE_AHEAD = 100.0, 100.0
 #: The driver hands back within 1 m and 0.1 rad of the line, held 0.5 s: well inside the loop's engage band
@@ -57,6 +63,8 @@ class VehicleSetup:
         Antenna from the control point, body frame (fwd, left, up), m.
     wheel_calibration
         ``(centre counts, rad per count)``.
+    wheelbase
+        m, for an ``isobus`` bridge (curvature = tan(wheel angle) / wheelbase); None for the others.
     """
 
     bridge: str
@@ -66,6 +74,7 @@ class VehicleSetup:
     height: float
     lever_arm: tuple[float, float, float]
     wheel_calibration: tuple[float, float]
+    wheelbase: float | None = None
 
     def drive_args(self) -> list[str]:
         """The matching ``hil drive`` options, each number rounded to what it means: degrees to 1e-8
@@ -75,7 +84,8 @@ class VehicleSetup:
                 f"--line={_numbers(self.line, 8)}", "--height", _numbers((self.height,), 3),
                 f"--lever-arm={_numbers(self.lever_arm, 3)}",
                 f"--wheel-calibration={_numbers(self.wheel_calibration[:1], 3)},"
-                f"{_numbers(self.wheel_calibration[1:], 9)}"]
+                f"{_numbers(self.wheel_calibration[1:], 9)}"] \
+            + ([] if self.wheelbase is None else ["--wheelbase", _numbers((self.wheelbase,), 3)])
 
 
 def _numbers(values, decimals: int) -> str:
@@ -101,10 +111,17 @@ class EmulatedTractor:
     initial_cross_track
         Start offset from the line, m.
     bridge
-        ``hc11`` (the HC11 board on a pty) or ``agopengps`` (an AgOpenGPS steer module on UDP,
-        127.0.0.1:``module_port``, with the settings AgOpenGPS would have stored in it).
+        ``hc11`` (the HC11 board on a pty), ``agopengps`` (an AgOpenGPS steer module on UDP,
+        127.0.0.1:``module_port``, with the settings AgOpenGPS would have stored in it) or ``isobus``
+        (an ISO 11783 steering-ready controller, :class:`~hil.devices.isobus_controller.IsobusController`,
+        on the CAN bus ``can_bus``).
     module_port
         UDP port of the emulated module (0: chosen by the system; 8888 as on a tractor).
+    can_bus
+        The ISOBUS bridge's bus, a ``--bridge`` specification (:func:`hil.vehicle.agio.spec.parse_bridge`):
+        ``isobus`` (python-can's UDP multicast bus, 239.74.163.2 port 43113, with TTL 1: this host and its
+        link only), ``isobus:udp_multicast:GROUP[:PORT]`` or ``isobus:socketcan:IFACE``; programs on one
+        group and port share one bus, so runs side by side each need their own.
     driver
         A driver (:class:`~hil.devices.field_driver.FieldDriver`, ``from_start``) holds the tractor on
         the line until the loop first engages, and takes the wheel whenever the autosteer lets go,
@@ -124,11 +141,20 @@ class EmulatedTractor:
     geometry: FieldGeometry = field(default_factory=FieldGeometry)
     bridge: str = "hc11"
     module_port: int = 0
+    can_bus: str = "isobus"
     driver: bool = False
 
     def __enter__(self) -> "EmulatedTractor":
-        if self.bridge not in ("hc11", "agopengps"):
-            raise SimulatorConfigError(f"bridge must be 'hc11' or 'agopengps', got {self.bridge!r}")
+        if self.bridge not in BRIDGES:
+            raise SimulatorConfigError(f"bridge must be one of {', '.join(BRIDGES)}, got {self.bridge!r}")
+        try:
+            can_spec = parse_bridge(self.can_bus) if self.bridge == "isobus" else None
+        except AgioConfigError as exc:
+            raise SimulatorConfigError(f"the CAN bus of the emulated controller: {exc}") from None
+        if can_spec is not None and (can_spec.kind != "isobus" or can_spec.transport == "virtual"):
+            raise SimulatorConfigError(f"the CAN bus of the emulated controller must be isobus, "
+                                       f"isobus:udp_multicast:GROUP[:PORT] or isobus:socketcan:IFACE (a bus hil drive "
+                                       f"can reach from another process), got {self.can_bus!r}")
         if not isinstance(self.driver, bool):
             raise SimulatorConfigError(f"driver must be True or False, got {self.driver!r}")
         self.plant = SimulatedTractor(condition_for(self.implement, self.speed), self.duration + 1.0, self.seed,
@@ -143,7 +169,16 @@ class EmulatedTractor:
             pos, att = (self._stack.enter_context(PtyPair()) for _ in range(2))
             p = self.plant.params
             wake = []
-            if self.bridge == "agopengps":
+            if can_spec is not None:   # the steering controller on a CAN bus
+                bus = open_isobus_bus(can_spec)
+                self._stack.callback(bus.shutdown)
+                config = IsobusControllerConfig(calibration=two_point_calibration(p.sensor, p.steering),
+                                                wheelbase=p.vehicle.wheelbase)
+                plant = self.plant
+                steering = IsobusController(bus, steered, config, speed=lambda: plant.truth()["speed"])
+                bridge_name = bus_text(can_spec)
+                wake = [bus.fileno()]
+            elif self.bridge == "agopengps":
                 link = self._stack.enter_context(UdpLink(("127.0.0.1", self.module_port), accept_any=True))
                 settings, config = module_settings(two_point_calibration(p.sensor, p.steering), p.steering)
                 steering = SteerModule(link, steered, SteerModuleConfig(settings=settings, config=config))
@@ -174,7 +209,8 @@ class EmulatedTractor:
             line=(math.degrees(geo.origin.lat0), math.degrees(geo.origin.lon0),
                   math.degrees(float(lat_b)), math.degrees(float(lon_b))),
             height=geo.origin.h0, lever_arm=(vp.antenna_ahead_of_cg, vp.antenna_left_of_cg, vp.antenna_height),
-            wheel_calibration=(cal.center_counts, cal.rad_per_count))
+            wheel_calibration=(cal.center_counts, cal.rad_per_count),
+            wheelbase=vp.wheelbase if self.bridge == "isobus" else None)
         return self
 
     def truth(self) -> dict[str, float]:

@@ -2,10 +2,11 @@
 this guidance system's node on it, and the driver and loop settings the vehicle loop steers with.
 
 :func:`open_isobus_link` opens the bus a parsed specification names
-(:func:`hil.vehicle.agio.spec.parse_bridge`: ``isobus:socketcan:can0`` on a tractor,
-``isobus:udp_multicast:GROUP[:PORT]`` against ``hil emulate --bridge isobus``, ``isobus:virtual:NAME`` in
-one process); :meth:`IsobusLink.driver` puts the guidance system's node on it (NAME
-:data:`GUIDANCE_NAME`, preferred address :data:`GUIDANCE_ADDRESS`, self-configurable) and returns the
+(:func:`hil.vehicle.agio.spec.parse_bridge`, :func:`hil.vehicle.isobus.bus.open_isobus_bus`:
+``isobus:socketcan:can0`` on a tractor, ``isobus:udp_multicast:GROUP[:PORT]`` against
+``hil emulate --bridge isobus``, ``isobus:virtual:NAME`` in one process); :meth:`IsobusLink.driver`
+puts the guidance system's node on it (NAME :data:`GUIDANCE_NAME`, preferred address
+:data:`GUIDANCE_ADDRESS`, self-configurable) and returns the
 :class:`~hil.vehicle.isobus.driver.IsobusDriver` the loop steers through. The loop reads the wheel angle
 of the controller's estimated curvature, ``atan(wheelbase x curvature)``, through
 :data:`~hil.vehicle.isobus.driver.ANGLE_CALIBRATION`, and takes its rate limit and steering-response
@@ -20,13 +21,13 @@ import can
 from hil.links.clock import Clock
 from hil.vehicle.agio.driver import module_loop_config
 from hil.vehicle.agio.spec import BridgeSpec
+from hil.vehicle.isobus.bus import open_isobus_bus
 from hil.vehicle.isobus.driver import IsobusDriver, IsobusDriverConfig
-from hil.vehicle.isobus.errors import IsobusConfigError, IsobusLinkError
+from hil.vehicle.isobus.errors import IsobusConfigError
 from hil.vehicle.isobus.network import Name, Node
 from hil.vehicle.loop import LoopConfig
 
-__all__ = ["GUIDANCE_NAME", "GUIDANCE_ADDRESS", "ISOBUS_LAG", "open_isobus_bus", "IsobusLink", "open_isobus_link",
-           "isobus_loop_config"]
+__all__ = ["GUIDANCE_NAME", "GUIDANCE_ADDRESS", "ISOBUS_LAG", "IsobusLink", "open_isobus_link", "isobus_loop_config"]
 
 GUIDANCE_NAME = Name(identity=0x7A5, manufacturer=0, function=0x83, vehicle_system=1, industry_group=2,
                      self_configurable=True)
@@ -37,26 +38,6 @@ GUIDANCE_ADDRESS = 0x80
 ISOBUS_LAG = 0.3
 """Delay of the measured angle behind the commanded one through a steering controller, s: its curvature
 filter (0.1 s), rate limit and valve loop (20 ms), and one report period (0.1 s). On a tractor, measure it."""
-
-
-def open_isobus_bus(spec: BridgeSpec) -> can.BusABC:
-    """Open the python-can bus of an ``isobus`` specification (the caller shuts it down).
-
-    Raises
-    ------
-    IsobusConfigError
-        ``spec`` is not an ``isobus`` bridge.
-    IsobusLinkError
-        The interface cannot be opened (a ``ConnectionError``, so an ``OSError``).
-    """
-    if spec.kind != "isobus":
-        raise IsobusConfigError(f"not an ISOBUS bridge: {spec}; expected isobus:INTERFACE:CHANNEL")
-    options = {"port": spec.port} if spec.transport == "udp_multicast" else {}
-    try:
-        return can.Bus(interface=spec.transport, channel=spec.device, **options)
-    except (can.CanError, OSError, ImportError) as exc:
-        raise IsobusLinkError(f"bridge isobus:{spec.transport}:{spec.device}: cannot open the CAN bus ({exc}); check "
-                              "the interface exists and is up (ip link show), or name another") from exc
 
 
 class IsobusLink:

@@ -16,9 +16,10 @@ from identification.passlog import PassLog
 pytestmark = pytest.mark.timeout(120)
 
 
+@pytest.mark.slow
 def test_run_steers_through_the_emulated_steering_controller(tmp_path, capsys):
     rc = hil_main(["run", "--controller", "kinematic", "--bridge", "isobus", "--implement", "none", "--speed", "1.79",
-                   "--duration", "20", "--seed", "3", "--out", str(tmp_path), "--quiet", "--json"])
+                   "--duration", "10", "--seed", "3", "--out", str(tmp_path), "--quiet", "--json"])
     assert rc == 0
     result = json.loads(capsys.readouterr().out)
     assert result["mode"] == "lockstep"
@@ -29,10 +30,10 @@ def test_run_steers_through_the_emulated_steering_controller(tmp_path, capsys):
     assert meta["bridge"] == "isobus"
     stats, controller = meta["bridge_stats"], meta["firmware"]
     # the loop's commands went out "intended" every cycle it was engaged, the controller took them all
-    assert stats["intended_sent"] > 0.9 * 20 * 20 and stats["refused"] == 0 and stats["link_errors"] == 0
+    assert stats["intended_sent"] > 0.9 * 10 * 20 and stats["refused"] == 0 and stats["link_errors"] == 0
     # (but the last cycle's command and the "not intended" of the run's end, sent after its last step)
     assert controller["commands"] == stats["intended_sent"] + stats["not_intended_sent"] - 2
-    assert controller["reports"] >= 195 and controller["refused"] == 0
+    assert controller["reports"] >= 95 and controller["refused"] == 0
     # it followed to the end: engaged, nothing to reset, no exit code
     assert controller["engaged"] and not controller["reset_required"] and controller["exit_code"] == 0
 
@@ -47,11 +48,12 @@ def test_the_isobus_bench_refuses_what_it_cannot_run(options, match):
         RunSpec(**{"bridge": "isobus", **options})
 
 
+@pytest.mark.slow
 def test_compare_runs_every_pass_through_the_steering_controller(tmp_path, capsys):
-    rc = hil_main(["compare", "kinematic", "stanley", "--bridge", "isobus", "--conditions", "none:1.79",
-                   "--seeds", "1", "--duration", "12", "--workers", "1", "--out", str(tmp_path), "--quiet", "--json"])
+    rc = hil_main(["compare", "kinematic", "--bridge", "isobus", "--conditions", "none:1.79",
+                   "--seeds", "2", "--duration", "6", "--workers", "1", "--out", str(tmp_path), "--quiet", "--json"])
     assert rc == 0
     assert json.loads(capsys.readouterr().out)["passes"] == 2
     runs = [json.loads(r.read_text()) for r in sorted((tmp_path / "campaign" / "runs").glob("*__isobus.json"))]
     assert len(runs) == 2 and all(r["bridge"] == "isobus" and r["mode"] == "lockstep" for r in runs)
-    assert all(r["disengagements"] == 0 and r["engaged_fraction"] > 0.9 for r in runs)
+    assert all(r["disengagements"] == 0 and r["engaged_fraction"] > 0.8 for r in runs)

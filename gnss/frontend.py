@@ -381,6 +381,13 @@ class GnssFrontEnd:
             east, north, up, yaw, pitch, roll, rate, speed, float(ve), float(vn), self._fix, integrity,
         )
 
+    def attitude_epoch(self) -> tuple[float, float, float]:
+        """The last attitude epoch as received: ``(yaw [rad, 0 = north, clockwise], time of validity, arrival)``
+        on the host clock, s (``nan`` before the first); the yaw is not propagated, unlike :meth:`solution`'s."""
+        if self._att_ta == -math.inf:
+            return math.nan, math.nan, math.nan
+        return self._yaw, self._att_tv, self._att_ta
+
     def step(self, t: float | None = None) -> NavSolution:
         """Poll the sources, then publish the solution at ``t`` (default: the clock now)."""
         self.poll()

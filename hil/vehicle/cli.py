@@ -123,6 +123,33 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
     return result
 
 
+def _run_excite(args: argparse.Namespace) -> int:
+    """``hil drive --excite FOLDER``: the procedure's next pass (:func:`hil.vehicle.excite_run.drive_next_pass`)."""
+    from hil.vehicle.drive import DriveConfig
+    from hil.vehicle.excite_run import drive_next_pass
+    try:
+        cfg = DriveConfig(bridge_port=args.bridge, position_port=args.position, attitude_port=args.attitude,
+                          line_a=args.line[:2], line_b=args.line[2:], height=args.height, lever_arm=args.lever_arm,
+                          wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
+                          gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time),
+                          wheelbase=args.wheelbase)
+        result = drive_next_pass(args.excite, cfg, duration=args.duration)
+    except (HilError, PassLogError, ValueError) as exc:
+        print(f"hil drive: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        print(f"hil drive: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
+        return 1
+    head = (f"pass {result['pass']}: " + ("recorded" if not result["faults"] else
+                                         "spoiled (" + "; ".join(result["faults"]) + "), to drive again"))
+    try:
+        write_stdout(json.dumps(result, indent=2) if args.json else f"{head}\n{result['text']}", "hil drive")
+    except OutputError as exc:
+        print(exc, file=sys.stderr)
+        return 1
+    return 0
+
+
 def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
     """Add the ``drive`` sub-command to a ``hil`` parser."""
     d = sub.add_parser("drive", help="run the vehicle loop on real serial ports (on a tractor)")
@@ -133,8 +160,13 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
                         "(hil emulate --bridge isobus; isobus alone is its default bus)")
     d.add_argument("--position", required=True, help="position receiver serial device")
     d.add_argument("--attitude", help="attitude receiver serial device (default: same as --position)")
-    d.add_argument("--controller", required=True, type=_vehicle_spec,
-                   help=f"one of {list(VEHICLE_CONTROLLERS)} or a controller file (.json)")
+    d.add_argument("--controller", default=None, type=_vehicle_spec,
+                   help=f"one of {list(VEHICLE_CONTROLLERS)} or a controller file (.json); required unless --excite")
+    d.add_argument("--excite", metavar="FOLDER", default=None,
+                   help="drive the field procedure's next identification pass (FOLDER of `hil procedure`, after "
+                        "its valve test): the runtime's slews in a 1.5 m corridor of the line, through the folder's "
+                        "commissioning; the log goes to FOLDER/logs/ (a spoiled pass to FOLDER/spoiled/, to drive "
+                        "again), the plan gives implement, speed and duration")
     d.add_argument("--require-signature", metavar="PUBKEY", default=None,
                    help="run only a controller file signed with this public key (design keygen's .pub)")
     d.add_argument("--line", required=True, type=parse_floats(4), metavar="LAT_A,LON_A,LAT_B,LON_B",
@@ -163,10 +195,11 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
     d.add_argument("--lead-time", type=parse_float, default=LEAD_TIME, metavar="S",
                    help=f"AgOpenGPS module: the setpoint leads the integrated rate by S x rate, about the module's "
                         f"measured lag (default {LEAD_TIME} s)")
-    d.add_argument("--duration", type=parse_float, required=True, help="seconds (Ctrl-C stops earlier)")
+    d.add_argument("--duration", type=parse_float, default=None,
+                   help="seconds (Ctrl-C stops earlier); required unless --excite (default: the plan's pass length)")
     d.add_argument("--implement", default="unknown", help="label for the run log")
     d.add_argument("--speed", type=parse_float, default=0.0, help="nominal speed for the run log, m/s")
-    d.add_argument("--out", required=True, help="directory for run_log.npz and summary.json")
+    d.add_argument("--out", default=None, help="directory for run_log.npz and summary.json; required unless --excite")
     d.add_argument("--json", action="store_true", help="print the result as JSON")
     d.set_defaults(func=_cmd_drive)
     return d
@@ -340,6 +373,15 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     add_drive_parser(sub)
     args = parser.parse_args(["drive", *(sys.argv[2:] if argv is None else argv)])
+    if args.excite is not None:
+        if args.controller is not None or args.field is not None:
+            parser.error("--excite drives the procedure's own excitation along the line: drop --controller and "
+                         "--field")
+        return _run_excite(args)
+    missing = [o for o, v in (("--controller", args.controller), ("--duration", args.duration), ("--out", args.out))
+               if v is None]
+    if missing:
+        parser.error(f"the following arguments are required: {', '.join(missing)} (or --excite FOLDER)")
     try:
         from hil.vehicle.drive import check_run_labels
         check_run_labels(args.duration, args.implement, args.speed)   # before anything is created or driven

@@ -187,12 +187,14 @@ def _stop_on_signals(request: _StopRequest) -> Iterator[None]:
 
 def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: str = "unknown",
           nominal_speed: float = 0.0, progress: Callable[[float, float], None] | None = None,
-          open_port: Callable[..., serial.Serial] = serial.Serial) -> PassLog:
+          open_port: Callable[..., serial.Serial] = serial.Serial, epochs: bool = False) -> PassLog:
     """Run the vehicle loop on the vehicle's serial ports for ``duration`` seconds (or until Ctrl-C / SIGTERM).
 
     ``implement`` and ``nominal_speed`` [m/s] only label the run log; they are checked first. Once the
     loop runs, the run log is returned whatever ends it: ``meta["interrupted"]`` says a signal ended it,
-    ``meta["aborted"]`` (None on a clean run) names the error that did.
+    ``meta["aborted"]`` (None on a clean run) names the error that did. With ``epochs`` (an AB line) the log's
+    GPS channels are the receivers' epochs with their valid times, as identification takes them
+    (:meth:`hil.vehicle.loop.VehicleLoop.run_log`).
 
     Raises
     ------
@@ -275,7 +277,7 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
     if loop.cycles < 2:   # ended (a failure) before the loop had a record to keep
         raise HilError(f"the run ended after {loop.cycles} cycle(s), too few for a run log: "
                        f"{aborted or interrupted or 'no reason recorded'}")
-    return loop.run_log(meta)
+    return loop.run_log(meta, epochs=epochs)
 
 
 def _stop_quietly(loop: VehicleLoop, reason: str) -> None:

@@ -270,6 +270,11 @@ class VehicleLoop:
                                                                             * self.config.rate) + 1))
         self._response_u: deque[float] = deque(maxlen=self._response.maxlen)   # the u of each _response entry
         self._plausibility = self.config.plausibility()
+        # the receivers' epochs as received (AB line): position (arrival, validity, cross-track, speed, fix)
+        # and attitude (arrival, validity, heading error), for run_log(epochs=True)
+        self._pos_epochs: list[tuple[float, float, float, float, float]] = []
+        self._att_epochs: list[tuple[float, float, float]] = []
+        self._pos_seen = self._att_seen = math.nan
 
     # -- one cycle ------------------------------------------------------------------
     def cycle(self, t_due: float) -> None:
@@ -309,6 +314,8 @@ class VehicleLoop:
         else:
             xte, he = last_xte, last_he
         speed = nav.speed if math.isfinite(nav.speed) else last_speed
+        if path is None:
+            self._record_epochs(nav)
         integrity = nav.integrity
         if not integrity.healthy:
             reasons.append(f"gps {integrity.state.name.lower()}: {integrity.reason}")
@@ -408,6 +415,23 @@ class VehicleLoop:
         """Cycles run and recorded so far."""
         return len(self._rows)
 
+    def _record_epochs(self, nav) -> None:
+        """Record a position or attitude epoch that arrived since the last cycle, unpropagated: the
+        cross-track at the fix's time of validity and the heading error of the attitude as received."""
+        ta = nav.t_arrival
+        if ta == ta and ta != self._pos_seen:
+            self._pos_seen = ta
+            fix = self.frontend.solution(nav.t_validity)
+            if math.isfinite(fix.east) and math.isfinite(fix.north) and math.isfinite(fix.yaw) \
+                    and math.isfinite(fix.speed):
+                xte, _ = self._line_errors(fix.east, fix.north, fix.yaw)
+                self._pos_epochs.append((ta, nav.t_validity, xte, fix.speed, float(int(nav.fix))))
+        yaw, tv, ta = self.frontend.attitude_epoch()
+        if ta == ta and ta != self._att_seen:
+            self._att_seen = ta
+            if math.isfinite(yaw) and math.isfinite(tv):
+                self._att_epochs.append((ta, tv, self._line_errors(0.0, 0.0, yaw)[1]))
+
     def _part_at(self, station: float) -> tuple[float, float]:
         """``(pass index, kind code)`` of the route part holding ``station``; ``(-1, -1)`` outside all."""
         i = bisect_right(self._part_starts, station) - 1
@@ -488,8 +512,16 @@ class VehicleLoop:
         if self.engaged:
             self._disengage(self.clock.now(), reason, True)
 
-    def run_log(self, meta: dict) -> PassLog:
-        """The record as a pass log (cycle time base for every channel) with ``meta`` added."""
+    def run_log(self, meta: dict, epochs: bool = False) -> PassLog:
+        """The record as a pass log (cycle time base for every channel) with ``meta`` added.
+
+        With ``epochs`` (an AB line's run, e.g. an identification pass driven by the loop), ``cross_track``,
+        ``speed`` and ``fix_quality`` are the position epochs at their arrival (``t_cross_track``, ``t_speed``)
+        and ``heading_error`` the attitude epochs at theirs (``t_heading_error``), unpropagated, with the
+        receivers' times of validity on the host clock (``position_valid_time``, and ``attitude_valid_time`` where
+        the attitude messages carry a time tag): identification's format (:mod:`identification.delay`). The loop's own values per cycle are kept as
+        ``loop_cross_track``, ``loop_heading_error``, ``loop_speed`` and ``loop_fix_quality``.
+        """
         table = np.array(self._rows, dtype=float).reshape(-1, len(_COLUMNS))
         r = {k: table[:, i].copy() for i, k in enumerate(_COLUMNS)}
         t = r.pop("t")
@@ -537,8 +569,47 @@ class VehicleLoop:
                      "controller": getattr(self.controller, "name", type(self.controller).__name__),
                      "sample_rates_hz": {k: self.config.rate for k in std},
                      "time_stamps": "loop cycle time; missing GPS/bridge values hold the last one (see *_valid)"}
-        return PassLog(times={"t": t, "t_cross_track": t, "t_heading_error": t, "t_speed": t},
-                       channels=chans, meta=full_meta)
+        times = {"t": t, "t_cross_track": t, "t_heading_error": t, "t_speed": t}
+        if epochs:
+            if self._path is not None:
+                raise VehicleConfigError("run_log(epochs=True) needs an AB line's run")
+            pos = np.array(self._pos_epochs, dtype=float).reshape(-1, 5)
+            att = np.array(self._att_epochs, dtype=float).reshape(-1, 3)
+            if len(pos) < 2 or len(att) < 2:
+                raise VehicleConfigError(f"the run received {len(pos)} position and {len(att)} attitude epochs; "
+                                         "a pass log of epochs needs two of each (check the receivers)")
+            for k in ("cross_track", "heading_error", "speed", "fix_quality"):
+                chans[f"loop_{k}"] = chans.pop(k)
+                extra[f"loop_{k}"] = {"time": "t", "unit": {"cross_track": "m", "heading_error": "rad",
+                                                            "speed": "m/s", "fix_quality": "1"}[k],
+                                      "doc": "the loop's value each cycle (propagated to the cycle's time)"}
+            extra.pop("fix_quality")
+            times.update(t_cross_track=pos[:, 0].copy(), t_speed=pos[:, 0].copy(), t_heading_error=att[:, 0].copy())
+            chans.update(cross_track=pos[:, 2].copy(), speed=pos[:, 3].copy(), fix_quality=pos[:, 4].copy(),
+                         position_valid_time=pos[:, 1].copy(), heading_error=att[:, 2].copy())
+            extra.update(
+                fix_quality={"time": "t_cross_track", "unit": "1", "doc": "GGA fix quality, 4 fixed, 5 float"},
+                position_valid_time={"time": "t_cross_track", "unit": "s",
+                                     "doc": "the position epoch's time of validity on the host clock"})
+            # an attitude without a time tag (HDT, THS) has no time of validity of its own: the front-end
+            # stamps it at arrival, so the channel is left out and identification finds that latency itself
+            if float(np.median(att[:, 0] - att[:, 1])) > 1e-3:
+                chans["attitude_valid_time"] = att[:, 1].copy()
+                extra["attitude_valid_time"] = {"time": "t_heading_error", "unit": "s",
+                                                "doc": "the attitude epoch's time of validity on the host clock"}
+            full_meta["sample_rates_hz"] = {"wheel_angle": self.config.rate, "steer_rate_cmd": self.config.rate,
+                                            "cross_track": _rate_of(pos[:, 0]), "speed": _rate_of(pos[:, 0]),
+                                            "heading_error": _rate_of(att[:, 0])}
+            full_meta["time_stamps"] = ("wheel angle and command: loop cycle time; GPS channels: arrival of each "
+                                        "epoch at the host, with its time of validity")
+        return PassLog(times=times, channels=chans, meta=full_meta)
+
+
+def _rate_of(t: np.ndarray) -> float:
+    """Median epoch rate of arrival times ``t``, Hz (rounded to 0.1 Hz)."""
+    d = np.diff(t)
+    d = d[d > 0]
+    return round(1.0 / float(np.median(d)), 1) if d.size else 0.0
 
 
 def _checked_parts(parts: Sequence) -> tuple[tuple[float, float, float, float], ...]:

@@ -10,8 +10,8 @@ each), as a dealer's day allows. The state of a procedure is read from its folde
 nothing and no recorded pass is driven again: the next step is the first planned pass with no good log.
 
 A pass is spoiled (:func:`pass_faults`) when the fix was not RTK fixed for more than
-:data:`MAX_NOT_FIXED` of its position epochs, the operator took over or the loop disengaged (a closed-loop
-pass), or it stopped early; :meth:`Procedure.review` moves such a log to
+:data:`MAX_NOT_FIXED` of its position epochs, the operator took over, the loop left its corridor or
+spent more than :data:`MAX_DISENGAGED` of the pass disengaged (a closed-loop pass), or it stopped early; :meth:`Procedure.review` moves such a log to
 ``spoiled/`` with the reason, where it still counts as driving time but is never identified from.
 """
 
@@ -42,6 +42,9 @@ BUDGET_TOTAL_S = 30 * 60.0
 BUDGET_PER_IMPLEMENT_S = 10 * 60.0
 #: Largest fraction of a pass's position epochs that may be other than RTK fixed (GGA quality 4).
 MAX_NOT_FIXED = 0.01
+#: Largest fraction of a closed-loop pass the loop may spend disengaged by faults it recovers from (a late
+#: epoch); a takeover, the corridor left or a float fix spoil the pass at once.
+MAX_DISENGAGED = 0.05
 #: A pass shorter than this fraction of its planned length stopped early.
 MIN_LENGTH = 0.95
 #: Words of a disengagement's reason that say the operator took the wheel.
@@ -65,6 +68,11 @@ class PlannedPass:
     def key(self) -> tuple[str, int, int]:
         """``(implement, speed in mm/s, index)``: how a recorded log is matched to it (:func:`pass_key`)."""
         return self.implement, round(self.speed * 1000), self.index
+
+    @property
+    def file_name(self) -> str:
+        """File name of the pass's log in the procedure's ``logs/``, e.g. ``ripper_2910mm_pass1.npz``."""
+        return f"{self.implement}_{round(self.speed * 1000)}mm_pass{self.index}.npz"
 
     def label(self) -> str:
         return f"{self.implement} at {self.speed:g} m/s, pass {self.index + 1} ({self.duration:g} s)"
@@ -175,15 +183,39 @@ def pass_faults(log: PassLog, planned_duration: float | None = None) -> list[str
         if bad > MAX_NOT_FIXED:
             faults.append(f"the fix was not RTK fixed for {100 * bad:.0f} % of the pass (at most "
                           f"{100 * MAX_NOT_FIXED:g} %)")
+    brief = []     # disengagements the loop recovers from (a late epoch): spoil only when they add up
     for e in log.meta.get("events", []) or []:
         reason = str(e.get("reason", "")) if isinstance(e, dict) else ""
         if isinstance(e, dict) and e.get("event") == "disengage" and reason != "end of run":
-            what = "the operator took over" if any(w in reason.lower() for w in TAKEOVER_WORDS) else "disengaged"
-            faults.append(f"{what} at {float(e.get('t', math.nan)):.1f} s ({reason[:80]})")
-            break
+            at = f"at {float(e.get('t', math.nan)):.1f} s ({reason[:80]})"
+            if any(w in reason.lower() for w in TAKEOVER_WORDS):
+                faults.append(f"the operator took over {at}")
+                break
+            if "cross-track" in reason:
+                faults.append(f"left its corridor {at}")
+                break
+            brief.append(at)
+    if brief and not faults:
+        off = _disengaged_s(log)
+        if off is None or off > MAX_DISENGAGED * log.duration:
+            faults.append(f"disengaged {len(brief)} times" + (f" for {off:.1f} s" if off is not None else "")
+                          + f", first {brief[0]}")
     if planned_duration is not None and log.duration < MIN_LENGTH * planned_duration:
         faults.append(f"stopped after {log.duration:.0f} s of the {planned_duration:g} s planned")
     return faults
+
+
+def _disengaged_s(log: PassLog) -> float | None:
+    """Seconds the loop was not engaged after it first engaged (``None``: the log has no ``engaged`` channel)."""
+    if "engaged" not in log.channels:
+        return None
+    t, on = log.channel("engaged")
+    on = on > 0.5
+    if t.size < 2 or not on.any():
+        return None if t.size < 2 else float(t[-1] - t[0])
+    first = int(np.argmax(on))
+    dt = np.diff(t[first:])
+    return float(np.sum(dt[~on[first:-1]]))
 
 
 @dataclass(frozen=True)
@@ -248,6 +280,18 @@ class Procedure:
                 f.replace(target)
                 moved.append({"file": str(target), "faults": faults})
         return moved
+
+    def remaining(self) -> list[PlannedPass]:
+        """The planned passes with no good log yet, in the plan's order (the first is the next to drive)."""
+        good = {pass_key(log) for _, log in self._read(self.logs)}
+        return [p for p in self.plan.planned() if p.key not in good]
+
+    def driven_s(self) -> dict:
+        """Seconds of driving so far per step: ``valve test`` (once done), ``passes`` (every recorded pass,
+        spoiled ones too) and ``total``."""
+        valve = self.plan.seconds()["valve test"] if (Path(self.folder) / "commissioning.json").is_file() else 0.0
+        passes = sum(log.duration for _, log in self._read(self.logs) + self._read(self.spoiled))
+        return {"valve test": valve, "passes": passes, "total": valve + passes}
 
     def status(self) -> dict:
         """What is done and what is next: ``valve_test_done``, ``recorded`` and ``remaining`` passes (labels),

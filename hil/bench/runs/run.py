@@ -148,13 +148,15 @@ class RunSpec:
 def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | None = None,
                   loop_config: LoopConfig | None = None,
                   progress: Callable[[float, float], None] | None = None,
-                  commissioning: Commissioning | None = None, map_valve: bool = True) -> PassLog:
+                  commissioning: Commissioning | None = None, map_valve: bool = True,
+                  epochs: bool = False) -> PassLog:
     """Run one closed-loop pass on the simulated tractor and return its run log.
 
     With ``commissioning`` (a tractor's commissioning file), the loop's rate limit and
     steering-response monitor come from the measured valve (:func:`hil.vehicle.commissioning.loop_settings`)
     and, unless ``map_valve`` is false, its rate commands go through the valve's inverse map
-    (:class:`hil.vehicle.commissioning.MappedBridge`).
+    (:class:`hil.vehicle.commissioning.MappedBridge`). With ``epochs`` the log's GPS channels are the
+    receivers' epochs with their valid times (:meth:`hil.vehicle.loop.VehicleLoop.run_log`; an AB line only).
     """
     cond = condition_for(spec.implement, spec.speed)
     fld = None if spec.field is None else field_run(spec.field, params or SimParams(), spec.speed, spec.field_passes)
@@ -258,7 +260,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
     if fld is not None:
         meta["field"] = {**fld.describe(), "source": spec.field, "start_station_m": spec.start_station,
                          "driver_takeovers": None if driver_layer is None else driver_layer.takeovers}
-    return loop.run_log(meta)
+    return loop.run_log(meta, epochs=epochs)
 
 
 def _refused(frontend: GnssFrontEnd) -> dict:

@@ -1,0 +1,219 @@
+"""Identification passes driven by the runtime: the paper's slews, kept on the line, as a control law.
+
+The paper identified its tractor from passes in which the driver, through the control computer,
+slewed the steering left or right at the maximum rate and in between commanded zero rate (its
+Figure 5): a ternary, pseudo-random, maximum-power input. Here the computer drives those passes
+itself. Each slew's direction is chosen from what the loop measured (cross-track, heading, wheel
+angle) towards the wheel angle a pure-pursuit law would want, with a random part, so the excitation
+stays rich while the tractor stays near the line:
+
+- inside the **soft corridor** (``return_at``, default 0.6 m of the line) the direction carries
+  the random part (``direction_noise``) and holds last ``hold_min``-``hold_max`` s;
+- beyond it, the rule **returns to the line**: no random part, holds cut to ``hold_min``, until the
+  tractor is back inside ``return_at / 2``;
+- the **hard corridor** (``corridor``, default 1.5 m) is the loop's own limit
+  (:attr:`hil.vehicle.loop.LoopConfig.max_cross_track`, set by :meth:`ExcitationSettings.loop_config`):
+  beyond it the loop disengages, so the pass is spoiled and driven again
+  (:func:`hil.vehicle.procedure.pass_faults`).
+
+The steer switch, an operator's takeover, the bridge's watchdog and a stale or degraded fix disengage
+the loop as for any other law; the excitation never commands while disengaged, because the loop does
+not ask it.
+
+:class:`SlewRule` is the rule for a batch of passes (numpy rows); the bench's open-loop passes
+(:mod:`hil.bench.runs.sysid`) and :class:`ExcitationController` (one row, the loop's
+:class:`~design.laws.controller.Controller`) use the same rule.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Sequence
+
+import numpy as np
+
+from design.laws.controller import Measurement
+
+from hil.vehicle.errors import VehicleConfigError
+
+__all__ = ["ExcitationSettings", "SlewRule", "ExcitationController"]
+
+
+@dataclass(frozen=True)
+class ExcitationSettings:
+    """How the identification passes slew (shaped on the paper's Figure 5) and where they may go.
+
+    Attributes
+    ----------
+    slew_min, slew_max
+        Range of one slew's length, s (uniform).
+    hold_min, hold_max
+        Range of one zero-rate stretch, s (uniform).
+    soft_limit
+        Wheel angle at which a slew is cut short, rad.
+    direction_noise
+        1-sigma randomness added to the wanted wheel-angle change when picking a direction, rad.
+    settle
+        Zero-rate time at the start of a pass (or after an engage), s.
+    return_at
+        Cross-track beyond which the rule steers back to the line without randomness, m.
+    corridor
+        The pass's hard corridor, m: the loop disengages beyond it (:meth:`loop_config`).
+    servo
+        Gain of the wheel angle towards the pure-pursuit angle, 1/s, added to the slews (their direction is
+        then random); 0: the paper's open-loop rule, where only the slews' directions steer back.
+    """
+
+    slew_min: float = 0.2
+    slew_max: float = 0.5
+    hold_min: float = 0.3
+    hold_max: float = 1.2
+    soft_limit: float = 0.2
+    direction_noise: float = 0.04
+    settle: float = 2.0
+    return_at: float = 0.6
+    corridor: float = 1.5
+    servo: float = 1.5
+
+    def __post_init__(self) -> None:
+        for k, v in self.__dict__.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
+                raise VehicleConfigError(f"excitation {k} must be a finite number >= 0, got {v!r}")
+        if self.slew_min > self.slew_max or self.hold_min > self.hold_max or self.slew_max == 0:
+            raise VehicleConfigError("excitation: need 0 < slew_min <= slew_max and hold_min <= hold_max")
+        if not 0 < self.return_at < self.corridor:
+            raise VehicleConfigError(f"excitation: need 0 < return_at ({self.return_at:g} m) < corridor "
+                                     f"({self.corridor:g} m)")
+
+    def loop_config(self, config):
+        """``config`` (a :class:`~hil.vehicle.loop.LoopConfig`) with the hard corridor as its cross-track limit and
+        an engage only inside the soft corridor (so a pass that left the corridor stays off until it is back)."""
+        return replace(config, max_cross_track=min(config.max_cross_track, self.corridor),
+                       engage_cross_track=min(config.engage_cross_track, self.return_at))
+
+
+class SlewRule:
+    """The excitation rule for a batch of passes: ternary slews chosen from what was measured.
+
+    Parameters
+    ----------
+    settings
+        The slews and the corridor.
+    rngs
+        One random generator per pass (row).
+    nominal
+        Nominal speed of each pass, m/s (the rule looks further ahead when faster).
+    duration
+        Length of the passes, s (sizes the random draws; longer passes reuse the last draw).
+    wheelbase
+        Wheelbase, m (for the pure-pursuit wheel angle the direction aims at).
+    max_rate
+        Slew rate, rad/s.
+    """
+
+    def __init__(self, settings: ExcitationSettings, rngs: Sequence[np.random.Generator], nominal: np.ndarray,
+                 duration: float, wheelbase: float, max_rate: float) -> None:
+        s = self.settings = settings
+        self.wheelbase, self.max_rate = float(wheelbase), float(max_rate)
+        B = len(rngs)
+        n_dec = int(duration / min(s.slew_min, s.hold_min or s.slew_min, 0.05) + 16)
+        self.n_dec = n_dec
+        self.u_len = np.stack([r.random(n_dec) for r in rngs])
+        self.u_dir = np.stack([r.standard_normal(n_dec) for r in rngs])
+        self.lookahead = np.maximum(4.0, 3.0 * np.asarray(nominal, dtype=float))
+        self.rows = np.arange(B)
+        self.mode = np.zeros(B)
+        self.t_end = np.full(B, s.settle)
+        self.n_made = np.zeros(B, dtype=int)
+        self.returning = np.zeros(B, dtype=bool)
+
+    def restart(self, now: float) -> None:
+        """Hold still for ``settle`` s from ``now`` (after an engage); the random draws go on where they were."""
+        self.mode[:] = 0.0
+        self.t_end[:] = now + self.settings.settle
+        self.returning[:] = False
+
+    def rate(self, now: float, delta_m: np.ndarray, y_m: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+        """Steering-rate command now, rad/s, + = left, from the measured wheel angle ``delta_m`` [rad],
+        the control point's cross-track ``y_m`` [m, + left] and heading ``yaw`` [rad] from the line."""
+        s, mode = self.settings, self.mode
+        y_m = np.asarray(y_m, dtype=float)
+        # beyond the soft corridor: back to the line, no randomness, until well inside it again
+        self.returning = np.where(np.abs(y_m) > s.return_at, True,
+                                  np.where(np.abs(y_m) < 0.5 * s.return_at, False, self.returning))
+        # end a slew early at the soft limit; then choose the next stretch when one ends
+        mode = np.where((mode > 0) & (delta_m >= s.soft_limit), 0.0, mode)
+        mode = np.where((mode < 0) & (delta_m <= -s.soft_limit), 0.0, mode)
+        due = now >= self.t_end
+        if np.any(due):
+            idx = np.minimum(self.n_made, self.n_dec - 1)
+            ul, ud = self.u_len[self.rows, idx], self.u_dir[self.rows, idx]
+            look = self.lookahead
+            want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m + look * yaw), -s.soft_limit, s.soft_limit)
+            if s.servo > 0:     # the servo keeps the line; the slews' directions are random
+                direction = np.where(self.returning, 0.0, np.sign(ud))
+            else:
+                noise = np.where(self.returning, 0.0, s.direction_noise * ud)
+                direction = np.sign(want - delta_m + noise)
+            slew_len = s.slew_min + ul * (s.slew_max - s.slew_min)
+            hold_len = np.where(self.returning, s.hold_min, s.hold_min + ul * (s.hold_max - s.hold_min))
+            start_slew = due & (mode == 0)
+            new_mode = np.where(start_slew, direction, 0.0)
+            mode = np.where(due, new_mode, mode)
+            self.t_end = np.where(due, now + np.where(start_slew, slew_len, hold_len), self.t_end)
+            self.n_made = self.n_made + due
+        self.mode = mode
+        if s.servo <= 0:
+            return mode * self.max_rate
+        look = self.lookahead
+        want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m + look * yaw), -s.soft_limit, s.soft_limit)
+        return np.clip(mode * self.max_rate + s.servo * (want - delta_m), -self.max_rate, self.max_rate)
+
+
+class ExcitationController:
+    """The slews as the vehicle loop's control law (one pass): :class:`SlewRule` on the loop's measurement.
+
+    Parameters
+    ----------
+    settings
+        The slews and the corridor (:class:`ExcitationSettings`).
+    rng
+        The pass's random generator (its slews and directions).
+    nominal_speed
+        The pass's nominal speed, m/s.
+    duration
+        The pass's planned length, s.
+    wheelbase
+        Wheelbase, m.
+    max_rate
+        Slew rate, rad/s (the valve's measured rate; the loop limits the command to its own ``max_rate``).
+    dt
+        Loop period, s.
+    """
+
+    name = "excitation"
+
+    def __init__(self, settings: ExcitationSettings, rng: np.random.Generator, nominal_speed: float,
+                 duration: float, wheelbase: float, max_rate: float, dt: float = 0.05) -> None:
+        for what, v in (("nominal_speed", nominal_speed), ("duration", duration), ("wheelbase", wheelbase),
+                        ("max_rate", max_rate), ("dt", dt)):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+                raise VehicleConfigError(f"excitation {what} must be a finite number > 0, got {v!r}")
+        self.settings, self.dt = settings, float(dt)
+        self._rule = SlewRule(settings, [rng], np.array([float(nominal_speed)]), float(duration) + 60.0,
+                              wheelbase, max_rate)
+        self._started = False
+
+    def reset(self) -> None:
+        self._started = False   # the settle time counts from the first step after an engage
+
+    def step(self, m: Measurement) -> float:
+        if not self._started:
+            self._rule.restart(m.t)
+            self._started = True
+        return float(self._rule.rate(m.t, np.array([m.wheel_angle]), np.array([m.cross_track]),
+                                     np.array([m.heading_error]))[0])
+
+    def estimate(self) -> tuple[float, ...]:
+        return ()

@@ -1,0 +1,134 @@
+"""Identification passes driven by the runtime (hil.vehicle.excitation): the slews stay in their corridor,
+stop on a takeover and a stale fix, and the pass log carries the receivers' epochs with their valid times;
+the bench drives the field procedure's passes and a procedure resumes without driving a recorded pass again."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from hil.bench.benches.valve import characterise_on_bench
+from hil.bench.commissioning.field_passes import drive_procedure_passes
+from hil.bench.runs.run import RunSpec, simulated_run
+from hil.cli import main as hil_main
+from hil.devices.emulate import EmulatedTractor
+from hil.truth.tractors import resolve_tractor
+from hil.vehicle.commissioning import Commissioning, save_commissioning
+from hil.vehicle.errors import VehicleConfigError
+from hil.vehicle.excitation import ExcitationController, ExcitationSettings
+from hil.vehicle.loop import LoopConfig
+from hil.vehicle.procedure import FieldPlan, Procedure, pass_faults
+from identification.delay import latency_from_valid_times
+from identification.passlog import PassLog
+
+PARAMS = resolve_tractor("default").params()
+
+
+@pytest.fixture(scope="module")
+def com() -> Commissioning:
+    curve, _ = characterise_on_bench(PARAMS, seed=5)
+    return Commissioning("default", curve, None)
+
+
+def _pass(com, speed=2.91, duration=40.0, seed=5, settings=None, **faults) -> PassLog:
+    settings = settings or ExcitationSettings()
+    ctl = ExcitationController(settings, np.random.default_rng(seed), speed, duration, PARAMS.vehicle.wheelbase,
+                               com.valve.max_rate)
+    config = settings.loop_config(LoopConfig(wheel_stop=PARAMS.steering.max_wheel_angle))
+    spec = RunSpec(implement="none", speed=speed, duration=duration, seed=seed, initial_cross_track=0.0, **faults)
+    return simulated_run(spec, ctl, PARAMS, loop_config=config, commissioning=com, epochs=True)
+
+
+def test_the_excitation_stays_in_its_corridor_and_logs_the_receivers_epochs(com):
+    log = _pass(com)
+    engaged = log.channels["engaged"] > 0.5
+    assert engaged.mean() > 0.9
+    assert np.max(np.abs(log.channels["truth_cross_track"][engaged])) < ExcitationSettings().corridor
+    # it excites: full-rate slews both ways, the wheel well away from the centre
+    u = log.channels["steer_rate_cmd"]
+    assert np.mean(np.abs(u) > 0.5 * com.valve.max_rate) > 0.2 and u.max() > 0 > u.min()
+    assert np.ptp(log.channels["wheel_angle"]) > 0.1
+    # the GPS channels are the epochs at arrival (5 and 10 Hz), with their times of validity
+    assert log.meta["sample_rates_hz"]["cross_track"] == pytest.approx(5.0, abs=0.5)
+    lat = latency_from_valid_times(log)
+    assert 0.0 < lat["position"][0] < 0.3
+    # the bench's attitude sentences carry no time tag: no valid time of their own, identification finds it
+    assert "attitude_valid_time" not in log.channels and "attitude" not in lat
+    assert "loop_cross_track" in log.channels and pass_faults(log, 40.0) == []
+
+
+def test_the_excitation_stops_on_a_takeover_and_on_a_stale_fix(com):
+    taken = _pass(com, speed=1.79, duration=30.0, override=((12.0, 14.0),))
+    events = [e for e in taken.meta["events"] if e["event"] == "disengage" and e["reason"] != "end of run"]
+    assert events and "override" in events[0]["reason"]
+    off = taken.channels["engaged"] < 0.5
+    assert np.all(taken.channels["steer_rate_cmd"][off] == 0.0)      # no command while disengaged
+    assert any("took over" in f for f in pass_faults(taken, 30.0))   # spoiled: driven again
+    stale = _pass(com, speed=1.79, duration=30.0, gps_outage=((12.0, 13.5),))
+    t = stale.times["t"]
+    off = (stale.channels["engaged"] < 0.5) & (t > 12.0) & (t < 14.0)
+    assert off.any() and np.all(stale.channels["steer_rate_cmd"][off] == 0.0)
+    assert any("gps" in e["reason"] for e in stale.meta["events"] if e["event"] == "disengage")
+
+
+def test_leaving_the_corridor_disengages_and_spoils_the_pass(com):
+    # the paper's open-loop rule (no servo) at the top speed wanders: the loop's corridor ends the excitation
+    wild = ExcitationSettings(servo=0.0, return_at=0.2, corridor=0.4)
+    log = _pass(com, speed=2.91, duration=40.0, seed=1, settings=wild)
+    engaged = log.channels["engaged"] > 0.5
+    assert np.max(np.abs(log.channels["loop_cross_track"][engaged])) <= 0.4 + 0.05
+    # it engages again only back inside the soft corridor
+    engages = [e for e in log.meta["events"] if e["event"] == "engage"]
+    t = log.times["t"]
+    for e in engages:
+        assert abs(log.channels["loop_cross_track"][np.searchsorted(t, e["t"])]) <= 0.2 + 0.05
+    assert any("corridor" in f for f in pass_faults(log, 40.0))
+
+
+def test_settings_are_checked():
+    with pytest.raises(VehicleConfigError, match="return_at"):
+        ExcitationSettings(return_at=2.0, corridor=1.5)
+    with pytest.raises(VehicleConfigError, match="servo"):
+        ExcitationSettings(servo=float("nan"))
+
+
+def test_the_bench_drives_the_procedure_and_a_resumed_procedure_drives_no_recorded_pass_again(com, tmp_path):
+    plan = FieldPlan(implements=("none",), speeds=(1.79,), passes=2, duration=20.0, valve_test=None)
+    save_commissioning(com, tmp_path / "commissioning.json")
+    first = drive_procedure_passes(tmp_path, plan, PARAMS, com, seed=4)
+    assert first["driven"] >= 2 and first["unfinished"] == [] and first["max_cross_track"] < 1.5
+    logs = sorted((tmp_path / "logs").glob("*.npz"))
+    stamps = {f.name: f.stat().st_mtime_ns for f in logs}
+    assert [f.name for f in logs] == ["none_1790mm_pass0.npz", "none_1790mm_pass1.npz"]
+    again = drive_procedure_passes(tmp_path, plan, PARAMS, com, seed=4)   # resumed: nothing left to drive
+    assert again["driven"] == 0 and {f.name: f.stat().st_mtime_ns for f in logs} == stamps
+    logs[1].unlink()                                                       # a pass lost: only that one again
+    third = drive_procedure_passes(tmp_path, plan, PARAMS, com, seed=4)
+    assert third["driven"] >= 1 and logs[0].stat().st_mtime_ns == stamps[logs[0].name]
+    assert Procedure.open(tmp_path).remaining() == []
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+@pytest.mark.timeout(120)
+def test_hil_drive_excite_drives_the_next_pass_of_the_procedure_on_the_emulated_tractor(com, tmp_path, capsys):
+    folder = tmp_path / "proc"
+    assert hil_main(["procedure", str(folder), "--implements", "none", "--speeds", "1.34", "--passes", "1",
+                     "--duration", "12"]) == 0
+    capsys.readouterr()
+    save_commissioning(com, folder / "commissioning.json")
+    with EmulatedTractor(implement="none", speed=1.34, duration=40.0, seed=7) as tractor:
+        args = tractor.setup.drive_args()
+        assert hil_main(["drive", *args, "--excite", str(folder), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["pass"].startswith("none at 1.34 m/s, pass 1") and result["faults"] == []
+    log = PassLog.load(folder / "logs" / "none_1340mm_pass0.npz")
+    assert log.meta["pass_index"] == 0 and "position_valid_time" in log.channels
+    assert np.mean(np.abs(log.channels["steer_rate_cmd"]) > 0) > 0.2
+    assert "every pass is recorded" in result["status"]["next"]
+    # nothing is left to drive: one line that says what comes next
+    assert hil_main(["drive", "--bridge", "/dev/null", "--position", "/dev/null", "--line=0,0,0,0.001",
+                     "--excite", str(folder)]) == 1
+    assert "every pass of" in capsys.readouterr().err

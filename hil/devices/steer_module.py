@@ -203,7 +203,8 @@ class SteerModule:
 
     def __init__(self, link: ByteLink, plant: SteeringPlant, config: SteerModuleConfig | None = None) -> None:
         self.config = config if config is not None else SteerModuleConfig()
-        self._link = link
+        #: The module's own port (on UDP, the socket whose address the host accepts datagrams from).
+        self.link = link
         self._plant = plant
         self._decoder = PgnStreamDecoder(self.config.verify_checksum)
         self._settings = self.config.settings
@@ -242,7 +243,7 @@ class SteerModule:
         if self._boot is None:
             return -math.inf
         try:
-            waiting = self._link.in_waiting
+            waiting = self.link.in_waiting
         except OSError:
             self._n["link_errors"] += 1
             waiting = 0
@@ -260,8 +261,8 @@ class SteerModule:
             self._switch_closed, self._switch_at = True, math.inf
         self._last_step = now
         try:
-            n = self._link.in_waiting
-            data = self._link.read(min(n, _READ_MAX)) if n > 0 else b""
+            n = self.link.in_waiting
+            data = self.link.read(min(n, _READ_MAX)) if n > 0 else b""
         except OSError:
             self._n["link_errors"] += 1
             data = b""
@@ -398,7 +399,7 @@ class SteerModule:
 
     def _write(self, frame: bytes) -> None:
         try:
-            self._link.write(frame)
+            self.link.write(frame)
         except OSError:   # nobody listening: the reply is lost, the module carries on
             self._n["link_errors"] += 1
             return

@@ -163,8 +163,12 @@ class Tractor:
 _JSON_STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"?', re.S)
 
 
-def _json_depth(text: str) -> int:
-    """Deepest nesting of arrays and objects in JSON ``text`` (strings skipped), in one pass."""
+def json_depth(text: str) -> int:
+    """Deepest nesting of arrays and objects in JSON ``text`` (strings skipped), in one pass.
+
+    The same count as :func:`identification.bounded.json_depth` (a test holds them equal): hil.truth
+    imports nothing of the toolkit, so it keeps this copy for its tractor files.
+    """
     step = np.zeros(256, np.int64)        # +1 for '[' and '{', -1 for ']' and '}', by byte value
     step[[ord("["), ord("{")]] = 1
     step[[ord("]"), ord("}")]] = -1
@@ -187,7 +191,7 @@ def _read_json(path: Path) -> Any:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SimulatorConfigError(f"{where}: not UTF-8 text at byte {exc.start}; expected JSON") from None
-    depth = _json_depth(text)
+    depth = json_depth(text)
     if depth > MAX_JSON_DEPTH:
         raise SimulatorConfigError(f"{where}: JSON nested {depth} deep; expected at most {MAX_JSON_DEPTH} "
                                    "levels (the file is damaged or not a tractor file)")

@@ -165,8 +165,8 @@ def test_a_changed_controller_file_is_not_resumed(tmp_path, monkeypatch):
 
     ctrl = design_robust(family(speeds=(1.0, 2.0), authorities=(1.0,)), RobustSpec(integral=True)).file.save(
         tmp_path / "robust.json")
-    Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0)._prepare()
-    Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0)._prepare()   # unchanged: resumes
+    Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0).prepare()
+    Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0).prepare()   # unchanged: resumes
     rewrite(ctrl, lambda b: b.__setitem__("name", "retuned"))                              # a valid, other file
     with pytest.raises(ValueError, match=r"changed since .* ran them; their saved passes are stale"):
-        Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0)._prepare()
+        Campaign(tmp_path / "c", [str(ctrl)], CONDS[:1], seeds=[0], duration=1.0).prepare()

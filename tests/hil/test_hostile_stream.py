@@ -191,7 +191,7 @@ def test_hil_drive_survives_a_udp_flood_from_the_modules_address_and_saves_its_l
     to exit 1 ("UDP link holds 1047494 unread bytes") without its log, its last frames still steering."""
     with EmulatedTractor(implement="none", speed=1.34, duration=40.0, seed=11, bridge="agopengps") as tractor:
         module = tractor.runner.devices[0]
-        module_link = module._link   # the module's own socket: the host accepts datagrams from its address only
+        module_link = module.link   # the module's own socket: the host accepts datagrams from its address only
         stop = threading.Event()
         sent = []
 

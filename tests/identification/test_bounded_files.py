@@ -290,7 +290,7 @@ def test_a_sparse_file_larger_than_the_limit_is_refused_from_its_size(tmp_path):
 @given(text=st.text(alphabet='[]{}"\\ ,:a1', max_size=200))
 def test_the_tractor_files_depth_check_agrees_with_the_one_reader(text):
     # hil.truth may not import identification (.importlinter), so it keeps a copy of the check
-    assert tractors._json_depth(text) == bounded.json_depth(text)
+    assert tractors.json_depth(text) == bounded.json_depth(text)
 
 
 def _depth(value) -> int:

@@ -141,7 +141,17 @@ class Campaign:
                          "controller_files": {c: hashlib.sha256(Path(c).read_bytes()).hexdigest()
                                               for c in controllers if c.endswith(".json")}}
 
-    def _prepare(self) -> None:
+    def prepare(self) -> None:
+        """Make the output folder, or check that the one there belongs to this campaign (the same simulator
+        parameters and duration, the controller files unchanged since their saved passes ran) and resume it.
+
+        :meth:`run` calls it first; on its own it checks a folder before any pass runs.
+
+        Raises
+        ------
+        SimulatorConfigError
+            The folder holds another campaign's passes, or a controller file changed since its passes ran.
+        """
         (self.out / "runs").mkdir(parents=True, exist_ok=True)
         ident = self.out / "campaign.json"
         if ident.exists():
@@ -197,7 +207,7 @@ class Campaign:
             raise SimulatorConfigError(f"executor must be one of {list(EXECUTORS)}, got {executor!r}")
         if executor == "local" and scheduler:
             raise SimulatorConfigError("--scheduler needs --executor dask")
-        self._prepare()
+        self.prepare()
         todo = self.pending()
         total, done = len(self.keys), len(self.keys) - len(todo)
         if progress:
@@ -258,7 +268,7 @@ class Campaign:
             Seconds per real-time pass; default: the campaign's.
         """
         specs, dur = self.realtime_plan(controllers, duration)
-        self._prepare()
+        self.prepare()
         seed = self.identity["seeds"][0]
         keys = [RunKey(ctrl, c.implement, c.speed, seed, dur, self.bridge) for ctrl in specs for c in conditions]
         for i, k in enumerate(keys):

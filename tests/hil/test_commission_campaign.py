@@ -18,8 +18,8 @@ from hil.truth.conditions import condition_for
 from hil.truth.tractors import random_tractor
 
 #: Short recipe of the tests: two conditions, short passes (about 30 s of CPU a tractor).
-SHORT = CommissionOptions(speeds=(1.0, 2.91), implements=("none",), passes=2, pass_duration=40.0,
-                          hil_duration=20.0, acceptance="warn")
+SHORT = CommissionOptions(procedure="slews", speeds=(1.0, 2.91), implements=("none",), passes=2,
+                          pass_duration=40.0, hil_duration=20.0, acceptance="warn")
 SIGMA = {"central-lqr": (0.040, 0.080), "robust": (0.030, 0.090), "mpc": (0.028, 0.060), "oracle": (0.025, 0.050)}
 
 
@@ -151,8 +151,8 @@ def test_a_campaign_survives_a_failing_tractor_and_resumes(tmp_path: Path) -> No
 #: with every default (weights from specifications, validated orders, the trials, three 60 s HIL passes per cell:
 #: with 30 s HIL passes random-1's disker cell at 2.24 m/s was 1.48x the oracle, against 1.10x with 60 s ones, on
 #: the same files; docs/tractor_campaign.md, "The short campaign of the tests").
-ACCEPTANCE = CommissionOptions(speeds=(1.0, 2.24), implements=("none", "disker"), passes=2, pass_duration=60.0,
-                               acceptance="warn")
+ACCEPTANCE = CommissionOptions(procedure="slews", speeds=(1.0, 2.24), implements=("none", "disker"), passes=2,
+                               pass_duration=60.0, acceptance="warn")
 
 
 @pytest.fixture(scope="module")
@@ -185,9 +185,9 @@ def test_a_short_campaign_on_three_generated_tractors_produces_controllers_that_
 @pytest.mark.long
 @pytest.mark.timeout(1800)
 def test_a_short_campaign_on_three_generated_tractors_stays_within_the_acceptance_bounds(short_campaign) -> None:
-    # the README's recipe: only the conditions, the identification passes and the acceptance differ from hil
-    # commission's defaults ("warn": a model that predicts badly is reported, the campaign goes on)
-    recipe = options_dict(CommissionOptions())
+    # the slews' recipe: only the conditions, the identification passes and the acceptance differ from its
+    # defaults ("warn": a model that predicts badly is reported, the campaign goes on)
+    recipe = options_dict(CommissionOptions(procedure="slews"))
     assert {k for k, v in options_dict(ACCEPTANCE).items() if v != recipe[k]} == {
         "speeds", "implements", "passes", "pass_duration", "acceptance"}
     for r in short_campaign["rows"]:

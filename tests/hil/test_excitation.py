@@ -132,3 +132,23 @@ def test_hil_drive_excite_drives_the_next_pass_of_the_procedure_on_the_emulated_
     assert hil_main(["drive", "--bridge", "/dev/null", "--position", "/dev/null", "--line=0,0,0,0.001",
                      "--excite", str(folder)]) == 1
     assert "every pass of" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_hil_commission_runs_the_field_procedure_and_counts_its_driving(tmp_path):
+    from hil.bench.commissioning.recipe import CommissionOptions, commission
+    from hil.truth.conditions import condition_for
+    opts = CommissionOptions(procedure="field", implements=("none",), speeds=(1.79,), passes=2, pass_duration=30.0,
+                             hil_conditions=(condition_for("none", 1.79),), hil_seeds=(0,), hil_duration=20.0,
+                             acceptance="warn", weights="default", fallback_order=None)
+    res = commission(resolve_tractor("default"), tmp_path, opts, say=lambda line: None)
+    ok = {s["step"]: s["ok"] for s in res["steps"]}
+    assert ok["valve"] and ok["passes"] and ok["identification"], res["steps"]
+    assert (tmp_path / "plan.json").is_file() and res["procedure"]["max_cross_track"] < 1.5
+    logs = sorted((tmp_path / "logs").glob("*.npz"))
+    assert [f.name for f in logs] == ["none_1790mm_pass0.npz", "none_1790mm_pass1.npz"]
+    assert "position_valid_time" in PassLog.load(logs[0]).channels
+    d = res["driving_s"]
+    assert d["trials"] == 0.0 and d["passes"] >= 60.0 - 1 and d["total"] == pytest.approx(d["valve test"] + d["passes"])
+    assert d["total"] <= 30 * 60

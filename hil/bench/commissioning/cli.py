@@ -19,11 +19,11 @@ from tqdm import tqdm
 from identification.cliutil import condition_pairs, resolve_seeds, seed_list, seeds_or_count
 
 from hil.bench.commissioning.campaign import commission_campaign
-from hil.bench.commissioning.recipe import CommissionOptions, commission
+from hil.bench.commissioning.recipe import PROCEDURES, CommissionOptions, commission
 from hil.commissioning.designs import WEIGHTS
 from hil.commissioning.from_logs import LATENCY_SOURCES, LogOptions, commission_from_logs
 from hil.errors import SimulatorConfigError
-from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, all_conditions, condition_for
+from hil.truth.conditions import IMPLEMENTS, all_conditions, condition_for
 from hil.truth.tractors import Tractor, random_tractor, resolve_tractor
 
 __all__ = ["add_commission_parser", "run_commission", "run_commission_campaign"]
@@ -54,12 +54,19 @@ def _hil_conditions(text: str):
 
 def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     """The recipe's options, shared by ``commission`` and ``commission-campaign``."""
-    c.add_argument("--speeds", nargs="+", type=number, default=list(GEAR_SPEEDS.values()), metavar="M_PER_S",
-                   help="speeds of the identification passes, m/s (default: the paper's five gears)")
+    c.add_argument("--procedure", choices=PROCEDURES, default="slews",
+                   help="slews (default): the paper's open-loop slews at every speed with the window and estimate "
+                        "trials; field: the field procedure as on a tractor, the runtime's excitation in its corridor "
+                        "within 30 min of driving, no trial drives")
+    c.add_argument("--speeds", nargs="+", type=number, default=None, metavar="M_PER_S",
+                   help="speeds of the identification passes, m/s (default: 1.0 1.79 2.91 for the field procedure, "
+                        "the paper's five gears for the slews)")
     c.add_argument("--implements", nargs="+", choices=IMPLEMENTS, default=list(IMPLEMENTS),
                    help="implements of the identification passes (default: all three), each at every speed")
-    c.add_argument("--passes", type=int, default=3, help="identification passes per condition (default 3)")
-    c.add_argument("--duration", type=number, default=120.0, help="seconds per identification pass (default 120)")
+    c.add_argument("--passes", type=int, default=None,
+                   help="identification passes per condition (default 2 for the field procedure, 3 for the slews)")
+    c.add_argument("--duration", type=number, default=None,
+                   help="seconds per identification pass (default 80 for the field procedure, 120 for the slews)")
     c.add_argument("--seed", type=int, default=1997, help="seed of the passes and the valve test (default 1997)")
     c.add_argument("--hil-seeds", type=seeds_or_count, default=3, metavar="SEEDS",
                    help="seeds of the closed-loop passes, one per condition and controller each: 0-2, 0,1,2 or 0-4,7 "
@@ -77,16 +84,17 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
                    help="Markov parameters (past window)")
     c.add_argument("--acceptance", choices=("refuse", "warn"), default="refuse",
                    help="a model that does not predict: stop (refuse) or go on with a warning")
-    c.add_argument("--more-passes", type=int, default=2, metavar="ROUNDS",
+    c.add_argument("--more-passes", type=int, default=None, metavar="ROUNDS",
                    help="with --acceptance refuse: rounds of --passes more passes of the conditions a refused model "
                         "came from, each followed by identification again, before the refusal stops the recipe "
-                        "(0..5, default 2)")
+                        "(0..5; default 2 with the slews; the field procedure re-drives spoiled passes instead)")
     c.add_argument("--disturbance-estimate", choices=("on", "off"), default="on",
                    help="the robust controller and the MPC with the disturbance estimate (design robust/mpc "
                         "--disturbance-estimate; default on)")
-    c.add_argument("--estimate-trial", choices=("on", "off"), default="on",
+    c.add_argument("--estimate-trial", choices=("on", "off"), default=None,
                    help="choose per speed whether the estimate acts, by a trial drive with it and without it "
-                        "(design estimate-schedule; default on)")
+                        "(design estimate-schedule; default on with the slews, off with the field procedure, "
+                        "whose budget has no trial drives)")
     c.add_argument("--oracle-search", choices=("on", "off"), default="off",
                    help="search the oracle's weights per condition before the HIL comparison (its own seeds, "
                         "scales of its weights from 0.25 to 2.8; default off)")
@@ -130,13 +138,15 @@ def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> 
 
 def commission_options(args: argparse.Namespace) -> CommissionOptions:
     """The recipe's options from the parsed command line."""
-    return CommissionOptions(speeds=tuple(args.speeds), implements=tuple(args.implements), passes=args.passes,
+    return CommissionOptions(procedure=args.procedure, speeds=None if args.speeds is None else tuple(args.speeds),
+                             implements=tuple(args.implements), passes=args.passes,
                              pass_duration=args.duration, seed=args.seed,
                              hil_seeds=resolve_seeds(args.hil_seeds, None, 0),
                              hil_duration=args.hil_duration, hil_conditions=args.hil_conditions,
                              weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance,
                              more_passes=args.more_passes, disturbance_estimate=args.disturbance_estimate == "on",
-                             estimate_trial=args.estimate_trial == "on", oracle_search=args.oracle_search == "on")
+                             estimate_trial=None if args.estimate_trial is None else args.estimate_trial == "on",
+                             oracle_search=args.oracle_search == "on")
 
 
 def _reporters(quiet: bool):

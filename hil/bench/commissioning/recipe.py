@@ -56,8 +56,17 @@ from hil.errors import SimulatorConfigError
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, Condition, all_conditions
 from hil.truth.tractors import Tractor
 from hil.vehicle.commissioning import Commissioning, save_commissioning
+from hil.vehicle.procedure import FieldPlan
+from hil.vehicle.valve_steps import ValveTestPlan
+from hil.bench.commissioning.field_passes import MAX_DRIVES, drive_procedure_passes
+from identification.passlog import PassLog
 
-__all__ = ["CommissionOptions", "commission", "options_dict"]
+__all__ = ["PROCEDURES", "CommissionOptions", "commission", "driving_seconds", "options_dict"]
+
+#: How the recipe gets its identification passes: ``field``, the field procedure's (the runtime's excitation in its
+#: corridor, within the driving budget, no trial drives; :mod:`hil.bench.commissioning.field_passes`), or
+#: ``slews``, the paper's open-loop slews on every condition with the window and estimate trials.
+PROCEDURES = ("field", "slews")
 
 
 
@@ -67,10 +76,18 @@ class CommissionOptions:
 
     Attributes
     ----------
+    procedure
+        ``"slews"`` (default): the paper's open-loop slews at every speed and implement, more passes where a
+        model is refused, the window and estimate trials. ``"field"``: the field procedure as a tractor drives it
+        (:mod:`hil.bench.commissioning.field_passes`: the runtime's excitation in its corridor, the plan of
+        :class:`hil.vehicle.procedure.FieldPlan`, spoiled passes driven again, no trial drives); its HIL
+        comparison covers the paper's five speeds. ``result.json`` gives ``driving_s`` either way.
     speeds, implements
-        Conditions of the identification passes and of the HIL comparison (default: the paper's 15).
+        Conditions of the identification passes and of the HIL comparison (default: the paper's 15 with the
+        slews; 1.0, 1.79 and 2.91 m/s with each implement for the field procedure).
     passes, pass_duration
-        Identification passes per condition and their length, s.
+        Identification passes per condition and their length, s (default 3 x 120 s with the slews, 2 x 80 s for
+        the field procedure).
     seed
         Seed of the passes and of the valve test; the HIL passes use ``hil_seeds``.
     hil_seeds, hil_duration
@@ -91,7 +108,7 @@ class CommissionOptions:
     acceptance
         ``"refuse"`` (a model that does not predict stops the recipe) or ``"warn"``.
     more_passes
-        With ``acceptance="refuse"``: rounds of more identification passes (``passes`` more of each
+        (Slews; default 2, the field procedure has none.) With ``acceptance="refuse"``: rounds of more identification passes (``passes`` more of each
         condition a refused model came from, :mod:`hil.bench.commissioning.identify`) before a refusal stops the
         recipe (0: none).
     integral
@@ -118,10 +135,11 @@ class CommissionOptions:
         per speed, where another is better there (:mod:`hil.bench.commissioning.window_trial`; apart from ``hil_seeds``).
     """
 
-    speeds: tuple[float, ...] = tuple(GEAR_SPEEDS.values())
+    procedure: str = "slews"
+    speeds: tuple[float, ...] | None = None
     implements: tuple[str, ...] = IMPLEMENTS
-    passes: int = 3
-    pass_duration: float = 120.0
+    passes: int | None = None
+    pass_duration: float | None = None
     seed: int = 1997
     hil_seeds: tuple[int, ...] = (0, 1, 2)
     hil_duration: float = 60.0
@@ -130,17 +148,31 @@ class CommissionOptions:
     order: int | str = "validate"
     markov: int | str = "auto"
     acceptance: str = "refuse"
-    more_passes: int = 2
+    more_passes: int | None = None
     integral: bool = True
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
     disturbance_estimate: bool = True
-    estimate_trial: bool = True
+    estimate_trial: bool | None = None
     trial_seeds: tuple[int, ...] = TRIAL_SEEDS
     window_seeds: tuple[int, ...] = WINDOW_SEEDS
     oracle_search: bool = False
 
     def __post_init__(self) -> None:
+        if self.procedure not in PROCEDURES:
+            raise SimulatorConfigError(f"procedure must be one of {list(PROCEDURES)}, got {self.procedure!r}")
+        field = self.procedure == "field"
+        plan = FieldPlan()
+        for name, value in (("speeds", plan.speeds if field else tuple(GEAR_SPEEDS.values())),
+                            ("passes", plan.passes if field else 3),
+                            ("pass_duration", plan.duration if field else 120.0),
+                            ("more_passes", 0 if field else 2), ("estimate_trial", not field)):
+            if getattr(self, name) is None:     # the procedure's default
+                object.__setattr__(self, name, value)
+        object.__setattr__(self, "speeds", tuple(self.speeds))
+        if field and self.more_passes:
+            raise SimulatorConfigError("more_passes: the field procedure re-drives spoiled passes itself and "
+                                       "has no rounds of more passes; use procedure 'slews' for those")
         SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
                   duration=self.pass_duration, seed=self.seed)   # validates those
         if not self.hil_seeds or not all(isinstance(s, int) and s >= 0 for s in self.hil_seeds):
@@ -166,10 +198,16 @@ class CommissionOptions:
             raise SimulatorConfigError(f"more_passes must be 0..5 rounds, got {self.more_passes!r}")
 
     def conditions(self) -> list[Condition]:
-        """The HIL comparison's conditions."""
+        """The HIL comparison's conditions (default: the paper's five speeds for each implement with the field
+        procedure, whose passes are at three of them; the passes' conditions with the slews)."""
         if self.hil_conditions is not None:
             return list(self.hil_conditions)
-        return all_conditions(tuple(self.speeds), tuple(self.implements))
+        speeds = tuple(GEAR_SPEEDS.values()) if self.procedure == "field" else tuple(self.speeds)
+        return all_conditions(speeds, tuple(self.implements))
+
+    def field_plan(self) -> FieldPlan:
+        """The field procedure's plan: the implements, speeds, passes and their length; the valve test."""
+        return FieldPlan(tuple(self.implements), tuple(self.speeds), self.passes, self.pass_duration)
 
 
 def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | None = None,
@@ -221,12 +259,23 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
 
     plan = SysidPlan(speeds=opts.speeds, implements=opts.implements, passes=opts.passes,
                      duration=opts.pass_duration, seed=opts.seed)
+    field = opts.procedure == "field"
 
     def passes() -> list[str]:
+        if field:   # the field procedure's passes, driven by the runtime's excitation through the loop
+            r = drive_procedure_passes(out, opts.field_plan(), params, com, opts.seed,
+                                       progress=lambda d, n: tick("passes", d, n))
+            res["procedure"] = r
+            if r["unfinished"]:
+                raise SimulatorConfigError(f"{len(r['unfinished'])} passes were spoiled {MAX_DRIVES} times "
+                                           f"({r['unfinished'][0]}, ...): see {out / 'spoiled'}")
+            return [str(f) for f in sorted((out / "logs").glob("*.npz"))]
         made = make_passes(plan, params, progress=lambda d, n: tick("passes", d, n), valve=com.valve)
         return [str(log.save(out / "logs" / f"{name}.npz")) for name, log in made]
-    logs = steps.run("passes", f"identification passes through the inverse map ({opts.passes} per condition, "
-                     f"{opts.pass_duration:g} s)", passes) if com is not None else None
+    what = (f"identification passes driven by the runtime's excitation in its corridor ({opts.passes} per speed "
+            f"and implement, {opts.pass_duration:g} s, spoiled ones driven again)" if field else
+            f"identification passes through the inverse map ({opts.passes} per condition, {opts.pass_duration:g} s)")
+    logs = steps.run("passes", what, passes) if com is not None else None
 
     models_dir = out / "models"
 
@@ -308,11 +357,33 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
                       f"{len(opts.hil_seeds)} seed(s), {opts.hil_duration:g} s, commissioned loop)",
                       hil) if com is not None else None
     res["hil"] = table or []
+    res["driving_s"] = driving_seconds(opts, res, out)
     res["steps"] = steps.record
     res["files"] = write_commission_report(res, out)
     with atomic_write(out / "result.json", "w") as fh:   # whole or not at all: a campaign takes it as complete
         fh.write(json.dumps(res, indent=2, default=_jsonable) + "\n")
     return res
+
+
+def driving_seconds(opts: CommissionOptions, res: dict, out: Path) -> dict:
+    """Seconds of driving the recipe took on the tractor, per step and ``total``: the valve test, the passes
+    (spoiled ones and any more passes included) and the trial drives (window and estimate trials)."""
+    if opts.procedure == "field":
+        valve = FieldPlan().seconds()["valve test"] if (out / "commissioning.json").is_file() else 0.0
+    else:
+        valve = ValveTestPlan().longest_duration() if (out / "commissioning.json").is_file() else 0.0
+    passes = 0.0
+    for folder in (out / "logs", out / "spoiled"):
+        for f in sorted(folder.glob("*.npz")) if folder.is_dir() else []:
+            try:
+                passes += PassLog.load(f).duration
+            except (ValueError, OSError):
+                continue
+    trials = 0.0
+    for r in [res.get("window_trial")] + list((res.get("estimate_trial") or {}).values()):
+        if isinstance(r, dict) and isinstance(r.get("driving_s"), (int, float)):
+            trials += float(r["driving_s"])
+    return {"valve test": valve, "passes": passes, "trials": trials, "total": valve + passes + trials}
 
 
 def _jsonable(o: object) -> object:

@@ -40,7 +40,7 @@ from identification.passlog import MAX_NOMINAL_SPEED, PassLog
 from hil.vehicle.agio.driver import ANGLE_CALIBRATION, AgioDriver, AgioDriverConfig, module_loop_config
 from hil.vehicle.agio.spec import open_agio_link, parse_bridge
 from hil.vehicle.isobus.driver import ANGLE_CALIBRATION as ISOBUS_CALIBRATION, IsobusDriverConfig
-from hil.vehicle.isobus.link import isobus_loop_config, open_isobus_link
+from hil.vehicle.isobus.link import isobus_driver_config, isobus_loop_config, open_isobus_link
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.errors import HilError
 from hil.vehicle.errors import VehicleConfigError
@@ -225,7 +225,7 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
             except (serial.SerialException, OSError) as exc:
                 raise HilError(f"cannot open a serial port: {exc}") from None
             clock = RealClock()
-            driver = (bridge.driver(clock, IsobusDriverConfig(wheelbase=cfg.wheelbase)) if isobus
+            driver = (bridge.driver(clock, isobus_driver_config(cfg.wheelbase)) if isobus
                       else AgioDriver(bridge, clock, cfg.agio) if agio else BridgeDriver(bridge, clock))
             frontend = GnssFrontEnd(FrontEndConfig(origin=origin, lever_arm=cfg.lever_arm), sources=sources,
                                     clock=clock.now)

@@ -23,7 +23,7 @@ from hil.links.clock import VirtualClock
 from hil.links.scheduler import Device, LockstepScheduler
 from hil.vehicle.calibration import WheelAngleCalibration
 from hil.vehicle.isobus.driver import IsobusDriver, IsobusDriverConfig
-from hil.vehicle.isobus.link import IsobusLink
+from hil.vehicle.isobus.link import IsobusLink, isobus_driver_config
 
 __all__ = ["IsobusLockstepBench"]
 
@@ -45,7 +45,7 @@ class IsobusLockstepBench:
         The tractor's ground speed, m/s (the controller's speed window); None: always inside it.
     controller_config, driver_config : optional
         Of the controller (default: ``calibration``, ``wheelbase`` and the defaults) and of the driver
-        (default: ``wheelbase`` and the defaults).
+        (default: the vehicle's, :func:`hil.vehicle.isobus.link.isobus_driver_config`).
     extra_devices : sequence of Device, optional
         Further devices on the clock (receivers), stepped after the controller.
     max_step : float, optional
@@ -75,7 +75,7 @@ class IsobusLockstepBench:
             config = controller_config or IsobusControllerConfig(calibration=calibration, wheelbase=wheelbase)
             self.firmware = IsobusController(self._device_bus, plant, config, speed=speed)
             self.scheduler = LockstepScheduler(self.clock, [self.firmware, *extra_devices], plant, max_step=max_step)
-            self.driver: IsobusDriver = self.link.driver(self.clock, driver_config or IsobusDriverConfig(wheelbase))
+            self.driver: IsobusDriver = self.link.driver(self.clock, driver_config or isobus_driver_config(wheelbase))
         except BaseException:
             self.close()
             raise

@@ -7,10 +7,15 @@ import json
 
 import pytest
 
+from hil.bench.benches.isobus import IsobusLockstepBench
 from hil.bench.runs.run import RunSpec
 from hil.cli import main as hil_main
 from hil.devices.faults import LinkFault
+from hil.devices.plant import SimulatedTractor
+from hil.devices.technician import two_point_calibration
 from hil.errors import SimulatorConfigError
+from hil.truth.conditions import condition_for
+from hil.vehicle.isobus.driver import IsobusDriverConfig
 from identification.passlog import PassLog
 
 pytestmark = pytest.mark.timeout(120)
@@ -57,3 +62,34 @@ def test_compare_runs_every_pass_through_the_steering_controller(tmp_path, capsy
     runs = [json.loads(r.read_text()) for r in sorted((tmp_path / "campaign" / "runs").glob("*__isobus.json"))]
     assert len(runs) == 2 and all(r["bridge"] == "isobus" and r["mode"] == "lockstep" for r in runs)
     assert all(r["disengagements"] == 0 and r["engaged_fraction"] > 0.8 for r in runs)
+
+
+def ramp(driver_config=None, rate=0.35, seconds=0.8):
+    """The wheel ramped at ``rate`` rad/s for ``seconds`` from straight ahead through the lockstep bench;
+    returns (driver, integral of the rates commanded, angle measured 0.5 s after the ramp)."""
+    plant = SimulatedTractor(condition_for("none", 1.79), 10.0, 0)
+    p = plant.params
+    with IsobusLockstepBench(plant, two_point_calibration(p.sensor, p.steering), p.vehicle.wheelbase,
+                             driver_config=driver_config, max_step=0.01) as bench:
+        t, d = 0.0, bench.driver
+        for _ in range(20):                      # the claim, the handshake
+            t += 0.05
+            bench.clock.sleep_until(t)
+            d.poll()
+        d.engage()
+        start = d.latest.angle
+        for k in range(round((seconds + 0.5) / 0.05)):
+            t += 0.05
+            bench.clock.sleep_until(t)
+            d.poll()
+            d.send_rate(rate if k < round(seconds / 0.05) else 0.0)
+        return d, rate * seconds, d.latest.angle - start
+
+
+def test_the_setpoint_of_a_wheel_that_follows_at_full_rate_is_not_clipped():
+    """The vehicle's driver settings hold the setpoint within the controller's lag x the full rate of the
+    measured angle: a healthy wheel gets the whole ramp. The driver's generic 0.05 rad clips it."""
+    driver, commanded, moved = ramp()
+    assert driver.stats().limited == 0 and moved == pytest.approx(commanded, abs=0.015)
+    clipped, commanded, moved = ramp(IsobusDriverConfig(wheelbase=2.85, max_windup=0.05))
+    assert clipped.stats().limited > 5 and moved < commanded - 0.05

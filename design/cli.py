@@ -1,5 +1,7 @@
 """``design`` command: controller design as a thin layer over :mod:`design`.
 
+::
+
     design kinematic [--speeds ...] [--dt S | --continuous] [--plot FILE] [--json]
     design robust --models models/*.npz [--formulation common|extended] [--integral] [--solver clarabel|scs]
                   [--pole-radius R] [--rate-limit U] --out controllers/robust.json [--json]

@@ -2,11 +2,14 @@
 
 Commands
 --------
-``gnss decode FILE [--summary | --json] [--plot OUT.png]``   the capture's messages as JSON lines, one object per
+``gnss decode FILE [--summary | --json] [--plot OUT.png]``
+    the capture's messages as JSON lines, one object per
     message (``--summary``: the summary as text, ``--json``: the summary as one JSON object)
-``gnss replay FILE [--json] [--plot OUT.png]``   the summary of a capture (messages per type, rates, fix quality,
+``gnss replay FILE [--json] [--plot OUT.png]``
+    the summary of a capture (messages per type, rates, fix quality,
     track), as text or JSON
-``gnss xtrack FILE --a LAT,LON --b LAT,LON [--offset M] [--json]``   cross-track against an AB line
+``gnss xtrack FILE --a LAT,LON --b LAT,LON [--offset M] [--json]``
+    cross-track against an AB line
 """
 
 from __future__ import annotations

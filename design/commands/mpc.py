@@ -1,5 +1,7 @@
 """Sub-command ``design mpc`` (parse, call :mod:`design.synthesis.recipes`, print).
 
+::
+
     design mpc --models models/*.npz --horizon N [--backend casadi|osqp] [--solver daqp|qpoases|...]
                [--output-max Y PSI DELTA] [--wheel-limit RAD]
                [--fallback controllers/robust.json] --out controllers/mpc.json [--json]

@@ -1,5 +1,5 @@
 """The design recipes as library functions: the robust controller and the MPC, as ``design robust`` and
-``design mpc`` make them, callable from Python with typed options.
+``design mpc`` make them, callable from Python with typed options::
 
     models = load_models(["models/"])
     result = design_robust_controller([m for m in models if m.meta["kind"] == "local"],

@@ -1,5 +1,7 @@
 """``hil`` bench sub-commands: the truth simulator and the bench, as a thin layer over :mod:`hil`.
 
+::
+
     hil sysid --out logs/ [--speeds ...] [--implements ...] [--passes N] [--duration S] [--seed S]
     hil compare CONTROLLER... --out DIR [--conditions all|IMPLEMENT:SPEED,...] [--seeds 0-1]
     hil plot LOG.npz --out figure.png

@@ -1,7 +1,7 @@
 """Emulated MC68HC11 steering-bridge firmware: serial commands in, valve PWM out, wheel angle reported.
 
 Behaviour (the contract the host and the tests rely on)
-------------------------------------------------------
+-------------------------------------------------------
 * Boot (first :meth:`BridgeFirmware.step`): valve closed (``set_valve_duty(0)``),
   disengaged, reports every ``report_period`` from then on.
 * Line timing: every received byte occupies the line for one byte time

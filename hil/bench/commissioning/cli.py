@@ -2,6 +2,8 @@
 tractor, and on many (thin layers over :func:`hil.bench.commissioning.recipe.commission` and
 :func:`hil.bench.commissioning.campaign.commission_campaign`).
 
+::
+
     hil commission --tractor NAME|FILE --out DIR [--speeds ...] [--implements ...] [--passes N]
         [--duration S] [--seed S] [--hil-seeds SEEDS] [--hil-duration S] [--hil-conditions all|IMPLEMENT:SPEED,...]
         [--weights auto-if-available|auto|default] [--order N|auto|validate] [--markov N|auto|validate]

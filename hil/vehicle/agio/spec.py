@@ -1,5 +1,7 @@
 """Bridge specifications of ``hil drive --bridge``: which steering bridge, over which link.
 
+::
+
     hc11:PORT                          the HC11 board on a serial port (a bare PORT means the same)
     agopengps:serial:PORT              an AgOpenGPS steer module on a USB serial port
     agopengps:udp:HOST:PORT[:LOCAL]    an AgOpenGPS steer module over UDP: it listens on HOST:PORT

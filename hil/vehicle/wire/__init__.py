@@ -2,10 +2,13 @@
 
 Modules
 -------
-table    Fields, message layouts and :class:`MessageTable`: the generic strict payload codec.
-frame    :class:`FrameFormat` (a frame grammar: encode, strict decode) and :class:`Deframer`
-         (the resynchronising stream decoder with counted, typed refusals).
-errors   :class:`TableError` (a table or grammar that cannot work) and :class:`ErrorSet`.
+table
+    Fields, message layouts and :class:`MessageTable`: the generic strict payload codec.
+frame
+    :class:`FrameFormat` (a frame grammar: encode, strict decode) and :class:`Deframer`
+    (the resynchronising stream decoder with counted, typed refusals).
+errors
+    :class:`TableError` (a table or grammar that cannot work) and :class:`ErrorSet`.
 
 A protocol keeps only what is its own: its message dataclasses, its table, its error classes,
 its frame grammar and its checksum. :mod:`hil.vehicle.bridge.protocol` (the HC11 bridge: sync

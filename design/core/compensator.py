@@ -17,11 +17,12 @@ not see a step from zero to the present errors.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from identification.checks import finite
 
 from design.core.errors import DesignInputError
 
@@ -81,9 +82,7 @@ class Compensator:
         cc = as_matrix(self.Cc, "Cc", (m, nc))
         ec = as_matrix(np.zeros((nc, m)) if self.Ec is None else self.Ec, "Ec", (nc, m))
         x0 = as_matrix(np.zeros((nc, q)) if self.X0 is None else self.X0, "X0", (nc, q))
-        dt = self.dt
-        if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not math.isfinite(dt) or dt <= 0:
-            raise DesignInputError(f"dt must be a finite sample time > 0 s, got {dt!r}")
+        dt = finite(self.dt, "dt", lo=0.0, lo_open=True, unit="s", error=DesignInputError)
         for name, v in (("Ac", ac), ("Bc", bc), ("Cc", cc), ("Dc", dc), ("Ec", ec), ("X0", x0)):
             object.__setattr__(self, name, v)
         object.__setattr__(self, "dt", float(dt))

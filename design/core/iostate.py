@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.checks import finite
+
 from design.core.compensator import Compensator
 from design.core.errors import DesignInputError
 
@@ -59,9 +61,8 @@ class IOStateLayout:
 
     def __post_init__(self) -> None:
         for name in ("n_outputs", "n_inputs", "past"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise DesignInputError(f"IOStateLayout.{name} must be an integer >= 1, got {v!r}")
+            object.__setattr__(self, name, finite(getattr(self, name), name, lo=1, integer=True, where="IOStateLayout",
+                                                  error=DesignInputError))
         integral = tuple(self.integral)
         if any(isinstance(j, bool) or not isinstance(j, (int, np.integer)) or not 0 <= j < self.n_outputs
                for j in integral) or len(set(integral)) != len(integral):

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from identification.checks import positive
+
 from design.core.errors import DesignError, DesignInputError
 from design.core.lqr import dlqr
 
@@ -49,8 +51,7 @@ class KinematicWeights:
 
     def __post_init__(self) -> None:
         for k, v in self.__dict__.items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise DesignInputError(f"KinematicWeights.{k} must be a finite number > 0, got {v!r}")
+            positive(v, k, where="KinematicWeights", error=DesignInputError)
 
 
 def kinematic_model(speed: float, wheelbase: float = 2.85, d2: float = 1.14) -> tuple[np.ndarray, np.ndarray]:
@@ -65,9 +66,8 @@ def kinematic_model(speed: float, wheelbase: float = 2.85, d2: float = 1.14) -> 
     d2
         Control point ahead of the rear axle, m (0 <= d2 <= wheelbase).
     """
-    for name, v in (("speed", speed), ("wheelbase", wheelbase)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-            raise DesignInputError(f"{name} must be a finite number > 0, got {v!r}")
+    positive(speed, "speed", unit="m/s", error=DesignInputError)
+    positive(wheelbase, "wheelbase", unit="m", error=DesignInputError)
     if not (isinstance(d2, (int, float)) and math.isfinite(d2) and 0 <= d2 <= wheelbase):
         raise DesignInputError(f"d2 must lie in [0, wheelbase={wheelbase}] m, got {d2!r}")
     a = np.array([[0.0, speed, speed * d2 / wheelbase],

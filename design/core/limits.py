@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 from typing import Any, Sequence
 
+from identification.checks import finite
 from identification.model import Model
 
 from design.core.errors import DesignInputError
@@ -70,10 +71,7 @@ def check_model_order(models: Sequence[Model], error: type[Exception] = DesignIn
 
 def check_horizon(horizon: Any, error: type[Exception] = DesignInputError) -> int:
     """The MPC horizon as an int in ``1..MAX_HORIZON``, checked before anything is allocated."""
-    if isinstance(horizon, bool) or not isinstance(horizon, int):
-        raise error(f"horizon must be an integer >= 1, got {horizon!r}")
-    if horizon < 1:
-        raise error(f"horizon must be an integer >= 1, got {horizon!r}")
+    horizon = finite(horizon, "horizon", lo=1, integer=True, error=error)
     if horizon > MAX_HORIZON:
         raise error(f"horizon {horizon} exceeds MAX_HORIZON = {MAX_HORIZON} steps (50 s at 20 Hz); "
                     "use a shorter horizon")

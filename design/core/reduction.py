@@ -32,6 +32,7 @@ from typing import Sequence
 import numpy as np
 import scipy.linalg as sla
 
+from identification.checks import finite
 from identification.model import Model
 
 from design.core.errors import DesignInputError
@@ -164,8 +165,7 @@ def design_model(model: Model, past: int, conditioning: float = WINDOW_CONDITION
         The model to synthesise on (``model`` itself when its window conditioning is already at
         least ``conditioning``), and ``{"order", "design_order", "conditioning", "error_bound"}``.
     """
-    if isinstance(past, bool) or not isinstance(past, int) or past < 1:
-        raise DesignInputError(f"past must be an integer >= 1, got {past!r}")
+    past = finite(past, "past", lo=1, integer=True, error=DesignInputError)
     if not (isinstance(conditioning, (int, float)) and 0 < conditioning < 1):
         raise DesignInputError(f"conditioning must lie in (0, 1), got {conditioning!r}")
     # judged in the balanced basis (the conditioning of a window depends on the state basis; the

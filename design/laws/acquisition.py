@@ -29,6 +29,8 @@ import math
 
 import numpy as np
 
+from identification.checks import positive
+
 from design.core.errors import DesignInputError
 
 #: Cross-track within which the line counts as acquired even without a crossing, m.
@@ -57,9 +59,7 @@ class IntegralGate:
     """
 
     def __init__(self, band: float = ACQUIRE_BAND_M, crossing: bool = True) -> None:
-        if isinstance(band, bool) or not isinstance(band, (int, float)) or not (math.isfinite(band) and band > 0):
-            raise DesignInputError(f"acquisition band must be a finite distance > 0 m, got {band!r}")
-        self.band = float(band)
+        self.band = positive(band, "acquisition band", unit="m", error=DesignInputError)
         self.crossing = bool(crossing)
         self.reset()
 

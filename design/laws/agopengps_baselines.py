@@ -74,6 +74,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from identification.checks import finite
+
 from design.laws.controller import Measurement
 from design.laws.curvature import path_heading, path_offset
 from design.core.errors import DesignInputError
@@ -83,9 +85,7 @@ KMH = 3.6          # km/h per m/s: AgOpenGPS's speeds are in km/h
 
 def _check(obj) -> None:
     for f in fields(obj):
-        v = getattr(obj, f.name)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            raise DesignInputError(f"{type(obj).__name__}.{f.name} must be a finite number >= 0, got {v!r}")
+        finite(getattr(obj, f.name), f.name, lo=0.0, where=type(obj).__name__, error=DesignInputError)
     if obj.side_hill_comp != 0:
         raise DesignInputError(f"{type(obj).__name__}.side_hill_comp must be 0: the loop's measurement carries "
                                f"no roll, so side-hill compensation cannot act (got {obj.side_hill_comp!r})")

@@ -55,6 +55,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from identification.checks import finite
+
 from design.laws.controller import Measurement
 from design.laws.curvature import path_heading, path_offset, steady_state
 from design.core.errors import DesignInputError
@@ -62,9 +64,7 @@ from design.core.errors import DesignInputError
 
 def _check(obj) -> None:
     for f in fields(obj):
-        v = getattr(obj, f.name)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            raise DesignInputError(f"{type(obj).__name__}.{f.name} must be a finite number >= 0, got {v!r}")
+        finite(getattr(obj, f.name), f.name, lo=0.0, where=type(obj).__name__, error=DesignInputError)
 
 
 @dataclass(frozen=True)

@@ -44,6 +44,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from identification.checks import finite, positive
+
 from design.laws.controller import Measurement
 from design.core.errors import DesignInputError
 
@@ -191,13 +193,9 @@ class Reference:
 
     def __init__(self, dt: float, rate_limit: float, latency: float = 0.0, wheelbase: float = WHEELBASE_M,
                  d2: float = D2_M, approach: bool = True) -> None:
-        for name, v in (("dt", dt), ("rate_limit", rate_limit)):
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
-                raise DesignInputError(f"Reference: {name} must be a finite number > 0, got {v!r}")
-        if isinstance(latency, bool) or not isinstance(latency, (int, float)) or not (
-                math.isfinite(latency) and 0 <= latency <= 1.0):
-            raise DesignInputError(f"Reference: latency must be 0-1 s, got {latency!r}")
-        self.dt, self.rate_limit, self.latency = float(dt), float(rate_limit), float(latency)
+        self.dt = positive(dt, "dt", unit="s", where="Reference", error=DesignInputError)
+        self.rate_limit = positive(rate_limit, "rate_limit", unit="rad/s", where="Reference", error=DesignInputError)
+        self.latency = finite(latency, "latency", lo=0.0, hi=1.0, unit="s", where="Reference", error=DesignInputError)
         self.wheelbase, self.d2 = float(wheelbase), float(d2)
         self.plans_approach = bool(approach)
         #: The curvature preview this reference wants (``preview_request`` of its controller).

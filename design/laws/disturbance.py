@@ -42,6 +42,8 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import minimize
 
+from identification.checks import finite
+
 from design.core.compensator import Compensator, closed_loop_matrix, spectral_radius
 from design.core.errors import DesignInputError
 from design.core.iostate import IOStateLayout
@@ -68,9 +70,8 @@ class DisturbanceSpec:
 
     def __post_init__(self) -> None:
         for name in ("tau_d", "tau_f"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0 < v <= 600):
-                raise DesignInputError(f"disturbance {name} must be a time in (0, 600] s, got {v!r}")
+            finite(getattr(self, name), name, lo=0.0, hi=600.0, lo_open=True, unit="s", where="DisturbanceSpec",
+                   error=DesignInputError)
         ch = tuple(self.channels)
         if not ch or len(set(ch)) != len(ch) or any(isinstance(j, bool) or not isinstance(j, (int, np.integer))
                                                     or j < 0 for j in ch):

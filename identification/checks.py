@@ -28,8 +28,9 @@ def _label(name: str, where: str) -> str:
     return f"{where}.{name}" if where else name
 
 
-def _wanted(integer: bool, lo: float | None, hi: float | None, lo_open: bool, hi_open: bool, unit: str) -> str:
-    what = "an integer" if integer else "a finite number"
+def _wanted(integer: bool, lo: float | None, hi: float | None, lo_open: bool, hi_open: bool, unit: str,
+            noun: str = "") -> str:
+    what = noun or ("an integer" if integer else "a finite number")
     bounds = []
     if lo is not None:
         bounds.append(f"{'>' if lo_open else '>='} {lo:g}")
@@ -51,7 +52,7 @@ def _within(v: float, lo: float | None, hi: float | None, lo_open: bool, hi_open
 
 
 def finite(value: object, name: str, *, lo: float | None = None, hi: float | None = None, lo_open: bool = False,
-           hi_open: bool = False, integer: bool = False, unit: str = "", where: str = "",
+           hi_open: bool = False, integer: bool = False, unit: str = "", where: str = "", noun: str = "",
            error: type[Exception] = ValueError, fix: str = "") -> float:
     """``value`` as a float (an int with ``integer=True``) if it is a finite number within the bounds.
 
@@ -71,6 +72,9 @@ def finite(value: object, name: str, *, lo: float | None = None, hi: float | Non
         The value's unit, named in the message (``"m"``, ``"rad/s"``).
     where : str
         The object that owns the setting (``"IsobusDriverConfig"``), prefixed to ``name`` with a dot.
+    noun : str
+        What the value is, in the message (default ``"a finite number"``, ``"an integer"``; e.g.
+        ``"a finite sample time"``: ``"dt must be a finite sample time > 0 s, got 0"``).
     error : type
         The exception raised, the caller's (its package's subclass of :class:`ValueError`).
     fix : str
@@ -84,21 +88,23 @@ def finite(value: object, name: str, *, lo: float | None = None, hi: float | Non
     Raises
     ------
     error
-        One line: ``"<where>.<name> must be <what> <unit>, got <value>[; <fix>]"``.
+        One line: ``"<where>.<name> must be <noun> <bounds> <unit>, got <value>[; <fix>]"``.
     """
     if _is_number(value, integer) and _within(value, lo, hi, lo_open, hi_open):  # type: ignore[arg-type]
         return int(value) if integer else float(value)  # type: ignore[arg-type, call-overload]
-    message = f"{_label(name, where)} must be {_wanted(integer, lo, hi, lo_open, hi_open, unit)}, got {value!r:.60}"
+    wanted = _wanted(integer, lo, hi, lo_open, hi_open, unit, noun)
+    message = f"{_label(name, where)} must be {wanted}, got {value!r:.60}"
     raise error(message + (f"; {fix}" if fix else ""))
 
 
 def positive(value: object, name: str, *, unit: str = "", where: str = "", allow_zero: bool = False,
-             error: type[Exception] = ValueError, fix: str = "") -> float:
+             noun: str = "", error: type[Exception] = ValueError, fix: str = "") -> float:
     """``value`` as a float if it is a finite number > 0 (>= 0 with ``allow_zero``).
 
     The parameters are those of :func:`finite`; the message reads ``"... must be a finite number > 0 s, got ..."``.
     """
-    return finite(value, name, lo=0.0, lo_open=not allow_zero, unit=unit, where=where, error=error, fix=fix)
+    return finite(value, name, lo=0.0, lo_open=not allow_zero, unit=unit, where=where, noun=noun, error=error,
+                  fix=fix)
 
 
 def finite_tuple(values: object, name: str, *, n: int | None = None, lo: float | None = None,

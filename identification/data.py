@@ -16,6 +16,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from .checks import finite
 from .errors import DataError
 
 #: Fewest samples an experiment may have.
@@ -89,9 +90,7 @@ class IOData:
                 raise DataError(f"experiment {i}: {u.shape[1]} inputs and {y.shape[1]} outputs, but "
                                 f"experiment 0 has {out[0][0].shape[1]} and {out[0][1].shape[1]}")
             out.append((u, y))
-        dt = self.dt
-        if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not np.isfinite(dt) or dt <= 0:
-            raise DataError(f"dt must be a finite sample time > 0 s, got {dt!r}")
+        dt = finite(self.dt, "dt", lo=0.0, lo_open=True, unit="s", noun="a finite sample time", error=DataError)
         m, q = out[0][0].shape[1], out[0][1].shape[1]
         names = {
             "input_names": _names(self.input_names, m, "u", "input_names"),

@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
+from .checks import finite
 from .errors import DataError, OptionError
 from .passlog import PassLog
 
@@ -147,9 +148,7 @@ def _declared(log: PassLog, name: str) -> float | None:
     lat = (log.meta.get("latency_s") or {}).get(name)
     if lat is None:
         return None
-    if isinstance(lat, bool) or not isinstance(lat, (int, float)) or not np.isfinite(lat) or lat < 0:
-        raise DataError(f"meta['latency_s'][{name!r}] must be a finite delay >= 0 s, got {lat!r}")
-    return float(lat)
+    return finite(lat, f"meta['latency_s'][{name!r}]", lo=0.0, unit="s", noun="a finite delay", error=DataError)
 
 
 def heading_shift_residuals(log: PassLog, candidates: np.ndarray = CANDIDATES_S,

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from .checks import finite
 from .data import IOData
 from .errors import DataError, OptionError
 
@@ -93,8 +94,7 @@ def accumulate(data: IOData, p_max: int, feedthrough: bool = True,
     block_rows
         Samples per chunk of the lag products (bounds cache use, not results).
     """
-    if isinstance(p_max, bool) or not isinstance(p_max, (int, np.integer)) or p_max < 1:
-        raise OptionError(f"number of observer Markov parameters must be an integer >= 1, got {p_max!r}")
+    p_max = finite(p_max, "number of observer Markov parameters", lo=1, integer=True, error=OptionError)
     m, q = data.n_inputs, data.n_outputs
     r = m + q
     p = int(p_max)

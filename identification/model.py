@@ -18,7 +18,6 @@ and the identification settings.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -27,6 +26,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .bounded import parse_json, read_npz
+from .checks import finite
 from .errors import ModelFileError, OptionError
 from .outputs import atomic_write, check_name
 
@@ -39,13 +39,7 @@ MAX_SPEED = 30.0   # m/s, the pass logs' bound on a nominal speed
 MAX_FILE_BYTES = 16 * 2**20
 #: Longest sample time, s (the identification command's own bound on ``--dt``).
 MAX_DT = 1e6
-
-
-def _speed(value: Any, what: str) -> None:
-    if (isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value)
-            or not 0.0 <= value <= MAX_SPEED):
-        raise ModelFileError(f"{what} must be a speed in m/s, a finite number in [0, {MAX_SPEED:g}], "
-                             f"got {value!r}")
+_SPEED = "a speed in m/s, a finite number"
 
 
 def _check_meta_fields(meta: Mapping[str, Any]) -> None:
@@ -54,7 +48,7 @@ def _check_meta_fields(meta: Mapping[str, Any]) -> None:
         raise ModelFileError(f"meta['normalization'] must be one of {NORMALIZATIONS}, "
                              f"got {meta['normalization']!r}")
     if "nominal_speed" in meta:
-        _speed(meta["nominal_speed"], "meta['nominal_speed']")
+        finite(meta["nominal_speed"], "meta['nominal_speed']", lo=0.0, hi=MAX_SPEED, noun=_SPEED, error=ModelFileError)
     if "name" in meta and not isinstance(meta["name"], str):
         raise ModelFileError(f"meta['name'] must be a string, got {meta['name']!r}")
     conds = meta.get("conditions", [])
@@ -71,7 +65,8 @@ def _check_meta_fields(meta: Mapping[str, Any]) -> None:
         except OptionError as exc:
             raise ModelFileError(str(exc)) from None
         if "nominal_speed" in c:
-            _speed(c["nominal_speed"], f"meta['conditions'][{i}]['nominal_speed']")
+            finite(c["nominal_speed"], f"meta['conditions'][{i}]['nominal_speed']", lo=0.0, hi=MAX_SPEED, noun=_SPEED,
+                   error=ModelFileError)
 
 
 def _matrix(value: Any, name: str) -> np.ndarray:
@@ -126,10 +121,8 @@ class Model:
             if mats[name].shape != shp:
                 raise ModelFileError(f"{name} has shape {mats[name].shape}, expected {shp} "
                                      f"for n={n} states, m={m} inputs, q={q} outputs")
-        dt = self.dt
-        if (isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not math.isfinite(dt)
-                or not 0 < dt <= MAX_DT):
-            raise ModelFileError(f"dt must be a finite sample time > 0 s and at most {MAX_DT:g} s, got {dt!r}")
+        dt = finite(self.dt, "dt", lo=0.0, hi=MAX_DT, lo_open=True, unit="s", noun="a finite sample time",
+                    error=ModelFileError)
         if n:
             rho = float(np.max(np.abs(np.linalg.eigvals(a - k @ c))))
             if rho >= 1.0:

@@ -18,6 +18,7 @@ import numpy as np
 
 from . import era as _era
 from . import markov as _mk
+from .checks import finite
 from .data import IOData
 from .errors import DataError, NotFittedError, OptionError, RealizationError
 from .estimator import kalman_gain, observer_gain
@@ -128,9 +129,7 @@ class OKID:
         if not isinstance(self.feedthrough, bool):
             raise OptionError(f"feedthrough must be True or False, got {self.feedthrough!r}")
         for name in ("ridge", "noise_floor"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
-                raise OptionError(f"{name} must be a finite number >= 0, got {v!r}")
+            finite(getattr(self, name), name, lo=0.0, error=OptionError)
 
     def fit(self, data: IOData, meta: dict[str, Any] | None = None) -> "OKID":
         """Identify a model from ``data``.

@@ -47,6 +47,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .bounded import parse_json, read_npz, read_text
+from .checks import finite
 from .errors import OptionError, PassLogError
 from .outputs import atomic_write, check_name
 
@@ -420,11 +421,8 @@ def _check_meta(meta: Mapping[str, Any]) -> dict[str, Any]:
             check_name(gear, "meta['gear'] (a name, or a gear number 1-99)")
     except OptionError as exc:
         raise PassLogError(str(exc)) from None
-    v = out["nominal_speed"]
-    if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0
-            or v > MAX_NOMINAL_SPEED):
-        raise PassLogError(f"meta['nominal_speed'] must be a finite speed >= 0 m/s (at most "
-                           f"{MAX_NOMINAL_SPEED:g} m/s), got {v!r}")
+    finite(out["nominal_speed"], "meta['nominal_speed']", lo=0.0, hi=MAX_NOMINAL_SPEED, unit="m/s",
+           noun="a finite speed", error=PassLogError)
     try:
         json.dumps(out)
     except (TypeError, ValueError) as exc:

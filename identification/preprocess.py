@@ -40,6 +40,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from .checks import finite
 from .data import IOData
 from .errors import DataError, OptionError
 from .passlog import PassLog
@@ -100,9 +101,10 @@ class Preprocessing:
         pairs = tuple(sorted((dict(self.latency_s) if isinstance(self.latency_s, Mapping)
                               else dict(self.latency_s)).items()))
         for name, lat in pairs:
-            if (not isinstance(name, str) or isinstance(lat, bool) or not isinstance(lat, (int, float))
-                    or not np.isfinite(lat) or not 0 <= lat < 2.0):
-                raise OptionError(f"latency_s[{name!r}] must be a delay of 0-2 s, got {lat!r}")
+            if not isinstance(name, str):
+                raise OptionError(f"latency_s must map channel names to delays in s, got the key {name!r}")
+            finite(lat, f"latency_s[{name!r}]", lo=0.0, hi=2.0, hi_open=True, unit="s", noun="a delay",
+                   error=OptionError)
         object.__setattr__(self, "latency_s", tuple((n, float(v)) for n, v in pairs))
         choices = {"normalize": ("velocity", "none"), "speed": ("mean", "measured", "nominal"),
                    "bias": ("mean", "none"), "outputs_mode": ("interp", "zoh")}
@@ -140,9 +142,8 @@ def _ordinal(n: int) -> str:
 def _measured_times(log: PassLog, name: str, override: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
     t, v = log.channel(name)
     lat = override[name] if name in override else (log.meta.get("latency_s") or {}).get(name, 0.0)
-    if isinstance(lat, bool) or not isinstance(lat, (int, float)) or not np.isfinite(lat) or lat < 0:
-        raise DataError(f"meta['latency_s'][{name!r}] must be a finite delay >= 0 s, got {lat!r}")
-    return t - float(lat), v
+    lat = finite(lat, f"meta['latency_s'][{name!r}]", lo=0.0, unit="s", noun="a finite delay", error=DataError)
+    return t - lat, v
 
 
 def _resample(t: np.ndarray, v: np.ndarray, grid: np.ndarray, mode: str) -> np.ndarray:

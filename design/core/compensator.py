@@ -82,7 +82,8 @@ class Compensator:
         cc = as_matrix(self.Cc, "Cc", (m, nc))
         ec = as_matrix(np.zeros((nc, m)) if self.Ec is None else self.Ec, "Ec", (nc, m))
         x0 = as_matrix(np.zeros((nc, q)) if self.X0 is None else self.X0, "X0", (nc, q))
-        dt = finite(self.dt, "dt", lo=0.0, lo_open=True, unit="s", error=DesignInputError)
+        dt = finite(self.dt, "dt", lo=0.0, lo_open=True, unit="s", noun="a finite sample time",
+                    error=DesignInputError)
         for name, v in (("Ac", ac), ("Bc", bc), ("Cc", cc), ("Dc", dc), ("Ec", ec), ("X0", x0)):
             object.__setattr__(self, name, v)
         object.__setattr__(self, "dt", float(dt))

@@ -59,7 +59,7 @@ class IntegralGate:
     """
 
     def __init__(self, band: float = ACQUIRE_BAND_M, crossing: bool = True) -> None:
-        self.band = positive(band, "acquisition band", unit="m", error=DesignInputError)
+        self.band = positive(band, "acquisition band", unit="m", noun="a finite distance", error=DesignInputError)
         self.crossing = bool(crossing)
         self.reset()
 

@@ -48,7 +48,7 @@ def test_gate_holds_until_the_line_is_reached_and_again_when_far():
     assert not g.integrate(-0.2, clipped=False) and g.integrate(0.001, clipped=False)
     plain = IntegralGate(crossing=False)                 # the MPC's: only the clip holds it
     assert plain.integrate(0.3, clipped=False) and not plain.integrate(3.0, clipped=True)
-    with pytest.raises(DesignInputError, match="acquisition band must be a finite number > 0 m"):
+    with pytest.raises(DesignInputError, match="acquisition band must be a finite distance > 0 m"):
         IntegralGate(band=0.0)
 
 

@@ -30,6 +30,8 @@ def test_numbers_pass_as_builtin_floats_and_integers_as_ints():
     (dict(hi=1.0, hi_open=True), 1.0, "wheelbase must be a finite number < 1, got 1.0"),
     (dict(integer=True, lo=1), 2.0, "wheelbase must be an integer >= 1, got 2.0"),
     (dict(integer=True, lo=1), 0, "wheelbase must be an integer >= 1, got 0"),
+    (dict(lo=0.0, lo_open=True, unit="m", noun="a finite distance"), -1,
+     "wheelbase must be a finite distance > 0 m, got -1"),
     (dict(where="IsobusDriverConfig", lo=0, lo_open=True, unit="m", fix="measure it between the axles"), "2.8",
      "IsobusDriverConfig.wheelbase must be a finite number > 0 m, got '2.8'; measure it between the axles"),
 ])

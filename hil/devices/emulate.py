@@ -32,7 +32,7 @@ from hil.links.realtime import RealTimeRunner
 from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, PositionReceiver
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.vehicle.agio.errors import AgioConfigError
 from hil.vehicle.agio.spec import parse_bridge
 from hil.vehicle.isobus.bus import bus_text, open_isobus_bus

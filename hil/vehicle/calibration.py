@@ -2,7 +2,7 @@
 
 The host does not know the potentiometer's curve: it converts counts with a straight line fitted
 by the technician (zero and counts per radian). How that line is measured on the simulated
-tractor is the bench's business (:func:`hil.devices.technician.two_point_calibration`).
+tractor is the bench's business (:func:`hil.devices.wheel_calibration.two_point_calibration`).
 """
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ from hil.bench.benches.bridge import LockstepBridge
 from hil.devices.firmware import config_for_tractor
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, PositionReceiver
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.links.memory import memory_link_pair
 from hil.truth.conditions import condition_for
 from hil.vehicle.agio import protocol as agio_protocol

@@ -10,7 +10,7 @@ from hil.truth.disturbances import generate, hop_depth, soil_force_sigma
 from hil.truth.params import SimParams
 from hil.truth.simulator import TractorSimulator
 from hil.truth.steering import sensor_counts_float, valve_rate
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.truth.dynamics import DEL, PSI, X, Y
 
 CALM = SimParams().with_overrides({"field.roll": 0.0, "field.lateral_force": 0.0,

@@ -14,7 +14,7 @@ from typing import Callable
 from hil.bench.benches.bridge import LockstepBridge
 from hil.devices.firmware import config_for_tractor
 from hil.devices.plant import SimulatedTractor
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.truth.conditions import condition_for
 from hil.truth.params import SimParams
 from hil.vehicle.valve_map import RateStep, ValveCurve

@@ -52,7 +52,7 @@ from hil.truth.disturbances import soil_force_sigma
 from hil.errors import SimulatorConfigError
 from hil.truth.params import SimParams
 from hil.truth.steering import nominal_duty, sensor_counts_float, valve_rate
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.truth.dynamics import DEL, PSI, Y
 from hil.truth.linearize import EXOGENOUS, Linearization, _check, _frozen, linearize, valve_command
 

@@ -41,7 +41,7 @@ from hil.vehicle.loop import LoopConfig, VehicleLoop
 from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, PositionReceiver
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.devices.valve_faults import ValveFaults
 
 

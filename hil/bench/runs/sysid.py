@@ -33,7 +33,7 @@ from hil.truth.params import SimParams
 from hil.truth.simulator import TractorSimulator
 from hil.vehicle.valve_map import ValveCurve
 from hil.truth.steering import nominal_duty
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.devices.plant import SimulatedTractor
 from hil.bench.benches.agio import AgioLockstepBench
 from hil.vehicle.agio.driver import AgioDriverConfig

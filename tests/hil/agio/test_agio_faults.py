@@ -21,7 +21,7 @@ from hil.devices.datagram_faults import DatagramFaultRates, DatagramFaults
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, PositionReceiver
 from hil.devices.steer_module import SteerModule, SteerModuleConfig
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.links.clock import VirtualClock
 from hil.links.memory import memory_link_pair
 from hil.links.scheduler import LockstepScheduler

@@ -12,7 +12,7 @@ from hil.bench.runs.run import RunSpec
 from hil.cli import main as hil_main
 from hil.devices.faults import LinkFault
 from hil.devices.plant import SimulatedTractor
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import condition_for
 from hil.vehicle.isobus.driver import IsobusDriverConfig

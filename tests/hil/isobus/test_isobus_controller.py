@@ -17,7 +17,7 @@ import pytest
 
 from hil.devices.isobus_controller import IsobusController, IsobusControllerConfig
 from hil.devices.plant import SimulatedTractor
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.devices.valve_faults import ValveFaults
 from hil.links.clock import VirtualClock
 from hil.links.scheduler import LockstepScheduler

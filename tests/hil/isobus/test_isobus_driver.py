@@ -14,7 +14,7 @@ import pytest
 
 from hil.devices.isobus_controller import IsobusController, IsobusControllerConfig
 from hil.devices.plant import SimulatedTractor
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.links.clock import VirtualClock
 from hil.links.scheduler import LockstepScheduler
 from hil.truth.conditions import condition_for

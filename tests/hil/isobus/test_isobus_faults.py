@@ -22,7 +22,7 @@ from gnss.field import FieldGeometry
 from hil.devices.isobus_controller import IsobusController, IsobusControllerConfig
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, PositionReceiver
-from hil.devices.technician import two_point_calibration
+from hil.devices.wheel_calibration import two_point_calibration
 from hil.devices.valve_faults import ValveFaults
 from hil.links.clock import VirtualClock
 from hil.links.memory import memory_link_pair

@@ -223,7 +223,7 @@ def add_valve_test_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentP
     v.add_argument("--bridge-baud", type=int, default=9600, help="line rate, bit/s (default 9600)")
     v.add_argument("--out", required=True, help="directory for commissioning.json and valve_steps.json")
     v.add_argument("--json", action="store_true", help="print the result as JSON")
-    v.set_defaults(func=_cmd_valve_test)
+    v.set_defaults(func=_cmd_valve)
     return v
 
 
@@ -234,14 +234,14 @@ def _duties(text: str) -> tuple[float, ...]:
     return values
 
 
-def _cmd_valve_test(args: argparse.Namespace) -> dict:
-    from hil.vehicle.valve_run import ValveTestConfig, valve_test
+def _cmd_valve(args: argparse.Namespace) -> dict:
+    from hil.vehicle.valve_run import ValveTestConfig, commission_valve
     from hil.vehicle.valve_steps import ValveTestPlan
     cfg = ValveTestConfig(args.bridge, tuple(args.wheel_calibration), args.full_scale, args.bridge_baud, args.tractor,
                           not args.no_linearity)
     plan = ValveTestPlan(duties=args.duties) if args.duties else ValveTestPlan()
     prepare_out_dir(args.out)                # after every option is checked: a refused one creates nothing
-    return {"out": args.out, **valve_test(cfg, args.out, plan)}
+    return {"out": args.out, **commission_valve(cfg, args.out, plan)}
 
 
 def valve_test_text(result: dict) -> str:

@@ -32,7 +32,7 @@ from hil.vehicle.commissioning import Commissioning, save_commissioning
 from hil.vehicle.errors import VehicleConfigError
 from hil.vehicle.valve_steps import ValveTestPlan, characterise_valve, linearity_check
 
-__all__ = ["ValveTestConfig", "valve_test"]
+__all__ = ["ValveTestConfig", "commission_valve"]
 
 
 @dataclass(frozen=True)
@@ -76,9 +76,9 @@ class ValveTestConfig:
             raise VehicleConfigError("tractor must be a name of 1-200 characters")
 
 
-def valve_test(cfg: ValveTestConfig, out: str | Path, plan: ValveTestPlan | None = None,
-               progress: Callable[[int, int], None] | None = None,
-               open_port: Callable[..., serial.Serial] = serial.Serial) -> dict:
+def commission_valve(cfg: ValveTestConfig, out: str | Path, plan: ValveTestPlan | None = None,
+                     progress: Callable[[int, int], None] | None = None,
+                     open_port: Callable[..., serial.Serial] = serial.Serial) -> dict:
     """Run the valve test on the bridge of ``cfg`` and write ``out/commissioning.json`` and ``out/valve_steps.json``.
 
     Returns

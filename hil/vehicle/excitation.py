@@ -63,6 +63,10 @@ class ExcitationSettings:
     servo
         Gain of the wheel angle towards the pure-pursuit angle, 1/s, added to the slews (their direction is
         then random); 0: the paper's open-loop rule, where only the slews' directions steer back.
+    offset, offset_hold_min, offset_hold_max
+        With the servo: it aims at a line offset by a random amount within +-``offset`` m, held for
+        ``offset_hold_min``-``offset_hold_max`` s (uniform), so the passes also move slowly across the line
+        (the low frequencies a servo alone would hold still); 0: the line itself.
     """
 
     slew_min: float = 0.2
@@ -75,6 +79,9 @@ class ExcitationSettings:
     return_at: float = 0.6
     corridor: float = 1.5
     servo: float = 1.5
+    offset: float = 0.3
+    offset_hold_min: float = 4.0
+    offset_hold_max: float = 10.0
 
     def __post_init__(self) -> None:
         for k, v in self.__dict__.items():
@@ -85,6 +92,10 @@ class ExcitationSettings:
         if not 0 < self.return_at < self.corridor:
             raise VehicleConfigError(f"excitation: need 0 < return_at ({self.return_at:g} m) < corridor "
                                      f"({self.corridor:g} m)")
+        if self.offset >= self.return_at or self.offset_hold_min > self.offset_hold_max or (
+                self.offset > 0 and self.offset_hold_min <= 0):
+            raise VehicleConfigError(f"excitation: need offset ({self.offset:g} m) < return_at ({self.return_at:g} m)"
+                                     " and 0 < offset_hold_min <= offset_hold_max")
 
     def loop_config(self, config):
         """``config`` (a :class:`~hil.vehicle.loop.LoopConfig`) with the hard corridor as its cross-track limit and
@@ -127,12 +138,23 @@ class SlewRule:
         self.t_end = np.full(B, s.settle)
         self.n_made = np.zeros(B, dtype=int)
         self.returning = np.zeros(B, dtype=bool)
+        self.y_ref = np.zeros(B)
+        if s.servo > 0 and s.offset > 0:   # drawn after the slews' draws: those stay what they were
+            n_off = int(duration / s.offset_hold_min) + 4
+            self.off_val = np.stack([r.uniform(-s.offset, s.offset, n_off) for r in rngs])
+            self.off_len = np.stack([r.uniform(s.offset_hold_min, s.offset_hold_max, n_off) for r in rngs])
+            self.off_idx = np.zeros(B, dtype=int)
+            self.off_end = np.full(B, s.settle)
 
     def restart(self, now: float) -> None:
-        """Hold still for ``settle`` s from ``now`` (after an engage); the random draws go on where they were."""
+        """Hold still for ``settle`` s from ``now`` (after an engage), aiming at the line itself until then; the
+        random draws go on where they were."""
         self.mode[:] = 0.0
         self.t_end[:] = now + self.settings.settle
         self.returning[:] = False
+        self.y_ref[:] = 0.0
+        if hasattr(self, "off_end"):
+            self.off_end[:] = now + self.settings.settle
 
     def rate(self, now: float, delta_m: np.ndarray, y_m: np.ndarray, yaw: np.ndarray) -> np.ndarray:
         """Steering-rate command now, rad/s, + = left, from the measured wheel angle ``delta_m`` [rad],
@@ -166,8 +188,17 @@ class SlewRule:
         self.mode = mode
         if s.servo <= 0:
             return mode * self.max_rate
+        if s.offset > 0:
+            due = now >= self.off_end
+            if np.any(due):
+                k = np.minimum(self.off_idx, self.off_val.shape[1] - 1)
+                self.y_ref = np.where(due, self.off_val[self.rows, k], self.y_ref)
+                self.off_end = np.where(due, now + self.off_len[self.rows, k], self.off_end)
+                self.off_idx = self.off_idx + due
+        y_ref = np.where(self.returning, 0.0, self.y_ref)
         look = self.lookahead
-        want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m + look * yaw), -s.soft_limit, s.soft_limit)
+        want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m - y_ref + look * yaw), -s.soft_limit,
+                       s.soft_limit)
         return np.clip(mode * self.max_rate + s.servo * (want - delta_m), -self.max_rate, self.max_rate)
 
 

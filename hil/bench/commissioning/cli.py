@@ -84,8 +84,9 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
                    help="model order (default: chosen by held-out prediction)")
     c.add_argument("--markov", type=_int_or(("auto", "validate")), default="auto",
                    help="Markov parameters (past window)")
-    c.add_argument("--acceptance", choices=("refuse", "warn"), default="refuse",
-                   help="a model that does not predict: stop (refuse) or go on with a warning")
+    c.add_argument("--acceptance", choices=("refuse", "warn"), default=None,
+                   help="a model that does not predict: stop (refuse; the default with --logs and the slews) or go on "
+                        "with a warning (warn; the field procedure's default)")
     c.add_argument("--more-passes", type=int, default=None, metavar="ROUNDS",
                    help="with --acceptance refuse: rounds of --passes more passes of the conditions a refused model "
                         "came from, each followed by identification again, before the refusal stops the recipe "
@@ -178,8 +179,8 @@ def _reporters(quiet: bool):
 
 
 #: Options of the bench's recipe that recorded logs do not take (they drive or evaluate on the simulator).
-BENCH_ONLY = ("speeds", "implements", "passes", "duration", "seed", "hil_seeds", "hil_duration", "hil_conditions",
-              "more_passes", "estimate_trial", "oracle_search", "set")
+BENCH_ONLY = ("procedure", "speeds", "implements", "passes", "duration", "seed", "hil_seeds", "hil_duration",
+              "hil_conditions", "more_passes", "estimate_trial", "oracle_search", "set")
 
 
 def run_commission(args: argparse.Namespace) -> dict:
@@ -217,7 +218,8 @@ def _run_from_logs(args: argparse.Namespace) -> dict:
                                    "drop them")
     if args.commissioning is None:
         raise SimulatorConfigError("--logs needs --commissioning FILE (the tractor's valve test)")
-    opts = LogOptions(order=args.order, markov=args.markov, acceptance=args.acceptance, latency=args.latency,
+    opts = LogOptions(order=args.order, markov=args.markov, acceptance=args.acceptance or "refuse",
+                      latency=args.latency,
                       weights=args.weights, disturbance_estimate=args.disturbance_estimate == "on")
     say, progress, close = _reporters(args.quiet)
     res = commission_from_logs(args.logs, args.commissioning, args.out, opts, say=say, progress=progress)

@@ -32,6 +32,7 @@ from hil.truth.gps_errors import control_point_from_antenna
 from hil.truth.params import SimParams
 from hil.truth.simulator import TractorSimulator
 from hil.vehicle.valve_map import ValveCurve
+from hil.vehicle.excitation import ExcitationSettings, SlewRule
 from hil.truth.steering import nominal_duty
 from hil.devices.wheel_calibration import two_point_calibration
 from hil.devices.plant import SimulatedTractor
@@ -225,49 +226,19 @@ def make_passes(plan: SysidPlan, params: SimParams | None = None,
     return out
 
 
-class _Excitation:
-    """The identification driver's rule for a batch of passes: ternary slews chosen from what was measured.
+def _rule(drv: DriverExcitation, rngs: Sequence[np.random.Generator], nominal: np.ndarray, duration: float,
+          wheelbase: float, max_rate: float) -> SlewRule:
+    """The identification driver's rule for a batch of passes: the runtime's slews
+    (:class:`hil.vehicle.excitation.SlewRule`) without its servo, offset or corridor, as the paper drove them."""
+    settings = ExcitationSettings(slew_min=drv.slew_min, slew_max=drv.slew_max, hold_min=drv.hold_min,
+                                  hold_max=drv.hold_max, soft_limit=drv.soft_limit,
+                                  direction_noise=drv.direction_noise, settle=drv.settle, servo=0.0, offset=0.0,
+                                  return_at=OPEN_LOOP_CORRIDOR / 2, corridor=OPEN_LOOP_CORRIDOR)
+    return SlewRule(settings, rngs, nominal, duration, wheelbase, max_rate)
 
-    One copy for both paths (the simulator's valve driven directly and a steer module in the loop).
-    """
 
-    def __init__(self, drv: DriverExcitation, rngs: Sequence[np.random.Generator], nominal: np.ndarray,
-                 duration: float, wheelbase: float, max_rate: float) -> None:
-        self.drv, self.wheelbase, self.max_rate = drv, wheelbase, max_rate
-        B = len(rngs)
-        n_dec = int(duration / min(drv.slew_min, drv.hold_min, 0.05) + 16)
-        self.n_dec = n_dec
-        self.u_len = np.stack([r.random(n_dec) for r in rngs])
-        self.u_dir = np.stack([r.standard_normal(n_dec) for r in rngs])
-        self.lookahead = np.maximum(4.0, 3.0 * nominal)          # the driver looks further ahead when faster
-        self.mode = np.zeros(B)
-        self.t_end = np.full(B, drv.settle)
-        self.n_made = np.zeros(B, dtype=int)
-        self.rows = np.arange(B)
-
-    def rate(self, now: float, delta_m: np.ndarray, y_m: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-        """Steering-rate command now, rad/s, + = left, from the measured wheel angle ``delta_m`` [rad],
-        the control point's cross-track ``y_m`` [m, + left] and heading ``yaw`` [rad] from the line."""
-        drv, mode = self.drv, self.mode
-        # end a slew early at the soft limit; then choose the next stretch when one ends
-        mode = np.where((mode > 0) & (delta_m >= drv.soft_limit), 0.0, mode)
-        mode = np.where((mode < 0) & (delta_m <= -drv.soft_limit), 0.0, mode)
-        due = now >= self.t_end
-        if np.any(due):
-            idx = np.minimum(self.n_made, self.n_dec - 1)
-            ul, ud = self.u_len[self.rows, idx], self.u_dir[self.rows, idx]
-            look = self.lookahead
-            want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m + look * yaw), -drv.soft_limit, drv.soft_limit)
-            direction = np.sign(want - delta_m + drv.direction_noise * ud)
-            slew_len = drv.slew_min + ul * (drv.slew_max - drv.slew_min)
-            hold_len = drv.hold_min + ul * (drv.hold_max - drv.hold_min)
-            start_slew = due & (mode == 0)
-            new_mode = np.where(start_slew, direction, 0.0)
-            mode = np.where(due, new_mode, mode)
-            self.t_end = np.where(due, now + np.where(start_slew, slew_len, hold_len), self.t_end)
-            self.n_made = self.n_made + due
-        self.mode = mode
-        return mode * self.max_rate
+#: The open-loop passes have no corridor: one far beyond any field (m), so the rule never steers back itself.
+OPEN_LOOP_CORRIDOR = 1e9
 
 
 def _measured_gps(sim: TractorSimulator, now: float) -> tuple[np.ndarray, np.ndarray]:
@@ -295,7 +266,7 @@ def _run_driver(sim: TractorSimulator, drv: DriverExcitation, rngs: Sequence[np.
     cal = two_point_calibration(p.sensor, p.steering)
     max_rate = p.steering.max_rate if valve is None else valve.max_rate
     nominal = np.array([c.speed for c in sim.conditions])
-    rule = _Excitation(drv, rngs, nominal, sim.duration, p.vehicle.wheelbase, max_rate)
+    rule = _rule(drv, rngs, nominal, sim.duration, p.vehicle.wheelbase, max_rate)
     rec = {k: np.zeros((B, n_ticks)) for k in _REC}
     for j in range(n_ticks):
         while sim.k < j * sub:
@@ -326,7 +297,7 @@ def _run_module_pass(cond: Condition, duration: float, sim_seed: np.random.SeedS
                      params: SimParams, drv: DriverExcitation, config: AgioDriverConfig,
                      progress: Callable[[float, float], None] | None):
     """One identification pass through an emulated steer module, in lockstep: the loop's timing (every
-    cycle: read the module's reports, then command), the excitation rule of :class:`_Excitation`.
+    cycle: read the module's reports, then command), the excitation rule of :func:`_rule`.
 
     Returns the pass's channels (as :func:`_channels`) and what its metadata adds about the module.
     """
@@ -336,7 +307,7 @@ def _run_module_pass(cond: Condition, duration: float, sim_seed: np.random.SeedS
     period = 1.0 / p.sensor.rate
     n_ticks = int(math.floor(duration * p.sensor.rate + 1e-9))
     max_rate = min(p.steering.max_rate, config.max_rate)
-    rule = _Excitation(drv, [rng], np.array([cond.speed]), duration, p.vehicle.wheelbase, max_rate)
+    rule = _rule(drv, [rng], np.array([cond.speed]), duration, p.vehicle.wheelbase, max_rate)
     rec = {k: np.zeros((1, n_ticks)) for k in _REC}
     engaged = np.zeros(n_ticks)
     engages = 0

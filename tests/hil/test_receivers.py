@@ -65,3 +65,8 @@ def test_one_receiver_alone_sends_what_it_sends_beside_the_other(which):
     # the same bytes (the other receiver's wake-ups only change when the host reads them)
     assert b"".join(d for _, d in alone[which[0]]) == b"".join(d for _, d in both[which[0]])
     assert len(alone[which[0]]) >= 50
+
+
+def test_the_field_geometry_lives_with_the_fields_not_in_the_receivers_module():
+    import hil.devices.receivers as receivers
+    assert not hasattr(receivers, "FieldGeometry") and FieldGeometry.__module__ == "gnss.field"

@@ -146,7 +146,7 @@ class EmulatedTractor:
 
     def __enter__(self) -> "EmulatedTractor":
         if self.bridge not in BRIDGES:
-            raise SimulatorConfigError(f"bridge must be one of {', '.join(BRIDGES)}, got {self.bridge!r}")
+            raise SimulatorConfigError(f"bridge must be 'isobus', 'hc11' or 'agopengps', got {self.bridge!r}")
         try:
             can_spec = parse_bridge(self.can_bus) if self.bridge == "isobus" else None
         except AgioConfigError as exc:

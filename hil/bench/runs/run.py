@@ -128,7 +128,7 @@ class RunSpec:
             raise SimulatorConfigError(f"speed must be {SPEED_RANGE[0]:g}-{SPEED_RANGE[1]:g} m/s (field work; the "
                                        f"paper's gears are 1.00-2.91 m/s), got {self.speed!r}")
         if self.bridge not in BRIDGES:
-            raise SimulatorConfigError(f"bridge must be one of {', '.join(BRIDGES)}, got {self.bridge!r}")
+            raise SimulatorConfigError(f"bridge must be 'isobus', 'hc11' or 'agopengps', got {self.bridge!r}")
         if self.bridge == "isobus" and (self.realtime or self.link_faults):
             raise SimulatorConfigError("the isobus bench runs in lockstep on a virtual CAN bus, without byte-link "
                                        "faults: drop realtime and the link faults (hil emulate --bridge isobus "

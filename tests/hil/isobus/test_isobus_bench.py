@@ -56,11 +56,11 @@ def test_the_isobus_bench_refuses_what_it_cannot_run(options, match):
 @pytest.mark.slow
 def test_compare_runs_every_pass_through_the_steering_controller(tmp_path, capsys):
     rc = hil_main(["compare", "kinematic", "--bridge", "isobus", "--conditions", "none:1.79",
-                   "--seeds", "2", "--duration", "6", "--workers", "1", "--out", str(tmp_path), "--quiet", "--json"])
+                   "--seeds", "1", "--duration", "6", "--workers", "1", "--out", str(tmp_path), "--quiet", "--json"])
     assert rc == 0
-    assert json.loads(capsys.readouterr().out)["passes"] == 2
+    assert json.loads(capsys.readouterr().out)["passes"] == 1
     runs = [json.loads(r.read_text()) for r in sorted((tmp_path / "campaign" / "runs").glob("*__isobus.json"))]
-    assert len(runs) == 2 and all(r["bridge"] == "isobus" and r["mode"] == "lockstep" for r in runs)
+    assert len(runs) == 1 and all(r["bridge"] == "isobus" and r["mode"] == "lockstep" for r in runs)
     assert all(r["disengagements"] == 0 and r["engaged_fraction"] > 0.8 for r in runs)
 
 

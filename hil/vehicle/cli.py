@@ -27,6 +27,7 @@ from hil.errors import HilError
 from hil.vehicle.agio.driver import LEAD_TIME, AgioDriverConfig
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, vehicle_controller
 from hil.vehicle.outputs import prepare_out_dir, write_text_atomic
+from hil.vehicle.procedure import FieldPlan
 from hil.vehicle.summary import summarize
 
 
@@ -296,8 +297,10 @@ def add_procedure_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentPa
                    help="a new plan's implements (default none disker ripper; an existing plan.json is kept)")
     p.add_argument("--speeds", nargs="+", type=parse_float, default=None, metavar="M_PER_S",
                    help="a new plan's speeds, m/s (default 1.0 1.79 2.91)")
-    p.add_argument("--passes", type=int, default=None, help="a new plan's passes per speed (default 2)")
-    p.add_argument("--duration", type=parse_float, default=None, help="a new plan's seconds per pass (default 80)")
+    p.add_argument("--passes", type=int, default=None,
+                   help=f"a new plan's passes per speed (default {FieldPlan.passes})")
+    p.add_argument("--duration", type=parse_float, default=None,
+                   help=f"a new plan's seconds per pass (default {FieldPlan.duration:g})")
     p.add_argument("--json", action="store_true", help="print the status as JSON")
     p.set_defaults(func=_cmd_procedure)
     return p

@@ -65,9 +65,12 @@ class ValveTestConfig:
     def __post_init__(self) -> None:
         spec = parse_bridge(self.bridge_port)
         if spec.kind != "hc11":
-            raise VehicleConfigError(f"the valve test steps the valve's duty through an HC11 bridge; {self.bridge_port!r} "
-                                     "is an AgOpenGPS module, which closes its own loop on the wheel angle (set its "
-                                     "minimum PWM and gain in AgOpenGPS)")
+            what = ("an ISO 11783 steering controller, which closes its own loop on the curvature (its valve is "
+                    "commissioned by the tractor's maker)" if spec.kind == "isobus" else
+                    "an AgOpenGPS module, which closes its own loop on the wheel angle (set its minimum PWM and gain "
+                    "in AgOpenGPS)")
+            raise VehicleConfigError(f"the valve test steps the valve's duty through an HC11 bridge; "
+                                     f"{self.bridge_port!r} is {what}")
         WheelAngleCalibration(*self.wheel_calibration)
         if isinstance(self.full_scale, bool) or not isinstance(self.full_scale, (int, float)) or not (
                 math.isfinite(self.full_scale) and 0 < self.full_scale <= 2.0):

@@ -10,6 +10,8 @@ network
 driver
     The host driver the vehicle loop steers through: rate commands integrated into a
     curvature command (bumpless, limited, anti-windup), the reset handshake, health.
+bus, link
+    Opening the CAN bus a ``--bridge isobus...`` names (python-can), and the guidance node and driver on it.
 errors
     The package's exceptions.
 """

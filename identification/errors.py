@@ -32,7 +32,7 @@ class OptionError(IdentificationError, ValueError):
 
 
 class NotFittedError(IdentificationError, AttributeError):
-    """An estimator was used before :meth:`fit` was called."""
+    """An estimator was used before ``fit`` was called."""
 
 
 class RealizationError(IdentificationError, ValueError):

@@ -298,7 +298,7 @@ class LinearController:
     its clip, the law recovers the turn first and the path is planned from where that leaves it; a
     new path is planned likewise whenever the cross-track deviation is at its clip); on a curve, the steady heading error and wheel angle of the path's
     curvature, the wheel angle at the curvature ``V * latency`` ahead (the latency the
-    certificate records; the preview is asked for with :attr:`preview_request`); the reference's
+    certificate records; the preview is asked for with ``preview_request``); the reference's
     own steering rate is added to the law's command (and left out of the law's memory of it). On
     a straight line past the approach the deviation is the measurement itself.
 

@@ -661,7 +661,7 @@ class NonlinearMPC:
 
         The NMPC's first move when its solve converged within ``max_calls`` calls; otherwise the
         certified linear law's (:meth:`fallback_command`, at the curvature under the tractor),
-        counted in :attr:`fallbacks` and recorded in :attr:`events`. With the integral state, the
+        counted in ``fallbacks`` and recorded in ``events``. With the integral state, the
         integral of the measured cross-track advances by ``dt * y`` after the solve, except while
         the line is being acquired after an engage (:class:`design.laws.acquisition.IntegralGate`: held
         until the cross-track first reaches the line) and on a headland turn (:meth:`enter_part`).

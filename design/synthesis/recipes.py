@@ -12,7 +12,7 @@
     mpc.save("controllers/mpc.json")
 
 Each recipe returns a result holding the verified controller file (nothing is written until
-``save``) and :meth:`summary`, the record ``design ... --json`` prints and ``hil commission`` keeps.
+``save``) and ``summary()``, the record ``design ... --json`` prints and ``hil commission`` keeps.
 
 The robust recipe is :func:`design.synthesis.robust.design_robust` (or, with automatic weights,
 :func:`design.synthesis.auto_designs.auto_robust`), then, with the disturbance estimate, the estimate's gain

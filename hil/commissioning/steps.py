@@ -12,7 +12,7 @@ class Steps:
     """Runs a commissioning's steps, timing them, recording failures, reporting progress.
 
     ``run(name, what, fn)`` says ``what``, calls ``fn`` and returns its value; when it raises, the step is
-    recorded as failed with the error (in :attr:`record`) and ``None`` is returned, so the procedure goes
+    recorded as failed with the error (in ``record``) and ``None`` is returned, so the procedure goes
     on where it can. Ctrl-C (``KeyboardInterrupt``) is not a failure of a step: it ends the procedure."""
 
     def __init__(self, say: Callable[[str], None]) -> None:

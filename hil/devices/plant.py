@@ -3,7 +3,7 @@
 :class:`SimulatedTractor` wraps a one-tractor :class:`~hil.truth.simulator.TractorSimulator`:
 the bridge firmware sets the valve's PWM duty and reads the potentiometer's ADC;
 the emulated receivers read the simulator's GPS epochs; whoever owns the clock
-calls :meth:`advance`. The simulator integrates on a fixed grid (``params.dt``):
+calls :meth:`~SimulatedTractor.advance`. The simulator integrates on a fixed grid (``params.dt``):
 ``advance`` takes the grid steps that the time passed completes, at once, so what
 devices read lags the clock by less than one step (10 ms).
 

@@ -12,7 +12,7 @@ truth and from the encoders; STYLE.md, example 9):
     The spool sticks at its opening: duties set during the interval are not applied; when it
     frees, the latest duty asked for applies.
 
-The fault schedule is in the plant's time (the time :meth:`advance` has let pass). The truth
+The fault schedule is in the plant's time (the time :meth:`~ValveFaults.advance` has let pass). The truth
 knows nothing of the faults, and no device learns more about them than its inputs show.
 """
 

@@ -4,7 +4,7 @@ Each tractor in the batch has its own condition and its own random streams (one
 ``numpy.random.SeedSequence`` each), so a tractor's run does not depend on what
 else is in the batch. The simulator owns time: :meth:`TractorSimulator.step`
 advances every tractor by ``dt`` with the PWM duty last set, records the GPS
-epochs that fall on the grid, and :meth:`wheel_angle_counts` samples the
+epochs that fall on the grid, and :meth:`~TractorSimulator.wheel_angle_counts` samples the
 potentiometer's ADC now.
 
 Typical use (one tractor, as the emulated bridge drives it)::
@@ -306,11 +306,11 @@ class TractorSimulator:
         return idx.max(axis=1) if count > lo else np.full(block["lost"].shape[0], -1)
 
     def latest_position(self, now: float) -> np.ndarray:
-        """Per tractor, index into :attr:`pos` of the newest position that arrived by ``now`` [s]."""
+        """Per tractor, index into ``pos`` of the newest position that arrived by ``now`` [s]."""
         return self._latest(self.pos, self.n_pos, now)
 
     def latest_attitude(self, now: float) -> np.ndarray:
-        """Per tractor, index into :attr:`att` of the newest attitude that arrived by ``now`` [s]."""
+        """Per tractor, index into ``att`` of the newest attitude that arrived by ``now`` [s]."""
         return self._latest(self.att, self.n_att, now)
 
 

@@ -34,7 +34,7 @@ def refused_conditions(refused: Mapping[str, Sequence[Mapping]], known: Sequence
     ----------
     refused
         ``{model name: [condition, ...]}``, each condition a mapping with ``implement`` and
-        ``nominal_speed`` (m/s), as :attr:`identification.errors.ModelRefusedError.refused` carries
+        ``nominal_speed`` (m/s), as ``identification.errors.ModelRefusedError.refused`` carries
         them (read from the model files' metadata).
     known
         The identification plan's conditions; a refused condition outside them is not driven again

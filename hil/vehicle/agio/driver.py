@@ -11,10 +11,10 @@ see the same rate-input plant as through the HC11 bridge.
 
 The module answers every PGN 254 with a PGN 253 (measured angle, switches, PWM). While the loop is
 disengaged the driver keeps the module talking with PGN 254 frames with autosteer *off* (sent by
-:meth:`poll`), which the module can never steer on: no steering command is ever sent while
+:meth:`~AgioDriver.poll`), which the module can never steer on: no steering command is ever sent while
 disengaged; and when no rate command came for ``max_dt`` the driver drops autosteer by itself.
 Every frame read is checked (checksum, length, source, reserved bits); refused ones are
-dropped and counted (:meth:`stats`).
+dropped and counted (:meth:`~AgioDriver.stats`).
 
 Reports look like the HC11 driver's to the loop: ``adc_counts`` is the module's angle in its wire
 unit (0.01 degree, + = left), so the loop converts it with :data:`ANGLE_CALIBRATION`; ``engaged`` is

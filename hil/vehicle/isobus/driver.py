@@ -9,10 +9,10 @@ most ``max_dt``), limited to ``max_angle``, to the curvature limit and to ``max_
 measured angle (anti-windup: a wheel that cannot follow does not leave the setpoint running ahead).
 
 The handshake, as valve controllers implement it: while the loop is disengaged the driver sends a
-command "not intended to steer" every ``period`` from :meth:`poll` (with the measured curvature),
+command "not intended to steer" every ``period`` from :meth:`~IsobusDriver.poll` (with the measured curvature),
 so a controller that asks for a reset after power-up, an override or a timeout has seen one before
-the loop engages again; "intended" commands are sent only between :meth:`engage` and
-:meth:`disengage`. When no rate command came for ``max_dt``, or the controller has been silent for
+the loop engages again; "intended" commands are sent only between :meth:`~IsobusDriver.engage` and
+:meth:`~IsobusDriver.disengage`. When no rate command came for ``max_dt``, or the controller has been silent for
 ``report_timeout``, the driver drops to "not intended" by itself.
 
 Reports look like the HC11 driver's to the loop: ``adc_counts`` is the wheel angle of the estimated
@@ -22,11 +22,11 @@ required); ``manual_override`` is the operator steering (limit status operator-l
 3 with a reset pending); ``watchdog_tripped`` is the controller's command timeout (exit code 5 with
 a reset pending).
 
-Link and address faults do not raise out of :meth:`poll` and :meth:`send_rate` (the loop's list
-of link errors holds the serial bridges'): a failed send or a lost address claim counts, drops
-the driver to disengaged and makes :meth:`is_alive` false (until a send succeeds again, and the
-node holds an address again), which the loop sees as a silent bridge and disengages on within
-one cycle.
+Link and address faults do not raise out of :meth:`~IsobusDriver.poll` and
+:meth:`~IsobusDriver.send_rate` (the loop's list of link errors holds the serial bridges'): a failed
+send or a lost address claim counts, drops the driver to disengaged and makes
+:meth:`~IsobusDriver.is_alive` false (until a send succeeds again, and the node holds an address
+again), which the loop sees as a silent bridge and disengages on within one cycle.
 """
 
 from __future__ import annotations

@@ -3,14 +3,12 @@
 Development history (work sessions, issue or round numbers, who did what, dates, commit hashes) belongs in
 git; machine paths (``/work/``, ``/tmp/``, ``/home/``) are meaningless to a user. Checked here:
 
-- every Markdown file under ``docs/`` and ``CHANGELOG.md`` (a date is allowed only in a CHANGELOG version
-  heading such as ``## 1.2.0 (2027-01-15)``); a commit hash is allowed where it pins an upstream
-  repository's source (the line names it as a backticked ``owner/name``) and a hexadecimal digest where
-  the line says ``sha256``;
+- ``README.md``, every Markdown file under ``docs/`` and ``CHANGELOG.md`` (a date is allowed only in a
+  CHANGELOG version heading such as ``## 1.2.0 (2027-01-15)``); a commit hash is allowed where it pins an
+  upstream repository's source (the line names it as a backticked ``owner/name``) and a hexadecimal digest
+  where the line says ``sha256``;
 - the docstrings and comments of the product packages (``gnss``, ``identification``, ``design``,
   ``hil``); commit hashes are not checked there, as they pin upstream sources.
-
-README.md is not checked yet: it is being rewritten.
 """
 
 from __future__ import annotations
@@ -46,7 +44,7 @@ def _markdown_files() -> list[Path]:
     # build output and templates live in folders whose names start with "_" or "."
     pages = [p for p in ROOT.glob("docs/**/*.md")
              if not any(part.startswith(("_", ".")) for part in p.relative_to(ROOT / "docs").parts)]
-    return sorted(pages) + [ROOT / "CHANGELOG.md"]
+    return [ROOT / "README.md"] + sorted(pages) + [ROOT / "CHANGELOG.md"]
 
 
 def _cites_upstream(line: str) -> bool:

@@ -35,7 +35,7 @@ from .uturn import TurnLimits, plan_uturn
 __all__ = ["STRAIGHT_CURVATURE", "MIN_STRAIGHT_LENGTH", "KINDS", "RoutePart", "Route", "Field", "FieldGeometry",
            "line_to_enu", "place_on_line"]
 
-#: Below this |curvature| (1/m; radius 1 km) a stretch of a pass counts as straight.
+#: Below this ``|curvature|`` (1/m; radius 1 km) a stretch of a pass counts as straight.
 STRAIGHT_CURVATURE = 1e-3
 #: ... if it is at least this long (m) in a pass that has curves; shorter ones count as curve.
 MIN_STRAIGHT_LENGTH = 20.0

@@ -19,7 +19,7 @@ smooth spline through them, sampled and fitted the same way).
 
 Every key is checked (unknown ones refused), with limits: file at most 4 MiB, at most 5,000
 segments and 20 km, 5,000 points and 2 km to fit, coordinates within 100 km of the origin,
-segment lengths 0.01 m to 10 km, |curvature| at most 2 1/m, passes x segments at most 100,000. A bad file raises one :class:`~gnss.errors.FieldFileError`
+segment lengths 0.01 m to 10 km, ``|curvature|`` at most 2 1/m, passes x segments at most 100,000. A bad file raises one :class:`~gnss.errors.FieldFileError`
 that names the file and the key.
 """
 

@@ -15,7 +15,7 @@ limit                  value        why
 ``MAX_FILE_BYTES``     4 MiB        a robust file with 15 embedded order-10 models is
                                     about 0.1 MiB
 ``MAX_NESTING``        16 levels    the deepest controller file nests 7 levels
-``MAX_COEFFICIENT``    1e6          largest |entry| of a compensator or gain matrix
+``MAX_COEFFICIENT``    1e6          largest ``|entry|`` of a compensator or gain matrix
                                     (designed ones stay below 1e3)
 =====================  ===========  ==================================================
 

@@ -57,7 +57,7 @@ class ModelCheck:
     disk_margin, disk_gain_margin_db, disk_phase_margin_deg
         Balanced disk margin at the plant input and its gain / phase margins.
     peak_rate
-        Peak |command|, rad/s, after a step input disturbance of 0.01 rad/s.
+        Peak ``|command|``, rad/s, after a step input disturbance of 0.01 rad/s.
     settling_s
         Time until the first output stays within 5 % of its peak excursion, s.
     steady_output

@@ -275,7 +275,7 @@ class SpecCheck:
     delay_reserve
         Extra plant-input delay tolerated beyond the latency, s (whole samples x dt).
     peak_rate
-        Peak |command| from the corners of the tracking-error set, rad/s.
+        Peak ``|command|`` from the corners of the tracking-error set, rad/s.
     failures
         The specifications not met, as readable phrases.
     """
@@ -294,7 +294,7 @@ class SpecCheck:
 
 
 def peak_command(model: Model, comp: Compensator, errors: Sequence[float], seconds: float = 10.0) -> float:
-    """Peak |u| (rad/s) of the loop started at each corner of the error box, held steady before engage.
+    """Peak ``|u|`` (rad/s) of the loop started at each corner of the error box, held steady before engage.
 
     The plant starts at the least-norm state with outputs ``e`` (every latency tap too), the
     compensator at its bumpless engage ``xc = X0 e``.

@@ -22,7 +22,7 @@ def first_gps_fault(log: PassLog) -> float:
 def summarize(log: PassLog, settle: float = 5.0, until_gps_fault: bool = False) -> dict:
     """Tracking and timing figures of a run log.
 
-    Cross-track statistics (bias = mean, 1-sigma = standard deviation, max |.|, m) are
+    Cross-track statistics (bias = mean, 1-sigma = standard deviation, max ``|.|``, m) are
     taken over the engaged cycles at least ``settle`` seconds after the latest engage (so
     the approach to the line after each engage is left out); both the
     measured (GPS) value, as in the paper, and the truth when the log has it. With
@@ -104,7 +104,7 @@ def pool_passes(summaries: Sequence[Mapping], kind: str = "measured") -> dict:
 
 def engaged_max_abs(log: PassLog, key: str = "truth_cross_track", start: float = -math.inf,
                     stop: float = math.inf) -> float:
-    """Largest |cross-track| over the engaged cycles of a run with ``start <= t < stop``, m (0 when
+    """Largest ``|cross-track|`` over the engaged cycles of a run with ``start <= t < stop``, m (0 when
     none).
 
     What the controller is answerable for: after a disengagement (a GPS fault, the operator) the

@@ -5,7 +5,7 @@ duty ``clip(c / full_scale, -1, 1)`` (``full_scale``: the bridge's nominal rate 
 setting of the board). A real valve does not answer that duty linearly: it stays shut below a
 deadband, its flow grows faster than the opening, and it is faster one way than the other. The
 host's model of that curve, fitted by the valve characterisation (:mod:`hil.vehicle.valve_steps`)
-from the wheel-angle reports, is
+from the wheel-angle reports, is::
 
     rate(c) = sign(c) * g_side * clip((|c| / full_scale - deadband) / (1 - deadband), 0, 1) ** flow_exponent
 

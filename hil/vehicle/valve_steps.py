@@ -210,7 +210,7 @@ def linearity_check(driver: BridgeDriver, clock: Clock, calibration: WheelAngleC
     Returns
     -------
     dict
-        ``wanted`` and ``measured`` rates [rad/s] and ``max_error`` (largest |measured - wanted|,
+        ``wanted`` and ``measured`` rates [rad/s] and ``max_error`` (largest ``|measured - wanted|``,
         rad/s) and ``max_error_fraction`` (that over ``curve.max_rate``).
     """
     wanted = [sgn * f * curve.max_rate for f in fractions for sgn in (1.0, -1.0)]

@@ -57,7 +57,11 @@ class LogOptions:
         Identification's order and Markov-parameter choice (:func:`identification.workflow.identify_logs`;
         the order chosen by held-out multi-step prediction by default).
     acceptance
-        ``"refuse"``: a model that does not predict stops the procedure; ``"warn"``: go on, with a warning.
+        ``"refuse"``: a model that does not predict stops the procedure; ``"warn"``: go on, with a warning;
+        ``None`` (default): ``"warn"`` when every pass was driven by the runtime's excitation (``hil drive
+        --excite``: closed-loop passes move less across the line than open-loop slews, so their multi-step
+        prediction fits come out lower for models that design as well; the certificate on every model judges
+        them), else ``"refuse"``.
     latency
         Where the GPS latency comes from: ``"auto"`` (the receivers' valid times, else the logs'
         declaration, else identified from the data), ``"valid-time"`` (refuse logs without them),
@@ -75,7 +79,7 @@ class LogOptions:
 
     order: int | str = "validate"
     markov: int | str = "auto"
-    acceptance: str = "refuse"
+    acceptance: str | None = None
     latency: str = "auto"
     weights: str = "auto-if-available"
     integral: bool = True
@@ -84,7 +88,7 @@ class LogOptions:
     fallback_order: int | None = 4
 
     def __post_init__(self) -> None:
-        if self.acceptance not in ("refuse", "warn"):
+        if self.acceptance not in ("refuse", "warn", None):
             raise CommissioningError(f"acceptance must be 'refuse' or 'warn', got {self.acceptance!r}")
         if self.latency not in LATENCY_SOURCES:
             raise CommissioningError(f"latency must be one of {list(LATENCY_SOURCES)}, got {self.latency!r}")
@@ -163,15 +167,17 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
     tick = progress or (lambda step, done, total: None)
     com, files, passes = _load_inputs(logs, Path(commissioning), opts.latency)
+    acceptance = opts.acceptance or ("warn" if all("excitation" in p.meta for p in passes) else "refuse")
     out.mkdir(parents=True, exist_ok=True)
     steps = Steps(say)
     res: dict = {"tractor": com.tractor, "logs": [str(f) for f in files], "commissioning": str(commissioning),
-                 "options": asdict(opts), "valve": com.valve.to_dict(), "driving_s": driving_seconds(passes)}
+                 "options": {**asdict(opts), "acceptance": acceptance}, "valve": com.valve.to_dict(),
+                 "driving_s": driving_seconds(passes)}
     models_dir = out / "models"
 
     def identify() -> dict:
         r = identify_logs([str(logs)], models_dir, order=opts.order, markov=opts.markov, latency=opts.latency,
-                          acceptance=opts.acceptance, progress=lambda d, n: tick("identification", d, n))
+                          acceptance=acceptance, progress=lambda d, n: tick("identification", d, n))
         return {k: v for k, v in r.items() if k != "_text"}
     ident = steps.run("identification", f"identification of {len(files)} pass logs (OKID/ERA, validation on "
                       "held-out passes)", identify)

@@ -83,14 +83,14 @@ class FieldPlan:
     """What the operator drives: the valve test, then ``passes`` passes of ``duration`` s per speed and implement.
 
     The default fits the budget with room for passes a fault spoils: three implements x three speeds x two
-    passes of 70 s (7 min per implement) and the valve test (at most 5.3 min at standstill): 26.3 min, which
-    leaves 3.7 min (three passes) to drive spoiled passes again.
+    passes of 60 s (6 min per implement) and the valve test (at most 5.3 min at standstill): 23.3 min, which
+    leaves 6.7 min (six passes) to drive spoiled passes again.
     """
 
     implements: tuple[str, ...] = ("none", "disker", "ripper")
     speeds: tuple[float, ...] = (1.0, 1.79, 2.91)
     passes: int = 2
-    duration: float = 70.0
+    duration: float = 60.0
     valve_test: ValveTestPlan | None = ValveTestPlan()
 
     def __post_init__(self) -> None:

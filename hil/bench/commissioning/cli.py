@@ -22,6 +22,7 @@ from identification.cliutil import condition_pairs, resolve_seeds, seed_list, se
 
 from hil.bench.commissioning.campaign import commission_campaign
 from hil.bench.commissioning.recipe import PROCEDURES, CommissionOptions, commission
+from hil.vehicle.procedure import FieldPlan
 from hil.commissioning.designs import WEIGHTS
 from hil.commissioning.from_logs import LATENCY_SOURCES, LogOptions, commission_from_logs
 from hil.errors import SimulatorConfigError
@@ -66,9 +67,11 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     c.add_argument("--implements", nargs="+", choices=IMPLEMENTS, default=list(IMPLEMENTS),
                    help="implements of the identification passes (default: all three), each at every speed")
     c.add_argument("--passes", type=int, default=None,
-                   help="identification passes per condition (default 2 for the field procedure, 3 for the slews)")
+                   help=f"identification passes per condition (default {FieldPlan.passes} for the field procedure, 3 "
+                        "for the slews)")
     c.add_argument("--duration", type=number, default=None,
-                   help="seconds per identification pass (default 80 for the field procedure, 120 for the slews)")
+                   help=f"seconds per identification pass (default {FieldPlan.duration:g} for the field procedure, "
+                        "120 for the slews)")
     c.add_argument("--seed", type=int, default=1997, help="seed of the passes and the valve test (default 1997)")
     c.add_argument("--hil-seeds", type=seeds_or_count, default=3, metavar="SEEDS",
                    help="seeds of the closed-loop passes, one per condition and controller each: 0-2, 0,1,2 or 0-4,7 "
@@ -85,8 +88,8 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     c.add_argument("--markov", type=_int_or(("auto", "validate")), default="auto",
                    help="Markov parameters (past window)")
     c.add_argument("--acceptance", choices=("refuse", "warn"), default=None,
-                   help="a model that does not predict: stop (refuse; the default with --logs and the slews) or go on "
-                        "with a warning (warn; the field procedure's default)")
+                   help="a model that does not predict: stop (refuse) or go on with a warning (warn); default warn "
+                        "for passes the runtime drove (hil drive --excite, the field procedure), refuse for others")
     c.add_argument("--more-passes", type=int, default=None, metavar="ROUNDS",
                    help="with --acceptance refuse: rounds of --passes more passes of the conditions a refused model "
                         "came from, each followed by identification again, before the refusal stops the recipe "
@@ -218,8 +221,7 @@ def _run_from_logs(args: argparse.Namespace) -> dict:
                                    "drop them")
     if args.commissioning is None:
         raise SimulatorConfigError("--logs needs --commissioning FILE (the tractor's valve test)")
-    opts = LogOptions(order=args.order, markov=args.markov, acceptance=args.acceptance or "refuse",
-                      latency=args.latency,
+    opts = LogOptions(order=args.order, markov=args.markov, acceptance=args.acceptance, latency=args.latency,
                       weights=args.weights, disturbance_estimate=args.disturbance_estimate == "on")
     say, progress, close = _reporters(args.quiet)
     res = commission_from_logs(args.logs, args.commissioning, args.out, opts, say=say, progress=progress)

@@ -86,7 +86,7 @@ class CommissionOptions:
         Conditions of the identification passes and of the HIL comparison (default: the paper's 15 with the
         slews; 1.0, 1.79 and 2.91 m/s with each implement for the field procedure).
     passes, pass_duration
-        Identification passes per condition and their length, s (default 3 x 120 s with the slews, 2 x 70 s for
+        Identification passes per condition and their length, s (default 3 x 120 s with the slews, 2 x 60 s for
         the field procedure).
     seed
         Seed of the passes and of the valve test; the HIL passes use ``hil_seeds``.

@@ -124,31 +124,23 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
     return result
 
 
-def _run_excite(args: argparse.Namespace) -> int:
+def _cmd_excite(args: argparse.Namespace) -> dict:
     """``hil drive --excite FOLDER``: the procedure's next pass (:func:`hil.vehicle.excite_run.drive_next_pass`)."""
     from hil.vehicle.drive import DriveConfig
     from hil.vehicle.excite_run import drive_next_pass
-    try:
-        cfg = DriveConfig(bridge_port=args.bridge, position_port=args.position, attitude_port=args.attitude,
-                          line_a=args.line[:2], line_b=args.line[2:], height=args.height, lever_arm=args.lever_arm,
-                          wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
-                          gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time),
-                          wheelbase=args.wheelbase)
-        result = drive_next_pass(args.excite, cfg, duration=args.duration)
-    except (HilError, PassLogError, ValueError) as exc:
-        print(f"hil drive: error: {exc}", file=sys.stderr)
-        return 1
-    except OSError as exc:
-        print(f"hil drive: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
-        return 1
-    head = (f"pass {result['pass']}: " + ("recorded" if not result["faults"] else
-                                         "spoiled (" + "; ".join(result["faults"]) + "), to drive again"))
-    try:
-        write_stdout(json.dumps(result, indent=2) if args.json else f"{head}\n{result['text']}", "hil drive")
-    except OutputError as exc:
-        print(exc, file=sys.stderr)
-        return 1
-    return 0
+    cfg = DriveConfig(bridge_port=args.bridge, position_port=args.position, attitude_port=args.attitude,
+                      line_a=args.line[:2], line_b=args.line[2:], height=args.height, lever_arm=args.lever_arm,
+                      wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
+                      gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time),
+                      wheelbase=args.wheelbase)
+    return drive_next_pass(args.excite, cfg, duration=args.duration)
+
+
+def excite_text(result: dict) -> str:
+    """The operator's screen after an identification pass: the pass's verdict, then the procedure's state."""
+    head = f"pass {result['pass']}: " + ("recorded" if not result["faults"] else
+                                        "spoiled (" + "; ".join(result["faults"]) + "), to drive again")
+    return f"{head}\n{result['text']}"
 
 
 def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -380,17 +372,20 @@ def main(argv: list[str] | None = None) -> int:
         if args.controller is not None or args.field is not None:
             parser.error("--excite drives the procedure's own excitation along the line: drop --controller and "
                          "--field")
-        return _run_excite(args)
-    missing = [o for o, v in (("--controller", args.controller), ("--duration", args.duration), ("--out", args.out))
-               if v is None]
-    if missing:
-        parser.error(f"the following arguments are required: {', '.join(missing)} (or --excite FOLDER)")
+    else:
+        missing = [o for o, v in (("--controller", args.controller), ("--duration", args.duration),
+                                  ("--out", args.out)) if v is None]
+        if missing:
+            parser.error(f"the following arguments are required: {', '.join(missing)} (or --excite FOLDER)")
     try:
-        from hil.vehicle.drive import check_run_labels
-        check_run_labels(args.duration, args.implement, args.speed)   # before anything is created or driven
-        args.route = _route(args)
-        prepare_out_dir(args.out)
-        result = args.func(args)
+        if args.excite is not None:
+            result = _cmd_excite(args)
+        else:
+            from hil.vehicle.drive import check_run_labels
+            check_run_labels(args.duration, args.implement, args.speed)   # before anything is created or driven
+            args.route = _route(args)
+            prepare_out_dir(args.out)
+            result = args.func(args)
     except (HilError, PassLogError, ValueError) as exc:
         print(f"hil drive: error: {exc}", file=sys.stderr)
         return 1
@@ -398,7 +393,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"hil drive: error: {exc.strerror or exc}: {str(exc.filename or '')[:200]!r}", file=sys.stderr)
         return 1
     try:
-        print(json.dumps(result, indent=2)) if args.json else print_run_result(result)
+        if args.json:
+            print(json.dumps(result, indent=2))
+        elif args.excite is not None:
+            print(excite_text(result))
+        else:
+            print_run_result(result)
         sys.stdout.flush()
     except BrokenPipeError:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

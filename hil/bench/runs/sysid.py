@@ -58,38 +58,20 @@ against 4.0 / 5.5 cm with 0.3. The limit only guards against wind-up when the wh
 excitation's slews are bounded (``slew_max`` at ``max_rate``), so it has nothing to guard here."""
 
 
+#: The open-loop passes have no corridor: one far beyond any field (m), so the rule never steers back itself.
+OPEN_LOOP_CORRIDOR = 1e9
+
+
 @dataclass(frozen=True)
-class DriverExcitation:
-    """How the identification driver steers (all assumptions, shaped on the paper's Figure 5).
+class DriverExcitation(ExcitationSettings):
+    """How the identification driver steers the open-loop passes: the runtime's slews
+    (:class:`hil.vehicle.excitation.ExcitationSettings`, shaped on the paper's Figure 5) without the servo, the
+    offset or the corridor, so only each slew's direction steers back towards the line."""
 
-    Attributes
-    ----------
-    slew_min, slew_max
-        Range of one slew's length, s (uniform).
-    hold_min, hold_max
-        Range of one zero-rate stretch, s (uniform).
-    soft_limit
-        Wheel angle at which a slew is cut short, rad.
-    direction_noise
-        1-sigma randomness added to the wanted wheel-angle change when picking a direction, rad.
-    settle
-        Zero-rate time at the start of a pass, s.
-    """
-
-    slew_min: float = 0.2
-    slew_max: float = 0.5
-    hold_min: float = 0.3
-    hold_max: float = 1.2
-    soft_limit: float = 0.2
-    direction_noise: float = 0.04
-    settle: float = 2.0
-
-    def __post_init__(self) -> None:
-        for k, v in self.__dict__.items():
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise SimulatorConfigError(f"DriverExcitation.{k} must be a finite number >= 0, got {v!r}")
-        if self.slew_min > self.slew_max or self.hold_min > self.hold_max or self.slew_max == 0:
-            raise SimulatorConfigError("DriverExcitation: need 0 < slew_min <= slew_max and hold_min <= hold_max")
+    servo: float = 0.0
+    offset: float = 0.0
+    return_at: float = OPEN_LOOP_CORRIDOR / 2
+    corridor: float = OPEN_LOOP_CORRIDOR
 
 
 @dataclass(frozen=True)
@@ -226,21 +208,6 @@ def make_passes(plan: SysidPlan, params: SimParams | None = None,
     return out
 
 
-def _rule(drv: DriverExcitation, rngs: Sequence[np.random.Generator], nominal: np.ndarray, duration: float,
-          wheelbase: float, max_rate: float) -> SlewRule:
-    """The identification driver's rule for a batch of passes: the runtime's slews
-    (:class:`hil.vehicle.excitation.SlewRule`) without its servo, offset or corridor, as the paper drove them."""
-    settings = ExcitationSettings(slew_min=drv.slew_min, slew_max=drv.slew_max, hold_min=drv.hold_min,
-                                  hold_max=drv.hold_max, soft_limit=drv.soft_limit,
-                                  direction_noise=drv.direction_noise, settle=drv.settle, servo=0.0, offset=0.0,
-                                  return_at=OPEN_LOOP_CORRIDOR / 2, corridor=OPEN_LOOP_CORRIDOR)
-    return SlewRule(settings, rngs, nominal, duration, wheelbase, max_rate)
-
-
-#: The open-loop passes have no corridor: one far beyond any field (m), so the rule never steers back itself.
-OPEN_LOOP_CORRIDOR = 1e9
-
-
 def _measured_gps(sim: TractorSimulator, now: float) -> tuple[np.ndarray, np.ndarray]:
     """The control point's measured cross-track [m] and heading [rad] from the newest epochs that
     arrived by ``now`` (0 where none did)."""
@@ -266,7 +233,7 @@ def _run_driver(sim: TractorSimulator, drv: DriverExcitation, rngs: Sequence[np.
     cal = two_point_calibration(p.sensor, p.steering)
     max_rate = p.steering.max_rate if valve is None else valve.max_rate
     nominal = np.array([c.speed for c in sim.conditions])
-    rule = _rule(drv, rngs, nominal, sim.duration, p.vehicle.wheelbase, max_rate)
+    rule = SlewRule(drv, rngs, nominal, sim.duration, p.vehicle.wheelbase, max_rate)
     rec = {k: np.zeros((B, n_ticks)) for k in _REC}
     for j in range(n_ticks):
         while sim.k < j * sub:
@@ -297,7 +264,7 @@ def _run_module_pass(cond: Condition, duration: float, sim_seed: np.random.SeedS
                      params: SimParams, drv: DriverExcitation, config: AgioDriverConfig,
                      progress: Callable[[float, float], None] | None):
     """One identification pass through an emulated steer module, in lockstep: the loop's timing (every
-    cycle: read the module's reports, then command), the excitation rule of :func:`_rule`.
+    cycle: read the module's reports, then command), the excitation rule of :class:`~hil.vehicle.excitation.SlewRule`.
 
     Returns the pass's channels (as :func:`_channels`) and what its metadata adds about the module.
     """
@@ -307,7 +274,7 @@ def _run_module_pass(cond: Condition, duration: float, sim_seed: np.random.SeedS
     period = 1.0 / p.sensor.rate
     n_ticks = int(math.floor(duration * p.sensor.rate + 1e-9))
     max_rate = min(p.steering.max_rate, config.max_rate)
-    rule = _rule(drv, [rng], np.array([cond.speed]), duration, p.vehicle.wheelbase, max_rate)
+    rule = SlewRule(drv, [rng], np.array([cond.speed]), duration, p.vehicle.wheelbase, max_rate)
     rec = {k: np.zeros((1, n_ticks)) for k in _REC}
     engaged = np.zeros(n_ticks)
     engages = 0

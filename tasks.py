@@ -9,6 +9,7 @@ only when one of those two files changed.
     python3 tasks.py demo     # main job, end to end, on the simulated tractor
     python3 tasks.py test     # the whole test suite (what CI runs)
     python3 tasks.py bench    # benchmarks, printed as tables
+    python3 tasks.py docs     # the documentation site in out/docs/ (every warning an error)
     python3 tasks.py lock     # rewrite requirements.lock from the environment
 """
 
@@ -43,19 +44,31 @@ def _run(*cmd: str | os.PathLike[str]) -> None:
         sys.exit(done.returncode)
 
 
-def ensure_env(extras: str = "test") -> None:
-    """Create ``.venv`` and install the pinned project (with ``extras``) into it if needed."""
+#: The extras of the suite: its own tools and the documentation site's (tests/test_docs_site.py builds it).
+SUITE_EXTRAS = "test,docs"
+
+
+def ensure_env(extras: str = SUITE_EXTRAS) -> None:
+    """Create ``.venv`` and install the pinned project (with ``extras``) into it if needed.
+
+    The stamp records the lock files' digest and the extras installed: nothing is run when the digest is
+    the same and the extras asked are among those installed; otherwise the project is installed with
+    both (so a task that asks for fewer extras never reinstalls, and none is lost).
+    """
     if sys.version_info[:2] != (3, 11):
         sys.exit(f"Python 3.11 is required to build the environment, this is {sys.version.split()[0]}")
     if not PY.exists():
         print(f"creating virtual environment in {VENV}", flush=True)
         venv.EnvBuilder(with_pip=True, clear=True).create(VENV)
-    want = _digest() + " " + extras
-    if STAMP.exists() and STAMP.read_text().strip() == want:
+    digest, wanted = _digest(), {e for e in extras.split(",") if e}
+    stamped = STAMP.read_text().split() if STAMP.exists() else []
+    installed = set(stamped[1].split(",")) if len(stamped) == 2 else set()
+    if stamped[:1] == [digest] and wanted <= installed:
         return
+    all_extras = ",".join(sorted(wanted | installed))
     _run(PY, "-m", "pip", "install", "--quiet", "--disable-pip-version-check",
-         "-c", ROOT / "requirements.lock", "-e", f"{ROOT}[{extras}]")
-    STAMP.write_text(want + "\n")
+         "-c", ROOT / "requirements.lock", "-e", f"{ROOT}[{all_extras}]")
+    STAMP.write_text(f"{digest} {all_extras}\n")
 
 
 #: The headless browser of the report-page test (tests/hil/test_report_page.py), Debian's package.
@@ -161,8 +174,20 @@ def bench(args: list[str]) -> None:
     _run(PY, ROOT / "benchmarks" / "run.py", *args)
 
 
+def docs(args: list[str]) -> None:
+    """The documentation site in ``out/docs/`` (``docs/_ext/site.py``): the pages of ``docs/``, the notebooks
+    run and rendered with their outputs (cached under ``out/docs-work/``: a notebook runs again only when it
+    changed), the API reference from the docstrings and the CLI reference from the commands' parsers. Every
+    Sphinx warning is an error, and so is a broken reference or internal link. ``--execute off`` renders the
+    notebooks without running them."""
+    ensure_env("test,docs")
+    for key, value in _ONE_BLAS_THREAD.items():
+        os.environ.setdefault(key, value)
+    _run(PY, ROOT / "docs" / "_ext" / "site.py", "--out", OUT / "docs", *args)
+
+
 def lock(args: list[str]) -> None:
-    ensure_env()
+    ensure_env("test,docs,bench")
     frozen = subprocess.run([str(PY), "-m", "pip", "freeze", "--exclude-editable"],
                             capture_output=True, text=True, check=True).stdout
     header = ("# Exact versions of every package the project installs (constraints file).\n"
@@ -170,7 +195,7 @@ def lock(args: list[str]) -> None:
     (ROOT / "requirements.lock").write_text(header + frozen)
 
 
-TASKS = {"demo": demo, "test": test, "bench": bench, "lock": lock}
+TASKS = {"demo": demo, "test": test, "bench": bench, "docs": docs, "lock": lock}
 
 if __name__ == "__main__":
     if len(sys.argv) < 2 or sys.argv[1] not in TASKS:

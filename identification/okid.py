@@ -41,7 +41,7 @@ class OKID:
         :func:`identification.selection.fit_select`, which fits one estimator per candidate.
     markov
         Number of observer Markov parameters ``p`` (lags), or ``"auto"``
-        (Akaike's criterion over 1..``max_markov``).
+        (Akaike's criterion over ``1..max_markov``).
     max_markov
         Largest ``p`` considered by ``markov="auto"``.
     max_order

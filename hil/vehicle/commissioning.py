@@ -172,6 +172,8 @@ def loop_settings(valve: ValveCurve, base: LoopConfig | None = None, linearity_e
     * ``response_min_command``: the commanded motion from which a healthy valve always moves more
       than ``response_min_ratio`` of it: ``(2 lag max_rate (1 + error) + k sqrt(2) noise) / (1 - ratio)``,
       ``k`` = :data:`NOISE_SIGMAS`, noise = the reports' 1-sigma.
+    * ``wheel_step``: the plausibility check's motion allowed between two reports beyond the valve's rate,
+      at least ``k sqrt(2) noise`` (a noisy potentiometer's reports are not a wheel faster than the valve).
 
     Parameters
     ----------
@@ -185,7 +187,7 @@ def loop_settings(valve: ValveCurve, base: LoopConfig | None = None, linearity_e
     Returns
     -------
     LoopConfig
-        ``base`` with those four settings replaced.
+        ``base`` with those five settings replaced.
     """
     base = base or LoopConfig()
     err = 0.15 if linearity_error is None else min(max(float(linearity_error), 0.0), 0.5)
@@ -193,8 +195,11 @@ def loop_settings(valve: ValveCurve, base: LoopConfig | None = None, linearity_e
     spread = 2.0 * valve.lag * valve.max_rate * (1.0 + err) + NOISE_SIGMAS * math.sqrt(2.0) * valve.angle_noise
     min_command = spread / (1.0 - min_ratio)
     window = max(base.response_window, 6.0 * valve.lag, 2.0 * min_command / valve.max_rate)
+    # the plausibility check's step between two reports covers the sensor's measured noise: the difference of
+    # two noisy reports must never read as a wheel faster than the valve
+    step = max(base.wheel_step, NOISE_SIGMAS * math.sqrt(2.0) * valve.angle_noise)
     return dataclasses.replace(base, max_rate=valve.max_rate, response_window=window,
-                               response_min_ratio=min_ratio, response_min_command=min_command)
+                               response_min_ratio=min_ratio, response_min_command=min_command, wheel_step=step)
 
 
 class MappedBridge:

@@ -248,7 +248,7 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
             loop = VehicleLoop(clock, steering, frontend, guidance, controller,
                                ISOBUS_CALIBRATION if isobus else ANGLE_CALIBRATION if agio
                                else WheelAngleCalibration(*cfg.wheel_calibration),
-                               loop_config, parts=parts)
+                               loop_config, parts=parts, epochs=epochs)
             try:
                 loop.run(duration, start=clock.now(), progress=progress, stop_request=request)
                 interrupted = request.reason
@@ -277,7 +277,7 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
     if loop.cycles < 2:   # ended (a failure) before the loop had a record to keep
         raise HilError(f"the run ended after {loop.cycles} cycle(s), too few for a run log: "
                        f"{aborted or interrupted or 'no reason recorded'}")
-    return loop.run_log(meta, epochs=epochs)
+    return loop.run_log(meta)
 
 
 def _stop_quietly(loop: VehicleLoop, reason: str) -> None:

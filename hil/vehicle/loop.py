@@ -221,12 +221,15 @@ class VehicleLoop:
         With a path: its tagged station intervals (objects with ``start``, ``end`` [m],
         ``pass_index`` and ``kind`` in :data:`PART_KINDS`, as :class:`gnss.field.RoutePart`),
         sorted by start; logged as ``part_pass`` and ``part_kind`` every cycle.
+    epochs
+        Record the receivers' epochs as they arrive (an AB line only), for a run log in identification's
+        format (:meth:`run_log`).
     """
 
     def __init__(self, clock: Clock, driver: BridgeDriver, frontend: GnssFrontEnd, line: ABLine | PathFollower,
                  controller: Controller, calibration: WheelAngleCalibration, config: LoopConfig | None = None,
                  truth: Callable[[], dict[str, float]] | None = None,
-                 parts: Sequence = ()) -> None:
+                 parts: Sequence = (), epochs: bool = False) -> None:
         if not isinstance(controller, Controller):
             raise VehicleConfigError(f"{type(controller).__name__} does not implement the Controller interface")
         # a tracker follows a path; any other line (an AB line: the fast path) gives its errors itself
@@ -275,6 +278,9 @@ class VehicleLoop:
         self._pos_epochs: list[tuple[float, float, float, float, float]] = []
         self._att_epochs: list[tuple[float, float, float]] = []
         self._pos_seen = self._att_seen = math.nan
+        if epochs and self._path is not None:
+            raise VehicleConfigError("epochs: the receivers' epochs are recorded against an AB line, not a path")
+        self._epochs = bool(epochs)
 
     # -- one cycle ------------------------------------------------------------------
     def cycle(self, t_due: float) -> None:
@@ -314,7 +320,7 @@ class VehicleLoop:
         else:
             xte, he = last_xte, last_he
         speed = nav.speed if math.isfinite(nav.speed) else last_speed
-        if path is None:
+        if self._epochs:
             self._record_epochs(nav)
         integrity = nav.integrity
         if not integrity.healthy:
@@ -512,14 +518,15 @@ class VehicleLoop:
         if self.engaged:
             self._disengage(self.clock.now(), reason, True)
 
-    def run_log(self, meta: dict, epochs: bool = False) -> PassLog:
+    def run_log(self, meta: dict) -> PassLog:
         """The record as a pass log (cycle time base for every channel) with ``meta`` added.
 
-        With ``epochs`` (an AB line's run, e.g. an identification pass driven by the loop), ``cross_track``,
-        ``speed`` and ``fix_quality`` are the position epochs at their arrival (``t_cross_track``, ``t_speed``)
-        and ``heading_error`` the attitude epochs at theirs (``t_heading_error``), unpropagated, with the
-        receivers' times of validity on the host clock (``position_valid_time``, and ``attitude_valid_time`` where
-        the attitude messages carry a time tag): identification's format (:mod:`identification.delay`). The loop's own values per cycle are kept as
+        With the loop's ``epochs`` (an AB line's run, e.g. an identification pass driven by the loop),
+        ``cross_track``, ``speed`` and ``fix_quality`` are the position epochs at their arrival
+        (``t_cross_track``, ``t_speed``) and ``heading_error`` the attitude epochs at theirs
+        (``t_heading_error``), unpropagated, with the receivers' times of validity on the host clock
+        (``position_valid_time``, and ``attitude_valid_time`` where the attitude messages carry a time tag):
+        identification's format (:mod:`identification.delay`). The loop's own values per cycle are kept as
         ``loop_cross_track``, ``loop_heading_error``, ``loop_speed`` and ``loop_fix_quality``.
         """
         table = np.array(self._rows, dtype=float).reshape(-1, len(_COLUMNS))
@@ -570,9 +577,7 @@ class VehicleLoop:
                      "sample_rates_hz": {k: self.config.rate for k in std},
                      "time_stamps": "loop cycle time; missing GPS/bridge values hold the last one (see *_valid)"}
         times = {"t": t, "t_cross_track": t, "t_heading_error": t, "t_speed": t}
-        if epochs:
-            if self._path is not None:
-                raise VehicleConfigError("run_log(epochs=True) needs an AB line's run")
+        if self._epochs:
             pos = np.array(self._pos_epochs, dtype=float).reshape(-1, 5)
             att = np.array(self._att_epochs, dtype=float).reshape(-1, 3)
             if len(pos) < 2 or len(att) < 2:

@@ -134,9 +134,12 @@ def test_thresholds_follow_the_measured_actuator() -> None:
     assert fast.max_rate == 0.6 and fast.response_min_command > cfg.response_min_command
     rough = loop_settings(base, linearity_error=0.2)
     assert rough.response_min_ratio < cfg.response_min_ratio
+    # the plausibility check's step covers the sensor's noise: the difference of two reports, 6 sigma
+    assert noisy.wheel_step == pytest.approx(6 * 2 ** 0.5 * 0.012) and noisy.wheel_step > cfg.wheel_step
+    assert cfg.wheel_step >= LoopConfig().wheel_step
     # the settings that are not the actuator's are left alone
     assert dataclasses.replace(cfg, max_rate=0.35, response_window=1.0, response_min_command=0.12,
-                               response_min_ratio=0.15) == LoopConfig()
+                               response_min_ratio=0.15, wheel_step=LoopConfig().wheel_step) == LoopConfig()
 
 
 def _oracle_pass(p: SimParams, commissioning: Commissioning | None, seed: int) -> dict:

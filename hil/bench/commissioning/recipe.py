@@ -270,10 +270,14 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             r = drive_procedure_passes(out, opts.field_plan(), params, com, opts.seed,
                                        progress=lambda d, n: tick("passes", d, n))
             res["procedure"] = r
-            if r["unfinished"]:
-                raise SimulatorConfigError(f"{len(r['unfinished'])} passes were spoiled {MAX_DRIVES} times "
-                                           f"({r['unfinished'][0]}, ...): see {out / 'spoiled'}")
-            return [str(f) for f in sorted((out / "logs").glob("*.npz"))]
+            if r["unfinished"]:   # as an operator would stop: identify from the passes that are good
+                say(f"    {len(r['unfinished'])} passes were spoiled {MAX_DRIVES} times and are left out "
+                    f"({'; '.join(r['unfinished'][:3])}{', ...' if len(r['unfinished']) > 3 else ''}): see "
+                    f"{out / 'spoiled'}")
+            good = [str(f) for f in sorted((out / "logs").glob("*.npz"))]
+            if not good:
+                raise SimulatorConfigError(f"every pass was spoiled {MAX_DRIVES} times: see {out / 'spoiled'}")
+            return good
         made = make_passes(plan, params, progress=lambda d, n: tick("passes", d, n), valve=com.valve)
         return [str(log.save(out / "logs" / f"{name}.npz")) for name, log in made]
     what = (f"identification passes driven by the runtime's excitation in its corridor ({opts.passes} per speed "

@@ -159,6 +159,8 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
     receivers' epochs with their valid times (:meth:`hil.vehicle.loop.VehicleLoop.run_log`; an AB line only).
     """
     cond = condition_for(spec.implement, spec.speed)
+    if epochs and spec.field is not None:
+        raise SimulatorConfigError("epochs: the receivers' epochs are recorded against the AB line, not a field")
     fld = None if spec.field is None else field_run(spec.field, params or SimParams(), spec.speed, spec.field_passes)
     initial = ({"Y": spec.initial_cross_track, "PSI": spec.initial_heading} if fld is None else
                fld.start_state(spec.start_station, spec.initial_cross_track, spec.initial_heading))
@@ -233,7 +235,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
                 driver = MappedBridge(driver, commissioning.valve)
         if fld is None:
             loop = VehicleLoop(clock, driver, frontend, geo.ab_line(), controller, cal, loop_config,
-                               truth=plant.truth)
+                               truth=plant.truth, epochs=epochs)
         else:   # the vehicle's own tracker on the route in ENU; the bench's on the simulator's frame
             tracker = PathTracker(geo.place(fld.path), station=spec.start_station, cycle=1.0 / loop_config.rate)
             loop = VehicleLoop(clock, driver, frontend, tracker, controller, cal, loop_config,
@@ -260,7 +262,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
     if fld is not None:
         meta["field"] = {**fld.describe(), "source": spec.field, "start_station_m": spec.start_station,
                          "driver_takeovers": None if driver_layer is None else driver_layer.takeovers}
-    return loop.run_log(meta, epochs=epochs)
+    return loop.run_log(meta)
 
 
 def _refused(frontend: GnssFrontEnd) -> dict:

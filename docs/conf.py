@@ -73,6 +73,8 @@ nitpick_ignore_regex = [
                r"subprocess|abc|types|re|jinja2|dask|distributed|cryptography)\..*"),
 ]
 
+smartquotes_action = "qe"           # quotes and ellipses; "--option" stays two hyphens
+
 html_theme = "furo"
 html_title = f"tractor-autosteer {release}"
 html_static_path: list[str] = []

@@ -97,7 +97,7 @@ def cli_page(command: str, spec: str) -> str:
         out.write("| sub-command | what it does |\n| --- | --- |\n")
         for name, sub in subs.items():
             anchor = "-".join([command, *name.split()])
-            summary = _summary(parser, name).replace("|", "\\|")
+            summary = _summary(parser, name).replace("|", "\\|").replace("<", "\\<")   # table cell, no HTML
             out.write(f"| [`{command} {name}`](#{anchor}) | {summary} |\n")
         out.write("\n")
     out.write(f"```text\n{_help(parser)}\n```\n")

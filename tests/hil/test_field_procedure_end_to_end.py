@@ -1,0 +1,100 @@
+"""The field procedure end to end, shortened, in real time, through the commands a user types against the
+emulated tractor's serial ports (HC11 bridge and receivers on pseudo-terminals) and its AgOpenGPS module (UDP):
+the plan, the valve test, the identification passes driven by the runtime, commissioning from the recorded logs,
+and a driven pass on a field with the resulting files."""
+
+from __future__ import annotations
+
+import json
+import threading
+
+import numpy as np
+import pytest
+import serial
+
+from hil.cli import main as hil_main
+from hil.devices.emulate import EmulatedTractor
+from hil.vehicle.procedure import Procedure
+from identification.passlog import PassLog
+
+SPEEDS = (1.34, 2.24)
+
+
+def _drain(devices, stop: threading.Event) -> list[threading.Thread]:
+    """Read the receivers' ports (the valve test does not), so the emulator's writes never block."""
+    def run(dev):
+        with serial.Serial(dev, timeout=0.1) as port:
+            while not stop.is_set():
+                port.read(4096)
+    threads = [threading.Thread(target=run, args=(d,), daemon=True) for d in devices]
+    for t in threads:
+        t.start()
+    return threads
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+@pytest.mark.timeout(600)
+def test_a_shortened_field_procedure_through_the_commands(tmp_path, capsys):
+    folder = tmp_path / "tractor"
+    # the plan: two conditions, two short passes each
+    assert hil_main(["procedure", str(folder), "--implements", "none", "--speeds", *map(str, SPEEDS),
+                     "--passes", "2", "--duration", "20"]) == 0
+    assert "passes recorded: 0 of 4" in capsys.readouterr().out
+    # the valve test at standstill on the HC11 bridge's port
+    with EmulatedTractor(implement="none", speed=0.0, duration=120.0, seed=3) as tractor:
+        s = tractor.setup
+        stop = threading.Event()
+        threads = _drain({s.position, s.attitude}, stop)
+        cal = ",".join(repr(float(x)) for x in s.wheel_calibration)
+        try:
+            assert hil_main(["valve-test", "--bridge", s.bridge, f"--wheel-calibration={cal}", "--duties",
+                             "0.2,0.5,1.0", "--no-linearity", "--tractor", "emulated", "--out", str(folder)]) == 0
+        finally:
+            stop.set()
+            for t in threads:
+                t.join()
+    capsys.readouterr()
+    # the passes, each driven by the runtime's excitation on the emulated tractor at the plan's speed
+    for k in range(4):
+        nxt = Procedure.open(folder).remaining()[0]
+        with EmulatedTractor(implement="none", speed=nxt.speed, duration=60.0, seed=20 + k, driver=True) as tractor:
+            assert hil_main(["drive", *tractor.setup.drive_args(), "--excite", str(folder), "--json"]) == 0
+        result = json.loads(capsys.readouterr().out)
+        assert result["pass"] == nxt.label()
+    status = Procedure.open(folder).status()
+    assert status["remaining"] == [], status          # a spoiled pass would have been driven again above
+    for f in sorted((folder / "logs").glob("*.npz")):
+        log = PassLog.load(f)
+        assert "position_valid_time" in log.channels and np.ptp(log.channels["wheel_angle"]) > 0.05
+    # commissioning from the recorded logs, on any computer: no simulator, no truth
+    design = tmp_path / "design"
+    assert hil_main(["commission", "--logs", str(folder / "logs"), "--commissioning",
+                     str(folder / "commissioning.json"), "--out", str(design), "--acceptance", "warn",
+                     "--weights", "default", "--quiet"]) == 0
+    capsys.readouterr()
+    res = json.loads((design / "result.json").read_text())
+    assert "robust" in res["designs"], res["steps"]
+    robust = design / "controllers" / "robust.json"
+    # a driven pass on a field with the resulting files
+    with EmulatedTractor(implement="none", speed=1.34, duration=40.0, seed=31, driver=True) as tractor:
+        assert hil_main(["drive", *tractor.setup.drive_args(), "--controller", str(robust), "--commissioning",
+                         str(folder / "commissioning.json"), "--field", "gentle-curves", "--passes", "2",
+                         "--speed", "1.34", "--duration", "10", "--out", str(tmp_path / "run"), "--json"]) == 0
+    run = json.loads(capsys.readouterr().out)
+    assert run["events"][0]["event"] == "engage" and run["summary"]["engaged_fraction"] > 0.5
+    assert max(abs(PassLog.load(tmp_path / "run" / "run_log.npz").channels["cross_track"])) < 0.5
+    # over UDP with the AgOpenGPS module: an identification pass of a new procedure (the module closes its own
+    # angle loop, so its folder's commissioning comes from the HC11 test's valve and only sets the loop)
+    udp = tmp_path / "module"
+    assert hil_main(["procedure", str(udp), "--implements", "none", "--speeds", "1.34", "--passes", "1",
+                     "--duration", "15"]) == 0
+    (udp / "commissioning.json").write_bytes((folder / "commissioning.json").read_bytes())
+    capsys.readouterr()
+    with EmulatedTractor(implement="none", speed=1.34, duration=60.0, seed=41, bridge="agopengps",
+                         driver=True) as tractor:
+        assert hil_main(["drive", *tractor.setup.drive_args(), "--excite", str(udp), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["faults"] == [] and Procedure.open(udp).remaining() == []
+    log = PassLog.load(udp / "logs" / "none_1340mm_pass0.npz")
+    assert np.mean(np.abs(log.channels["steer_rate_cmd"]) > 0) > 0.2 and "position_valid_time" in log.channels

@@ -141,3 +141,14 @@ def test_the_trial_refuses_a_threshold_below_one_and_writes_nothing(tmp_path, ba
         choose_schedule(f, None, None, (1.0,), ("none",), tmp_path / "trial", off_above=bad)
     assert not (tmp_path / "trial").exists() and f.read_text() == "{}"
     assert OFF_ABOVE == {"robust": 1.0, "mpc": 1.10}
+
+
+def test_the_report_names_the_tractor_after_listing_the_mpc_windows_searched(tmp_path):
+    from hil.bench.commissioning.report import write_commission_report
+    res = {"tractor": resolve_tractor("heavy-11t").to_dict(), "options": {}, "steps": [{"step": "valve", "ok": True, "seconds": 1.0}],
+           "designs": {"mpc": {"file": str(tmp_path / "mpc.json"), "weights": "auto",
+                               "window_search": {"kept": 3, "tries": [{"past": 3, "scale": 0.5, "relaxed": []},
+                                                                      {"past": 6, "error": "no weights"}]}}}}
+    write_commission_report(res, tmp_path)
+    assert "| 6 | - | no weights |" in (tmp_path / "report.md").read_text()
+    assert "Commissioning of heavy-11t" in (tmp_path / "index.html").read_text()

@@ -214,9 +214,10 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
                       "they were searched on other windows (hil/commissioning/mpc_window.py); kept: window "
                       f"{search.get('kept')}." + (f" {search['note']}." if search.get("note") else ""), "",
                       "| window, samples | scale | relaxed specifications |", "|---:|---:|---|"]
-            for t in search["tries"]:
-                lines.append(f"| {t.get('past')} | " + (f"{t['scale']:.3g} | {'; '.join(t['relaxed']) or 'none'} |"
-                                                        if "error" not in t else f"- | {t['error']} |"))
+            for tried in search["tries"]:   # (not `t`: that is the tractor, named again in the page's title)
+                lines.append(f"| {tried.get('past')} | " + (
+                    f"{tried['scale']:.3g} | {'; '.join(tried['relaxed']) or 'none'} |"
+                    if "error" not in tried else f"- | {tried['error']} |"))
     lines += window_trial_lines(res.get("window_trial"))
     lines += mpc_window_trial_lines((res.get("designs", {}).get("mpc") or {}).get("window_trial"))
     for name, tr in (res.get("estimate_trial") or {}).items():

@@ -139,6 +139,7 @@ class SlewRule:
         self.n_made = np.zeros(B, dtype=int)
         self.returning = np.zeros(B, dtype=bool)
         self.y_ref = np.zeros(B)
+        self.servo_u = np.zeros(B)
         if s.servo > 0 and s.offset > 0:   # drawn after the slews' draws: those stay what they were
             n_off = int(duration / s.offset_hold_min) + 4
             self.off_val = np.stack([r.uniform(-s.offset, s.offset, n_off) for r in rngs])
@@ -153,6 +154,7 @@ class SlewRule:
         self.t_end[:] = now + self.settings.settle
         self.returning[:] = False
         self.y_ref[:] = 0.0
+        self.servo_u[:] = 0.0
         if hasattr(self, "off_end"):
             self.off_end[:] = now + self.settings.settle
 
@@ -189,17 +191,22 @@ class SlewRule:
         if s.servo <= 0:
             return mode * self.max_rate
         if s.offset > 0:
-            due = now >= self.off_end
-            if np.any(due):
+            moved = now >= self.off_end
+            if np.any(moved):
                 k = np.minimum(self.off_idx, self.off_val.shape[1] - 1)
-                self.y_ref = np.where(due, self.off_val[self.rows, k], self.y_ref)
-                self.off_end = np.where(due, now + self.off_len[self.rows, k], self.off_end)
-                self.off_idx = self.off_idx + due
-        y_ref = np.where(self.returning, 0.0, self.y_ref)
-        look = self.lookahead
-        want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m - y_ref + look * yaw), -s.soft_limit,
-                       s.soft_limit)
-        return np.clip(mode * self.max_rate + s.servo * (want - delta_m), -self.max_rate, self.max_rate)
+                self.y_ref = np.where(moved, self.off_val[self.rows, k], self.y_ref)
+                self.off_end = np.where(moved, now + self.off_len[self.rows, k], self.off_end)
+                self.off_idx = self.off_idx + moved
+        if np.any(due):
+            # the servo's rate is set when a stretch begins and held through it, like the slews: the command stays
+            # piecewise constant, so the wheel sensor's noise does not feed back into it cycle by cycle (which
+            # would correlate the input with the measurement noise and bias the models)
+            y_ref = np.where(self.returning, 0.0, self.y_ref)
+            look = self.lookahead
+            want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m - y_ref + look * yaw), -s.soft_limit,
+                           s.soft_limit)
+            self.servo_u = np.where(due, s.servo * (want - delta_m), self.servo_u)
+        return np.clip(mode * self.max_rate + self.servo_u, -self.max_rate, self.max_rate)
 
 
 class ExcitationController:

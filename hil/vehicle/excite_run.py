@@ -4,7 +4,7 @@
 the valve test's ``commissioning.json``, the passes recorded and spoiled), drives the first planned pass
 that has no good log on the tractor's ports (:func:`hil.vehicle.drive.drive`) with the excitation law
 (:class:`hil.vehicle.excitation.ExcitationController`) in its corridor through the commissioned loop,
-writes the pass log with the receivers' epochs and valid times into ``logs/``, reviews it (a spoiled pass
+writes the pass log with the receivers' epochs as they arrived into ``logs/``, reviews it (a spoiled pass
 goes to ``spoiled/`` with the reason and is driven again next time) and returns what comes next.
 """
 

@@ -524,9 +524,11 @@ class VehicleLoop:
         With the loop's ``epochs`` (an AB line's run, e.g. an identification pass driven by the loop),
         ``cross_track``, ``speed`` and ``fix_quality`` are the position epochs at their arrival
         (``t_cross_track``, ``t_speed``) and ``heading_error`` the attitude epochs at theirs
-        (``t_heading_error``), unpropagated, with the receivers' times of validity on the host clock
-        (``position_valid_time``, and ``attitude_valid_time`` where the attitude messages carry a time tag):
-        identification's format (:mod:`identification.delay`). The loop's own values per cycle are kept as
+        (``t_heading_error``), unpropagated: identification's format (:mod:`identification.delay`). Their
+        times of validity on the host clock (``position_valid_time``, and ``attitude_valid_time`` where the
+        attitude messages carry a time tag) are added when the front-end's configuration declares the receiver's
+        latency (:attr:`gnss.frontend.FrontEndConfig.receiver_latency`): without it the front-end's time of
+        validity is the arrival less the transport jitter, not a measured latency. The loop's own values per cycle are kept as
         ``loop_cross_track``, ``loop_heading_error``, ``loop_speed`` and ``loop_fix_quality``.
         """
         table = np.array(self._rows, dtype=float).reshape(-1, len(_COLUMNS))
@@ -591,17 +593,21 @@ class VehicleLoop:
             extra.pop("fix_quality")
             times.update(t_cross_track=pos[:, 0].copy(), t_speed=pos[:, 0].copy(), t_heading_error=att[:, 0].copy())
             chans.update(cross_track=pos[:, 2].copy(), speed=pos[:, 3].copy(), fix_quality=pos[:, 4].copy(),
-                         position_valid_time=pos[:, 1].copy(), heading_error=att[:, 2].copy())
-            extra.update(
-                fix_quality={"time": "t_cross_track", "unit": "1", "doc": "GGA fix quality, 4 fixed, 5 float"},
-                position_valid_time={"time": "t_cross_track", "unit": "s",
-                                     "doc": "the position epoch's time of validity on the host clock"})
-            # an attitude without a time tag (HDT, THS) has no time of validity of its own: the front-end
-            # stamps it at arrival, so the channel is left out and identification finds that latency itself
-            if float(np.median(att[:, 0] - att[:, 1])) > 1e-3:
-                chans["attitude_valid_time"] = att[:, 1].copy()
-                extra["attitude_valid_time"] = {"time": "t_heading_error", "unit": "s",
-                                                "doc": "the attitude epoch's time of validity on the host clock"}
+                         heading_error=att[:, 2].copy())
+            extra["fix_quality"] = {"time": "t_cross_track", "unit": "1", "doc": "GGA fix quality, 4 fixed, 5 float"}
+            # The front-end maps a receiver's time tag to the host clock by the least-delayed message and the
+            # receiver's latency its configuration declares: only with that declaration is a time of validity
+            # a measurement (without it, identification finds the latency from the data). An attitude without
+            # a time tag (HDT, THS) is stamped at its arrival and never has one.
+            declared = getattr(getattr(self.frontend, "config", None), "receiver_latency", 0.0)
+            if declared > 0.0:
+                chans["position_valid_time"] = pos[:, 1].copy()
+                extra["position_valid_time"] = {"time": "t_cross_track", "unit": "s",
+                                                "doc": "the position epoch's time of validity on the host clock"}
+                if float(np.median(att[:, 0] - att[:, 1])) > 1e-3:
+                    chans["attitude_valid_time"] = att[:, 1].copy()
+                    extra["attitude_valid_time"] = {"time": "t_heading_error", "unit": "s",
+                                                    "doc": "the attitude epoch's time of validity on the host clock"}
             full_meta["sample_rates_hz"] = {"wheel_angle": self.config.rate, "steer_rate_cmd": self.config.rate,
                                             "cross_track": _rate_of(pos[:, 0]), "speed": _rate_of(pos[:, 0]),
                                             "heading_error": _rate_of(att[:, 0])}

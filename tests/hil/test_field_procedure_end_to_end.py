@@ -66,7 +66,7 @@ def test_a_shortened_field_procedure_through_the_commands(tmp_path, capsys):
     assert status["remaining"] == [], status          # a spoiled pass would have been driven again above
     for f in sorted((folder / "logs").glob("*.npz")):
         log = PassLog.load(f)
-        assert "position_valid_time" in log.channels and np.ptp(log.channels["wheel_angle"]) > 0.05
+        assert log.meta["excitation"]["corridor"] == 1.5 and np.ptp(log.channels["wheel_angle"]) > 0.05
     # commissioning from the recorded logs, on any computer: no simulator, no truth
     design = tmp_path / "design"
     assert hil_main(["commission", "--logs", str(folder / "logs"), "--commissioning",
@@ -97,4 +97,4 @@ def test_a_shortened_field_procedure_through_the_commands(tmp_path, capsys):
     result = json.loads(capsys.readouterr().out)
     assert result["faults"] == [] and Procedure.open(udp).remaining() == []
     log = PassLog.load(udp / "logs" / "none_1340mm_pass0.npz")
-    assert np.mean(np.abs(log.channels["steer_rate_cmd"]) > 0) > 0.2 and "position_valid_time" in log.channels
+    assert np.mean(np.abs(log.channels["steer_rate_cmd"]) > 0) > 0.2 and "loop_cross_track" in log.channels

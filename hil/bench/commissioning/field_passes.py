@@ -5,7 +5,7 @@
 pass until none remains, as an operator would with ``hil drive --excite``: the vehicle loop runs the
 runtime's excitation law (:class:`hil.vehicle.excitation.ExcitationController`) in its corridor through
 the commissioned bridge (:func:`hil.bench.runs.run.simulated_run`, lockstep), the pass log holds the
-receivers' epochs with their valid times, and the procedure's review moves a spoiled pass (the loop
+receivers' epochs as they arrived, and the procedure's review moves a spoiled pass (the loop
 left the corridor or disengaged, the fix was not RTK fixed) to ``spoiled/``, so the pass is driven
 again. The simulator is the only thing the bench adds: nothing of the procedure reads the truth.
 """

@@ -19,8 +19,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-import numpy as np
 
+from identification.bounded import read_json
 from identification.outputs import atomic_write
 from identification.passlog import PassLog
 
@@ -33,6 +33,9 @@ from hil.commissioning.html import provenance, write_page
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import Condition
 from hil.truth.params import SimParams
+
+#: Largest record a comparison reads back (its identity and every run's result), bytes.
+RECORD_LIMIT = 2**22
 from hil.vehicle.controllers import controller_label
 from hil.vehicle.summary import summarize
 
@@ -191,7 +194,7 @@ class FieldComparison:
         (self.out / "logs").mkdir(parents=True, exist_ok=True)
         ident = self.out / "fields_comparison.json"
         if ident.exists():
-            old = json.loads(ident.read_text())
+            old = read_json(ident, RECORD_LIMIT, "field comparison's record", SimulatorConfigError)
             if old.get("params") != self.params or old.get("passes") != self.identity["passes"]:
                 raise SimulatorConfigError(f"{ident} belongs to a comparison with other simulator parameters or "
                                            "passes; use another --out directory")
@@ -232,7 +235,8 @@ class FieldComparison:
             # Ctrl-C, SIGTERM or a failed run: the workers are terminated and joined (no orphan keeps
             # driving a route); what finished is saved and a rerun resumes
             run_pool(run_field_key, [(k, self.params, logs) for k in todo], workers or os.cpu_count() or 1, save)
-        return [json.loads(self._path(k).read_text()) for k in self.keys]
+        return [read_json(self._path(k), RECORD_LIMIT, "field run's result", SimulatorConfigError)
+                for k in self.keys]
 
     def log_of(self, key: FieldKey) -> PassLog:
         """The saved run log of one run."""

@@ -19,7 +19,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-
 from identification.bounded import read_json
 from identification.outputs import atomic_write
 from identification.passlog import PassLog

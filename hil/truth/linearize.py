@@ -34,8 +34,8 @@ EXOGENOUS = ("roll", "force_y", "ripper_force", "ripper_moment", "draft", "gang_
 _KEPT = (Y, PSI, V, R, DEL, OM, PHI)
 
 
-def _frozen(a: object) -> np.ndarray:
-    """A read-only float copy."""
+def read_only(a: object) -> np.ndarray:
+    """A read-only float copy of ``a``."""
     arr = np.array(a, dtype=float)
     arr.flags.writeable = False
     return arr
@@ -72,13 +72,15 @@ class Linearization:
     def __post_init__(self) -> None:
         n = len(self.states)
         for name, shape in (("A", (n, n)), ("B", (n, 1)), ("E", (n, len(EXOGENOUS))), ("trim", (8,))):
-            arr = _frozen(getattr(self, name))
+            arr = read_only(getattr(self, name))
             if arr.shape != shape or not np.all(np.isfinite(arr)):
                 raise SimulatorConfigError(f"Linearization.{name}: expected finite {shape}, got {arr.shape}")
             object.__setattr__(self, name, arr)
 
 
-def _check(condition: Condition, params: SimParams | None) -> SimParams:
+def checked_params(condition: Condition, params: SimParams | None) -> SimParams:
+    """``params`` (default :class:`SimParams`) once ``condition`` is a :class:`Condition` the linearisation holds
+    for: straight driving at twice the slip speed floor or faster (:class:`SimulatorConfigError` otherwise)."""
     if not isinstance(condition, Condition):
         raise SimulatorConfigError(f"expected a hil.truth.conditions.Condition, got {type(condition).__name__}")
     if params is not None and not isinstance(params, SimParams):
@@ -109,7 +111,7 @@ def find_trim(condition: Condition, params: SimParams | None = None) -> np.ndarr
     Unknowns heading (crab), lateral velocity, wheel angle and (disker) hitch angle; yaw rate,
     valve rate and cross-track rate are zero.
     """
-    p = _check(condition, params)
+    p = checked_params(condition, params)
     u = mean_inputs(condition, p)
     free = [PSI, V, DEL] + ([PHI] if u.disker else [])
 
@@ -172,7 +174,7 @@ def linearize(condition: Condition, params: SimParams | None = None, typical_rat
     -------
     Linearization
     """
-    p = _check(condition, params)
+    p = checked_params(condition, params)
     x0 = find_trim(condition, p)
     u0 = mean_inputs(condition, p)
     keep = list(_KEPT if u0.disker else _KEPT[:-1])

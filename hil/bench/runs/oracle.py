@@ -54,7 +54,7 @@ from hil.truth.params import SimParams
 from hil.truth.steering import nominal_duty, sensor_counts_float, valve_rate
 from hil.devices.wheel_calibration import two_point_calibration
 from hil.truth.dynamics import DEL, PSI, Y
-from hil.truth.linearize import EXOGENOUS, Linearization, _check, _frozen, linearize, valve_command
+from hil.truth.linearize import EXOGENOUS, Linearization, checked_params, linearize, read_only, valve_command
 
 #: Exogenous channels of :class:`hil.truth.dynamics.Inputs` the linearisation differentiates, SI units.
 def _fields_positive(obj: object, skip: tuple[str, ...] = ()) -> None:
@@ -244,7 +244,7 @@ def design_oracle(condition: Condition, params: SimParams | None = None,
     SimulatorConfigError
         Bad inputs, or a design whose closed loop is not stable (never returned unverified).
     """
-    p = _check(condition, params)
+    p = checked_params(condition, params)
     opt = options or OracleOptions()
     if not isinstance(opt, OracleOptions):
         raise SimulatorConfigError(f"options must be OracleOptions, got {type(opt).__name__}")
@@ -324,7 +324,7 @@ def design_oracle(condition: Condition, params: SimParams | None = None,
         raise SimulatorConfigError(f"oracle design for {condition.name} is not stable (spectral radius "
                                    f"{rho:.4f}); change OracleOptions.weights")
     y_trim = [float(lin.trim[Y]), float(lin.trim[PSI]), d_trim]
-    return OracleDesign(lin, dt, *map(_frozen, (A, B, C, K, M, y_trim, X0)),
+    return OracleDesign(lin, dt, *map(read_only, (A, B, C, K, M, y_trim, X0)),
                         input_gain=1.0 if opt.invert_valve or opt.host_map else lin.valve_gain, n_plant=npl,
                         spectral_radius=rho, state_names=tuple(names))
 

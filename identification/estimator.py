@@ -21,7 +21,7 @@ point where it is handed to scipy, which refuses ``Q`` or ``R`` whose
 asymmetry exceeds 100 ulp of their norm: products such as ``K₀ R K₀ᵀ`` and
 the eigen-reconstruction of ``R`` are symmetric only up to round-off, and with
 many outputs on nearly collinear channels (gains along the small directions
-of ``R``) that round-off exceeded scipy's tolerance (issue #19).
+of ``R``) that round-off can exceed scipy's tolerance.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Names taken from files, and the paths written from them (issue #18 items 1 and 5).
+"""Names taken from files, and the paths written from them.
 
 Every name that comes from a file (a pass log's implement or gear, a model's
 condition labels) and ends up in a file name is checked against one allow-list

@@ -1,4 +1,4 @@
-"""Output-error refinement of all of ``A``, ``B``, ``C``, ``D`` started from a realised model (issue #19).
+"""Output-error refinement of all of ``A``, ``B``, ``C``, ``D`` started from a realised model.
 
 ERA fits the Markov parameters; :mod:`identification.refine` re-fits ``B`` and
 ``D`` for the realised ``A``, ``C``. Here every matrix and the initial state of

@@ -32,13 +32,6 @@ VERSION_HEADING = re.compile(r"^#+ .*\d+\.\d+")
 OURS = {"gnss", "identification", "design", "hil", "docs", "tests", "notebooks", "benchmarks", "models", "out"}
 UPSTREAM = re.compile(r"`([\w.-]+)/[\w.-]+`")
 
-# Product modules whose docstrings still name issues; their owners remove the reference, then the entry.
-PENDING = {
-    "identification/estimator.py",
-    "identification/outputs.py",
-    "identification/pem.py",
-}
-
 
 def _markdown_files() -> list[Path]:
     # build output and templates live in folders whose names start with "_" or "."
@@ -117,10 +110,7 @@ def test_markdown_has_no_history(path: Path) -> None:
 def _python_params():
     for package in PACKAGES:
         for path in sorted((ROOT / package).rglob("*.py")):
-            name = str(path.relative_to(ROOT))
-            marks = [pytest.mark.xfail(reason="docstring names an issue; its owner removes it")] \
-                if name in PENDING else []
-            yield pytest.param(path, id=name, marks=marks)
+            yield pytest.param(path, id=str(path.relative_to(ROOT)))
 
 
 @pytest.mark.parametrize("path", list(_python_params()))

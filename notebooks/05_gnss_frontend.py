@@ -12,7 +12,7 @@
 # ---
 
 # %% [markdown]
-# # 02 — The GPS front-end on a real RTK capture
+# # 05 - The GPS front-end on a real RTK capture
 #
 # Decode the Trimble RTK capture (gpsd regression log, 10 Hz GGA/RMC), summarise it, replay it
 # through the front-end at a fixed 10 Hz and compute cross-track against an AB line along the

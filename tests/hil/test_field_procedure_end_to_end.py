@@ -10,26 +10,14 @@ import threading
 
 import numpy as np
 import pytest
-import serial
 
 from hil.cli import main as hil_main
 from hil.devices.emulate import EmulatedTractor
 from hil.vehicle.procedure import Procedure
 from identification.passlog import PassLog
+from port_drain import drain
 
 SPEEDS = (1.34, 2.24)
-
-
-def _drain(devices, stop: threading.Event) -> list[threading.Thread]:
-    """Read the receivers' ports (the valve test does not), so the emulator's writes never block."""
-    def run(dev):
-        with serial.Serial(dev, timeout=0.1) as port:
-            while not stop.is_set():
-                port.read(4096)
-    threads = [threading.Thread(target=run, args=(d,), daemon=True) for d in devices]
-    for t in threads:
-        t.start()
-    return threads
 
 
 @pytest.mark.slow
@@ -45,7 +33,7 @@ def test_a_shortened_field_procedure_through_the_commands(tmp_path, capsys):
     with EmulatedTractor(implement="none", speed=0.0, duration=120.0, seed=3) as tractor:
         s = tractor.setup
         stop = threading.Event()
-        threads = _drain({s.position, s.attitude}, stop)
+        threads = drain({s.position, s.attitude}, stop)
         cal = ",".join(repr(float(x)) for x in s.wheel_calibration)
         try:
             assert hil_main(["valve-test", "--bridge", s.bridge, f"--wheel-calibration={cal}", "--duties",

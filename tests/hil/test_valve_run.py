@@ -7,23 +7,11 @@ import json
 import threading
 
 import pytest
-import serial
 
 from hil.cli import main as hil_main
 from hil.devices.emulate import EmulatedTractor
 from hil.vehicle.commissioning import load_commissioning
-
-
-def _drain(devices, stop: threading.Event) -> list[threading.Thread]:
-    """Read the receivers' ports (the valve test does not), so the emulator's writes never block."""
-    def run(dev):
-        with serial.Serial(dev, timeout=0.1) as port:
-            while not stop.is_set():
-                port.read(4096)
-    threads = [threading.Thread(target=run, args=(d,), daemon=True) for d in devices]
-    for t in threads:
-        t.start()
-    return threads
+from port_drain import drain
 
 
 @pytest.mark.slow
@@ -33,7 +21,7 @@ def test_the_valve_test_on_the_bridge_port_writes_the_commissioning_file(tmp_pat
     with EmulatedTractor(implement="none", speed=0.0, duration=150.0, seed=3, driver=False) as tractor:
         s = tractor.setup
         stop = threading.Event()
-        threads = _drain({s.position, s.attitude}, stop)
+        threads = drain({s.position, s.attitude}, stop)
         cal = ",".join(repr(float(x)) for x in s.wheel_calibration)
         try:
             rc = hil_main(["valve-test", "--bridge", s.bridge, f"--wheel-calibration={cal}", "--duties", "0.2,0.5,1.0",

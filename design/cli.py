@@ -31,10 +31,10 @@ import sys
 
 import numpy as np
 
-from identification.cliutil import Parser, add_deprecated_option
+from autosteer.cli import Parser, add_deprecated_option
 from identification.errors import OutputError
 from identification.outputs import write_stdout
-from identification.version import toolkit_version
+from autosteer.version import toolkit_version
 
 from design.commands import mpc as cli_mpc
 from design.commands import nmpc as cli_nmpc

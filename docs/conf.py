@@ -91,7 +91,7 @@ class _EmptyGuidesGlob(logging.Filter):
 
 
 #: The toolkit's packages: the API reference documents what they define.
-PACKAGES = ("gnss", "identification", "design", "hil")
+PACKAGES = ("autosteer", "gnss", "identification", "design", "hil")
 
 
 def _skip_member(app, what, name, obj, skip, options) -> bool | None:

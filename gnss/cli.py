@@ -23,6 +23,9 @@ import os
 import sys
 from pathlib import Path
 
+from autosteer.cli import Parser
+from autosteer.version import toolkit_version
+
 from .errors import GNSSError
 from .messages import Message, message_key
 from .summary import CaptureSummary, cross_track_of_capture, summarize_capture
@@ -40,18 +43,9 @@ def _latlon(text: str) -> tuple[float, float]:
     return math.radians(lat), math.radians(lon)
 
 
-def _version() -> str:
-    """The installed toolkit's version (pyproject.toml's ``version``), or ``unknown`` outside an installation."""
-    from importlib import metadata
-    try:
-        return metadata.version("tractor-autosteer")
-    except metadata.PackageNotFoundError:
-        return "unknown"
-
-
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="gnss", description="GNSS receiver captures: decode, summarise, cross-track.")
-    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}",
+    p = Parser(prog="gnss", description="GNSS receiver captures: decode, summarise, cross-track.")
+    p.add_argument("--version", action="version", version=f"%(prog)s {toolkit_version()}",
                    help="print the toolkit's version and exit")
     sub = p.add_subparsers(dest="command", required=True)
     for name, what in (("decode", "the capture's messages as JSON lines, one object per message (--summary: its "

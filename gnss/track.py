@@ -31,6 +31,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from autosteer.checks import positive
+
 from .arcgeom import SCALAR_OPS, nearest_in_window, pose_on_segment
 from .curve import ArcPath
 from .errors import GeometryError
@@ -61,14 +63,6 @@ class Tracked(NamedTuple):
     curvature: float
 
 
-def _positive(value: float, name: str, allow_zero: bool = False) -> float:
-    ok = isinstance(value, (int, float, np.floating)) and not isinstance(value, bool) and math.isfinite(value)
-    if not ok or value < 0 or (value == 0 and not allow_zero):
-        raise GeometryError(f"PathTracker.{name}: expected a finite number {'>=' if allow_zero else '>'} 0, "
-                            f"got {value!r}")
-    return float(value)
-
-
 class PathTracker:
     """Cross-track, heading error, station and curvature of a vehicle along one path, searched locally.
 
@@ -92,9 +86,10 @@ class PathTracker:
         if not isinstance(path, ArcPath):
             raise GeometryError(f"PathTracker: expected an ArcPath, got {type(path).__name__}")
         self.path = path
-        self.max_speed = _positive(max_speed, "max_speed")
-        self.cycle = _positive(cycle, "cycle")
-        self.margin = _positive(margin, "margin", allow_zero=True)
+        self.max_speed = positive(max_speed, "max_speed", unit="m/s", where="PathTracker", error=GeometryError)
+        self.cycle = positive(cycle, "cycle", unit="s", where="PathTracker", error=GeometryError)
+        self.margin = positive(margin, "margin", unit="m", where="PathTracker", error=GeometryError,
+                               allow_zero=True)
         self._table = path.table()
         self._starts = [row[0] for row in self._table]
         self._length = path.length

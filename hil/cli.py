@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from identification.version import toolkit_version
+from autosteer.version import toolkit_version
 
 
 #: Exit status after Ctrl-C (128 + SIGINT), as shells report it.

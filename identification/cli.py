@@ -13,11 +13,11 @@ import sys
 from pathlib import Path
 
 from .bounded import parse_json
-from .cliutil import Parser, RawDescriptionFormatter, add_option
+from autosteer.cli import Parser, RawDescriptionFormatter, add_option
 from .errors import IdentificationError, OptionError
 from .outputs import output_file, write_stdout
 from .passlog import PassLog, check_physical
-from .version import toolkit_version
+from autosteer.version import toolkit_version
 
 
 CONVERT_HELP = """\

@@ -16,7 +16,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .checks import finite
+from autosteer.checks import finite
 from .errors import DataError
 
 #: Fewest samples an experiment may have.

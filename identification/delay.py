@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
-from .checks import finite
+from autosteer.checks import finite
 from .errors import DataError, OptionError
 from .passlog import PassLog
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .checks import finite
+from autosteer.checks import finite
 from .data import IOData
 from .errors import DataError, OptionError
 

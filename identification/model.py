@@ -26,7 +26,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .bounded import parse_json, read_npz
-from .checks import finite
+from autosteer.checks import finite
 from .errors import ModelFileError, OptionError
 from .outputs import atomic_write, check_name
 

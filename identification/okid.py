@@ -18,7 +18,7 @@ import numpy as np
 
 from . import era as _era
 from . import markov as _mk
-from .checks import finite
+from autosteer.checks import finite
 from .data import IOData
 from .errors import DataError, NotFittedError, OptionError, RealizationError
 from .estimator import kalman_gain, observer_gain

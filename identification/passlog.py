@@ -47,7 +47,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .bounded import parse_json, read_npz, read_text
-from .checks import finite
+from autosteer.checks import finite
 from .errors import OptionError, PassLogError
 from .outputs import atomic_write, check_name
 

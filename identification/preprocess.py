@@ -40,7 +40,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .checks import finite
+from autosteer.checks import finite
 from .data import IOData
 from .errors import DataError, OptionError
 from .passlog import PassLog

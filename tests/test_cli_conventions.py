@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from identification.cliutil import (deprecated_strings, resolve_seeds, seed_list, seeds_or_count,
+from autosteer.cli import (deprecated_strings, resolve_seeds, seed_list, seeds_or_count,
                                     suggestion)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -162,6 +162,7 @@ def test_conditions_are_given_one_way(actions):
 def test_a_mistyped_sub_command_or_option_gets_the_closest_spelling(capsys):
     from design.cli import main as design_main
     from hil.cli import main as hil_main
+    from gnss.cli import main as gnss_main
     from identification.cli import main as identification_main
     cases = [(hil_main, ["comission"], "did you mean: commission"),
              (hil_main, ["commission", "--tractor", "x", "--out", "o", "--hil-sedes", "0-1"],
@@ -173,6 +174,8 @@ def test_a_mistyped_sub_command_or_option_gets_the_closest_spelling(capsys):
               "did you mean: --validate-on?"),
              (design_main, ["lqr", "--models", "m", "--out", "c", "--verfy-on", "x"], "did you mean: --validate-on?"),
              (identification_main, ["okdi"], "did you mean: okid?"),
+             (gnss_main, ["replya", "x.nmea"], "did you mean: replay?"),
+             (gnss_main, ["xtrack", "x.nmea", "--a", "1,2", "--b", "1,3", "--ofset", "1"], "did you mean: --offset?"),
              (hil_main, ["compare", "kinematic", "--out", "o", "--conditons", "all"], "did you mean: --conditions?")]
     for main, argv, hint in cases:
         with pytest.raises(SystemExit) as stop:

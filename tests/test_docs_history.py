@@ -22,14 +22,14 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("gnss", "identification", "design", "hil")
+PACKAGES = ("autosteer", "gnss", "identification", "design", "hil")
 
 HISTORY = re.compile(r"(?i:\bsessions?\s+\d+|\bissues?\s+#?\d+|\bround\s+\d+)|(?i:\bengineer)\s+[A-Z]\b"
                      r"|/work/|/tmp/|/home/")
 DATE = re.compile(r"\b20\d\d-[01]\d-[0-3]\d\b")
 COMMIT = re.compile(r"\b(?!ed25519\b)(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b")
 VERSION_HEADING = re.compile(r"^#+ .*\d+\.\d+")
-OURS = {"gnss", "identification", "design", "hil", "docs", "tests", "notebooks", "benchmarks", "models", "out"}
+OURS = {"autosteer", "gnss", "identification", "design", "hil", "docs", "tests", "notebooks", "benchmarks", "models", "out"}
 UPSTREAM = re.compile(r"`([\w.-]+)/[\w.-]+`")
 
 

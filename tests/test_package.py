@@ -81,7 +81,7 @@ def _copy_sources(dest: Path) -> Path:
     dest.mkdir()
     for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy2(ROOT / name, dest / name)
-    for pkg in ("gnss", "identification", "design", "hil"):
+    for pkg in ("autosteer", "gnss", "identification", "design", "hil"):
         shutil.copytree(ROOT / pkg, dest / pkg, ignore=skip)
     return dest
 

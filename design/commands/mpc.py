@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from identification.cliutil import add_option
+from autosteer.cli import add_option
 from identification.model import Model
 
 from design.commands.robust import _weights, add_bryson_arguments, certificate_table, spec_lines

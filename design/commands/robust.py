@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from identification.cliutil import add_option
+from autosteer.cli import add_option
 
 from identification.model import Model
 

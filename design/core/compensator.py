@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from identification.checks import finite
+from autosteer.checks import finite
 
 from design.core.errors import DesignInputError
 

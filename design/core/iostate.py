@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.checks import finite
+from autosteer.checks import finite
 
 from design.core.compensator import Compensator
 from design.core.errors import DesignInputError

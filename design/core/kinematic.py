@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from identification.checks import positive
+from autosteer.checks import positive
 
 from design.core.errors import DesignError, DesignInputError
 from design.core.lqr import dlqr

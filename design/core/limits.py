@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 from typing import Any, Sequence
 
-from identification.checks import finite
+from autosteer.checks import finite
 from identification.model import Model
 
 from design.core.errors import DesignInputError

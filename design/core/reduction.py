@@ -32,7 +32,7 @@ from typing import Sequence
 import numpy as np
 import scipy.linalg as sla
 
-from identification.checks import finite
+from autosteer.checks import finite
 from identification.model import Model
 
 from design.core.errors import DesignInputError

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.checks import positive
+from autosteer.checks import positive
 
 from design.core.errors import DesignInputError
 

@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from identification.checks import positive
+from autosteer.checks import positive
 
 from design.core.errors import DesignInputError
 

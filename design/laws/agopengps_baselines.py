@@ -74,7 +74,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-from identification.checks import finite
+from autosteer.checks import finite
 
 from design.laws.controller import Measurement
 from design.laws.curvature import path_heading, path_offset

@@ -44,7 +44,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from identification.checks import finite, positive
+from autosteer.checks import finite, positive
 
 from design.laws.controller import Measurement
 from design.core.errors import DesignInputError

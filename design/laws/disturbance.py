@@ -42,7 +42,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import minimize
 
-from identification.checks import finite
+from autosteer.checks import finite
 
 from design.core.compensator import Compensator, closed_loop_matrix, spectral_radius
 from design.core.errors import DesignInputError

@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from identification.checks import positive
+from autosteer.checks import positive
 from identification.model import Model
 
 from design.laws.disturbance import DisturbanceSpec

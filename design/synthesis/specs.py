@@ -35,7 +35,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import scipy.linalg as sla
 
-from identification.checks import finite
+from autosteer.checks import finite
 from identification.model import Model
 
 from design.core.compensator import Compensator, closed_loop_matrix

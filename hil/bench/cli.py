@@ -33,11 +33,11 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from identification.cliutil import Parser, condition_pairs, resolve_seeds, seed_list, seeds_or_count
+from autosteer.cli import Parser, condition_pairs, resolve_seeds, seed_list, seeds_or_count
 from identification.errors import OutputError, PassLogError
 from identification.outputs import write_stdout
 from identification.passlog import PassLog
-from identification.version import toolkit_version
+from autosteer.version import toolkit_version
 
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS
 from hil.errors import HilError, SimulatorConfigError
@@ -209,7 +209,7 @@ def _fault(text: str) -> tuple[str, object]:
 
 
 def _conditions(text: str):
-    """``all`` (None: the paper's 15) or ``IMPLEMENT:SPEED,...`` (:func:`identification.cliutil.condition_pairs`)."""
+    """``all`` (None: the paper's 15) or ``IMPLEMENT:SPEED,...`` (:func:`autosteer.cli.condition_pairs`)."""
     pairs = condition_pairs(text)
     if pairs is None:
         return None

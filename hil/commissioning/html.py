@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Iterable, Mapping, Sequence
 
 from identification.outputs import atomic_write
-from identification.version import toolkit_version
+from autosteer.version import toolkit_version
 
 __all__ = ["Table", "Cell", "blocks", "provenance", "render_page", "write_page", "file_sha256"]
 

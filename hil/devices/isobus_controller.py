@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import can
 
-from identification.checks import positive
+from autosteer.checks import positive
 
 from hil.devices.firmware import SteeringPlant
 from hil.vehicle.calibration import WheelAngleCalibration

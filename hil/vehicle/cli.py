@@ -17,7 +17,7 @@ import os
 import sys
 from pathlib import Path
 
-from identification.cliutil import Parser
+from autosteer.cli import Parser
 from identification.errors import OutputError, PassLogError
 from identification.outputs import write_stdout
 

@@ -32,7 +32,7 @@ from gnss.curve import ArcPath
 from gnss.field import Route, place_on_line
 from gnss.guidance import ABLine
 from gnss.track import PathTracker
-from identification.checks import finite_tuple
+from autosteer.checks import finite_tuple
 from identification.errors import OptionError
 from identification.outputs import check_name
 from identification.passlog import MAX_NOMINAL_SPEED, PassLog

@@ -12,7 +12,7 @@ import statistics
 import time
 from dataclasses import asdict, dataclass
 
-from identification.checks import positive
+from autosteer.checks import positive
 
 from hil.bench.benches.bridge import LockstepBridge, PtyBridge
 from hil.vehicle.bridge.config import DriverConfig, FirmwareConfig

@@ -18,7 +18,7 @@ import sys
 
 from tqdm import tqdm
 
-from identification.cliutil import condition_pairs, resolve_seeds, seed_list, seeds_or_count
+from autosteer.cli import condition_pairs, resolve_seeds, seed_list, seeds_or_count
 
 from hil.bench.commissioning.campaign import commission_campaign
 from hil.bench.commissioning.recipe import PROCEDURES, CommissionOptions, commission
@@ -47,7 +47,7 @@ def _int_or(words: tuple[str, ...]):
 
 
 def _hil_conditions(text: str):
-    """``all`` (the paper's 15) or ``IMPLEMENT:SPEED,...`` (:func:`identification.cliutil.condition_pairs`)."""
+    """``all`` (the paper's 15) or ``IMPLEMENT:SPEED,...`` (:func:`autosteer.cli.condition_pairs`)."""
     pairs = condition_pairs(text)
     try:
         return tuple(all_conditions() if pairs is None else (condition_for(imp, speed) for imp, speed in pairs))

@@ -45,7 +45,7 @@ import numpy as np
 from scipy.linalg import expm, solve_discrete_are
 
 from design.laws.controller import Measurement
-from identification.checks import positive
+from autosteer.checks import positive
 
 from hil.truth.conditions import Condition, condition_for
 from hil.truth.disturbances import soil_force_sigma

@@ -29,7 +29,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 
-from identification.checks import positive
+from autosteer.checks import positive
 
 from hil.links.clock import Clock
 from hil.links.link import ByteLink, read_bounded

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from identification.checks import positive
+from autosteer.checks import positive
 
 from hil.vehicle.bridge.errors import ConfigError
 from hil.vehicle.bridge.protocol import MAX_PAYLOAD, MESSAGE_TABLE, RATE_SCALE

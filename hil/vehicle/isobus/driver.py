@@ -35,7 +35,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-from identification.checks import positive
+from autosteer.checks import positive
 
 from hil.links.clock import Clock
 from hil.vehicle.calibration import WheelAngleCalibration

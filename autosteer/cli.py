@@ -1,4 +1,4 @@
-"""Command-line conventions shared by the toolkit's commands (``identification``, ``design``, ``hil``).
+"""Command-line conventions shared by the toolkit's commands (``gnss``, ``identification``, ``design``, ``hil``).
 
 One parser class for every command and sub-command:
 
@@ -10,8 +10,7 @@ One parser class for every command and sub-command:
 and the value types the commands share: seed lists (``0-19``, ``0,1,2``, ``0-4,7``) and
 conditions (``all`` or ``IMPLEMENT:SPEED,...``).
 
-This module imports nothing of the project (it sits at the bottom of ``identification``,
-which ``design`` and ``hil`` import).
+This module imports nothing of the project (it sits in :mod:`autosteer`, below every package).
 """
 
 from __future__ import annotations

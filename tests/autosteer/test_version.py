@@ -1,4 +1,4 @@
-"""identification.version: the one function that reads the toolkit's version for the commands."""
+"""autosteer.version: the one function that reads the toolkit's version for the commands."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import re
 import tomllib
 from pathlib import Path
 
-from identification.version import DISTRIBUTION, toolkit_version
+from autosteer.version import DISTRIBUTION, toolkit_version
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -16,7 +16,7 @@ def test_the_version_is_pyprojects():
     assert DISTRIBUTION == project["name"] and toolkit_version() == project["version"]
 
 
-def test_only_it_reads_the_version_besides_gnss_which_imports_nothing_of_ours():
-    readers = sorted(str(p.relative_to(ROOT)) for package in ("gnss", "identification", "design", "hil")
+def test_only_it_reads_the_version():
+    readers = sorted(str(p.relative_to(ROOT)) for package in ("autosteer", "gnss", "identification", "design", "hil")
                      for p in (ROOT / package).rglob("*.py") if re.search(r"metadata\.version\(", p.read_text()))
-    assert readers == ["gnss/cli.py", "identification/version.py"]
+    assert readers == ["autosteer/version.py"]

@@ -1,4 +1,4 @@
-"""identification.checks: one number check for every package, its refusals one line in the caller's class."""
+"""autosteer.checks: one number check for every package, its refusals one line in the caller's class."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from identification.checks import finite, finite_tuple, positive
+from autosteer.checks import finite, finite_tuple, positive
 from identification.errors import DataError
 
 

@@ -1,7 +1,6 @@
 """The toolkit's version, as the commands print it (``--version``).
 
-One function for the ``identification``, ``design`` and ``hil`` commands; :mod:`gnss` imports
-nothing of the project (DESIGN.md section 3) and reads the same metadata itself.
+One function for the ``gnss``, ``identification``, ``design`` and ``hil`` commands.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Checks of the numbers a user or a file gives, each refusal one line in the caller's error class.
 
-Settings objects of :mod:`identification`, :mod:`design` and :mod:`hil` check their numbers here
-instead of each keeping its own helper, so that every refusal reads alike::
+Settings objects of every package check their numbers here instead of each keeping its own helper,
+so that every refusal reads alike::
 
     wheelbase must be a finite number > 0 m, got -1.0
     IsobusDriverConfig.timeout must be a finite number > 0 s, got nan
@@ -11,8 +11,6 @@ instead of each keeping its own helper, so that every refusal reads alike::
 A number is an ``int`` or ``float`` (numpy's scalars included), never a ``bool``; NaN and the
 infinities are refused. The error class is the caller's (a subclass of :class:`ValueError` from its
 package's errors module), so callers catch what they always caught.
-
-:mod:`gnss` imports nothing of the project (DESIGN.md section 3) and keeps its own checks.
 """
 
 from __future__ import annotations

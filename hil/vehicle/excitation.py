@@ -33,6 +33,7 @@ from typing import Sequence
 
 import numpy as np
 
+from autosteer.checks import finite
 from design.laws.controller import Measurement
 
 from hil.vehicle.errors import VehicleConfigError
@@ -85,8 +86,7 @@ class ExcitationSettings:
 
     def __post_init__(self) -> None:
         for k, v in self.__dict__.items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
-                raise VehicleConfigError(f"excitation {k} must be a finite number >= 0, got {v!r}")
+            finite(v, k, lo=0.0, where="excitation", error=VehicleConfigError)
         if self.slew_min > self.slew_max or self.hold_min > self.hold_max or self.slew_max == 0:
             raise VehicleConfigError("excitation: need 0 < slew_min <= slew_max and hold_min <= hold_max")
         if not 0 < self.return_at < self.corridor:

@@ -50,6 +50,7 @@ from typing import Callable, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
+from autosteer.checks import finite
 from design.laws.controller import PREVIEW_ATTRIBUTE, Controller, Measurement
 from design.laws.curvature import ROUTE_PART_METHOD
 from gnss.frontend import GnssFrontEnd
@@ -150,8 +151,7 @@ class LoopConfig:
 
     def __post_init__(self) -> None:
         for k, v in asdict(self).items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise VehicleConfigError(f"LoopConfig.{k} must be a finite number >= 0, got {v!r}")
+            finite(v, k, lo=0.0, where="LoopConfig", error=VehicleConfigError)
         if self.rate <= 0 or self.max_rate <= 0 or self.speed_max <= self.speed_min:
             raise VehicleConfigError("LoopConfig: need rate > 0, max_rate > 0 and speed_max > speed_min")
         for k in ("wheel_step", "report_max_age", "gnss_max_age", "position_jump", "max_cross_track"):

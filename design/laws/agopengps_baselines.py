@@ -83,19 +83,46 @@ from design.core.errors import DesignInputError
 KMH = 3.6          # km/h per m/s: AgOpenGPS's speeds are in km/h
 
 
-def _check(obj) -> None:
-    for f in fields(obj):
-        finite(getattr(obj, f.name), f.name, lo=0.0, where=type(obj).__name__, error=DesignInputError)
-    if obj.side_hill_comp != 0:
-        raise DesignInputError(f"{type(obj).__name__}.side_hill_comp must be 0: the loop's measurement carries "
-                               f"no roll, so side-hill compensation cannot act (got {obj.side_hill_comp!r})")
-    if obj.fix_period <= 0 or obj.servo <= 0:
-        raise DesignInputError(f"{type(obj).__name__}: fix_period and servo must be > 0, got "
-                               f"{obj.fix_period!r} s and {obj.servo!r} /s")
+@dataclass(frozen=True, kw_only=True)
+class AogSettings:
+    """The settings both AgOpenGPS laws share, and the check of every setting (all finite and >= 0).
+
+    Keyword-only, so that each law's own settings keep their places in its constructor.
+
+    Attributes
+    ----------
+    side_hill_comp
+        ``setAS_sideHillComp``, deg of steer per deg of roll; must be 0 here (no roll).
+    max_angle
+        ``setVehicle_maxSteerAngle``, rad (30 deg).
+    pivot_behind
+        Rear axle (AgOpenGPS's pivot) behind the loop's control point, m.
+    servo
+        Wheel-angle servo gain of the rate adapter, 1/s (not an AgOpenGPS setting).
+    fix_period
+        Time between guidance updates (GPS fixes), s.
+    """
+
+    side_hill_comp: float = 0.0
+    max_angle: float = math.radians(30.0)
+    pivot_behind: float = 1.14
+    servo: float = 12.0
+    fix_period: float = 0.1
+
+    def __post_init__(self) -> None:
+        name = type(self).__name__
+        for f in fields(self):
+            finite(getattr(self, f.name), f.name, lo=0.0, where=name, error=DesignInputError)
+        if self.side_hill_comp != 0:
+            raise DesignInputError(f"{name}.side_hill_comp must be 0: the loop's measurement carries "
+                                   f"no roll, so side-hill compensation cannot act (got {self.side_hill_comp!r})")
+        if self.fix_period <= 0 or self.servo <= 0:
+            raise DesignInputError(f"{name}: fix_period and servo must be > 0, got "
+                                   f"{self.fix_period!r} s and {self.servo!r} /s")
 
 
 @dataclass(frozen=True)
-class AogPurePursuitSettings:
+class AogPurePursuitSettings(AogSettings):
     """AgOpenGPS's pure pursuit settings (defaults: ``Settings.settings``, see the module docstring).
 
     Attributes
@@ -112,18 +139,10 @@ class AogPurePursuitSettings:
         ``setAS_ModeTime``, how long below ``mode_xte`` before it does, s (10 fixes per s).
     integral
         ``purePursuitIntegralGainAB`` (AgOpenGPS's slider units).
-    side_hill_comp
-        ``setAS_sideHillComp``, deg of steer per deg of roll; must be 0 here (no roll).
-    max_angle
-        ``setVehicle_maxSteerAngle``, rad (30 deg).
     wheelbase
         m (AgOpenGPS's 2.8 is a placeholder; the loop's nominal tractor).
-    pivot_behind
-        Rear axle (AgOpenGPS's pivot) behind the loop's control point, m.
-    servo
-        Wheel-angle servo gain of the rate adapter, 1/s (not an AgOpenGPS setting).
-    fix_period
-        Time between guidance updates (GPS fixes), s.
+    side_hill_comp, max_angle, pivot_behind, servo, fix_period
+        As for :class:`AogSettings`.
     """
 
     look_ahead: float = 3.0
@@ -132,19 +151,11 @@ class AogPurePursuitSettings:
     mode_xte: float = 0.1
     mode_time: float = 1.0
     integral: float = 0.15
-    side_hill_comp: float = 0.0
-    max_angle: float = math.radians(30.0)
     wheelbase: float = 2.85
-    pivot_behind: float = 1.14
-    servo: float = 12.0
-    fix_period: float = 0.1
-
-    def __post_init__(self) -> None:
-        _check(self)
 
 
 @dataclass(frozen=True)
-class AogStanleySettings:
+class AogStanleySettings(AogSettings):
     """AgOpenGPS's Stanley settings (defaults: ``Settings.settings``, see the module docstring).
 
     Attributes
@@ -157,25 +168,17 @@ class AogStanleySettings:
         ``stanleyIntegralGainAB`` (AgOpenGPS's slider units; the integral is a line shift, m).
     start_speed
         ``setVehicle_startSpeed``, speed above which the integral runs, km/h.
-    side_hill_comp, max_angle, pivot_behind, servo, fix_period
-        As for :class:`AogPurePursuitSettings`.
     steer_ahead
         Front axle (AgOpenGPS's steer point) ahead of the loop's control point, m.
+    side_hill_comp, max_angle, pivot_behind, servo, fix_period
+        As for :class:`AogSettings`.
     """
 
     distance_gain: float = 1.0
     heading_gain: float = 1.0
     integral: float = 0.15
     start_speed: float = 2.0
-    side_hill_comp: float = 0.0
-    max_angle: float = math.radians(30.0)
-    pivot_behind: float = 1.14
     steer_ahead: float = 1.71
-    servo: float = 12.0
-    fix_period: float = 0.1
-
-    def __post_init__(self) -> None:
-        _check(self)
 
 
 def goal_point_distance(speed: float, look_ahead: float, mult: float) -> float:
@@ -266,7 +269,7 @@ def _wrap_half_pi(a: float) -> float:
 class _PerFix:
     """Guidance once per fix, wheel-angle servo every cycle (shared by both laws)."""
 
-    def __init__(self, settings, dt: float) -> None:
+    def __init__(self, settings: AogSettings, dt: float) -> None:
         if not (math.isfinite(dt) and dt > 0):
             raise DesignInputError(f"dt must be a finite time > 0 s, got {dt!r}")
         self.settings = settings

@@ -293,6 +293,9 @@ def add_procedure_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentPa
                    help=f"a new plan's passes per speed (default {FieldPlan.passes})")
     p.add_argument("--duration", type=parse_float, default=None,
                    help=f"a new plan's seconds per pass (default {FieldPlan.duration:g})")
+    p.add_argument("--add-implement", metavar="NAME", default=None,
+                   help="add an implement bought later to the folder's plan: its passes (the plan's speeds, passes "
+                        "and seconds, at most 10 min) are then what remains to drive; the recorded passes are kept")
     p.add_argument("--json", action="store_true", help="print the status as JSON")
     p.set_defaults(func=_cmd_procedure)
     return p
@@ -303,6 +306,14 @@ def _cmd_procedure(args: argparse.Namespace) -> dict:
     given = {k: v for k, v in (("implements", args.implements), ("speeds", args.speeds), ("passes", args.passes),
                                ("duration", args.duration)) if v is not None}
     plan = None
+    if args.add_implement is not None:
+        if given:
+            raise HilError("--add-implement adds to the folder's plan: drop "
+                           + ", ".join(f"--{k}" for k in given))
+        proc = Procedure(Path(args.folder)).add_implement(args.add_implement)
+        moved = proc.review() if args.review else []
+        return {"folder": args.folder, "moved": moved, "added": args.add_implement, "plan": proc.plan.to_dict(),
+                "plan_minutes": {k: v / 60 for k, v in proc.plan.seconds().items()}, **proc.status()}
     if given:
         d = FieldPlan()
         plan = FieldPlan(tuple(given.get("implements", d.implements)), tuple(given.get("speeds", d.speeds)),
@@ -319,6 +330,9 @@ def procedure_main(argv: list[str] | None = None) -> int:
 
     def render(result: dict) -> str:
         lines = [f"spoiled: {m['file']}: {'; '.join(m['faults'])}" for m in result["moved"]]
+        if result.get("added"):
+            lines.insert(0, f"added the {result['added']}: {result['plan_minutes'][result['added']]:.1f} min of "
+                            "passes to drive")
         return "\n".join([*lines, status_text(result)])
     return _run("procedure", add_procedure_parser, render, argv)
 

@@ -8,6 +8,9 @@ each), as a dealer's day allows. The state of a procedure is read from its folde
 (:class:`Procedure`): ``commissioning.json`` once the valve test is done, ``logs/`` the passes recorded,
 ``spoiled/`` the passes a fault spoiled. So an interruption (power, Ctrl-C, a lost receiver) loses
 nothing and no recorded pass is driven again: the next step is the first planned pass with no good log.
+An implement bought later is added to the plan (:meth:`Procedure.add_implement`): its passes, at most
+:data:`BUDGET_PER_IMPLEMENT_S` of driving, are then what remains to drive, and ``hil commission --top-up``
+adds its controllers to the commissioning.
 
 A pass is spoiled (:func:`pass_faults`) when the fix was not RTK fixed for more than
 :data:`MAX_NOT_FIXED` of its position epochs, the operator took over, the loop left its corridor or
@@ -85,6 +88,9 @@ class FieldPlan:
     The default fits the budget with room for passes a fault spoils: three implements x three speeds x two
     passes of 60 s (6 min per implement) and the valve test (at most 5.3 min at standstill): 23.3 min, which
     leaves 6.7 min (six passes) to drive spoiled passes again.
+
+    ``top_ups`` are the implements added after the plan was made (:meth:`add_implement`): each is a top-up of at
+    most :data:`BUDGET_PER_IMPLEMENT_S` of driving, outside the total budget of the first commissioning.
     """
 
     implements: tuple[str, ...] = ("none", "disker", "ripper")
@@ -92,11 +98,16 @@ class FieldPlan:
     passes: int = 2
     duration: float = 60.0
     valve_test: ValveTestPlan | None = ValveTestPlan()
+    top_ups: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not self.implements or len(set(self.implements)) != len(self.implements) or not all(
                 isinstance(i, str) and i.isidentifier() for i in self.implements):
             raise ProcedureError(f"implements must be distinct names (letters, digits, _), got {self.implements!r}")
+        if not isinstance(self.top_ups, tuple) or len(set(self.top_ups)) != len(self.top_ups) \
+                or not set(self.top_ups) <= set(self.implements) or set(self.top_ups) == set(self.implements):
+            raise ProcedureError(f"top_ups must be distinct implements of the plan, not all of them, got "
+                                 f"{self.top_ups!r}")
         if not self.speeds or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
                                       and 0.3 <= v <= 5.0 for v in self.speeds):
             raise ProcedureError(f"speeds must be 0.3-5 m/s, got {self.speeds!r}")
@@ -109,15 +120,18 @@ class FieldPlan:
     def to_dict(self) -> dict:
         """The plan as ``plan.json`` holds it (the valve test by its duties and step time)."""
         vt = self.valve_test
-        return {"implements": list(self.implements), "speeds": [float(v) for v in self.speeds], "passes": self.passes,
-                "duration": float(self.duration),
-                "valve_test": None if vt is None else {"duties": list(vt.duties), "step_time": vt.step_time}}
+        d = {"implements": list(self.implements), "speeds": [float(v) for v in self.speeds], "passes": self.passes,
+             "duration": float(self.duration),
+             "valve_test": None if vt is None else {"duties": list(vt.duties), "step_time": vt.step_time}}
+        if self.top_ups:
+            d["top_ups"] = list(self.top_ups)
+        return d
 
     @classmethod
     def from_dict(cls, d: object, where: str = "plan") -> "FieldPlan":
-        """A plan from :meth:`to_dict`'s form; unknown or missing keys are refused."""
+        """A plan from :meth:`to_dict`'s form; unknown or missing keys are refused (``top_ups`` may be absent)."""
         keys = {"implements", "speeds", "passes", "duration", "valve_test"}
-        if not isinstance(d, dict) or set(d) != keys:
+        if not isinstance(d, dict) or set(d) - {"top_ups"} != keys:
             raise ProcedureError(f"{where}: expected the keys {sorted(keys)}, got "
                                  f"{sorted(d) if isinstance(d, dict) else type(d).__name__}")
         vt = d["valve_test"]
@@ -125,7 +139,10 @@ class FieldPlan:
             raise ProcedureError(f"{where}: valve_test must be null or {{duties, step_time}}, got {vt!r}")
         try:
             valve = None if vt is None else ValveTestPlan(duties=tuple(vt["duties"]), step_time=vt["step_time"])
-            return cls(tuple(d["implements"]), tuple(d["speeds"]), d["passes"], d["duration"], valve)
+            tops = d.get("top_ups", [])
+            if not isinstance(tops, list):
+                raise ProcedureError(f"{where}: top_ups must be a list of implements, got {tops!r}")
+            return cls(tuple(d["implements"]), tuple(d["speeds"]), d["passes"], d["duration"], valve, tuple(tops))
         except (TypeError, ValueError) as exc:
             raise ProcedureError(f"{where}: {exc}") from None
 
@@ -143,17 +160,41 @@ class FieldPlan:
         return out
 
     def check_budget(self, total: float = BUDGET_TOTAL_S, per_implement: float = BUDGET_PER_IMPLEMENT_S) -> dict:
-        """:meth:`seconds`, or :class:`ProcedureError` naming the steps over the budget."""
+        """:meth:`seconds`, or :class:`ProcedureError` naming the steps over the budget. The implements added
+        later (``top_ups``) are each held to ``per_implement`` and not counted in ``total``."""
         sec = self.seconds()
         over = [f"{imp} {sec[imp] / 60:.1f} min" for imp in self.implements if sec[imp] > per_implement + 1e-9]
         if over:
             raise ProcedureError(f"the plan drives {', '.join(over)}: over the {per_implement / 60:g} min per "
                                  "implement; fewer speeds, passes or seconds per pass")
-        if sec["total"] > total + 1e-9:
-            raise ProcedureError(f"the plan drives {sec['total'] / 60:.1f} min in all (valve test "
+        first = sec["total"] - sum(sec[imp] for imp in self.top_ups)
+        if first > total + 1e-9:
+            raise ProcedureError(f"the plan drives {first / 60:.1f} min in all (valve test "
                                  f"{sec['valve test'] / 60:.1f} min): over the {total / 60:g} min budget; fewer "
                                  "speeds, passes or seconds per pass")
         return sec
+
+    def add_implement(self, name: str, per_implement: float = BUDGET_PER_IMPLEMENT_S) -> "FieldPlan":
+        """The plan with the passes of implement ``name`` added at its end (the same speeds, passes and seconds
+        per pass), recorded as a top-up.
+
+        Raises
+        ------
+        ProcedureError
+            ``name`` is already in the plan or not a name, or its passes drive over ``per_implement``.
+        """
+        if not isinstance(name, str) or not name.isidentifier():
+            raise ProcedureError(f"an implement's name is letters, digits and _, got {name!r}")
+        if name in self.implements:
+            raise ProcedureError(f"the plan already holds the {name}: its passes are driven with the others; "
+                                 "add an implement it does not hold")
+        seconds = len(self.speeds) * self.passes * float(self.duration)
+        if seconds > per_implement + 1e-9:
+            raise ProcedureError(f"the {name}'s passes would drive {seconds / 60:.1f} min: over the "
+                                 f"{per_implement / 60:g} min of a top-up; start a plan with fewer speeds, passes "
+                                 "or seconds per pass in another folder")
+        return FieldPlan(self.implements + (name,), self.speeds, self.passes, self.duration, self.valve_test,
+                         self.top_ups + (name,))
 
 
 def pass_key(log: PassLog) -> tuple[str, int, int] | None:
@@ -244,6 +285,20 @@ class Procedure:
             fh.write(json.dumps(plan.to_dict(), indent=1) + "\n")
         return cls(folder, plan)
 
+    def add_implement(self, name: str) -> "Procedure":
+        """Add implement ``name``'s passes to the plan (:meth:`FieldPlan.add_implement`) and save it in
+        ``plan.json``; the recorded passes are untouched and the new ones are what remains to drive. The folder
+        must hold a procedure already (its ``plan.json``)."""
+        saved = Path(self.folder) / "plan.json"
+        if not saved.is_file():
+            raise ProcedureError(f"{self.folder} holds no procedure (plan.json) to add an implement to; start it "
+                                 f"with `hil procedure {self.folder}`")
+        stored = Procedure.open(self.folder)
+        plan = stored.plan.add_implement(name)
+        with atomic_write(saved, "w") as fh:
+            fh.write(json.dumps(plan.to_dict(), indent=1) + "\n")
+        return Procedure(Path(self.folder), plan)
+
     @property
     def logs(self) -> Path:
         return Path(self.folder) / "logs"
@@ -314,6 +369,10 @@ class Procedure:
             hitch = "" if any(q.implement == p.implement and q.key in good for q in planned) else \
                 f"hitch the {p.implement} (none: no implement); "
             nxt = f"{hitch}drive {p.label()} along the line, recorded into {self.logs}"
+        elif self.plan.top_ups:
+            nxt = (f"every pass is recorded: hil commission --logs {self.logs} --commissioning "
+                   f"{Path(self.folder) / 'commissioning.json'} --out DIR --top-up {self.plan.top_ups[-1]} (DIR: "
+                   "the commissioning to add it to)")
         else:
             nxt = (f"every pass is recorded: hil commission --logs {self.logs} --commissioning "
                    f"{Path(self.folder) / 'commissioning.json'} --out DIR")

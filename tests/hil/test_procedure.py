@@ -90,3 +90,52 @@ def test_the_operator_command_keeps_its_plan_and_refuses_another_or_one_over_bud
     assert "holds another plan" in capsys.readouterr().err
     assert hil_main(["procedure", str(tmp_path / "other"), "--passes", "4"]) == 1
     assert "over the 10 min per implement" in capsys.readouterr().err and not (tmp_path / "other").exists()
+
+
+def test_an_implement_added_later_is_a_top_up_of_its_own_passes_within_ten_minutes():
+    plan = FieldPlan()
+    more = plan.add_implement("bedder")
+    assert more.implements == ("none", "disker", "ripper", "bedder") and more.top_ups == ("bedder",)
+    assert more.planned()[:18] == plan.planned()                      # the passes planned before are unchanged
+    added = more.planned()[18:]
+    assert [(p.implement, p.speed, p.index, p.duration) for p in added] == [
+        ("bedder", v, i, 60.0) for v in (1.0, 1.79, 2.91) for i in range(2)]
+    sec = more.check_budget()                 # 29.3 min in all: the top-up is held to its own 10 min, not the 30
+    assert sec["bedder"] == 6 * 60 and sec["total"] == pytest.approx(plan.seconds()["total"] + 360)
+    assert FieldPlan.from_dict(more.to_dict()) == more and "top_ups" not in plan.to_dict()
+    assert more.add_implement("planter").check_budget()["total"] > BUDGET_TOTAL_S     # two top-ups: each 6 min
+    with pytest.raises(ProcedureError, match="already holds the ripper"):
+        plan.add_implement("ripper")
+    with pytest.raises(ProcedureError, match=r"the bedder's passes would drive 10.5 min: over the 10 min of a top-up"):
+        FieldPlan(speeds=(1.0, 1.79, 2.91), passes=3, duration=70.0).add_implement("bedder")
+    with pytest.raises(ProcedureError, match="top_ups must be distinct implements of the plan"):
+        FieldPlan(top_ups=("bedder",))
+
+
+def test_the_operator_adds_an_implement_and_the_screen_shows_its_passes_next(passes, tmp_path, capsys):
+    from hil.cli import main as hil_main
+    folder = tmp_path / "tractor"
+    Procedure.open(folder, PLAN)
+    (folder / "logs").mkdir()
+    for name, log in passes:                                          # every pass of none and disker recorded
+        log.save(folder / "logs" / f"{name}.npz")
+    before = {f.name: f.read_bytes() for f in (folder / "logs").iterdir()}
+    assert Procedure.open(folder).status()["next"].startswith("every pass is recorded")
+    assert hil_main(["procedure", str(folder), "--add-implement", "ripper"]) == 0
+    out = capsys.readouterr().out
+    assert "added the ripper: 0.7 min of passes to drive" in out and "passes recorded: 4 of 6" in out
+    assert "next: hitch the ripper (none: no implement); drive ripper at 1 m/s, pass 1 (20 s)" in out
+    assert {f.name: f.read_bytes() for f in (folder / "logs").iterdir()} == before     # recorded passes untouched
+    proc = Procedure.open(folder)
+    assert proc.plan.top_ups == ("ripper",) and [p.label() for p in proc.remaining()] == [
+        "ripper at 1 m/s, pass 1 (20 s)", "ripper at 1 m/s, pass 2 (20 s)"]
+    assert hil_main(["procedure", str(folder), "--add-implement", "disker"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "already holds the disker" in err[0]
+    assert hil_main(["procedure", str(tmp_path / "none"), "--add-implement", "ripper"]) == 1
+    assert "holds no procedure (plan.json)" in capsys.readouterr().err and not (tmp_path / "none").exists()
+    assert hil_main(["procedure", str(folder), "--add-implement", "bedder", "--passes", "1"]) == 1
+    assert "drop --passes" in capsys.readouterr().err
+    for name, log in make_passes(SysidPlan(speeds=(1.0,), implements=("ripper",), passes=2, duration=20.0, seed=4)):
+        log.save(folder / "logs" / f"{name}.npz")
+    assert "--top-up ripper" in Procedure.open(folder).status()["next"]

@@ -54,10 +54,36 @@ from hil.vehicle.isobus.protocol import (
     saturate,
 )
 
-__all__ = ["ANGLE_CALIBRATION", "IsobusDriverConfig", "IsobusReport", "IsobusDriverStats", "IsobusDriver"]
+__all__ = ["ANGLE_CALIBRATION", "ISOBUS_LAG", "ISOBUS_MAX_RATE", "ANGLE_NOISE", "MAX_WINDUP", "windup_bound",
+           "IsobusDriverConfig", "IsobusReport", "IsobusDriverStats", "IsobusDriver"]
 
 ANGLE_CALIBRATION = WheelAngleCalibration(center_counts=0.0, rad_per_count=1e-4)
 """How the loop reads :attr:`IsobusReport.adc_counts`: 0.1 mrad per count, 0 = straight, + = left."""
+ISOBUS_LAG = 0.3
+"""Delay of the measured angle behind the commanded one through a steering controller, s: its curvature
+filter (0.1 s), rate limit and valve loop (20 ms), and one report period (0.1 s). Measured on the bench: 0.30 s
+behind a 0.1 rad/s ramp. On a tractor, measure it."""
+ISOBUS_MAX_RATE = 0.35
+"""The loop's largest wheel-angle rate through a steering controller, rad/s (the steer-module rule's)."""
+ANGLE_NOISE = 0.005
+"""1-sigma of the wheel angle of the reported curvature, rad."""
+
+
+def windup_bound(lag: float = ISOBUS_LAG, max_rate: float = ISOBUS_MAX_RATE, angle_noise: float = ANGLE_NOISE) -> float:
+    """The anti-windup bound of the setpoint around the measured angle for a controller whose measured angle
+    trails the command by ``lag``, s: ``lag x max_rate + 2 x angle_noise``, rad.
+
+    A healthy wheel ramping at the full ``max_rate`` trails the setpoint by ``lag x max_rate``; the bound is that
+    plus twice the reported angle's noise, 0.3 s x 0.35 rad/s + 0.01 = 0.115 rad with the defaults, so it never
+    clips a wheel that follows. A smaller bound does: 0.05 rad holds the rate the wheel gets to at most
+    0.05 / 0.3 = 0.17 rad/s whatever the loop commands, and trips the loop's steering-response monitor on a
+    healthy controller. It still stops the setpoint running away from a wheel that cannot follow.
+    """
+    return lag * max_rate + 2.0 * angle_noise
+
+
+MAX_WINDUP = windup_bound()
+"""The driver's default anti-windup bound, rad (:func:`windup_bound` of the defaults: 0.115)."""
 
 
 @dataclass(frozen=True)
@@ -75,9 +101,10 @@ class IsobusDriverConfig:
     max_curvature : float
         Largest curvature commanded, 1/m (default 0.25).
     max_rate : float
-        Largest rate command integrated, rad/s (default 0.35).
+        Largest rate command integrated, rad/s (default :data:`ISOBUS_MAX_RATE`, 0.35).
     max_windup : float
-        Largest distance of the setpoint from the measured angle, rad (default 0.05).
+        Largest distance of the setpoint from the measured angle, rad (default :data:`MAX_WINDUP`, 0.115:
+        the lag of a healthy controller at full rate plus the angle's noise, see :func:`windup_bound`).
     max_dt : float
         Longest time step integrated at once, and the longest gap between rate commands before the
         driver drops to "not intended", s (default 0.15: under the controller's 0.2 s command
@@ -96,8 +123,8 @@ class IsobusDriverConfig:
     controller_address: int = 0x13
     max_angle: float = 0.52
     max_curvature: float = 0.25
-    max_rate: float = 0.35
-    max_windup: float = 0.05
+    max_rate: float = ISOBUS_MAX_RATE
+    max_windup: float = MAX_WINDUP
     max_dt: float = 0.15
     period: float = 0.1
     report_timeout: float = 0.25

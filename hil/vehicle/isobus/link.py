@@ -11,7 +11,8 @@ puts the guidance system's node on it (NAME :data:`GUIDANCE_NAME`, preferred add
 of the controller's estimated curvature, ``atan(wheelbase x curvature)``, through
 :data:`~hil.vehicle.isobus.driver.ANGLE_CALIBRATION`, and takes its rate limit and steering-response
 monitor from :func:`isobus_loop_config` (the steer-module rule with the controller's delay
-:data:`ISOBUS_LAG`); the driver's anti-windup comes from the same delay (:func:`isobus_driver_config`).
+:data:`~hil.vehicle.isobus.driver.ISOBUS_LAG`); the driver's anti-windup comes from the same delay
+(:func:`isobus_driver_config`, whose defaults are the driver's own).
 """
 
 from __future__ import annotations
@@ -22,12 +23,19 @@ from hil.links.clock import Clock
 from hil.vehicle.agio.driver import module_loop_config
 from hil.vehicle.agio.spec import BridgeSpec
 from hil.vehicle.isobus.bus import open_isobus_bus
-from hil.vehicle.isobus.driver import IsobusDriver, IsobusDriverConfig
+from hil.vehicle.isobus.driver import (
+    ANGLE_NOISE,
+    ISOBUS_LAG,
+    ISOBUS_MAX_RATE,
+    IsobusDriver,
+    IsobusDriverConfig,
+    windup_bound,
+)
 from hil.vehicle.isobus.errors import IsobusConfigError
 from hil.vehicle.isobus.network import Name, Node
 from hil.vehicle.loop import LoopConfig
 
-__all__ = ["GUIDANCE_NAME", "GUIDANCE_ADDRESS", "ISOBUS_LAG", "ISOBUS_MAX_RATE", "ANGLE_NOISE", "IsobusLink",
+__all__ = ["GUIDANCE_NAME", "GUIDANCE_ADDRESS", "IsobusLink",
            "open_isobus_link", "isobus_loop_config", "isobus_driver_config"]
 
 GUIDANCE_NAME = Name(identity=0x7A5, manufacturer=0, function=0x83, vehicle_system=1, industry_group=2,
@@ -36,14 +44,6 @@ GUIDANCE_NAME = Name(identity=0x7A5, manufacturer=0, function=0x83, vehicle_syst
 128-247 when a NAME of higher priority holds its own)."""
 GUIDANCE_ADDRESS = 0x80
 """Preferred source address of the guidance system (the first of the self-configurable range)."""
-ISOBUS_LAG = 0.3
-"""Delay of the measured angle behind the commanded one through a steering controller, s: its curvature
-filter (0.1 s), rate limit and valve loop (20 ms), and one report period (0.1 s). Measured on the bench: 0.30 s
-behind a 0.1 rad/s ramp. On a tractor, measure it."""
-ISOBUS_MAX_RATE = 0.35
-"""The loop's largest wheel-angle rate through a steering controller, rad/s (the steer-module rule's)."""
-ANGLE_NOISE = 0.005
-"""1-sigma of the wheel angle of the reported curvature, rad."""
 
 
 class IsobusLink:
@@ -89,11 +89,8 @@ def isobus_driver_config(wheelbase: float, lag: float = ISOBUS_LAG, max_rate: fl
                          angle_noise: float = ANGLE_NOISE) -> IsobusDriverConfig:
     """The driver's settings for a steering controller whose measured angle trails the command by ``lag``, s.
 
-    The setpoint is held within ``max_windup`` of the measured angle (anti-windup). A healthy wheel ramping
-    at the full ``max_rate`` trails the setpoint by ``lag x max_rate``, so the bound is that plus twice the
-    reported angle's noise: 0.3 s x 0.35 rad/s + 0.01 = 0.115 rad. A smaller bound clips the setpoint of a
-    wheel that follows, which makes the rate it gets lower than the rate the loop commands (0.05 rad: at most
-    0.17 rad/s) and trips the loop's steering-response monitor on a healthy controller.
+    The setpoint is held within :func:`~hil.vehicle.isobus.driver.windup_bound` of the measured angle
+    (anti-windup; with the defaults it is the driver's own default, 0.115 rad).
 
     Parameters
     ----------
@@ -102,11 +99,13 @@ def isobus_driver_config(wheelbase: float, lag: float = ISOBUS_LAG, max_rate: fl
     lag, max_rate, angle_noise
         s, rad/s, rad.
     """
-    return IsobusDriverConfig(wheelbase=wheelbase, max_rate=max_rate, max_windup=lag * max_rate + 2.0 * angle_noise)
+    return IsobusDriverConfig(wheelbase=wheelbase, max_rate=max_rate,
+                              max_windup=windup_bound(lag, max_rate, angle_noise))
 
 
 def isobus_loop_config(base: LoopConfig | None = None, lag: float = ISOBUS_LAG) -> LoopConfig:
     """The loop's rate limit and steering-response monitor for a steering controller: the steer-module rule
-    (:func:`hil.vehicle.agio.driver.module_loop_config`, full rate :data:`ISOBUS_MAX_RATE` both ways) with delay
-    ``lag``, s, and the reported angle's noise :data:`ANGLE_NOISE`."""
+    (:func:`hil.vehicle.agio.driver.module_loop_config`, full rate
+    :data:`~hil.vehicle.isobus.driver.ISOBUS_MAX_RATE` both ways) with delay ``lag``, s, and the reported
+    angle's noise :data:`~hil.vehicle.isobus.driver.ANGLE_NOISE`."""
     return module_loop_config(base, max_rate=ISOBUS_MAX_RATE, lag=lag, angle_noise=ANGLE_NOISE)

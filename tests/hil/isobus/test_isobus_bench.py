@@ -16,6 +16,7 @@ from hil.devices.wheel_calibration import two_point_calibration
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import condition_for
 from hil.vehicle.isobus.driver import IsobusDriverConfig
+from hil.vehicle.isobus.link import isobus_driver_config
 from identification.passlog import PassLog
 
 pytestmark = pytest.mark.timeout(120)
@@ -87,9 +88,17 @@ def ramp(driver_config=None, rate=0.35, seconds=0.8):
 
 
 def test_the_setpoint_of_a_wheel_that_follows_at_full_rate_is_not_clipped():
-    """The vehicle's driver settings hold the setpoint within the controller's lag x the full rate of the
-    measured angle: a healthy wheel gets the whole ramp. The driver's generic 0.05 rad clips it."""
+    """The driver's anti-windup bound is the controller's lag x the full rate plus the angle's noise: a healthy
+    wheel gets the whole ramp. A bound of 0.05 rad clips it."""
     driver, commanded, moved = ramp()
     assert driver.stats().limited == 0 and moved == pytest.approx(commanded, abs=0.015)
     clipped, commanded, moved = ramp(IsobusDriverConfig(wheelbase=2.85, max_windup=0.05))
     assert clipped.stats().limited > 5 and moved < commanded - 0.05
+
+
+def test_the_driver_default_and_the_vehicle_settings_are_one_anti_windup_bound():
+    """``IsobusDriverConfig`` and :func:`isobus_driver_config` (what ``hil drive`` and the bench use) hold the
+    setpoint within the same bound, 0.3 s x 0.35 rad/s + 2 x 0.005 rad."""
+    assert IsobusDriverConfig(wheelbase=2.85) == isobus_driver_config(2.85)
+    assert IsobusDriverConfig(wheelbase=2.85).max_windup == pytest.approx(0.115)
+    assert isobus_driver_config(2.85, lag=0.5).max_windup == pytest.approx(0.5 * 0.35 + 0.01)

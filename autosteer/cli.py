@@ -6,6 +6,9 @@ One parser class for every command and sub-command:
   (``hil comission`` -> ``did you mean: commission?``);
 - an option's old spelling stays accepted but is left out of the usage line and shown
   in the help as deprecated (:func:`add_option`);
+- an option's default is shown after its help as the user would type it (``(default: 0.35)``,
+  ``(0 = none; default: 0.1 0.05 0)``) unless the help already names its default
+  (:func:`shown_default`);
 
 and the value types the commands share: seed lists (``0-19``, ``0,1,2``, ``0-4,7``) and
 conditions (``all`` or ``IMPLEMENT:SPEED,...``).
@@ -24,7 +27,7 @@ from collections import Counter
 from typing import Any, Sequence
 
 __all__ = ["Parser", "Formatter", "RawDescriptionFormatter", "add_option", "add_deprecated_option",
-           "deprecated_strings", "suggestion", "option_names", "seed_list", "seeds_or_count", "resolve_seeds",
+           "deprecated_strings", "shown_default", "suggestion", "option_names", "seed_list", "seeds_or_count", "resolve_seeds",
            "condition_pairs", "MAX_SEEDS", "MAX_SEEDS_PER_RANGE", "MAX_SEED"]
 
 #: Largest seed accepted (numpy's SeedSequence takes any non-negative integer; this keeps seeds in 32 bits).
@@ -64,8 +67,30 @@ def add_deprecated_option(parser: argparse.ArgumentParser, old: str, canonical: 
     return action
 
 
+def shown_default(action: argparse.Action) -> str | None:
+    """The default of ``action`` as a user would type it on the command line, or None when there is none to
+    show: no default (None), a flag (its off state is the default), an empty list, or a suppressed one.
+
+    Floats are printed with up to six significant digits (``0.35``, ``100000``); the values of an option
+    that takes several arguments are separated by spaces, those of a single argument parsed into a tuple
+    (``FWD,LEFT,UP``) by commas.
+    """
+    d = action.default
+    if d is None or d is argparse.SUPPRESS or action.nargs == 0 or isinstance(d, bool) \
+            or (isinstance(d, (list, tuple)) and not d):
+        return None
+
+    def one(v: object) -> str:
+        return format(v, "g") if isinstance(v, float) else str(v)
+
+    if isinstance(d, (list, tuple)):
+        return (" " if action.nargs not in (None, argparse.OPTIONAL) else ",").join(one(v) for v in d)
+    return one(d)
+
+
 class Formatter(argparse.HelpFormatter):
-    """Help without the deprecated spellings in the option column; they are named after the help text."""
+    """Help without the deprecated spellings in the option column (they are named after the help text), and
+    with each option's default after its help when the help does not name it (:func:`shown_default`)."""
 
     def _format_action_invocation(self, action: argparse.Action) -> str:
         old = deprecated_strings(action)
@@ -76,6 +101,9 @@ class Formatter(argparse.HelpFormatter):
 
     def _expand_help(self, action: argparse.Action) -> str:
         text = super()._expand_help(action)
+        default = shown_default(action)
+        if default is not None and "default" not in text.lower():
+            text = f"{text[:-1]}; default: {default})" if text.endswith(")") else f"{text} (default: {default})"
         old = deprecated_strings(action)
         return f"{text} (deprecated spelling: {', '.join(old)})" if old else text
 

@@ -27,8 +27,8 @@ from collections import Counter
 from typing import Any, Sequence
 
 __all__ = ["Parser", "Formatter", "RawDescriptionFormatter", "add_option", "add_deprecated_option",
-           "deprecated_strings", "shown_default", "suggestion", "option_names", "seed_list", "seeds_or_count", "resolve_seeds",
-           "condition_pairs", "MAX_SEEDS", "MAX_SEEDS_PER_RANGE", "MAX_SEED"]
+           "deprecated_strings", "shown_default", "suggestion", "option_names", "seed_list", "seeds_or_count",
+           "resolve_seeds", "condition_pairs", "MAX_SEEDS", "MAX_SEEDS_PER_RANGE", "MAX_SEED"]
 
 #: Largest seed accepted (numpy's SeedSequence takes any non-negative integer; this keeps seeds in 32 bits).
 MAX_SEED = 2 ** 31

@@ -190,7 +190,8 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--order", type=_order, default="auto",
                    help="model order, 'auto' (default, Hankel gap) or 'validate' (held-out 3 s prediction)")
     add_option(o, "--markov", "--past", type=_markov, default="auto", dest="markov",
-                   help="observer Markov parameters p (the past window), 'auto' (default, Akaike) or 'validate'")
+                   help="number of observer Markov parameters p (the past window, samples), 'auto' (default, "
+                        "Akaike) or 'validate'")
     o.add_argument("--latency", choices=("auto", "declared", "identified", "valid-time"), default="auto",
                    help="GPS latency source (default auto: valid times, else declared, attitude checked)")
     o.add_argument("--delay", choices=("augment", "in-model"), default="augment",
@@ -218,7 +219,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="model order, 'auto' (default, Hankel gap) or 'validate' (1-10, the order whose "
                    "model simulates the held-back 15 %% of the fit data best, both ways)")
     f.add_argument("--markov", type=_markov, default="auto",
-                   help="observer Markov parameters p (the past window), 'auto' (default, Akaike) or 'validate'")
+                   help="number of observer Markov parameters p (the past window, samples), 'auto' (default, "
+                        "Akaike) or 'validate'")
     f.add_argument("--dt", type=_seconds(1e-9, 1e6), default=None,
                    help="sample time, s (default: from a time column, else 1)")
     f.add_argument("--method", choices=("era-dc", "era"), default="era-dc",

@@ -60,7 +60,8 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     p.add_argument("--rate-limit", type=number, default=0.35, help="hard steering-rate limit, rad/s")
     add_option(p, "--wheel-limit", "--wheel-angle-limit", dest="wheel_angle_limit", type=number, default=0.5,
                help="soft wheel-angle limit, rad (default 0.5)")
-    p.add_argument("--slack-weight", type=number, default=1e5, help="exact-penalty price of the wheel-angle slack")
+    p.add_argument("--slack-weight", type=number, default=1e5,
+                   help="exact-penalty price of the wheel-angle slack, cost per rad of excess")
     p.add_argument("--terminal", choices=TERMINALS, default="riccati",
                    help="terminal cost of the horizon (default riccati: the unconstrained LQR's cost to go)")
     p.add_argument("--fallback", help="robust controller file (window structure, --integral) whose gain is the "
@@ -69,7 +70,7 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
                    help="past samples in the measured state, or 'auto' (default): the fallback's window, else the "
                         "shortest that determines the central model's state")
     p.add_argument("--output-clip", type=number, nargs=3, default=[0.1, 0.05, 0.0],
-                   help="clip of each normalised output (0 = none)")
+                   help="clip of each normalised output, model units (0 = none)")
     p.add_argument("--speed-min", type=number, default=0.3, help="speed floor of the normalisation, m/s")
     add_bryson_arguments(p, number)
     add_spec_arguments(p, number)

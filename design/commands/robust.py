@@ -141,7 +141,8 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     r.add_argument("--refine", type=int, default=1,
                    help="slack-update steps after the synthesis LMI (0 = none; each can only lower the bound)")
     r.add_argument("--integral", action="store_true", help="integral action on cross-track/speed")
-    r.add_argument("--pole-radius", type=number, default=None, help="closed-loop poles in |z| <= R")
+    r.add_argument("--pole-radius", type=number, default=None,
+                   help="closed-loop poles in |z| <= R, a radius in the z-plane (dimensionless, 0 < R <= 1)")
     r.add_argument("--rate-limit", type=number, default=None,
                    help="bound |u| (rad/s) over the initial-error set (--initial-errors)")
     r.add_argument("--initial-errors", type=number, nargs="+", default=[0.03, 0.01, 0.0],
@@ -158,7 +159,7 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
     r.add_argument("--structure", choices=("window", "observer"), default="window",
                    help="measured-window state feedback, or anchored coordinates + the nominal model's predictor")
     r.add_argument("--output-clip", type=number, nargs="+", default=[0.1, 0.05, 0.0],
-                   help="clip of each normalised output before the compensator (0 = none)")
+                   help="clip of each normalised output before the compensator, model units (0 = none)")
     add_disturbance_arguments(r, number, "feed it forward (window structure; its gain is scaled back until the "
                                          "specifications hold)")
     r.add_argument("--window-candidates", metavar="DIR", default=None,

@@ -40,7 +40,8 @@ def add_spec_arguments(p: argparse.ArgumentParser, number: Callable[[str], float
                    help="explicit: --output-max/--u-max/--integral-max as given; auto: the most aggressive weights "
                         "that meet the specifications below on every model")
     p.add_argument("--disk-margin", type=number, default=Specifications.disk_margin,
-                   help="smallest balanced disk margin at the plant input, with the latency in the loop")
+                   help="smallest balanced disk margin alpha at the plant input, with the latency in the loop "
+                        "(dimensionless, 0 < alpha < 2)")
     p.add_argument("--delay-reserve", type=number, default=Specifications.delay_reserve,
                    help="extra plant-input delay tolerated beyond the latency, s")
     p.add_argument("--actuator-rate", type=number, default=None,

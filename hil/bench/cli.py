@@ -545,7 +545,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="start from log2 of a knob's scale factor (default 0, the reference); repeatable")
     ca.add_argument("--step", type=_float, default=1.0, help="initial step in log2 (default 1: a factor 2)")
     ca.add_argument("--min-improvement", type=_float, default=0.0,
-                    help="keep a move only when it lowers the objective by more than this (default 0)")
+                    help="keep a move only when it lowers the objective (dimensionless) by more than this "
+                         "(default 0)")
     ca.add_argument("--band", action="store_true",
                     help="score 1-sigma by its distance outside the +-30 %% band (default: ln(ratio)^2)")
     ca.add_argument("--all-passes", action="store_true",

@@ -86,7 +86,7 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     c.add_argument("--order", type=_int_or(("auto", "validate")), default="validate",
                    help="model order (default: chosen by held-out prediction)")
     c.add_argument("--markov", type=_int_or(("auto", "validate")), default="auto",
-                   help="Markov parameters (past window)")
+                   help="number of observer Markov parameters (the past window, samples)")
     c.add_argument("--acceptance", choices=("refuse", "warn"), default=None,
                    help="a model that does not predict: stop (refuse) or go on with a warning (warn); default warn "
                         "for passes the runtime drove (hil drive --excite, the field procedure), refuse for others")

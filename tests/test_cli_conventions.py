@@ -1,7 +1,7 @@
 """One command line across ``gnss``, ``identification``, ``design`` and ``hil``.
 
 Every parser of every command is built from its module's parser factory and walked: every option
-has help, one spelling per concept (old spellings accepted but hidden and named as deprecated),
+has help, a number's help names its unit (or says it counts), a default is shown, one spelling per concept (old spellings accepted but hidden and named as deprecated),
 seeds and conditions given one way, ``--y-max`` in metres wherever it is offered. Then what a
 user sees: the closest spelling for a mistyped sub-command or option, ``gnss decode``'s JSON
 lines, and ``hil emulate``'s lines through a pipe while it runs.
@@ -20,8 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from autosteer.cli import (deprecated_strings, resolve_seeds, seed_list, seeds_or_count,
-                                    suggestion)
+from autosteer.cli import (Parser, deprecated_strings, resolve_seeds, seed_list, seeds_or_count, shown_default,
+                           suggestion)
 
 ROOT = Path(__file__).resolve().parents[1]
 TRIMBLE = ROOT / "tests" / "data" / "gnss" / "trimble_rtk_excerpt.nmea"
@@ -34,6 +34,13 @@ ONE_SPELLING = {
     "--integral-max": ("--i-max",),
     "--u-max": ("--u-max-deg-s",),
 }
+
+#: A number option's help names its unit ...
+UNIT = re.compile(r"(?<![\w/])(s|ms|m|cm|m/s|m s|rad|rad/s|deg|deg/s|Hz|bit/s|counts|%)(?![\w/])"
+                  r"|\b(degrees|seconds|model'?s? units)\b")
+#: ... or says that the number is a count, a ratio or an identifier.
+COUNT_OR_RATIO = re.compile(r"\b(count|number of|passes|steps|stages|calls|evaluations|samples|processes|rounds|"
+                            r"iterations?|order|fractions?|ratio|factor|scales?|log2|dimensionless|seed|port)\b")
 
 
 def _parsers():
@@ -70,6 +77,61 @@ def test_every_option_of_every_command_has_help(actions):
                and not (a.help or "").strip()]
     assert not missing, missing
     assert len({p.prog for _, p, _ in actions}) >= 30        # every sub-command was walked
+
+
+def _help(parser: argparse.ArgumentParser, action: argparse.Action) -> str:
+    """The help text of ``action`` as ``parser --help`` prints it (before line wrapping)."""
+    return parser._get_formatter()._expand_help(action)
+
+
+def _takes_numbers(action: argparse.Action) -> bool:
+    """Whether ``action`` parses its value(s) into numbers (seeds, which are names, aside)."""
+    if action.type in (int, float):
+        return True
+    if action.type is None or action.type in (seed_list, seeds_or_count):
+        return False
+    for text in ("1", "0.5"):
+        try:
+            value = action.type(text)
+        except (argparse.ArgumentTypeError, ValueError, TypeError):
+            continue
+        values = value if isinstance(value, tuple | list) else [value]
+        if values and all(isinstance(v, int | float) and not isinstance(v, bool) for v in values):
+            return True
+    return False
+
+
+def test_every_number_option_names_its_unit_or_what_it_counts(actions):
+    numbers = [(p, a) for _, p, a in actions if a.help != argparse.SUPPRESS and _takes_numbers(a)]
+    assert len(numbers) >= 100, len(numbers)       # the walk recognised the number types
+    missing = [f"{p.prog} {'/'.join(a.option_strings) or a.dest}: {_help(p, a)}" for p, a in numbers
+               if not (UNIT.search(_help(p, a)) or COUNT_OR_RATIO.search(_help(p, a)))]
+    assert not missing, "\n".join(missing)
+
+
+def test_every_default_is_shown_in_the_help(actions):
+    with_default = [(p, a) for _, p, a in actions if a.help != argparse.SUPPRESS and shown_default(a) is not None]
+    assert len(with_default) >= 120, len(with_default)
+    missing = [f"{p.prog} {'/'.join(a.option_strings) or a.dest}: {_help(p, a)}" for p, a in with_default
+               if "default" not in _help(p, a).lower()]
+    assert not missing, "\n".join(missing)
+
+
+def test_the_help_shows_a_default_as_it_is_typed_unless_the_help_names_it():
+    p = Parser(prog="x")
+    p.add_argument("--rate", type=float, default=0.35, help="steering rate, rad/s")
+    p.add_argument("--clip", type=float, nargs=3, default=[0.1, 0.05, 0.0], help="clips, m (0 = none)")
+    p.add_argument("--arm", default=(0.0, 0.0, 3.0), help="lever arm FWD,LEFT,UP, m")
+    p.add_argument("--price", type=float, default=1e5, help="price per rad")
+    p.add_argument("--speed", type=float, default=1.79, help="speed, m/s (default 1.79 = 4th gear)")
+    p.add_argument("--quiet", action="store_true", help="no progress")
+    p.add_argument("--out", help="folder")
+    text = " ".join(p.format_help().split())
+    for shown in ("steering rate, rad/s (default: 0.35)", "clips, m (0 = none; default: 0.1 0.05 0)",
+                  "lever arm FWD,LEFT,UP, m (default: 0,0,3)", "price per rad (default: 100000)",
+                  "speed, m/s (default 1.79 = 4th gear) ", "no progress --out", "folder"):
+        assert shown in text, (shown, text)
+    assert text.count("default") == 5
 
 
 def test_a_hidden_option_is_an_old_spelling_named_in_the_help_of_its_parser(actions):

@@ -17,7 +17,8 @@ NOTEBOOKS = Path(__file__).resolve().parent / "notebooks"
 def run_notebook(tmp_path):
     """Execute ``notebooks/<name>`` (percent format) with a Jupyter kernel in ``tmp_path``.
 
-    Returns the concatenated text output of its code cells.
+    Returns the concatenated text output of its code cells. Every figure the notebook saves in its
+    ``nb_out/`` must also be shown as a cell output (the documentation site renders the outputs).
     """
     def run(name: str, timeout: int = 600) -> str:
         import jupytext
@@ -26,7 +27,12 @@ def run_notebook(tmp_path):
         nb = jupytext.read(NOTEBOOKS / name)
         NotebookClient(nb, timeout=timeout, kernel_name="python3",
                        resources={"metadata": {"path": str(tmp_path)}}).execute()
-        return "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+        outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+        saved = sorted(p.name for p in (tmp_path / "nb_out").glob("*.png"))
+        shown = sum("image/png" in o.get("data", {}) for o in outputs)
+        assert shown >= len(saved), (f"{name} saves {len(saved)} figure(s) in nb_out/ ({', '.join(saved)}) but shows "
+                                     f"{shown}: display each one (IPython.display.Image) so its tutorial page has it")
+        return "".join(o.get("text", "") for o in outputs)
     return run
 
 

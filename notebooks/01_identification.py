@@ -43,6 +43,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from IPython.display import Image, display
 
 from identification.model import Model
 from identification.okid import OKID
@@ -82,6 +83,7 @@ for ax, (name, scale, unit) in zip(axes, [("steer_rate_cmd", 180 / np.pi, "deg/s
 axes[-1].set_xlabel("time [s]")
 axes[0].set_title("Typical identification pass: ripper, 9th gear (cf. the paper's Figure 5)")
 fig.savefig(OUT / "pass_ripper_9th.png", dpi=100)
+display(Image(filename=str(OUT / "pass_ripper_9th.png")))
 
 # %% [markdown]
 # ## 2. Pre-processing
@@ -108,9 +110,9 @@ hsv = est.hankel_singular_values_
 print("automatic order:", est.order_, "| observer Markov parameters:", est.n_lags_)
 print("Hankel singular values / first:", np.round(hsv[:8] / hsv[0], 5))
 fig6 = report.plot_hankel_singular_values([est.model_], ["all passes"])
-report.save(fig6, OUT / "fig6_hankel_sv.png")
+display(Image(filename=str(report.save(fig6, OUT / "fig6_hankel_sv.png"))))
 fig7 = report.plot_modal_singular_values([est.model_], ["all passes (over-sized realisation)"])
-report.save(fig7, OUT / "fig7_modal_sv.png")
+display(Image(filename=str(report.save(fig7, OUT / "fig7_modal_sv.png"))))
 lam, msv = est.modal_singular_values_
 print("eigenvalues |z| (largest modal singular value first):", np.round(np.abs(lam), 4))
 print("modal singular values / first:", np.round(msv / msv[0], 4))
@@ -137,7 +139,7 @@ central = Model.load(OUT / "models" / "central.npz")
 held_out = passes_to_iodata([PassLog.load(logs_dir / "ripper_9th_pass1.npz")], pre)
 res = validate(central.A, central.B, central.C, central.D, central.K, held_out)
 fig8 = report.plot_reconstruction(central, res)
-report.save(fig8, OUT / "fig8_reconstruction.png")
+display(Image(filename=str(report.save(fig8, OUT / "fig8_reconstruction.png"))))
 paper = {"y/V": 0.001, "psi/V": 0.041, "delta": 0.148}
 print(f"{'output':8s} {'bias':>9s} {'std':>9s} {'unit':8s} paper bias")
 for row in report.table1(central, res):

@@ -40,6 +40,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from IPython.display import Image, display
 
 from design.core.compensator import closed_loop_matrix
 from design.files.load import load_controller
@@ -134,6 +135,7 @@ ax2.set_ylabel("balanced disk margin at the plant input")
 ax2.legend()
 fig.tight_layout()
 fig.savefig(OUT / "robust_poles_margins.png", dpi=100)
+display(Image(filename=str(OUT / "robust_poles_margins.png")))
 
 # %% [markdown]
 # ## 6. Export, and the closed loop on the truth simulator

@@ -42,6 +42,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from IPython.display import Image, display
 
 from design.laws.controller import KinematicLQRController, Measurement
 from design.core.kinematic import KinematicWeights
@@ -158,6 +159,7 @@ axes[0].legend()
 axes[0].set_title("2.91 m/s, 2 m initial offset: limits dashed")
 fig.tight_layout()
 fig.savefig(OUT / "mpc_high_speed.png", dpi=100)
+display(Image(filename=str(OUT / "mpc_high_speed.png")))
 
 # %% [markdown]
 # The claims, checked: the MPCs never command beyond the rate limit and keep the wheel angle at its limit
@@ -213,6 +215,7 @@ ax2.set_ylabel("cross-track, m")
 ax2.set_title("25 m radius at 2.24 m/s")
 fig.tight_layout()
 fig.savefig(OUT / "mpc_curve.png", dpi=100)
+display(Image(filename=str(OUT / "mpc_curve.png")))
 
 # %% [markdown]
 # The claim, checked: on the arc the NMPC with preview holds the line several times closer than the

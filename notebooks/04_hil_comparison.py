@@ -35,6 +35,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from IPython.display import Image, display
 
 from hil.bench.runs.campaign import Campaign
 from hil.truth.conditions import condition_for
@@ -83,6 +84,7 @@ ax.set_ylabel("1-sigma / oracle's")
 ax.legend(fontsize=8)
 fig.tight_layout()
 fig.savefig(OUT / "ratio_to_oracle.png", dpi=100)
+display(Image(filename=str(OUT / "ratio_to_oracle.png")))
 disker = {r["controller"]: r for r in rows if r["implement"] == "disker"}
 for ctrl, r in disker.items():
     print(f"disker 1.79 m/s, {ctrl:>12}: true bias {r['true_bias_m'] * 100:+.1f} cm, "
@@ -99,4 +101,7 @@ assert all(r["engaged_fraction"] > 0.5 for r in results), "every controller enga
 # %%
 report = write_report(results, OUT / "report", title="HIL comparison (notebook 04)")
 print("\n".join(report["files"]))
+for name in report["files"]:
+    if name.endswith(".png"):
+        display(Image(filename=name))
 print(f"notebook ran in {time.perf_counter() - t0:.1f} s")

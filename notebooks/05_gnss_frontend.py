@@ -26,6 +26,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from IPython.display import Image, display
 
 from gnss import ABLine, FrontEndConfig, GnssFrontEnd, IntegrityConfig, IntegrityState, LocalFrame
 from gnss.frontend import replay_solutions, stamp_from_tags
@@ -36,6 +37,7 @@ import gnss
 
 ROOT = Path(gnss.__file__).resolve().parents[1]  # the repository (the project is installed editable)
 CAPTURE = ROOT.parent / "shared" / "data" / "gnss" / "gpsd_trimble_nmea_rtk" / "nmea-rtk.log"
+OUT = Path("nb_out")  # the figure is written here, in the working directory
 
 # %%
 summary, messages, stats = summarize_capture(CAPTURE.read_bytes())
@@ -83,4 +85,7 @@ ax2.plot(err.station, err.cross_track)
 ax2.set_xlabel("station (m)")
 ax2.set_ylabel("cross-track (m, + left)")
 fig.tight_layout()
+OUT.mkdir(exist_ok=True)
+fig.savefig(OUT / "cross_track.png", dpi=100)
 plt.close(fig)
+display(Image(filename=str(OUT / "cross_track.png")))

@@ -105,6 +105,7 @@ ax.set_ylabel("objective")
 ax.set_yscale("log")
 fig.tight_layout()
 fig.savefig(OUT / "search_path.png", dpi=100)
+display(Image(filename=str(OUT / "search_path.png")))
 
 # %% [markdown]
 # ## A small evaluation, run again

@@ -428,9 +428,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--passes", type=int, default=3, help="passes per condition (default 3)")
     s.add_argument("--duration", type=_float, default=120.0, help="seconds per pass (default 120)")
     s.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
-    s.add_argument("--bridge", choices=("hc11", "agopengps"), default="hc11",
+    s.add_argument("--bridge", choices=("hc11", "agopengps", "isobus"), default="hc11",
                    help="hc11: the rate command drives the valve open loop, as the HC11 board does; agopengps: "
-                        "through an emulated AgOpenGPS steer module (the driver integrates the rate into its setpoint)")
+                        "through an emulated AgOpenGPS steer module (the driver integrates the rate into its "
+                        "setpoint); isobus: through an emulated ISO 11783 steering controller (the driver integrates "
+                        "the rate into a curvature; the logged angle is that of the controller's estimated curvature)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=_cmd_sysid)
 

@@ -37,11 +37,15 @@ from hil.truth.steering import nominal_duty
 from hil.devices.wheel_calibration import two_point_calibration
 from hil.devices.plant import SimulatedTractor
 from hil.bench.benches.agio import AgioLockstepBench
+from hil.bench.benches.isobus import IsobusLockstepBench
 from hil.vehicle.agio.driver import AgioDriverConfig
+from hil.vehicle.isobus.driver import ANGLE_CALIBRATION as ISOBUS_CALIBRATION, IsobusDriverConfig, IsobusReport
+from hil.vehicle.isobus.link import isobus_driver_config
+from hil.vehicle.isobus.protocol import Lockout, Readiness, ResetStatus
 from hil.devices.steer_module import SteerModuleConfig
 
 #: Bridges an identification pass can steer through.
-BRIDGES = ("hc11", "agopengps")
+BRIDGES = ("hc11", "agopengps", "isobus")
 
 SYSID_MODULE_DRIVER = AgioDriverConfig(max_lead=0.3, max_windup=0.3)
 """The host driver's settings for identification passes through a steer module: the loop's
@@ -140,7 +144,7 @@ def make_passes(plan: SysidPlan, params: SimParams | None = None,
                 driver: DriverExcitation | None = None,
                 progress: Callable[[int, int], None] | None = None,
                 valve: ValveCurve | None = None, bridge: str = "hc11",
-                module_driver: AgioDriverConfig | None = None) -> list[tuple[str, PassLog]]:
+                module_driver: AgioDriverConfig | IsobusDriverConfig | None = None) -> list[tuple[str, PassLog]]:
     """Simulate every pass of ``plan`` (as one batch) and return ``(name, log)`` pairs.
 
     Parameters
@@ -163,34 +167,48 @@ def make_passes(plan: SysidPlan, params: SimParams | None = None,
         AgOpenGPS steer module on the lockstep bench (:class:`~hil.bench.benches.agio.AgioLockstepBench`):
         the rate command goes to the host driver, which integrates it into the module's setpoint as
         the vehicle loop's driver does (bumpless engage, limits, lead), and the logged wheel angle is
-        the module's PGN 253 angle, so the models include the module's own angle loop.
+        the module's PGN 253 angle, so the models include the module's own angle loop. ``isobus``: every
+        pass steers through an emulated ISO 11783 steering controller on a python-can virtual bus
+        (:class:`~hil.bench.benches.isobus.IsobusLockstepBench`): the host driver integrates the rate
+        command into a curvature, commanded "intended to steer" after the handshake, and the logged wheel
+        angle is that of the controller's estimated curvature, ``atan(wheelbase x curvature)``, as the
+        vehicle loop reads it, so the models include the controller's filter, rate limit, valve loop and
+        report period.
     module_driver
-        The host driver's settings for ``bridge="agopengps"`` (default :data:`SYSID_MODULE_DRIVER`); the
-        rate commanded is ``min(steering.max_rate, module_driver.max_rate)``.
+        The host driver's settings for ``bridge="agopengps"`` (an :class:`AgioDriverConfig`, default
+        :data:`SYSID_MODULE_DRIVER`) or ``bridge="isobus"`` (an :class:`IsobusDriverConfig`, default the
+        vehicle's, :func:`hil.vehicle.isobus.link.isobus_driver_config` of the tractor's wheelbase: its
+        anti-windup bound lets a wheel that follows at full rate through); the rate commanded is
+        ``min(steering.max_rate, module_driver.max_rate)``.
     """
     params = params or SimParams()
     driver = driver or DriverExcitation()
     if bridge not in BRIDGES:
         raise SimulatorConfigError(f"bridge must be one of {list(BRIDGES)}, got {bridge!r}")
-    if bridge == "agopengps" and valve is not None:
-        raise SimulatorConfigError("a valve map applies to the direct valve drive; a steer module closes its own "
-                                   "angle loop (pass valve=None with bridge='agopengps')")
-    if module_driver is not None and bridge != "agopengps":
-        raise SimulatorConfigError("module_driver applies only to bridge='agopengps'")
+    if bridge != "hc11" and valve is not None:
+        raise SimulatorConfigError(f"a valve map applies to the direct valve drive; a steer module or a steering "
+                                   f"controller closes its own angle loop (pass valve=None with bridge={bridge!r})")
+    if module_driver is not None:
+        wanted = {"agopengps": AgioDriverConfig, "isobus": IsobusDriverConfig}.get(bridge)
+        if wanted is None or not isinstance(module_driver, wanted):
+            raise SimulatorConfigError(f"module_driver applies only to bridge='agopengps' (an AgioDriverConfig) or "
+                                       f"'isobus' (an IsobusDriverConfig), got a {type(module_driver).__name__} "
+                                       f"with bridge={bridge!r}")
     jobs = [(c, i) for c in plan.conditions() for i in range(plan.first_index, plan.first_index + plan.passes)]
     conds = [c for c, _ in jobs]
     seeds = [pass_seed(plan.seed, c, i) for c, i in jobs]
     # the driver's own random draws come from a stream separate from the simulator's
     sim_seeds, drv_seeds = zip(*(s.spawn(2) for s in seeds))
-    if bridge == "agopengps":
-        cfg = module_driver if module_driver is not None else SYSID_MODULE_DRIVER
+    if bridge != "hc11":
+        cfg = module_driver if module_driver is not None else (
+            SYSID_MODULE_DRIVER if bridge == "agopengps" else isobus_driver_config(params.vehicle.wheelbase))
         logs, module_meta = [], []
         total = len(jobs) * plan.duration
         for n, (cond, sim_seed, drv_seed) in enumerate(zip(conds, sim_seeds, drv_seeds)):
             tick = None if progress is None else (
                 lambda done, _all, n=n: progress(int(n * plan.duration + done), int(total)))
-            channels, info = _run_module_pass(cond, plan.duration, sim_seed, np.random.default_rng(drv_seed),
-                                              params, driver, cfg, tick)
+            channels, info = _run_bridge_pass(bridge, cond, plan.duration, sim_seed,
+                                              np.random.default_rng(drv_seed), params, driver, cfg, tick)
             logs.append(channels)
             module_meta.append(info)
     else:
@@ -201,7 +219,7 @@ def make_passes(plan: SysidPlan, params: SimParams | None = None,
         meta = _meta(cond, i, plan, params, driver)
         if valve is not None:
             meta["valve_map"] = valve.to_dict()
-        if bridge == "agopengps":
+        if bridge != "hc11":
             meta.update(module_meta[n])
             meta["extra_channels"] = {**_EXTRA, **_ENGAGED}
         out.append((pass_name(cond, i), PassLog(times=channels[0], channels=channels[1], meta=meta)))
@@ -260,13 +278,23 @@ def _run_driver(sim: TractorSimulator, drv: DriverExcitation, rngs: Sequence[np.
     return [_channels(sim, b, rec) for b in range(B)]
 
 
-def _run_module_pass(cond: Condition, duration: float, sim_seed: np.random.SeedSequence, rng: np.random.Generator,
-                     params: SimParams, drv: DriverExcitation, config: AgioDriverConfig,
-                     progress: Callable[[float, float], None] | None):
-    """One identification pass through an emulated steer module, in lockstep: the loop's timing (every
-    cycle: read the module's reports, then command), the excitation rule of :class:`~hil.vehicle.excitation.SlewRule`.
+def _can_follow(report: IsobusReport) -> bool:
+    """The steering controller would follow "intended to steer" now: its handshake done (no reset pending),
+    ready and not locked out."""
+    m = report.message
+    return m.reset is ResetStatus.NOT_REQUIRED and m.readiness is Readiness.READY and m.lockout is not Lockout.ACTIVE
 
-    Returns the pass's channels (as :func:`_channels`) and what its metadata adds about the module.
+
+def _run_bridge_pass(bridge: str, cond: Condition, duration: float, sim_seed: np.random.SeedSequence,
+                     rng: np.random.Generator, params: SimParams, drv: DriverExcitation,
+                     config: AgioDriverConfig | IsobusDriverConfig, progress: Callable[[float, float], None] | None):
+    """One identification pass through an emulated steer module (``bridge="agopengps"``) or steering
+    controller (``"isobus"``), in lockstep: the loop's timing (every cycle: read the device's reports, then
+    command), the excitation rule of :class:`~hil.vehicle.excitation.SlewRule`.
+
+    The driver engages when the device answers, the operator is not steering and (a steering controller) its
+    handshake is done; it disengages when that stops, and engages again after the handshake is redone.
+    Returns the pass's channels (as :func:`_channels`) and what its metadata adds about the device.
     """
     plant = SimulatedTractor(cond, duration + 1.0, sim_seed, params)
     sim, p = plant.sim, plant.params
@@ -279,16 +307,24 @@ def _run_module_pass(cond: Condition, duration: float, sim_seed: np.random.SeedS
     engaged = np.zeros(n_ticks)
     engages = 0
     speed = [0.0]
-    with AgioLockstepBench(plant, cal, p.steering, driver_config=config, max_step=0.05) as bench:
+    isobus = bridge == "isobus"
+    if isobus:
+        bench = IsobusLockstepBench(plant, cal, p.vehicle.wheelbase, speed=lambda: plant.truth()["speed"],
+                                    driver_config=config, max_step=0.05)
+    else:
+        bench = AgioLockstepBench(plant, cal, p.steering, driver_config=config, max_step=0.05)
+    with bench:
         bench.scheduler.independent = True
         driver = bench.driver
-        driver.set_speed_source(lambda: speed[0])      # the measured ground speed goes into PGN 254
+        if not isobus:
+            driver.set_speed_source(lambda: speed[0])      # the measured ground speed goes into PGN 254
         for j in range(n_ticks):
             now = (j + 1) * period
             bench.clock.sleep_until(now)
             driver.poll()
             rep = driver.latest
-            ready = rep is not None and driver.is_alive() and not rep.manual_override
+            ready = (rep is not None and driver.is_alive() and not rep.manual_override
+                     and (not isobus or _can_follow(rep)))
             ip = int(sim.latest_position(now)[0])
             speed[0] = float(sim.pos["speed"][0, ip]) if ip >= 0 else 0.0
             if driver.engaged and not ready:
@@ -296,7 +332,12 @@ def _run_module_pass(cond: Condition, duration: float, sim_seed: np.random.SeedS
             elif not driver.engaged and ready:
                 driver.engage()
                 engages += 1
-            delta = rep.angle if rep is not None else 0.0
+            if rep is None:
+                delta = 0.0
+            elif isobus:     # as the loop reads it: the estimated curvature's angle in 0.1 mrad counts
+                delta = float(ISOBUS_CALIBRATION.to_angle(rep.adc_counts))
+            else:
+                delta = rep.angle
             rate = 0.0
             if driver.engaged:
                 y_m, yaw = _measured_gps(sim, now)
@@ -311,20 +352,38 @@ def _run_module_pass(cond: Condition, duration: float, sim_seed: np.random.SeedS
                 progress(now, duration)
         if driver.engaged:
             driver.disengage()
-        stats, module = driver.stats(), bench.firmware.state
+        stats, device = driver.stats(), bench.firmware.state
     times, chans = _channels(sim, 0, rec)
     chans["engaged"] = engaged
-    info = {"bridge": "agopengps",
-            "agopengps": {"driver": dict(config.__dict__), "module_settings": dict(module.settings.__dict__),
-                          "engages": engages, "engaged_fraction": float(engaged.mean()),
-                          "setpoints_limited": stats.setpoints_limited, "bad_frames": stats.bad_frames,
-                          "module_loops": module.loops},
-            # the PGN 253 angle is the module's last 40 Hz loop before it answered the previous cycle's PGN 254
-            "latency_s": {"wheel_angle": period + 0.5 * SteerModuleConfig().loop_period, "steer_rate_cmd": 0.0,
-                          "cross_track": p.gps.position_latency, "speed": p.gps.position_latency,
-                          "heading_error": p.gps.attitude_latency},
-            "source": "hil.bench.runs.sysid (simulated open-loop identification pass through an emulated AgOpenGPS "
-                      "steer module)"}
+    gps_latency = {"cross_track": p.gps.position_latency, "speed": p.gps.position_latency,
+                   "heading_error": p.gps.attitude_latency}
+    if isobus:
+        ctrl = bench.firmware.config
+        info = {"bridge": "isobus",
+                "isobus": {"driver": dict(config.__dict__),
+                           "controller": {k: v for k, v in ctrl.__dict__.items() if isinstance(v, (int, float))}
+                           | {"speed_window": list(ctrl.speed_window)},
+                           "engages": engages, "engaged_fraction": float(engaged.mean()),
+                           "setpoints_limited": stats.limited, "bad_frames": stats.bad_frames,
+                           "intended_sent": stats.intended_sent, "controller_reports": device.reports,
+                           "last_exit_code": device.exit_code},
+                # the controller samples its angle when it reports (every report_period, on the loop's grid):
+                # at the loop's polls the newest report is 0 or one loop period old
+                "latency_s": {"wheel_angle": 0.5 * (ctrl.report_period - period), "steer_rate_cmd": 0.0,
+                              **gps_latency},
+                "source": "hil.bench.runs.sysid (simulated open-loop identification pass through an emulated "
+                          "ISO 11783 steering controller)"}
+    else:
+        info = {"bridge": "agopengps",
+                "agopengps": {"driver": dict(config.__dict__), "module_settings": dict(device.settings.__dict__),
+                              "engages": engages, "engaged_fraction": float(engaged.mean()),
+                              "setpoints_limited": stats.setpoints_limited, "bad_frames": stats.bad_frames,
+                              "module_loops": device.loops},
+                # the PGN 253 angle is the module's last 40 Hz loop before it answered the previous cycle's PGN 254
+                "latency_s": {"wheel_angle": period + 0.5 * SteerModuleConfig().loop_period, "steer_rate_cmd": 0.0,
+                              **gps_latency},
+                "source": "hil.bench.runs.sysid (simulated open-loop identification pass through an emulated "
+                          "AgOpenGPS steer module)"}
     return (times, chans), info
 
 

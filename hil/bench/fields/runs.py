@@ -20,12 +20,12 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from identification.bounded import read_json
-from identification.outputs import atomic_write
 from identification.passlog import PassLog
 
 from hil.bench.fields.metrics import field_metrics
 from hil.bench.runs.field_route import field_run
 from hil.bench.fields.spacing import spacing_decomposition
+from hil.bench.runs.records import check_seeds, claim_folder, file_hashes, write_record
 from hil.bench.runs.run import RunSpec, simulated_run
 from hil.bench.runs.workers import run_pool
 from hil.commissioning.html import provenance, write_page
@@ -169,21 +169,18 @@ class FieldComparison:
             raise SimulatorConfigError("a field comparison needs at least one controller, field and condition")
         for c in controllers:
             check_field_controller(c)
-        if not seeds or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
-            raise SimulatorConfigError(f"seeds must be integers >= 0, got {list(seeds)!r}")
+        seeds = check_seeds(seeds)
         self.out = Path(out)
         p = params or SimParams()
         self.params = p.to_dict()
         for f in fields:                       # every field loads and fits in a run, at every speed
             for c in conditions:
                 route_duration(f, p, c.speed, passes)
-        self.keys = [FieldKey(ctrl, f, c.implement, c.speed, int(s), passes)
+        self.keys = [FieldKey(ctrl, f, c.implement, c.speed, s, passes)
                      for f in fields for ctrl in controllers for c in conditions for s in seeds]
-        self.identity = {"controllers": list(controllers), "fields": list(fields), "seeds": [int(s) for s in seeds],
+        self.identity = {"controllers": list(controllers), "fields": list(fields), "seeds": seeds,
                          "conditions": [[c.implement, c.speed] for c in conditions], "passes": passes,
-                         "params": self.params,
-                         "files": {x: hashlib.sha256(Path(x).read_bytes()).hexdigest()
-                                   for x in (*controllers, *fields) if x.endswith(".json")}}
+                         "params": self.params, "files": file_hashes((*controllers, *fields))}
 
     def _path(self, key: FieldKey) -> Path:
         return self.out / "runs" / f"{key.name}.json"
@@ -191,23 +188,12 @@ class FieldComparison:
     def _prepare(self) -> None:
         (self.out / "runs").mkdir(parents=True, exist_ok=True)
         (self.out / "logs").mkdir(parents=True, exist_ok=True)
-        ident = self.out / "fields_comparison.json"
-        if ident.exists():
-            old = read_json(ident, RECORD_LIMIT, "field comparison's record", SimulatorConfigError)
-            if old.get("params") != self.params or old.get("passes") != self.identity["passes"]:
-                raise SimulatorConfigError(f"{ident} belongs to a comparison with other simulator parameters or "
-                                           "passes; use another --out directory")
-            before = old.get("files", {})
-            changed = sorted(c for c, h in self.identity["files"].items() if before.get(c, h) != h)
-            if changed:
-                raise SimulatorConfigError(f"file(s) {changed} changed since {ident} ran them; their saved runs are "
-                                           "stale: use another --out directory")
-        ident.write_text(json.dumps(self.identity, indent=2) + "\n")
+        self.identity = claim_folder(self.out / "fields_comparison.json", self.identity,
+                                     {"params": "simulator parameters", "passes": "passes"}, "files",
+                                     "field comparison", RECORD_LIMIT)
 
     def _save(self, key: FieldKey, result: dict) -> None:
-        path = self._path(key)
-        with atomic_write(path, "w") as fh:
-            fh.write(json.dumps(result, indent=2) + "\n")
+        write_record(self._path(key), result)
 
     def run(self, workers: int | None = None, progress: Callable[[int, int], None] | None = None) -> list[dict]:
         """Run what is pending (``workers`` processes; 1: in this process) and return every result."""

@@ -12,16 +12,13 @@ process boundaries.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from identification.outputs import atomic_write
-
 from identification.bounded import read_json
+
 from hil.truth.conditions import Condition, all_conditions
 from hil.errors import SimulatorConfigError
 from hil.truth.params import SimParams
@@ -29,6 +26,7 @@ from hil.bench.runs.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, split_spec, vehicle_controller
 from hil.bench.runs.oracle import OracleOptions, oracle_for
+from hil.bench.runs.records import check_seeds, claim_folder, file_hashes, write_record
 from hil.bench.runs.workers import run_pool
 
 EXECUTORS = ("local", "dask")
@@ -126,20 +124,18 @@ class Campaign:
             raise SimulatorConfigError("a campaign needs at least one controller")
         for c in controllers:
             make_controller(c)
-        if not seeds or any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
-            raise SimulatorConfigError(f"seeds must be integers >= 0, got {list(seeds)!r}")
+        seeds = check_seeds(seeds)
         RunSpec(duration=duration, bridge=bridge)   # validates the duration and the bridge
         self.bridge = bridge
         self.out = Path(out)
         self.params = (params or SimParams()).to_dict()
         conditions = list(conditions or all_conditions())
-        self.keys = [RunKey(ctrl, c.implement, c.speed, int(s), float(duration), bridge)
+        self.keys = [RunKey(ctrl, c.implement, c.speed, s, float(duration), bridge)
                      for ctrl in controllers for c in conditions for s in seeds]
-        self.identity = {"controllers": list(controllers), "seeds": [int(s) for s in seeds], "duration": duration,
+        self.identity = {"controllers": list(controllers), "seeds": seeds, "duration": duration,
                          "bridge": bridge,
                          "conditions": [[c.implement, c.speed] for c in conditions], "params": self.params,
-                         "controller_files": {c: hashlib.sha256(Path(c).read_bytes()).hexdigest()
-                                              for c in controllers if c.endswith(".json")}}
+                         "controller_files": file_hashes(controllers)}
 
     def prepare(self) -> None:
         """Make the output folder, or check that the one there belongs to this campaign (the same simulator
@@ -153,20 +149,9 @@ class Campaign:
             The folder holds another campaign's passes, or a controller file changed since its passes ran.
         """
         (self.out / "runs").mkdir(parents=True, exist_ok=True)
-        ident = self.out / "campaign.json"
-        if ident.exists():
-            old = read_json(ident, RESULT_BYTES, "campaign identity", SimulatorConfigError)
-            if old.get("params") != self.params or old.get("duration") != self.identity["duration"]:
-                raise SimulatorConfigError(f"{ident} belongs to a campaign with other simulator parameters or "
-                                           "pass duration; use another --out directory")
-            before = old.get("controller_files", {})
-            changed = sorted(c for c, h in self.identity["controller_files"].items() if before.get(c, h) != h)
-            if changed:
-                raise SimulatorConfigError(f"controller file(s) {changed} changed since {ident} ran them; their "
-                                           "saved passes are stale: use another --out directory")
-            self.identity["controller_files"] = {**before, **self.identity["controller_files"]}
-        with atomic_write(ident, "w") as fh:
-            fh.write(json.dumps(self.identity, indent=2) + "\n")
+        self.identity = claim_folder(self.out / "campaign.json", self.identity,
+                                     {"params": "simulator parameters", "duration": "pass duration"},
+                                     "controller_files", "campaign", RESULT_BYTES)
 
     def _path(self, key: RunKey, realtime: bool = False) -> Path:
         return self.out / ("runs_realtime" if realtime else "runs") / f"{key.name}.json"
@@ -178,9 +163,7 @@ class Campaign:
     def _save(self, result: dict) -> None:
         key = RunKey(**{f: result[f] for f in RunKey.__dataclass_fields__ if f != "controller"},
                      controller=result["controller_spec"])
-        path = self._path(key, str(result.get("mode", "")).startswith("realtime"))
-        with atomic_write(path, "w") as fh:
-            fh.write(json.dumps(result, indent=2) + "\n")
+        write_record(self._path(key, str(result.get("mode", "")).startswith("realtime")), result)
 
     @staticmethod
     def _load(path: Path) -> dict:

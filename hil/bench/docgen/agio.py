@@ -5,10 +5,7 @@ The rendering is the shared one of :mod:`hil.bench.docgen.tables`; this module n
 The document holds a block between two markers that this module writes; a test checks that the
 block equals what the encoder produces now, so the document cannot drift from the code.
 
-Usage::
-
-    python -m hil.bench.docgen.agio docs/agopengps_protocol.md           # check (exit 1 if stale)
-    python -m hil.bench.docgen.agio docs/agopengps_protocol.md --write   # rewrite the block
+Check with ``python -m hil.bench.docgen.agio docs/agopengps_protocol.md`` (exit 1 if stale), rewrite with ``--write``.
 """
 
 from __future__ import annotations
@@ -61,9 +58,9 @@ def _source(layout: Layout) -> str:
     return "source module's last IP octet" if layout.tag is None else f"source 0x{layout.tag:02X}"
 
 
-_DOC = tables.DocGenerator("hil.bench.docgen.agio", FORMAT,
-                        [(title, message, layout_of(message).tag) for title, message in EXAMPLES],
-                        lambda layout: f"PGN {layout.msg_id} (0x{layout.msg_id:02X}) {layout.cls.__name__}", _source)
+_DOC = tables.DocGenerator("hil.bench.docgen.agio", lambda: tables.frame_tables(
+    FORMAT, [(title, message, layout_of(message).tag) for title, message in EXAMPLES],
+    lambda layout: f"PGN {layout.msg_id} (0x{layout.msg_id:02X}) {layout.cls.__name__}", _source))
 BEGIN = _DOC.begin
 render = _DOC.render
 replace_block = _DOC.replace_block

@@ -6,10 +6,7 @@ The protocol document holds a block between two markers that this module
 writes; a test checks that the block in the document equals what the encoder
 produces now, so the document cannot drift from the code.
 
-Usage::
-
-    python -m hil.bench.docgen.bridge docs/bridge_protocol.md           # check (exit 1 if stale)
-    python -m hil.bench.docgen.bridge docs/bridge_protocol.md --write   # rewrite the block
+Check with ``python -m hil.bench.docgen.bridge docs/bridge_protocol.md`` (exit 1 if stale), rewrite with ``--write``.
 """
 
 from __future__ import annotations
@@ -35,8 +32,8 @@ EXAMPLES: list[tuple[str, Message, int]] = [
 ]
 
 
-_DOC = tables.DocGenerator("hil.bench.docgen.bridge", FORMAT, EXAMPLES,
-                        lambda layout: f"0x{layout.msg_id:02X} {layout.cls.__name__}")
+_DOC = tables.DocGenerator("hil.bench.docgen.bridge", lambda: tables.frame_tables(
+    FORMAT, EXAMPLES, lambda layout: f"0x{layout.msg_id:02X} {layout.cls.__name__}"))
 BEGIN = _DOC.begin
 render = _DOC.render
 replace_block = _DOC.replace_block

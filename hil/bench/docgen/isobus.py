@@ -5,10 +5,7 @@ Byte offsets, types, scales, bit positions, states and the example bytes are rea
 produced by the encoder, so the document cannot drift from the code. The block sits between the
 markers of :mod:`hil.bench.docgen.block`; a test checks that the committed document equals it.
 
-Usage::
-
-    python -m hil.bench.docgen.isobus docs/isobus_protocol.md           # check (exit 1 if stale)
-    python -m hil.bench.docgen.isobus docs/isobus_protocol.md --write   # rewrite the block
+Check with ``python -m hil.bench.docgen.isobus docs/isobus_protocol.md`` (exit 1 if stale), rewrite with ``--write``.
 """
 
 from __future__ import annotations
@@ -35,11 +32,10 @@ from hil.vehicle.isobus.protocol import (
     ResetStatus,
     encode,
 )
-from hil.bench.docgen.tables import type_name
+from hil.bench.docgen.tables import DocGenerator, type_name
 
 __all__ = ["BEGIN", "END", "EXAMPLES", "render", "replace_block", "main"]
 
-BEGIN = block.begin_marker("hil.bench.docgen.isobus")
 END = block.END
 
 _READY = dict(lockout=Lockout.NOT_ACTIVE, readiness=Readiness.READY, input_position=InputPosition.CORRECT,
@@ -95,9 +91,8 @@ def _bit_rows(pgn: int) -> list[str]:
     return rows
 
 
-def render() -> str:
-    """The generated block, markers included."""
-    lines = [BEGIN, "", "### Message layouts", ""]
+def _body() -> list[str]:
+    lines = ["### Message layouts", ""]
     for pgn, layout in TABLE.layouts.items():
         lines += [f"#### PGN {pgn} (0x{pgn:04X}) {CLASSES[pgn].__name__} ({layout.direction.replace('->', ' → ')}, "
                   f"{layout.size} data bytes)", ""]
@@ -106,17 +101,14 @@ def render() -> str:
     for title, message in EXAMPLES:
         pgn, data = encode(message)
         lines += [f"- {title}: `{message!r}`", "", "  ```", f"  PGN 0x{pgn:04X}: {data.hex(' ')}", "  ```", ""]
-    return "\n".join(lines).rstrip() + "\n" + END
+    return lines
 
 
-def replace_block(text: str) -> str:
-    """``text`` with its generated block replaced by :func:`render` (see :mod:`hil.bench.docgen.block`)."""
-    return block.replace_block(text, BEGIN, render())
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Check or rewrite the generated block of the protocol document; 0 when up to date."""
-    return block.docgen_main(argv, "hil.bench.docgen.isobus", replace_block)
+_DOC = DocGenerator("hil.bench.docgen.isobus", _body)
+BEGIN = _DOC.begin
+render = _DOC.render
+replace_block = _DOC.replace_block
+main = _DOC.main
 
 
 if __name__ == "__main__":

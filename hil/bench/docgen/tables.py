@@ -13,7 +13,7 @@ from hil.bench.docgen import block
 from hil.vehicle.wire.frame import FrameFormat
 from hil.vehicle.wire.table import Field, Layout
 
-__all__ = ["render_block", "type_name", "DocGenerator"]
+__all__ = ["frame_tables", "type_name", "DocGenerator"]
 
 _TYPES = {"B": "uint8", "b": "int8", "H": "uint16", "h": "int16", "I": "uint32", "i": "int32"}
 
@@ -62,9 +62,9 @@ def _table(fmt: FrameFormat, layout: Layout, heading: str, tag: str) -> list[str
     return out
 
 
-def render_block(fmt: FrameFormat, examples: Sequence[tuple[str, object, int]], begin: str, end: str,
-                 heading: Callable[[Layout], str], tag: Callable[[Layout], str] | None = None) -> str:
-    """The generated block of a protocol document, markers included.
+def frame_tables(fmt: FrameFormat, examples: Sequence[tuple[str, object, int]], heading: Callable[[Layout], str],
+                 tag: Callable[[Layout], str] | None = None) -> list[str]:
+    """The lines of a framed protocol's generated block: a table per layout, then the example frames.
 
     Parameters
     ----------
@@ -72,24 +72,22 @@ def render_block(fmt: FrameFormat, examples: Sequence[tuple[str, object, int]], 
         The protocol's grammar and table.
     examples : sequence of (str, message, int)
         Title, message and tag byte of each example frame.
-    begin, end : str
-        The block's markers.
     heading : callable
         ``heading(layout) -> str``: how a layout is named in its heading (id and class).
     tag : callable, optional
         ``tag(layout) -> str``: what the layout's frames carry in the tag byte, for the heading.
     """
-    lines = [begin, "", "### Message layouts", ""]
+    lines = ["### Message layouts", ""]
     for layout in fmt.table.layouts.values():
         lines += _table(fmt, layout, heading(layout), f"{tag(layout)}, " if tag else "")
     lines += ["### Example frames (hex)", ""]
-    for title, message, tag in examples:
-        frame = fmt.encode(message, tag)
+    for title, message, tag_byte in examples:
+        frame = fmt.encode(message, tag_byte)
         checked = frame[fmt.checked_from:len(frame) - fmt.checksum_len]
         lines += [f"- {title}: `{message!r}`", "", "  ```", f"  {frame.hex(' ')}", "  ```", "",
                   f"  {fmt.checksum_name} 0x{fmt.checksum(checked):{fmt.checksum_hex.upper()}} over "
                   f"`{checked.hex(' ')}`.", ""]
-    return "\n".join(lines).rstrip() + "\n" + end
+    return lines
 
 
 class DocGenerator:
@@ -99,20 +97,19 @@ class DocGenerator:
     ----------
     module : str
         The ``docgen`` module (``python -m MODULE PATH [--write]``), named in the block's marker.
-    fmt, examples, heading, tag
-        As :func:`render_block`.
+    body : callable
+        ``body() -> list of str``: the block's lines between the markers (:func:`frame_tables` for a
+        framed protocol).
     """
 
-    def __init__(self, module: str, fmt: FrameFormat, examples: Sequence[tuple[str, object, int]],
-                 heading: Callable[[Layout], str], tag: Callable[[Layout], str] | None = None) -> None:
+    def __init__(self, module: str, body: Callable[[], list[str]]) -> None:
         self.module = module
         self.begin = block.begin_marker(module)
-        self._args = (fmt, examples, heading, tag)
+        self.body = body
 
     def render(self) -> str:
         """The generated block, markers included."""
-        fmt, examples, heading, tag = self._args
-        return render_block(fmt, examples, self.begin, block.END, heading, tag)
+        return "\n".join([self.begin, "", *self.body()]).rstrip() + "\n" + block.END
 
     def replace_block(self, text: str) -> str:
         """``text`` with its generated block replaced by :meth:`render` (see :mod:`hil.bench.docgen.block`)."""

@@ -13,7 +13,8 @@ errors
 A protocol keeps only what is its own: its message dataclasses, its table, its error classes,
 its frame grammar and its checksum. :mod:`hil.vehicle.bridge.protocol` (the HC11 bridge: sync
 ``A5 5A``, big-endian, CRC-16/CCITT-FALSE) and :mod:`hil.vehicle.agio.protocol` (AgOpenGPS PGN
-frames: preamble ``80 81``, little-endian, 8-bit sum) are the two built on it.
+frames: preamble ``80 81``, little-endian, 8-bit sum) use all of it; :mod:`hil.vehicle.isobus.protocol`
+(ISO 11783 guidance messages, 8-byte CAN payloads) uses its table only.
 
 Plugging in a new protocol
 --------------------------
@@ -37,8 +38,9 @@ Plugging in a new protocol
    ``fmt.decode_frame(data)`` and ``Deframer(fmt).feed_tuples(data)`` then work unchanged; a
    protocol that checks its tag byte against the message (a source address) passes a
    ``decode`` hook and lists its extra content errors with the counter each one increments.
-4. Its document: ``hil.bench.docgen.tables.render_block(fmt, examples, begin, end, heading)`` between the
-   markers of :mod:`hil.bench.docgen.block`, and a test that the committed document equals the rendering.
+4. Its document: a ``hil.bench.docgen`` module whose ``DocGenerator(module, body)`` writes the block
+   between the markers of :mod:`hil.bench.docgen.block` (for a framed protocol the body is
+   ``frame_tables(fmt, examples, heading)``), and a test that the committed document equals the rendering.
 """
 
 from hil.vehicle.wire.errors import ErrorSet, FrameRefusal, TableError

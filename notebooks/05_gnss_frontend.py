@@ -36,7 +36,7 @@ from gnss.summary import summarize_capture
 import gnss
 
 ROOT = Path(gnss.__file__).resolve().parents[1]  # the repository (the project is installed editable)
-CAPTURE = ROOT.parent / "shared" / "data" / "gnss" / "gpsd_trimble_nmea_rtk" / "nmea-rtk.log"
+CAPTURE = ROOT / "notebooks" / "data" / "trimble_nmea_rtk.log"  # gpsd's nmea-rtk.log (data/PROVENANCE.txt)
 OUT = Path("nb_out")  # the figure is written here, in the working directory
 
 # %%

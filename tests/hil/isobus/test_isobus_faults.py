@@ -74,13 +74,17 @@ class Silenced:
 
 
 class LossyBus:
-    """The guidance system's bus with its commands lost during ``windows`` (a cut wire, a busy bus)."""
+    """The guidance system's bus with its commands lost during ``windows`` (a cut wire, a busy bus) and every
+    send failing during ``errors`` (the interface in bus-off: python-can raises)."""
 
-    def __init__(self, bus, now, windows):
-        self.bus, self.now, self.windows, self.lost = bus, now, windows, 0
+    def __init__(self, bus, now, windows, errors=()):
+        self.bus, self.now, self.windows, self.errors, self.lost, self.failed = bus, now, windows, errors, 0, 0
         self.channel_info = bus.channel_info
 
     def send(self, msg, timeout=None):
+        if any(a <= self.now() < b for a, b in self.errors):
+            self.failed += 1
+            raise can.CanOperationError("Transmit buffer full")
         if CanId.decode(msg.arbitration_id).pgn == 0xAD00 and any(a <= self.now() < b for a, b in self.windows):
             self.lost += 1
             return
@@ -90,7 +94,7 @@ class LossyBus:
         return self.bus.recv(timeout)
 
 
-def isobus_pass(duration=20.0, seed=0, override=(), silent_from=math.inf, lost=(), actions=()):
+def isobus_pass(duration=20.0, seed=0, override=(), silent_from=math.inf, lost=(), actions=(), errors=()):
     clock = VirtualClock()
     channel = f"isobus-pass-{next(_channels)}"
     buses = [can.Bus(interface="virtual", channel=channel) for _ in range(4)]
@@ -110,7 +114,7 @@ def isobus_pass(duration=20.0, seed=0, override=(), silent_from=math.inf, lost=(
             sources.append(h)
         for t, action in actions:
             sched.add(At(t, lambda a=action: a(buses[2], clock)))
-        bus = LossyBus(buses[1], clock.now, lost)
+        bus = LossyBus(buses[1], clock.now, lost, errors)
         node = Node(bus, GUIDANCE, 0x80, clock)
         driver = IsobusDriver(node, clock, IsobusDriverConfig(wheelbase=p.vehicle.wheelbase))
         vp = p.vehicle
@@ -196,6 +200,19 @@ def test_lost_commands_end_in_the_controller_timeout_and_the_loop_follows_within
     # last command sent 7.95, read at the controller's loop 7.96; more than 0.2 s later: its loop at
     # 8.18 ends guidance, its report at 8.2 says so, the loop's cycle at 8.2 or 8.25 disengages
     assert 8.2 <= first["t"] <= 8.2 + PERIOD and "watchdog" in first["reason"]
+    assert_never_intended_while_disengaged(log, commands)
+    assert_handshake_before_each_engagement(loop, commands)
+    assert any(t > 8.5 for t in engagements(loop)) and controller.state.engaged
+
+
+def test_bus_errors_disengage_the_loop_within_a_cycle_and_steering_resumes_after_the_handshake():
+    log, loop, driver, controller, commands, bus = isobus_pass(20.0, errors=[(8.0, 8.5)])
+    first = disengagements(loop)[0]
+    # the loop's command of 8.0 fails: the driver drops out and counts the bridge dead, the next cycle disengages
+    assert 8.0 <= first["t"] <= 8.0 + PERIOD and "silent" in first["reason"], first
+    stats = driver.stats()
+    assert bus.failed >= 2 and stats.link_errors == bus.failed and stats.address_lost == 0
+    assert not any(8.0 <= when < 8.5 for when, _, _ in commands)
     assert_never_intended_while_disengaged(log, commands)
     assert_handshake_before_each_engagement(loop, commands)
     assert any(t > 8.5 for t in engagements(loop)) and controller.state.engaged

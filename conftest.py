@@ -40,7 +40,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     """Put the test files that hold a test marked ``long`` first, each file's order kept.
 
     ``tasks.py test`` gives whole files to pytest-xdist's workers in this order (``--dist loadfile
-    --no-loadscope-reorder``), so a worker starts on the longest file (minutes: issue 14's short campaign)
+    --no-loadscope-reorder``), so a worker starts on the longest file (minutes: a short commissioning campaign)
     while the others take the rest, rather than starting it when the rest is nearly done.
     """
     long_files = {item.path for item in items if item.get_closest_marker("long")}

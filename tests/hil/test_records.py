@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from hil.bench.runs.records import check_seeds, claim_folder, file_hashes
+from hil.bench.runs.records import check_seeds, claim_folder, file_hashes, run_each
 from hil.errors import SimulatorConfigError
 
 SAME = {"params": "simulator parameters", "passes": "passes"}
@@ -44,3 +44,11 @@ def test_seeds_are_integers_at_least_zero():
     for bad in ((), (-1,), (True,), (1.0,)):
         with pytest.raises(SimulatorConfigError, match="seeds must be integers >= 0"):
             check_seeds(bad)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_run_each_saves_every_result_and_counts_on_from_the_runs_done(workers):
+    saved, seen = {}, []
+    run_each(pow, [(2, 3), (3, 2)], workers, saved.__setitem__, lambda done, total: seen.append((done, total)),
+             done=5, total=7)
+    assert saved == {0: 8, 1: 9} and seen == [(6, 7), (7, 7)]

@@ -14,7 +14,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
@@ -25,18 +24,17 @@ from identification.passlog import PassLog
 from hil.bench.fields.metrics import field_metrics
 from hil.bench.runs.field_route import field_run
 from hil.bench.fields.spacing import spacing_decomposition
-from hil.bench.runs.records import check_seeds, claim_folder, file_hashes, write_record
+from hil.bench.runs.records import check_seeds, claim_folder, file_hashes, run_each, write_record
 from hil.bench.runs.run import RunSpec, simulated_run
-from hil.bench.runs.workers import run_pool
 from hil.commissioning.html import provenance, write_page
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import Condition
 from hil.truth.params import SimParams
+from hil.vehicle.controllers import controller_label
+from hil.vehicle.summary import summarize
 
 #: Largest record a comparison reads back (its identity and every run's result), bytes.
 RECORD_LIMIT = 2**22
-from hil.vehicle.controllers import controller_label
-from hil.vehicle.summary import summarize
 
 #: Extra seconds a field run drives after the route's length at the nominal speed.
 DURATION_MARGIN = 5.0
@@ -203,23 +201,8 @@ class FieldComparison:
         logs = str(self.out / "logs")
         if progress:
             progress(done, total)
-        if (workers or os.cpu_count() or 1) == 1:
-            for k in todo:
-                self._save(k, run_field_key(k, self.params, logs))
-                done += 1
-                if progress:
-                    progress(done, total)
-        else:
-            counter = [done]
-
-            def save(i: int, result: dict) -> None:
-                self._save(todo[i], result)
-                counter[0] += 1
-                if progress:
-                    progress(counter[0], total)
-            # Ctrl-C, SIGTERM or a failed run: the workers are terminated and joined (no orphan keeps
-            # driving a route); what finished is saved and a rerun resumes
-            run_pool(run_field_key, [(k, self.params, logs) for k in todo], workers or os.cpu_count() or 1, save)
+        run_each(run_field_key, [(k, self.params, logs) for k in todo], workers,
+                 lambda i, result: self._save(todo[i], result), progress, done, total)
         return [read_json(self._path(k), RECORD_LIMIT, "field run's result", SimulatorConfigError)
                 for k in self.keys]
 

@@ -12,7 +12,6 @@ process boundaries.
 
 from __future__ import annotations
 
-import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
@@ -26,8 +25,7 @@ from hil.bench.runs.run import RunSpec, simulated_run
 from hil.vehicle.summary import summarize
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, split_spec, vehicle_controller
 from hil.bench.runs.oracle import OracleOptions, oracle_for
-from hil.bench.runs.records import check_seeds, claim_folder, file_hashes, write_record
-from hil.bench.runs.workers import run_pool
+from hil.bench.runs.records import check_seeds, claim_folder, file_hashes, run_each, write_record
 
 EXECUTORS = ("local", "dask")
 
@@ -197,23 +195,9 @@ class Campaign:
             progress(done, total)
         if executor == "dask":
             self._run_dask(todo, scheduler, client, progress, done, total)
-        elif (workers or os.cpu_count() or 1) == 1:
-            for k in todo:
-                self._save(run_one(k, self.params))
-                done += 1
-                if progress:
-                    progress(done, total)
         else:
-            counter = [done]
-
-            def save(_: int, result: dict) -> None:
-                self._save(result)
-                counter[0] += 1
-                if progress:
-                    progress(counter[0], total)
-            # Ctrl-C, SIGTERM or a failed pass: pending passes are cancelled and the running workers
-            # terminated and joined (what finished is saved; a rerun resumes)
-            run_pool(run_one, [(k, self.params) for k in todo], workers or os.cpu_count() or 1, save)
+            run_each(run_one, [(k, self.params) for k in todo], workers, lambda _, result: self._save(result),
+                     progress, done, total)
         return self.results()
 
     def realtime_plan(self, controllers: Sequence[str] | None = None, duration: float | None = None

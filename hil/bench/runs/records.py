@@ -4,7 +4,8 @@ A campaign (:class:`hil.bench.runs.campaign.Campaign`) and a field comparison
 (:class:`hil.bench.fields.runs.FieldComparison`) keep the same kind of output folder: an identity
 record (the simulator parameters, what else makes two runs comparable, and the SHA-256 of every input
 file) and a result per finished run, written whole or not at all. A second start on the same folder
-resumes it only when the identity matches, so saved results never mix with runs of other settings.
+resumes it only when the identity matches, so saved results never mix with runs of other settings,
+and :func:`run_each` runs the pending ones, saving each the moment it finishes.
 """
 
 from __future__ import annotations
@@ -12,15 +13,17 @@ from __future__ import annotations
 import hashlib
 import json
 import numbers
+import os
 from pathlib import Path
-from typing import Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 from identification.bounded import read_json
 from identification.outputs import atomic_write
 
+from hil.bench.runs.workers import run_pool
 from hil.errors import SimulatorConfigError
 
-__all__ = ["check_seeds", "file_hashes", "claim_folder", "write_record"]
+__all__ = ["check_seeds", "file_hashes", "claim_folder", "write_record", "run_each"]
 
 
 def check_seeds(seeds: Sequence[int]) -> list[int]:
@@ -99,3 +102,42 @@ def claim_folder(path: Path, identity: dict, same: Mapping[str, str], files: str
     merged = {**identity, files: {**before, **identity[files]}}
     write_record(path, merged)
     return merged
+
+
+def run_each(fn: Callable[..., Any], calls: Sequence[tuple], workers: int | None, save: Callable[[int, Any], None],
+             progress: Callable[[int, int], None] | None = None, done: int = 0, total: int = 0) -> None:
+    """Run ``fn(*calls[i])`` for every call and hand each result to ``save(i, result)`` as it finishes.
+
+    With one worker the calls run in this process, in order; with more, in a process pool
+    (:func:`hil.bench.runs.workers.run_pool`: on Ctrl-C, SIGTERM or a failed call the workers are
+    terminated and joined, what finished is saved and a rerun resumes).
+
+    Parameters
+    ----------
+    fn
+        A module-level (picklable) function.
+    calls
+        Its argument tuples.
+    workers
+        Worker processes; None: one per CPU.
+    save
+        Called in this process with the call's index and its result.
+    progress
+        Called with (runs finished, ``total``) after each save.
+    done, total
+        Runs finished before these calls, and of the whole set, for ``progress``.
+    """
+    workers = workers or os.cpu_count() or 1
+    finished = [done]
+
+    def on_result(i: int, result: Any) -> None:
+        save(i, result)
+        finished[0] += 1
+        if progress:
+            progress(finished[0], total)
+
+    if workers == 1:
+        for i, args in enumerate(calls):
+            on_result(i, fn(*args))
+    else:
+        run_pool(fn, calls, workers, on_result)

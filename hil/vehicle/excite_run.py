@@ -19,9 +19,11 @@ import numpy as np
 
 from identification.passlog import PassLog
 
-from hil.vehicle.commissioning import load_commissioning
+from hil.vehicle.agio.spec import parse_bridge
+from hil.vehicle.commissioning import load_commissioning, save_commissioning
 from hil.vehicle.drive import DriveConfig, drive
 from hil.vehicle.excitation import ExcitationController, ExcitationSettings
+from hil.vehicle.isobus.link import controller_commissioning
 from hil.vehicle.procedure import Procedure, ProcedureError, status_text
 
 __all__ = ["drive_next_pass"]
@@ -35,7 +37,9 @@ def drive_next_pass(folder: str | Path, cfg: DriveConfig, settings: ExcitationSe
     Parameters
     ----------
     folder
-        The procedure's folder (``plan.json``, ``commissioning.json``, ``logs/``, ``spoiled/``).
+        The procedure's folder (``plan.json``, ``commissioning.json``, ``logs/``, ``spoiled/``). Through an
+        ISO 11783 steering controller, which takes no valve test, a missing ``commissioning.json`` is written
+        from :func:`hil.vehicle.isobus.link.controller_commissioning`.
     cfg
         The tractor's ports and geometry (an AB line: the pass runs along it; no field route). Its
         ``commissioning`` is replaced by the folder's.
@@ -67,6 +71,9 @@ def drive_next_pass(folder: str | Path, cfg: DriveConfig, settings: ExcitationSe
         raise ProcedureError(f"{folder} holds no procedure (plan.json); start it with `hil procedure {folder}`")
     proc = Procedure.open(folder)
     com_file = folder / "commissioning.json"
+    if not com_file.is_file() and parse_bridge(cfg.bridge_port).kind == "isobus":
+        # a steering controller closes its own loop (no valve test): its commissioning is the controller's
+        save_commissioning(controller_commissioning(), com_file)
     if not com_file.is_file():
         raise ProcedureError(f"{folder} has no commissioning.json: run the valve test first "
                              f"(hil valve-test --bridge PORT --out {folder})")

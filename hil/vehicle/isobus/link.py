@@ -20,8 +20,8 @@ from __future__ import annotations
 import can
 
 from hil.links.clock import Clock
-from hil.vehicle.agio.driver import module_loop_config
 from hil.vehicle.agio.spec import BridgeSpec
+from hil.vehicle.commissioning import Commissioning, loop_settings
 from hil.vehicle.isobus.bus import open_isobus_bus
 from hil.vehicle.isobus.driver import (
     ANGLE_NOISE,
@@ -34,9 +34,10 @@ from hil.vehicle.isobus.driver import (
 from hil.vehicle.isobus.errors import IsobusConfigError
 from hil.vehicle.isobus.network import Name, Node
 from hil.vehicle.loop import LoopConfig
+from hil.vehicle.valve_map import ValveCurve
 
-__all__ = ["GUIDANCE_NAME", "GUIDANCE_ADDRESS", "IsobusLink",
-           "open_isobus_link", "isobus_loop_config", "isobus_driver_config"]
+__all__ = ["GUIDANCE_NAME", "GUIDANCE_ADDRESS", "IsobusLink", "open_isobus_link", "isobus_loop_config",
+           "isobus_driver_config", "controller_actuator", "controller_commissioning"]
 
 GUIDANCE_NAME = Name(identity=0x7A5, manufacturer=0, function=0x83, vehicle_system=1, industry_group=2,
                      self_configurable=True)
@@ -103,9 +104,31 @@ def isobus_driver_config(wheelbase: float, lag: float = ISOBUS_LAG, max_rate: fl
                               max_windup=windup_bound(lag, max_rate, angle_noise))
 
 
+def controller_actuator(lag: float = ISOBUS_LAG) -> ValveCurve:
+    """The steering controller as the loop's actuator: the wheel-angle rate the loop commands, up to
+    :data:`~hil.vehicle.isobus.driver.ISOBUS_MAX_RATE` both ways, no dead band and linear (the controller
+    closes its own loop on the curvature), the measured angle ``lag``, s, behind, with the reported angle's
+    noise :data:`~hil.vehicle.isobus.driver.ANGLE_NOISE`."""
+    return ValveCurve(full_scale=ISOBUS_MAX_RATE, deadband=0.0, flow_exponent=1.0, left_rate=ISOBUS_MAX_RATE,
+                      right_rate=ISOBUS_MAX_RATE, lag=lag, angle_noise=ANGLE_NOISE)
+
+
 def isobus_loop_config(base: LoopConfig | None = None, lag: float = ISOBUS_LAG) -> LoopConfig:
-    """The loop's rate limit and steering-response monitor for a steering controller: the steer-module rule
-    (:func:`hil.vehicle.agio.driver.module_loop_config`, full rate
-    :data:`~hil.vehicle.isobus.driver.ISOBUS_MAX_RATE` both ways) with delay ``lag``, s, and the reported
-    angle's noise :data:`~hil.vehicle.isobus.driver.ANGLE_NOISE`."""
-    return module_loop_config(base, max_rate=ISOBUS_MAX_RATE, lag=lag, angle_noise=ANGLE_NOISE)
+    """The loop's rate limit and steering-response monitor for a steering controller: the rule of a measured
+    valve (:func:`hil.vehicle.commissioning.loop_settings`, as for a steer module) with
+    :func:`controller_actuator` of delay ``lag``, s, as the actuator."""
+    return loop_settings(controller_actuator(lag), base, linearity_error=0.0)
+
+
+def controller_commissioning(tractor: str = "tractor") -> Commissioning:
+    """The commissioning file of an ISO 11783 steering-ready tractor, for the field procedure.
+
+    Its valve is commissioned by the tractor's maker and driven in a closed loop by the steering controller,
+    so there is no valve test (``hil valve-test`` refuses the bridge). The file holds
+    :func:`controller_actuator` instead of a measured valve: the excitation's full rate, and the loop's rate
+    limit and steering-response monitor as :func:`isobus_loop_config` sets them, except that with no
+    linearity measured the monitor keeps the larger margin of an unmeasured map.
+    """
+    return Commissioning(tractor=tractor, valve=controller_actuator(), linearity=None,
+                         notes="ISO 11783 steering controller: no valve test (it closes its own loop); the "
+                               "actuator is the controller as the loop sees it (hil.vehicle.isobus.link)")

@@ -1,0 +1,90 @@
+"""The field procedure through an ISO 11783 steering controller, shortened, in real time, through the commands a
+user types: ``hil valve-test`` refuses the bridge (the controller closes its own loop), the identification
+passes are driven by the runtime (``hil drive --excite``) against ``hil emulate --bridge isobus``'s controller on
+python-can's UDP multicast bus, ``hil commission --logs`` designs from them, and a pass is driven with the result.
+
+Every emulated tractor takes a UDP port of its own (see ``test_isobus_emulate``)."""
+
+from __future__ import annotations
+
+import json
+import socket
+
+import numpy as np
+import pytest
+
+from hil.cli import main as hil_main
+from hil.devices.emulate import EmulatedTractor
+from hil.vehicle.commissioning import load_commissioning
+from hil.vehicle.isobus.link import controller_commissioning, isobus_loop_config
+from hil.vehicle.procedure import Procedure
+from identification.passlog import PassLog
+
+SPEEDS = (1.34, 2.24)
+
+
+def free_udp_port() -> int:
+    """A UDP port no socket holds now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("", 0))
+        return s.getsockname()[1]
+
+
+def emulated(speed: float, seed: int, duration: float) -> EmulatedTractor:
+    port = free_udp_port()
+    return EmulatedTractor(implement="none", speed=speed, duration=duration, seed=seed, bridge="isobus",
+                           can_bus=f"isobus:udp_multicast:239.74.163.{port % 200 + 20}:{port}", driver=True)
+
+
+def test_the_controllers_commissioning_sets_the_loop_as_the_bridge_does():
+    """Rate limit and delay of the commissioned loop are those of the loop without a commissioning file; with
+    no linearity measured, the response monitor keeps the margin of an unmeasured map (0.255 against 0.3)."""
+    com = controller_commissioning("steering-ready")
+    assert com.valve.max_rate == pytest.approx(0.35) and com.valve.deadband == 0.0 and com.linearity is None
+    commissioned, bridge = com.loop_config(), isobus_loop_config()
+    assert commissioned.max_rate == bridge.max_rate and commissioned.max_wheel_rate == bridge.max_wheel_rate
+    assert commissioned.response_min_ratio == pytest.approx(bridge.response_min_ratio - 0.045)
+
+
+def test_the_valve_test_refuses_a_steering_controller(tmp_path, capsys):
+    rc = hil_main(["valve-test", "--bridge", "isobus:udp_multicast:239.74.163.2:43113", "--out", str(tmp_path)])
+    assert rc != 0 and not (tmp_path / "commissioning.json").exists()
+    assert "is an ISO 11783 steering controller, which closes its own loop" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+@pytest.mark.timeout(600)
+def test_a_shortened_field_procedure_through_the_steering_controller(tmp_path, capsys):
+    folder = tmp_path / "tractor"
+    assert hil_main(["procedure", str(folder), "--implements", "none", "--speeds", *map(str, SPEEDS),
+                     "--passes", "2", "--duration", "20"]) == 0
+    capsys.readouterr()
+    for k in range(4):
+        nxt = Procedure.open(folder).remaining()[0]
+        with emulated(nxt.speed, 20 + k, 60.0) as tractor:
+            assert hil_main(["drive", *tractor.setup.drive_args(), "--excite", str(folder), "--json"]) == 0
+        result = json.loads(capsys.readouterr().out)
+        assert result["pass"] == nxt.label()
+    # no valve test: the first pass wrote the controller's commissioning into the folder
+    assert load_commissioning(folder / "commissioning.json") == controller_commissioning()
+    status = Procedure.open(folder).status()
+    assert status["remaining"] == [], status          # a spoiled pass would have been driven again above
+    for f in sorted((folder / "logs").glob("*.npz")):
+        log = PassLog.load(f)
+        assert log.meta["ports"]["bridge"].startswith("isobus:udp_multicast:")
+        assert np.ptp(log.channels["wheel_angle"]) > 0.05 and np.mean(log.channels["steer_rate_cmd"] != 0) > 0.2
+    design = tmp_path / "design"
+    assert hil_main(["commission", "--logs", str(folder / "logs"), "--commissioning",
+                     str(folder / "commissioning.json"), "--out", str(design), "--acceptance", "warn",
+                     "--weights", "default", "--quiet"]) == 0
+    capsys.readouterr()
+    res = json.loads((design / "result.json").read_text())
+    assert "robust" in res["designs"], res["steps"]
+    with emulated(1.34, 31, 40.0) as tractor:
+        robust = design / "controllers" / "robust.json"
+        assert hil_main(["drive", *tractor.setup.drive_args(), "--controller", str(robust), "--commissioning",
+                         str(folder / "commissioning.json"), "--speed", "1.34", "--implement", "none", "--duration", "15", "--out", str(tmp_path / "run"), "--json"]) == 0
+    run = json.loads(capsys.readouterr().out)
+    assert run["events"][0]["event"] == "engage" and run["summary"]["engaged_fraction"] > 0.5
+    assert max(abs(PassLog.load(tmp_path / "run" / "run_log.npz").channels["cross_track"])) < 0.5

@@ -262,13 +262,20 @@ def _design_mpc_alone(steps: Steps, designer: Designer, models_dir: Path, ctrl: 
     return {}
 
 
-def design_with_fallback(steps: Steps, designer: Designer, logs: Path, models_dir: Path, out: Path,
+def design_with_fallback(steps: Steps, designer: Designer, logs: Path | Sequence[Path], models_dir: Path, out: Path,
                          tries: Sequence[DesignTry], fallback_order: int | None, markov: int | str = "auto",
                          candidates: bool = False, hooks: DesignHooks = DesignHooks(),
-                         progress: Callable[[int, int], None] | None = None) -> tuple[dict[str, dict], dict | None]:
+                         progress: Callable[[int, int], None] | None = None, *, ctrl: Path | None = None,
+                         fallback_dir: Path | None = None,
+                         with_lqr: bool = True) -> tuple[dict[str, dict], dict | None]:
     """:func:`design_controllers` on the identified models, then, when the robust controller or the MPC is
     missing and ``fallback_order`` is given, identification again at that order (``out/models_order<N>/``,
     acceptance ``warn``) and the missing designs on those models.
+
+    ``logs`` is the folder of pass logs or the log files the models came from; ``ctrl`` the controllers' folder
+    (default ``out/controllers``), ``fallback_dir`` the fall-back identification's (default
+    ``out/models_order<N>``), ``with_lqr`` whether the paper's LQR is designed too (an implement added later
+    gets the robust controller and the MPC only).
 
     The robust LMIs over models of mixed orders (chosen by validation) were infeasible on a heavy and a worn
     tractor, feasible over order-4 models; when only the MPC is missing (its central model of the validated
@@ -281,15 +288,16 @@ def design_with_fallback(steps: Steps, designer: Designer, logs: Path, models_di
         The designs (:func:`design_controllers`) and the fall-back identification's summary (``None`` when
         it did not run; with ``"for": "mpc"`` when it was for the MPC alone).
     """
-    ctrl = out / "controllers"
-    designs = design_controllers(steps, designer, models_dir, ctrl, tries, True, candidates, hooks)
+    ctrl = out / "controllers" if ctrl is None else ctrl
+    designs = design_controllers(steps, designer, models_dir, ctrl, tries, with_lqr, candidates, hooks)
     missing = "robust" if "robust" not in designs else ("mpc" if "mpc" not in designs else None)
     if missing is None or fallback_order is None:
         return designs, None
-    fallback_dir = out / f"models_order{fallback_order}"
+    fallback_dir = out / f"models_order{fallback_order}" if fallback_dir is None else fallback_dir
+    sources = [str(logs)] if isinstance(logs, (str, Path)) else [str(f) for f in logs]
 
     def identify_again() -> dict:
-        r = identify_logs([str(logs)], fallback_dir, order=fallback_order, markov=markov, latency="auto",
+        r = identify_logs(sources, fallback_dir, order=fallback_order, markov=markov, latency="auto",
                           acceptance="warn", progress=progress)
         return {k: v for k, v in r.items() if k != "_text"}
     why = "no robust design having been found" if missing == "robust" else "for the MPC"

@@ -33,12 +33,13 @@ from identification.passlog import PassLog
 from identification.workflow import expand_logs, identify_logs
 
 from hil.commissioning.designs import WEIGHTS, Designer, attempts, design_with_fallback, settings_text
-from hil.commissioning.html import provenance, write_page
+from hil.commissioning.html import file_sha256, provenance, write_page
 from hil.commissioning.steps import Steps
 from hil.vehicle.commissioning import Commissioning, load_commissioning
 from hil.vehicle.errors import VehicleConfigError
 
-__all__ = ["LogOptions", "CommissioningError", "commission_from_logs", "driving_seconds"]
+__all__ = ["LogOptions", "CommissioningError", "commission_from_logs", "driving_seconds", "load_inputs",
+           "write_results", "report_text", "top_up_lines"]
 
 LATENCY_SOURCES = ("auto", "valid-time", "declared", "identified")
 
@@ -110,7 +111,7 @@ def driving_seconds(logs: list[PassLog]) -> dict:
     return {"passes": sum(per.values()), "per_implement": per, "total": sum(per.values())}
 
 
-def _load_inputs(logs: Path, commissioning: Path, latency: str = "auto") -> tuple[Commissioning, list[Path],
+def load_inputs(logs: Path, commissioning: Path, latency: str = "auto") -> tuple[Commissioning, list[Path],
                                                                                  list[PassLog]]:
     """The commissioning file and every pass log, each checked; one line naming the file on a refusal. With
     ``latency="valid-time"`` every log must carry the receivers' valid times."""
@@ -166,13 +167,13 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
     logs, out = Path(logs), Path(out)
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
     tick = progress or (lambda step, done, total: None)
-    com, files, passes = _load_inputs(logs, Path(commissioning), opts.latency)
+    com, files, passes = load_inputs(logs, Path(commissioning), opts.latency)
     acceptance = opts.acceptance or ("warn" if all("excitation" in p.meta for p in passes) else "refuse")
     out.mkdir(parents=True, exist_ok=True)
     steps = Steps(say)
     res: dict = {"tractor": com.tractor, "logs": [str(f) for f in files], "commissioning": str(commissioning),
                  "options": {**asdict(opts), "acceptance": acceptance}, "valve": com.valve.to_dict(),
-                 "driving_s": driving_seconds(passes)}
+                 "driving_s": driving_seconds(passes), "log_sha256": {f.name: file_sha256(f) for f in files}}
     models_dir = out / "models"
 
     def identify() -> dict:
@@ -193,18 +194,26 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
     res["designs"] = designs
     res["steps"] = steps.record
     res["files"] = [str(out / "report.md"), str(out / "index.html"), str(out / "result.json")]
-    with atomic_write(out / "result.json", "w") as fh:          # first: a report that fails loses nothing
+    write_results(out, res)
+    return res
+
+
+def write_results(out: Path, res: dict) -> None:
+    """``result.json`` (first: a report that fails loses nothing), then ``report.md`` and ``index.html`` of
+    ``res``, with a section per implement added later (``res["top_ups"]``)."""
+    with atomic_write(out / "result.json", "w") as fh:
         fh.write(json.dumps(res, indent=2, default=_jsonable) + "\n")
     text = report_text(res)
     with atomic_write(out / "report.md", "w") as fh:
         fh.write(text)
     failed = [s["step"] for s in res["steps"] if not s["ok"]]
+    tops = res.get("top_ups", [])
+    files = {d["file"]: "" for rec in [res, *tops] for d in rec["designs"].values() if d.get("file")}
     write_page(out / "index.html", f"Commissioning of {res['tractor']} from its recorded passes", text.splitlines(),
-               provenance(tractor=str(res["tractor"]), options=res["options"],
-                          files={d["file"]: "" for d in designs.values() if d.get("file")}),
-               summary=f"{len(files)} pass log(s); "
-                       + (f"failed: {', '.join(failed)}." if failed else "every step ok."))
-    return res
+               provenance(tractor=str(res["tractor"]), options=res["options"], files=files),
+               summary=f"{len(res['logs'])} pass log(s); "
+                       + (f"failed: {', '.join(failed)}." if failed else "every step ok.")
+                       + (f" Implements added later: {', '.join(t['implement'] for t in tops)}." if tops else ""))
 
 
 def _jsonable(o: object) -> object:
@@ -225,18 +234,46 @@ def report_text(res: dict) -> str:
         lines.append(f"| {s['step']} | {'yes' if s['ok'] else 'NO'} | {s['seconds']:.1f} | {s.get('error', '')} |")
     ident = res.get("identification")
     if ident:
-        lines += ["", "## Models", "", "| model | kind | order | prediction fit % | acceptance |", "|---|---|---:|---|---|"]
-        for m in ident.get("models", []):
-            fit = ", ".join(f"{k} {v:.1f}" for k, v in (m.get("prediction_fit") or {}).items())
-            lines.append(f"| {m['name']} | {m['kind']} | {m['order']} | {fit} | {m.get('acceptance', '')} |")
+        lines += ["", "## Models", "", *_model_table(ident)]
     if res["designs"]:
         lines += ["", "## Controllers", ""]
-        for name, d in res["designs"].items():
-            cert = d["result"]["certificate"]
-            lines.append(f"- `{name}` ({d['file']}): {'stable on every model' if cert.get('passed') else 'NOT STABLE'}"
-                         f", worst spectral radius {cert.get('max_spectral_radius', float('nan')):.4f} "
-                         f"({cert.get('worst', '')}); weights {d.get('weights', '')}; "
-                         f"{settings_text(d.get('settings', {}))}")
+        lines += [_controller_line(name, d) for name, d in res["designs"].items()]
     else:
         lines += ["", "No controller was designed: see the failed steps above."]
+    for top in res.get("top_ups", []):
+        lines += ["", *top_up_lines(top)]
     return "\n".join(lines) + "\n"
+
+
+def top_up_lines(top: dict) -> list[str]:
+    """The report's section of an implement added later (a record of ``result.json``'s ``top_ups``)."""
+    drv = top["driving_s"]
+    imp = top["implement"]
+    lines = [f"## Implement added later: {imp}", "",
+             f"{len(top['logs'])} pass logs, {drv['total'] / 60:.1f} min of driving ({drv['passes'] / 60:.1f} min "
+             f"recorded, {drv['spoiled'] / 60:.1f} min spoiled and driven again); {top['compute_s']:.0f} s of "
+             f"compute. Its controllers are certified on its own models; the laws of the other implements are "
+             "unchanged. With it hitched, drive with "
+             + " or ".join(f"`{d['file']}`" for d in top["designs"].values()) + ".", "",
+             "| step | ok | seconds | error |", "|---|---|---:|---|"]
+    for s in top["steps"]:
+        lines.append(f"| {s['step']} | {'yes' if s['ok'] else 'NO'} | {s['seconds']:.1f} | {s.get('error', '')} |")
+    lines += ["", *_model_table(top["identification"]), ""]
+    return lines + [_controller_line(name, d) for name, d in top["designs"].items()]
+
+
+def _model_table(ident: dict) -> list[str]:
+    """The report's table of identified models: kind, order, prediction fits, acceptance."""
+    lines = ["| model | kind | order | prediction fit % | acceptance |", "|---|---|---:|---|---|"]
+    for m in ident.get("models", []):
+        fit = ", ".join(f"{k} {v:.1f}" for k, v in (m.get("prediction_fit") or {}).items())
+        lines.append(f"| {m['name']} | {m['kind']} | {m['order']} | {fit} | {m.get('acceptance', '')} |")
+    return lines
+
+
+def _controller_line(name: str, d: dict) -> str:
+    """The report's line of one design: its file, certificate, weights and settings."""
+    cert = d["result"]["certificate"]
+    return (f"- `{name}` ({d['file']}): {'stable on every model' if cert.get('passed') else 'NOT STABLE'}"
+            f", worst spectral radius {cert.get('max_spectral_radius', float('nan')):.4f} "
+            f"({cert.get('worst', '')}); weights {d.get('weights', '')}; {settings_text(d.get('settings', {}))}")

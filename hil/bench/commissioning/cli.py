@@ -8,6 +8,7 @@ tractor, and on many (thin layers over :func:`hil.bench.commissioning.recipe.com
         [--duration S] [--seed S] [--hil-seeds SEEDS] [--hil-duration S] [--hil-conditions all|IMPLEMENT:SPEED,...]
         [--weights auto-if-available|auto|default] [--order N|auto|validate] [--markov N|auto|validate]
         [--acceptance refuse|warn] [--set group.name=value ...] [--quiet] [--json]
+    hil commission --logs DIR --commissioning FILE --out DIR --top-up IMPLEMENT [--quiet] [--json]
     hil commission-campaign [--random 0-19 ...] [--tractor NAME|FILE ...] --out DIR [the recipe's options]
 """
 
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from tqdm import tqdm
 
@@ -122,6 +124,10 @@ def add_commission_parser(sub: argparse._SubParsersAction, number, override) -> 
     c.add_argument("--latency", choices=LATENCY_SOURCES, default="auto",
                    help="with --logs: where the GPS latency comes from (default auto: the receivers' valid times, "
                         "else the logs' declaration, else identified from the data)")
+    c.add_argument("--top-up", metavar="IMPLEMENT", default=None,
+                   help="with --logs: add an implement to the commissioning in --out (its passes alone identified, "
+                        "its robust controller and MPC designed with the commissioning's settings into "
+                        "controllers/IMPLEMENT/; every other file of the commissioning kept byte for byte)")
     c.add_argument("--set", action="append", type=override, metavar="GROUP.NAME=VALUE",
                    help="override a parameter of that tractor; repeatable")
     c.add_argument("--out", required=True, help="directory for every output (commissioning.json, logs/, models/, "
@@ -194,8 +200,9 @@ def run_commission(args: argparse.Namespace) -> dict:
                                    "(passes recorded on a tractor)")
     if args.logs is not None:
         return _run_from_logs(args)
-    if args.commissioning is not None or args.latency != "auto":
-        raise SimulatorConfigError("--commissioning and --latency go with --logs; a bench tractor makes its own")
+    if args.commissioning is not None or args.latency != "auto" or args.top_up is not None:
+        raise SimulatorConfigError("--commissioning, --latency and --top-up go with --logs; a bench tractor makes "
+                                   "its own")
     base = resolve_tractor(args.tractor)
     tractor = base
     if args.set:
@@ -221,6 +228,8 @@ def _run_from_logs(args: argparse.Namespace) -> dict:
                                    "drop them")
     if args.commissioning is None:
         raise SimulatorConfigError("--logs needs --commissioning FILE (the tractor's valve test)")
+    if args.top_up is not None:
+        return _run_top_up(args)
     opts = LogOptions(order=args.order, markov=args.markov, acceptance=args.acceptance, latency=args.latency,
                       weights=args.weights, disturbance_estimate=args.disturbance_estimate == "on")
     say, progress, close = _reporters(args.quiet)
@@ -228,6 +237,28 @@ def _run_from_logs(args: argparse.Namespace) -> dict:
     close()
     return {"out": args.out, "tractor": res["tractor"], "steps": res["steps"], "files": res["files"],
             "valve": res["valve"], "hil": [], "driving_s": res["driving_s"]}
+
+
+#: Design and identification options a top-up takes from the commissioning it adds to, not from the command line.
+COMMISSIONING_SETTINGS = ("order", "markov", "acceptance", "latency", "weights", "disturbance_estimate")
+
+
+def _run_top_up(args: argparse.Namespace) -> dict:
+    from hil.commissioning.top_up import TopUpOptions, top_up
+    c = argparse.ArgumentParser().add_subparsers(dest="command")
+    parser = add_commission_parser(c, float, lambda t: t)
+    given = [f"--{k.replace('_', '-')}" for k in COMMISSIONING_SETTINGS if getattr(args, k) != parser.get_default(k)]
+    if given:
+        raise SimulatorConfigError(f"{', '.join(given)}: a top-up designs with the settings of the commissioning in "
+                                   "--out (its result.json); drop them")
+    say, progress, close = _reporters(args.quiet)
+    top = top_up(args.logs, args.commissioning, args.out, TopUpOptions(args.top_up), say=say, progress=progress)
+    close()
+    out = Path(args.out)
+    return {"out": args.out, "top_up": top["implement"], "steps": top["steps"],
+            "files": [str(out / "report.md"), str(out / "index.html"), str(out / "result.json"),
+                      *(d["file"] for d in top["designs"].values())],
+            "hil": [], "driving_s": top["driving_s"], "compute_s": top["compute_s"]}
 
 
 def build_defaults() -> dict:

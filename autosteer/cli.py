@@ -27,8 +27,9 @@ from collections import Counter
 from typing import Any, Sequence
 
 __all__ = ["Parser", "Formatter", "RawDescriptionFormatter", "add_option", "add_deprecated_option",
-           "deprecated_strings", "shown_default", "suggestion", "option_names", "seed_list", "seeds_or_count",
-           "resolve_seeds", "condition_pairs", "MAX_SEEDS", "MAX_SEEDS_PER_RANGE", "MAX_SEED"]
+           "deprecated_strings", "shown_default", "suggestion", "option_names", "arguments", "subcommands",
+           "help_text", "seed_list", "seeds_or_count", "resolve_seeds", "condition_pairs", "MAX_SEEDS",
+           "MAX_SEEDS_PER_RANGE", "MAX_SEED"]
 
 #: Largest seed accepted (numpy's SeedSequence takes any non-negative integer; this keeps seeds in 32 bits).
 MAX_SEED = 2 ** 31
@@ -123,6 +124,24 @@ def _close(word: str, candidates: Sequence[str]) -> list[str]:
     scored = sorted(((score(c), c) for c in candidates), key=lambda sc: -sc[0])
     best = scored[0][0] if scored else 0.0
     return [c for sc, c in scored[:3] if sc >= 0.6 and sc >= best - 0.05]
+
+
+def arguments(parser: argparse.ArgumentParser) -> list[argparse.Action]:
+    """The options and positionals of ``parser`` (its help option included), in the order they were added;
+    its sub-commands are :func:`subcommands`. (argparse keeps both in one private list.)"""
+    return [a for a in parser._actions if not isinstance(a, argparse._SubParsersAction)]
+
+
+def subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    """The sub-command parsers of ``parser`` by name; empty when it has none."""
+    return {name: sub for a in parser._actions if isinstance(a, argparse._SubParsersAction)
+            for name, sub in a.choices.items()}
+
+
+def help_text(parser: argparse.ArgumentParser, action: argparse.Action) -> str:
+    """The help of ``action`` as ``parser``'s ``--help`` prints it, before line wrapping (with its default and
+    old spellings, :class:`Formatter`)."""
+    return parser._get_formatter()._expand_help(action)
 
 
 def option_names(parser: argparse.ArgumentParser, namespace: argparse.Namespace | None = None) -> dict[str, str]:

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from autosteer.cli import (Parser, deprecated_strings, resolve_seeds, seed_list, seeds_or_count, shown_default,
-                           suggestion)
+from autosteer.cli import (Parser, arguments, deprecated_strings, help_text, resolve_seeds, seed_list,
+                           seeds_or_count, shown_default, subcommands, suggestion)
 
 ROOT = Path(__file__).resolve().parents[1]
 TRIMBLE = ROOT / "tests" / "data" / "gnss" / "trimble_rtk_excerpt.nmea"
@@ -54,12 +54,10 @@ def _parsers():
 
 def _walk(parser: argparse.ArgumentParser):
     """``(parser, action)`` for every action of ``parser`` and of its sub-parsers, recursively."""
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            for sub in dict.fromkeys(action.choices.values()):
-                yield from _walk(sub)
-        else:
-            yield parser, action
+    for action in arguments(parser):
+        yield parser, action
+    for sub in dict.fromkeys(subcommands(parser).values()):
+        yield from _walk(sub)
 
 
 def _visible(action: argparse.Action) -> list[str]:
@@ -73,15 +71,10 @@ def actions():
 
 def test_every_option_of_every_command_has_help(actions):
     missing = [f"{p.prog} {'/'.join(a.option_strings) or a.dest}" for _, p, a in actions
-               if not isinstance(a, argparse._HelpAction) and a.help != argparse.SUPPRESS
+               if a.dest != "help" and a.help != argparse.SUPPRESS
                and not (a.help or "").strip()]
     assert not missing, missing
     assert len({p.prog for _, p, _ in actions}) >= 30        # every sub-command was walked
-
-
-def _help(parser: argparse.ArgumentParser, action: argparse.Action) -> str:
-    """The help text of ``action`` as ``parser --help`` prints it (before line wrapping)."""
-    return parser._get_formatter()._expand_help(action)
 
 
 def _takes_numbers(action: argparse.Action) -> bool:
@@ -104,16 +97,16 @@ def _takes_numbers(action: argparse.Action) -> bool:
 def test_every_number_option_names_its_unit_or_what_it_counts(actions):
     numbers = [(p, a) for _, p, a in actions if a.help != argparse.SUPPRESS and _takes_numbers(a)]
     assert len(numbers) >= 100, len(numbers)       # the walk recognised the number types
-    missing = [f"{p.prog} {'/'.join(a.option_strings) or a.dest}: {_help(p, a)}" for p, a in numbers
-               if not (UNIT.search(_help(p, a)) or COUNT_OR_RATIO.search(_help(p, a)))]
+    missing = [f"{p.prog} {'/'.join(a.option_strings) or a.dest}: {help_text(p, a)}" for p, a in numbers
+               if not (UNIT.search(help_text(p, a)) or COUNT_OR_RATIO.search(help_text(p, a)))]
     assert not missing, "\n".join(missing)
 
 
 def test_every_default_is_shown_in_the_help(actions):
     with_default = [(p, a) for _, p, a in actions if a.help != argparse.SUPPRESS and shown_default(a) is not None]
     assert len(with_default) >= 120, len(with_default)
-    missing = [f"{p.prog} {'/'.join(a.option_strings) or a.dest}: {_help(p, a)}" for p, a in with_default
-               if "default" not in _help(p, a).lower()]
+    missing = [f"{p.prog} {'/'.join(a.option_strings) or a.dest}: {help_text(p, a)}" for p, a in with_default
+               if "default" not in help_text(p, a).lower()]
     assert not missing, "\n".join(missing)
 
 
@@ -141,8 +134,8 @@ def test_a_hidden_option_is_an_old_spelling_named_in_the_help_of_its_parser(acti
     assert len(hidden) >= 5            # kinematic --u-max-deg-s; compare, tune, calibrate --seed; --confirm-seed
     for _, p, a in actions:
         if a.help == argparse.SUPPRESS:
-            others = " ".join(b.help or "" for b in p._actions if b is not a and b.help != argparse.SUPPRESS)
-            old = {s for b in p._actions if b is not a for s in deprecated_strings(b)}
+            others = " ".join(b.help or "" for b in arguments(p) if b is not a and b.help != argparse.SUPPRESS)
+            old = {s for b in arguments(p) if b is not a for s in deprecated_strings(b)}
             assert any(s in others or s in old for s in a.option_strings), (p.prog, a.option_strings)
 
 
@@ -163,17 +156,17 @@ def test_one_spelling_per_concept_and_old_spellings_still_parse(actions):
     a = design.parse_args(["kinematic", "--u-max-deg-s", "20"])
     b = design.parse_args(["kinematic"])
     assert a.u_max == b.u_max == pytest.approx(math.radians(20.0))
-    okid = p["identification"]._subparsers._group_actions[0].choices["okid"]
-    assert "--past" in deprecated_strings(next(a for a in okid._actions if a.dest == "markov"))
+    okid = subcommands(p["identification"])["okid"]
+    assert "--past" in deprecated_strings(next(a for a in arguments(okid) if a.dest == "markov"))
     assert p["identification"].parse_args(["okid", "l", "--out", "o", "--past", "12"]).markov == 12
 
 
 def test_old_spellings_are_out_of_the_usage_and_named_as_deprecated_in_the_help():
-    help_text = _parsers()["design"]._subparsers._group_actions[0].choices["lqr"].format_help()
-    usage = help_text.split("\n\n", 1)[0]
-    help_text = " ".join(help_text.split())
+    text = subcommands(_parsers()["design"])["lqr"].format_help()
+    usage = text.split("\n\n", 1)[0]
+    text = " ".join(text.split())
     assert "--models MODEL" in usage and "--model " not in usage and "--verify-on" not in usage
-    assert "(deprecated spelling: --model)" in help_text and "(deprecated spelling: --verify-on)" in help_text
+    assert "(deprecated spelling: --model)" in text and "(deprecated spelling: --verify-on)" in text
 
 
 def test_a_missing_option_is_named_by_its_shown_spelling(capsys):

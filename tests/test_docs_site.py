@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import pickle
 import shutil
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -67,6 +69,19 @@ def test_the_site_has_its_sections_and_the_rendered_notebooks(built):
     for protocol in sorted((ROOT / "docs").glob("*_protocol.md")):
         assert (built / f"{protocol.stem}.html").exists()
         assert f"{protocol.stem}.html" in index
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_every_page_has_one_place_in_the_navigation(built):
+    """No page is listed by two tables of contents (a glob in one section once took in another's pages)."""
+    with open(built.parent / f"{built.name}-work" / "doctrees" / "environment.pickle", "rb") as fh:
+        env = pickle.load(fh)            # the build's own environment: which page each toctree includes
+    places = Counter(child for children in env.toctree_includes.values() for child in children)
+    assert places["bridge_protocol"] == 1 and places["tutorials/01_identification"] == 1, places
+    twice = {doc: [parent for parent, children in env.toctree_includes.items() if doc in children]
+             for doc, n in places.items() if n > 1}
+    assert not twice, twice
 
 
 @pytest.mark.slow

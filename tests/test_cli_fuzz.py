@@ -15,7 +15,6 @@ stopped from outside (an alarm), which counts as "ran" - the property is about e
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import io
 import os
@@ -34,6 +33,7 @@ import gnss.cli
 import hil.bench.cli
 import hil.cli
 import identification.cli
+from autosteer.cli import arguments, subcommands
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "identification"))
 from hostile_files import DEEP, broken_deflate, huge_member  # noqa: E402
@@ -51,13 +51,6 @@ BUDGET_S = 4
 
 class _Budget(BaseException):
     """Raised by the alarm: the command was still working when its time was up."""
-
-
-def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
-    for action in parser._actions:   # argparse has no public accessor for its sub-parsers
-        if isinstance(action, argparse._SubParsersAction):
-            return dict(action.choices)
-    return {}
 
 
 _T = np.arange(40) * 0.05
@@ -142,12 +135,12 @@ HOSTILE = [*(f"FILES/{name}" for name in FILES), *(f"FILES/{name}" for name in _
 @st.composite
 def argv_for(draw, cli: str) -> list[str]:
     parser = CLIS[cli][1]()
-    subs = {k: v for k, v in _subcommands(parser).items() if (cli, k) not in SKIP}
+    subs = {k: v for k, v in subcommands(parser).items() if (cli, k) not in SKIP}
     name = draw(st.sampled_from(sorted(subs)))
     sub = subs[name]
     argv = [name]
-    for action in sub._actions:
-        if isinstance(action, argparse._HelpAction):
+    for action in arguments(sub):
+        if action.dest == "help":
             continue
         want = draw(st.floats(0, 1)) < (0.9 if action.required or not action.option_strings else 0.3)
         if not want:

@@ -18,6 +18,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from autosteer.cli import arguments, subcommands
 from identification.cli import build_parser, main
 from idtest_synth import DATA, synthetic_pass
 
@@ -70,11 +71,11 @@ def _value(action: argparse.Action, files: dict[str, list[str]]) -> st.SearchStr
 @st.composite
 def argvs(draw, files):
     parser = build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    command = draw(st.sampled_from(sorted(sub.choices)))
+    commands = subcommands(parser)
+    command = draw(st.sampled_from(sorted(commands)))
     argv = [command]
-    for action in sub.choices[command]._actions:
-        if isinstance(action, argparse._HelpAction):
+    for action in arguments(commands[command]):
+        if action.dest == "help":
             continue
         if not action.option_strings:                   # positionals, sometimes left out
             if draw(st.integers(0, 9)) == 0:

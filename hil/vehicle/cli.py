@@ -104,7 +104,7 @@ def _cmd_drive(args: argparse.Namespace) -> dict:
                       wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
                       gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time),
                       commissioning=args.commissioning, route=args.route if "route" in args else _route(args),
-                      wheelbase=args.wheelbase)
+                      wheelbase=args.wheelbase, receiver_latency=args.receiver_latency)
     key = load_public_key(args.require_signature) if args.require_signature else None
     controller = vehicle_controller(args.controller, key)
     log = drive(cfg, controller, args.duration, implement=args.implement, nominal_speed=args.speed)
@@ -132,7 +132,7 @@ def _cmd_excite(args: argparse.Namespace) -> dict:
                       line_a=args.line[:2], line_b=args.line[2:], height=args.height, lever_arm=args.lever_arm,
                       wheel_calibration=args.wheel_calibration, bridge_baud=args.bridge_baud,
                       gnss_baud=args.gnss_baud, agio=AgioDriverConfig(lead_time=args.lead_time),
-                      wheelbase=args.wheelbase)
+                      wheelbase=args.wheelbase, receiver_latency=args.receiver_latency)
     return drive_next_pass(args.excite, cfg, duration=args.duration)
 
 
@@ -178,6 +178,11 @@ def add_drive_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser
                    help="the tractor's wheelbase, m: with --field for the headland turns, with an isobus bridge for "
                         "the curvature commanded and reported (default 2.85)")
     d.add_argument("--height", type=parse_float, default=0.0, help="field ellipsoidal height, m")
+    d.add_argument("--receiver-latency", type=parse_float, default=0.0, metavar="S",
+                   help="the receivers' minimum output latency from their data sheets (the least of the position "
+                        "and attitude receiver's), s: the receivers' time tags then give each epoch's time of "
+                        "validity, and --excite passes carry it so that the GPS latency is measured (default 0: "
+                        "none declared; the latency is then identified from the passes)")
     d.add_argument("--lever-arm", type=parse_floats(3), default=(0.0, 0.0, 3.0), metavar="X,Y,Z",
                    help="antenna from the control point, body frame (fwd, left, up), m")
     d.add_argument("--wheel-calibration", type=parse_floats(2), default=(128.0, 0.0061),

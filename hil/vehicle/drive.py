@@ -32,7 +32,7 @@ from gnss.curve import ArcPath
 from gnss.field import Route, place_on_line
 from gnss.guidance import ABLine
 from gnss.track import PathTracker
-from autosteer.checks import finite_tuple
+from autosteer.checks import finite, finite_tuple
 from identification.errors import OptionError
 from identification.outputs import check_name
 from identification.passlog import MAX_NOMINAL_SPEED, PassLog
@@ -84,6 +84,12 @@ class DriveConfig:
     route
         A field's route (passes and headland turns, :meth:`gnss.field.Field.route`): the loop follows it instead
         of the line, its first pass starting at A towards B (the route's own segments from there).
+    receiver_latency
+        The receivers' minimum output latency (solution epoch to first byte, from their data sheets: the least
+        of the position and the attitude receiver's), s. With it the front-end maps the receivers' time tags to
+        the host clock (:attr:`gnss.frontend.FrontEndConfig.receiver_latency`) and an identification pass's log
+        carries the epochs' times of validity, so the GPS latency is measured from the passes; 0: none declared
+        (identification then finds the latency from the passes themselves).
     commissioning
         The tractor's commissioning (``hil valve-test``): the loop's rate limit and steering-response monitor
         come from the measured valve, and an HC11 bridge's rate commands go through its inverse map
@@ -106,6 +112,7 @@ class DriveConfig:
     commissioning: Commissioning | None = None
     route: Route | None = None
     wheelbase: float = 2.85
+    receiver_latency: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("bridge_port", "position_port"):
@@ -116,6 +123,8 @@ class DriveConfig:
         if abs(a[0]) > 90 or abs(b[0]) > 90 or abs(a[1]) > 180 or abs(b[1]) > 180:
             raise VehicleConfigError(f"line ends must be (lat, lon) in degrees, got {a}, {b}")
         finite_tuple(self.lever_arm, "lever_arm", n=3, unit="m", error=VehicleConfigError)
+        finite(self.receiver_latency, "receiver_latency", lo=0.0, hi=1.0, hi_open=True, unit="s",
+               error=VehicleConfigError)
         WheelAngleCalibration(*finite_tuple(self.wheel_calibration, "wheel_calibration", n=2,
                                             error=VehicleConfigError))
         if parse_bridge(self.bridge_port).kind == "isobus":
@@ -227,7 +236,8 @@ def drive(cfg: DriveConfig, controller: Controller, duration: float, implement: 
             clock = RealClock()
             driver = (bridge.driver(clock, isobus_driver_config(cfg.wheelbase)) if isobus
                       else AgioDriver(bridge, clock, cfg.agio) if agio else BridgeDriver(bridge, clock))
-            frontend = GnssFrontEnd(FrontEndConfig(origin=origin, lever_arm=cfg.lever_arm), sources=sources,
+            frontend = GnssFrontEnd(FrontEndConfig(origin=origin, lever_arm=cfg.lever_arm,
+                                                    receiver_latency=cfg.receiver_latency), sources=sources,
                                     clock=clock.now)
             if agio:   # the module takes the ground speed in PGN 254 and reports its angle in 0.01 degree
                 driver.set_speed_source(lambda: frontend.solution(clock.now()).speed)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hil.bench.benches.valve import characterise_on_bench
-from hil.bench.commissioning.field_passes import drive_procedure_passes
+from hil.bench.commissioning.field_passes import data_sheet_latency, drive_procedure_passes
 from hil.bench.runs.run import RunSpec, simulated_run
 from hil.cli import main as hil_main
 from hil.devices.emulate import EmulatedTractor
@@ -20,7 +20,8 @@ from hil.vehicle.errors import VehicleConfigError
 from hil.vehicle.excitation import ExcitationController, ExcitationSettings
 from hil.vehicle.loop import LoopConfig
 from hil.vehicle.procedure import FieldPlan, Procedure, pass_faults
-from identification.delay import latency_from_valid_times
+from hil.vehicle.drive import DriveConfig
+from identification.delay import latency_from_valid_times, measure_latency
 from identification.passlog import PassLog
 
 PARAMS = resolve_tractor("default").params()
@@ -32,13 +33,14 @@ def com() -> Commissioning:
     return Commissioning("default", curve, None)
 
 
-def _pass(com, speed=2.91, duration=40.0, seed=5, settings=None, **faults) -> PassLog:
+def _pass(com, speed=2.91, duration=40.0, seed=5, settings=None, receiver_latency=0.0, **faults) -> PassLog:
     settings = settings or ExcitationSettings()
     ctl = ExcitationController(settings, np.random.default_rng(seed), speed, duration, PARAMS.vehicle.wheelbase,
                                com.valve.max_rate)
     config = settings.loop_config(LoopConfig(wheel_stop=PARAMS.steering.max_wheel_angle))
     spec = RunSpec(implement="none", speed=speed, duration=duration, seed=seed, initial_cross_track=0.0, **faults)
-    return simulated_run(spec, ctl, PARAMS, loop_config=config, commissioning=com, epochs=True)
+    return simulated_run(spec, ctl, PARAMS, loop_config=config, commissioning=com, epochs=True,
+                         receiver_latency=receiver_latency)
 
 
 def test_the_excitation_stays_in_its_corridor_and_logs_the_receivers_epochs(com):
@@ -55,6 +57,28 @@ def test_the_excitation_stays_in_its_corridor_and_logs_the_receivers_epochs(com)
     # no latency declared for the receivers: no time of validity passed off as measured (identification finds it)
     assert latency_from_valid_times(log) == {} and "position_valid_time" not in log.channels
     assert "loop_cross_track" in log.channels and pass_faults(log, 40.0) == []
+
+
+def test_a_declared_receiver_latency_gives_each_epoch_its_time_of_validity_and_the_latency_is_measured(com):
+    """With the receivers' data-sheet latency declared (hil drive --receiver-latency), the position and attitude
+    epochs carry their times of validity, and the latency measured from them is the receivers' own: the
+    position's too, although only the least of the two is declared (both receivers tag their epochs with GPS
+    time). Each from its arrival jitter below to one loop period and the time its sentence takes on the serial
+    line above: the loop reads its ports once a cycle, and in lockstep the receivers' epochs keep one phase to
+    the cycles, so the least-delayed message the time tags are aligned on waits for the next cycle too (on a
+    tractor the phase wanders and the alignment finds the message read at once)."""
+    g = PARAMS.gps
+    declared = data_sheet_latency(PARAMS)
+    assert declared == pytest.approx(min(g.position_latency, g.attitude_latency) - g.latency_jitter)
+    log = _pass(com, duration=20.0, receiver_latency=declared)
+    assert {"position_valid_time", "attitude_valid_time"} <= set(log.channels)
+    measured = measure_latency([log], source="valid-time")
+    assert measured.sources == {"position": "valid-time", "attitude": "valid-time"}
+    late = 0.05 + 0.02      # a loop period and a sentence's time on the line at 38400 bit/s
+    for measured_s, true_s in ((measured.position, g.position_latency), (measured.attitude, g.attitude_latency)):
+        assert true_s - g.latency_jitter - 1e-6 <= measured_s <= true_s + late
+    with pytest.raises(VehicleConfigError, match="receiver_latency must be a finite number >= 0 and < 1 s"):
+        DriveConfig(bridge_port="/dev/ttyS0", position_port="/dev/ttyS1", receiver_latency=1.5)
 
 
 def test_the_excitation_stops_on_a_takeover_and_on_a_stale_fix(com):

@@ -5,7 +5,8 @@
 pass until none remains, as an operator would with ``hil drive --excite``: the vehicle loop runs the
 runtime's excitation law (:class:`hil.vehicle.excitation.ExcitationController`) in its corridor through
 the commissioned bridge (:func:`hil.bench.runs.run.simulated_run`, lockstep), the pass log holds the
-receivers' epochs as they arrived, and the procedure's review moves a spoiled pass (the loop
+receivers' epochs as they arrived with their times of validity (the receivers' latency declared as from
+their data sheets, :func:`data_sheet_latency`, as ``hil drive --receiver-latency`` does on a tractor), and the procedure's review moves a spoiled pass (the loop
 left the corridor or disengaged, the fix was not RTK fixed) to ``spoiled/``, so the pass is driven
 again. The simulator is the only thing the bench adds: nothing of the procedure reads the truth.
 """
@@ -27,10 +28,18 @@ from hil.vehicle.excitation import ExcitationController, ExcitationSettings
 from hil.vehicle.loop import LoopConfig
 from hil.vehicle.procedure import FieldPlan, PlannedPass, Procedure
 
-__all__ = ["MAX_DRIVES", "drive_procedure_passes"]
+__all__ = ["MAX_DRIVES", "data_sheet_latency", "drive_procedure_passes"]
 
 #: Drives of one planned pass at most (the first and the re-drives of spoiled ones).
 MAX_DRIVES = 3
+
+
+def data_sheet_latency(params: SimParams) -> float:
+    """The emulated receivers' minimum output latency, s: what an operator declares from the receivers' data
+    sheets (``hil drive --receiver-latency``), the least of the position and attitude receivers' latency less
+    their arrival jitter."""
+    g = params.gps
+    return max(0.0, min(g.position_latency, g.attitude_latency) - g.latency_jitter)
 
 
 def _rng(seed: int, p: PlannedPass, drive: int) -> np.random.SeedSequence:
@@ -88,7 +97,8 @@ def drive_procedure_passes(folder: str | Path, plan: FieldPlan, params: SimParam
         config = settings.loop_config(com.loop_config(LoopConfig(wheel_stop=params.steering.max_wheel_angle)))
         spec = RunSpec(implement=p.implement, speed=p.speed, duration=p.duration,
                        seed=int(ss.generate_state(1)[0] % 2**31), initial_cross_track=0.0)
-        log = simulated_run(spec, ctl, params, loop_config=config, commissioning=com, epochs=True)
+        log = simulated_run(spec, ctl, params, loop_config=config, commissioning=com, epochs=True,
+                            receiver_latency=data_sheet_latency(params))
         engaged = log.channels["engaged"] > 0.5
         if np.any(engaged):
             worst = max(worst, float(np.max(np.abs(log.channels["truth_cross_track"][engaged]))))

@@ -149,14 +149,16 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
                   loop_config: LoopConfig | None = None,
                   progress: Callable[[float, float], None] | None = None,
                   commissioning: Commissioning | None = None, map_valve: bool = True,
-                  epochs: bool = False) -> PassLog:
+                  epochs: bool = False, receiver_latency: float = 0.0) -> PassLog:
     """Run one closed-loop pass on the simulated tractor and return its run log.
 
     With ``commissioning`` (a tractor's commissioning file), the loop's rate limit and
     steering-response monitor come from the measured valve (:func:`hil.vehicle.commissioning.loop_settings`)
     and, unless ``map_valve`` is false, its rate commands go through the valve's inverse map
     (:class:`hil.vehicle.commissioning.MappedBridge`). With ``epochs`` the log's GPS channels are the
-    receivers' epochs with their valid times (:meth:`hil.vehicle.loop.VehicleLoop.run_log`; an AB line only).
+    receivers' epochs with their valid times (:meth:`hil.vehicle.loop.VehicleLoop.run_log`; an AB line only);
+    ``receiver_latency`` is the receivers' minimum output latency declared to the front-end, s (what
+    ``hil drive --receiver-latency`` declares on a tractor; 0: none).
     """
     cond = condition_for(spec.implement, spec.speed)
     if epochs and spec.field is not None:
@@ -176,7 +178,7 @@ def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | Non
     geo = spec.geometry
     vp = p.vehicle
     fe_config = FrontEndConfig(origin=geo.origin, lever_arm=(vp.antenna_ahead_of_cg, vp.antenna_left_of_cg,
-                                                             vp.antenna_height))
+                                                             vp.antenna_height), receiver_latency=receiver_latency)
     agio, isobus = spec.bridge == "agopengps", spec.bridge == "isobus"
     with ExitStack() as stack:
         if spec.realtime:

@@ -31,7 +31,7 @@ def _closed_loop_poles(plant: control.StateSpace, comp) -> np.ndarray:
     return np.asarray(control.poles(loop))
 
 
-def _independent_margins(model, comp, latency_samples: int, reserve_samples: int) -> tuple[float, bool]:
+def independent_margins(model, comp, latency_samples: int, reserve_samples: int) -> tuple[float, bool]:
     """Disk margin of the loop with the latency, and stability with the reserve added at the plant input."""
     p = control.ss(model.A, model.B, model.C, model.D, DT)
     delay = control.tf([1], [1] + [0] * latency_samples, DT)
@@ -62,7 +62,7 @@ def test_automatic_robust_weights_meet_their_margin_specifications_on_every_mode
     assert search.trials[0].scale == pytest.approx(0.1)
     assert [r["name"] for r in rec["achieved"]["models"]][-1] == "validation:o6+latency"
     for m, row in zip([*models, extra], rec["achieved"]["models"]):
-        dm, stable = _independent_margins(m, comp, latency_samples=3, reserve_samples=2)
+        dm, stable = independent_margins(m, comp, latency_samples=3, reserve_samples=2)
         assert stable, m.meta["name"]
         assert dm >= 0.4 - 1e-3, (m.meta["name"], dm)
         assert row["disk_margin"] == pytest.approx(dm, abs=5e-3)          # the record is the loop with the latency
@@ -83,7 +83,7 @@ def test_automatic_mpc_weights_meet_their_margin_specifications_on_every_model()
     from design.core.iostate import feedback_compensator
     comp = feedback_compensator(des.unconstrained_gain, des.problem.layout)
     for m in [central, *models]:
-        dm, stable = _independent_margins(m, comp, latency_samples=3, reserve_samples=2)
+        dm, stable = independent_margins(m, comp, latency_samples=3, reserve_samples=2)
         assert stable and dm >= 0.6 - 1e-3, (m.meta["name"], dm)
     assert des.file.design["auto_weights"]["chosen_scale"] == search.scale
 

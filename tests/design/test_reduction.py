@@ -102,7 +102,7 @@ def test_automatic_weights_meet_their_margin_specifications_on_every_worn_valve_
     from design.synthesis.auto_designs import auto_mpc, auto_robust
     from design.synthesis.autotune import SearchOptions
     from design.synthesis.specs import Specifications
-    from test_autotune import _independent_margins
+    from test_autotune import independent_margins
 
     local, central, _ = worn_models()
     specs = Specifications(disk_margin=0.6, delay_reserve=0.1, latency=(0.15, 0.15, 0.0), rate_limit=0.23)
@@ -112,14 +112,14 @@ def test_automatic_weights_meet_their_margin_specifications_on_every_worn_valve_
     assert "does not determine" in res.file.design["as_given_failed"]      # why the design models were used
     comp = res.file.compensator
     for m, row in zip(local, rec["achieved"]["models"]):
-        dm, stable = _independent_margins(m, comp, latency_samples=3, reserve_samples=2)
+        dm, stable = independent_margins(m, comp, latency_samples=3, reserve_samples=2)
         assert stable and dm >= 0.6 - 2e-3, (m.meta["name"], dm)
         assert row["peak_rate"] <= 0.23
     mpc, _ = auto_mpc(central, local, MPCSpec(horizon=30, past=1), specs, options=SearchOptions(0.3, 5.0, 4, 2),
                       fallback=None)
     law = feedback_compensator(mpc.unconstrained_gain, mpc.problem.layout)
     for m in [central, *local]:
-        dm, stable = _independent_margins(m, law, latency_samples=3, reserve_samples=2)
+        dm, stable = independent_margins(m, law, latency_samples=3, reserve_samples=2)
         assert stable and dm >= 0.6 - 2e-3, (m.meta["name"], dm)
 
 

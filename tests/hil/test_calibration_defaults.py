@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from pathlib import Path
 
 import pytest
 
 from hil.bench.calibration.calibrate import FIXED, KNOBS, parameter_values
-from hil.truth.params import _GROUPS, SimParams
+from hil.truth.params import SimParams, parameter_table
 
 RESULT = Path(__file__).resolve().parents[2] / "docs" / "calibration" / "result.json"
 
@@ -17,7 +16,7 @@ RESULT = Path(__file__).resolve().parents[2] / "docs" / "calibration" / "result.
 def test_committed_defaults_are_the_committed_calibration_result():
     result = json.loads(RESULT.read_text())
     defaults = SimParams()
-    meta = {f"{g}.{f.name}": f.metadata for g, t in _GROUPS.items() for f in dataclasses.fields(t)}
+    meta = {row["name"]: row for row in parameter_table()}
     assert set(result["values"]) == {p for k in result["knobs"] for p in KNOBS[k][0]} | set(FIXED)
     for name, value in result["values"].items():
         group, _, field = name.partition(".")

@@ -137,11 +137,11 @@ class FieldPlan:
         vt = d["valve_test"]
         if vt is not None and (not isinstance(vt, dict) or set(vt) != {"duties", "step_time"}):
             raise ProcedureError(f"{where}: valve_test must be null or {{duties, step_time}}, got {vt!r}")
+        tops = d.get("top_ups", [])
+        if not isinstance(tops, list):
+            raise ProcedureError(f"{where}: top_ups must be a list of implements, got {tops!r}")
         try:
             valve = None if vt is None else ValveTestPlan(duties=tuple(vt["duties"]), step_time=vt["step_time"])
-            tops = d.get("top_ups", [])
-            if not isinstance(tops, list):
-                raise ProcedureError(f"{where}: top_ups must be a list of implements, got {tops!r}")
             return cls(tuple(d["implements"]), tuple(d["speeds"]), d["passes"], d["duration"], valve, tuple(tops))
         except (TypeError, ValueError) as exc:
             raise ProcedureError(f"{where}: {exc}") from None

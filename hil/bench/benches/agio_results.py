@@ -13,22 +13,17 @@ with both AgOpenGPS laws, as the report's targets do.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
-import math
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from hil.bench.benches.bridge_results import RATIO_BOUND, bridge_cells, read_cells
 from hil.errors import SimulatorConfigError
 
 __all__ = ["RATIO_BOUND", "CellRow", "read_cells", "bridge_table", "markdown", "main"]
 
-RATIO_BOUND = 1.15
-"""Target: robust and MPC through the module within 1.15x of their HC11-bridge figures."""
-OURS = ("robust", "mpc")
 AGIO_LAWS = ("aog-pure-pursuit", "aog-stanley")
-_MAX_ROWS = 10_000
 
 
 @dataclass(frozen=True)
@@ -51,62 +46,16 @@ class CellRow:
     disengagements: int
 
 
-def _number(row: dict[str, str], key: str, where: str) -> float:
-    try:
-        v = float(row[key])
-    except (KeyError, ValueError):
-        raise SimulatorConfigError(f"{where}: expected a number in column {key!r}, got {row.get(key)!r}") from None
-    if not math.isfinite(v):
-        raise SimulatorConfigError(f"{where}: column {key!r} is not finite ({v!r})")
-    return v
-
-
-def read_cells(report_dir: str | Path) -> dict[tuple[str, str, float], dict[str, float]]:
-    """``(controller, implement, speed) -> figures`` of a ``hil compare`` report's ``cells.csv``."""
-    path = Path(report_dir) / "cells.csv"
-    if not path.is_file():
-        raise SimulatorConfigError(f"{path} does not exist: expected a `hil compare --out` folder")
-    out: dict[tuple[str, str, float], dict[str, float]] = {}
-    with path.open(newline="", encoding="utf-8") as f:
-        for n, row in enumerate(csv.DictReader(f)):
-            if n >= _MAX_ROWS:
-                raise SimulatorConfigError(f"{path}: more than {_MAX_ROWS} rows; not a comparison report")
-            where = f"{path} row {n + 2}"
-            key = (str(row.get("controller", "")), str(row.get("implement", "")), _number(row, "speed", where))
-            out[key] = {k: _number(row, k, where) for k in ("measured_bias_m", "measured_sigma_m", "true_sigma_m",
-                                                           "disengagements")}
-    return out
-
-
-def _rms(fig: dict[str, float]) -> float:
-    return math.hypot(fig["measured_bias_m"], fig["measured_sigma_m"])
-
-
 def bridge_table(hc11_dir: str | Path, module_dir: str | Path) -> list[CellRow]:
     """The per-cell rows, for every cell both reports have with all six controllers."""
-    hc11, module = read_cells(hc11_dir), read_cells(module_dir)
-    cells = sorted({(i, s) for (c, i, s) in module if c == "robust"}, key=lambda c: (c[0] != "none", c[0], c[1]))
-    rows = []
-    for imp, spd in cells:
-        try:
-            h = {c: hc11[(c, imp, spd)] for c in OURS}
-            m = {c: module[(c, imp, spd)] for c in (*OURS, *AGIO_LAWS)}
-        except KeyError as missing:
-            raise SimulatorConfigError(f"cell {imp} {spd} m/s lacks {missing}: run robust and mpc through both "
-                                       "bridges and aog-pure-pursuit, aog-stanley through the module") from None
-        best_aog = min(_rms(m[c]) for c in AGIO_LAWS)
-        rows.append(CellRow(
-            implement=imp, speed=spd, hc11_robust=h["robust"]["measured_sigma_m"],
-            hc11_mpc=h["mpc"]["measured_sigma_m"], module_robust=m["robust"]["measured_sigma_m"],
-            module_mpc=m["mpc"]["measured_sigma_m"],
-            ratio_robust=m["robust"]["measured_sigma_m"] / h["robust"]["measured_sigma_m"],
-            ratio_mpc=m["mpc"]["measured_sigma_m"] / h["mpc"]["measured_sigma_m"],
-            true_ratio_robust=m["robust"]["true_sigma_m"] / h["robust"]["true_sigma_m"],
-            true_ratio_mpc=m["mpc"]["true_sigma_m"] / h["mpc"]["true_sigma_m"],
-            aog_pure_pursuit=m["aog-pure-pursuit"]["measured_sigma_m"], aog_stanley=m["aog-stanley"]["measured_sigma_m"],
-            ahead=max(_rms(m["robust"]), _rms(m["mpc"])) < best_aog,
-            disengagements=int(sum(m[c]["disengagements"] for c in OURS) + sum(h[c]["disengagements"] for c in OURS))))
-    return rows
+    cells = bridge_cells(hc11_dir, module_dir, AGIO_LAWS, "run robust and mpc through both bridges and "
+                         "aog-pure-pursuit, aog-stanley through the module")
+    return [CellRow(implement=c.implement, speed=c.speed, hc11_robust=c.hc11["robust"]["measured_sigma_m"],
+                    hc11_mpc=c.hc11["mpc"]["measured_sigma_m"], module_robust=c.sigma("robust"),
+                    module_mpc=c.sigma("mpc"), ratio_robust=c.ratio("robust"), ratio_mpc=c.ratio("mpc"),
+                    true_ratio_robust=c.true_ratio("robust"), true_ratio_mpc=c.true_ratio("mpc"),
+                    aog_pure_pursuit=c.sigma("aog-pure-pursuit"), aog_stanley=c.sigma("aog-stanley"),
+                    ahead=c.ahead(AGIO_LAWS), disengagements=c.disengagements) for c in cells]
 
 
 def markdown(rows: list[CellRow]) -> str:

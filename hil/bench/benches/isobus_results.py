@@ -15,18 +15,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import statistics
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from hil.bench.benches.agio_results import RATIO_BOUND, read_cells
+from hil.bench.benches.bridge_results import RATIO_BOUND, bridge_cells
 from hil.errors import SimulatorConfigError
 
 __all__ = ["RATIO_BOUND", "IsobusRow", "isobus_table", "markdown", "main"]
 
-OURS = ("robust", "mpc")
 LAWS = ("pure-pursuit", "stanley")
 
 
@@ -49,10 +47,6 @@ class IsobusRow:
     disengagements: int
 
 
-def _rms(fig: dict[str, float]) -> float:
-    return math.hypot(fig["measured_bias_m"], fig["measured_sigma_m"])
-
-
 def isobus_table(hc11_dir: str | Path, isobus_dir: str | Path, laws: tuple[str, ...] = LAWS) -> list[IsobusRow]:
     """The per-cell rows, for every cell of the ISOBUS report that has robust.
 
@@ -61,29 +55,14 @@ def isobus_table(hc11_dir: str | Path, isobus_dir: str | Path, laws: tuple[str, 
     SimulatorConfigError
         A report is missing or malformed, or a cell lacks one of the controllers.
     """
-    hc11, isobus = read_cells(hc11_dir), read_cells(isobus_dir)
-    cells = sorted({(i, s) for (c, i, s) in isobus if c == "robust"}, key=lambda c: (c[0] != "none", c[0], c[1]))
-    rows = []
-    for imp, spd in cells:
-        try:
-            h = {c: hc11[(c, imp, spd)] for c in OURS}
-            m = {c: isobus[(c, imp, spd)] for c in (*OURS, *laws)}
-        except KeyError as missing:
-            controller, *_ = missing.args[0]
-            raise SimulatorConfigError(f"cell {imp} {spd} m/s lacks {controller!r}: run robust and mpc through both "
-                                       f"bridges and {', '.join(laws)} with --bridge isobus") from None
-        rows.append(IsobusRow(
-            implement=imp, speed=spd,
-            hc11_robust=h["robust"]["measured_sigma_m"], hc11_mpc=h["mpc"]["measured_sigma_m"],
-            isobus_robust=m["robust"]["measured_sigma_m"], isobus_mpc=m["mpc"]["measured_sigma_m"],
-            ratio_robust=m["robust"]["measured_sigma_m"] / h["robust"]["measured_sigma_m"],
-            ratio_mpc=m["mpc"]["measured_sigma_m"] / h["mpc"]["measured_sigma_m"],
-            true_ratio_robust=m["robust"]["true_sigma_m"] / h["robust"]["true_sigma_m"],
-            true_ratio_mpc=m["mpc"]["true_sigma_m"] / h["mpc"]["true_sigma_m"],
-            laws={c: m[c]["measured_sigma_m"] for c in laws},
-            ahead=max(_rms(m["robust"]), _rms(m["mpc"])) < min(_rms(m[c]) for c in laws),
-            disengagements=int(sum(m[c]["disengagements"] for c in OURS) + sum(h[c]["disengagements"] for c in OURS))))
-    return rows
+    cells = bridge_cells(hc11_dir, isobus_dir, laws, f"run robust and mpc through both bridges and "
+                         f"{', '.join(laws)} with --bridge isobus")
+    return [IsobusRow(implement=c.implement, speed=c.speed, hc11_robust=c.hc11["robust"]["measured_sigma_m"],
+                      hc11_mpc=c.hc11["mpc"]["measured_sigma_m"], isobus_robust=c.sigma("robust"),
+                      isobus_mpc=c.sigma("mpc"), ratio_robust=c.ratio("robust"), ratio_mpc=c.ratio("mpc"),
+                      true_ratio_robust=c.true_ratio("robust"), true_ratio_mpc=c.true_ratio("mpc"),
+                      laws={law: c.sigma(law) for law in laws}, ahead=c.ahead(laws),
+                      disengagements=c.disengagements) for c in cells]
 
 
 def markdown(rows: list[IsobusRow]) -> str:

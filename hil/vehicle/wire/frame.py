@@ -23,6 +23,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from autosteer.checks import finite
+
 from hil.vehicle.wire.errors import TableError
 from hil.vehicle.wire.table import Layout, MessageTable
 
@@ -209,8 +211,7 @@ class Deframer:
         config = fmt.table.errors.config
         if max_payload is None:
             max_payload = fmt.max_payload
-        if isinstance(max_payload, bool) or not isinstance(max_payload, int) or not 0 <= max_payload <= 255:
-            raise config(f"max_payload must be an int in 0..255 bytes, got {max_payload!r}")
+        max_payload = finite(max_payload, "max_payload", lo=0, hi=255, integer=True, unit="bytes", error=config)
         if not isinstance(verify_checksum, bool):
             raise config(f"verify_checksum must be True or False, got {verify_checksum!r}")
         self.fmt = fmt

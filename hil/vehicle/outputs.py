@@ -13,6 +13,8 @@ import os
 import tempfile
 from pathlib import Path
 
+from identification.outputs import atomic_write
+
 from hil.vehicle.errors import VehicleConfigError
 
 
@@ -76,14 +78,7 @@ def prepare_out_file(path: str | os.PathLike[str], option: str = "--out",
 
 
 def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and a rename."""
-    p = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return p
+    """Write ``text`` to ``path`` whole or not at all (:func:`identification.outputs.atomic_write`)."""
+    with atomic_write(path, "w") as fh:
+        fh.write(text)
+    return Path(path)

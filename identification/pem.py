@@ -51,8 +51,28 @@ def _rho(a: np.ndarray) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(a)))) if a.size else 0.0
 
 
-class _Problem:
-    """Scaled data, parameter packing and the residual / Jacobian of the output error."""
+class OutputErrorProblem:
+    """The output-error least-squares problem that :func:`refine_output_error` solves: scaled data,
+    the parameter vector's packing, the residual and its exact Jacobian.
+
+    Parameters
+    ----------
+    n
+        Model order.
+    data
+        Experiments (each keeps its own initial state in the parameter vector).
+    feedthrough
+        ``D`` is a parameter (else it stays 0).
+    su, sy
+        Scales of the input and output channels (the data are divided by them).
+
+    Attributes
+    ----------
+    rho_limit
+        A parameter vector whose ``A`` has this spectral radius or more is behind a wall (default: none).
+    wall
+        The residual value returned behind the wall.
+    """
 
     def __init__(self, n: int, data: IOData, feedthrough: bool, su: np.ndarray, sy: np.ndarray) -> None:
         self.n, self.m, self.q = n, data.n_inputs, data.n_outputs
@@ -64,10 +84,12 @@ class _Problem:
         self.wall = np.inf            # the residual value returned behind the wall
 
     def pack(self, a, b, c, d, x0s) -> np.ndarray:
+        """The parameter vector: ``A``, ``B``, ``C`` (and ``D``) row-major, then each experiment's initial state."""
         parts = [a.ravel(), b.ravel(), c.ravel()] + ([d.ravel()] if self.feedthrough else [])
         return np.concatenate(parts + [np.asarray(x, float) for x in x0s])
 
     def unpack(self, theta: np.ndarray):
+        """``(A, B, C, D, initial states)`` from a parameter vector (:meth:`pack`'s inverse)."""
         n, m, q = self.n, self.m, self.q
         cuts = np.cumsum(self.sizes)[:-1]
         parts = np.split(theta, cuts)
@@ -76,6 +98,7 @@ class _Problem:
         return a, b, c, d, parts[4:]
 
     def residual(self, theta: np.ndarray) -> np.ndarray:
+        """The scaled output errors of every experiment, stacked (non-finite ones as 1e150)."""
         a, b, c, d, x0s = self.unpack(theta)
         if np.isfinite(self.rho_limit) and not _rho(a) < self.rho_limit:
             return np.full(sum(u.shape[0] for u, _ in self.exps) * self.q, self.wall)
@@ -87,6 +110,7 @@ class _Problem:
         return np.where(np.isfinite(res), res, 1e150)
 
     def jacobian(self, theta: np.ndarray) -> np.ndarray:
+        """The exact Jacobian of :meth:`residual` (by FFT convolution of ``C A^k`` with the states and inputs)."""
         a, b, c, d, x0s = self.unpack(theta)
         n, m, q = self.n, self.m, self.q
         blocks = []
@@ -160,7 +184,7 @@ def refine_output_error(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarr
         raise DataError("a channel is identically zero; there is nothing to refine from")
     # unit-RMS channels: u_s = u / su, y_s = y / sy, so B_s = B diag(su), C_s = diag(1/sy) C
     bs, cs, ds = b * su[None, :], c / sy[:, None], d * su[None, :] / sy[:, None]
-    prob = _Problem(n, data, feedthrough, su, sy)
+    prob = OutputErrorProblem(n, data, feedthrough, su, sy)
     x0s = [estimate_x0(a, bs, cs, ds, u, y) for u, y in prob.exps]
     theta0 = prob.pack(a, bs, cs, ds, x0s)
     r0 = prob.residual(theta0)

@@ -13,7 +13,7 @@ from identification.data import IOData
 from identification.generic import fit_record
 from identification.model import Model
 from identification.okid import OKID
-from identification.pem import _Problem, refine_output_error
+from identification.pem import OutputErrorProblem, refine_output_error
 from identification.simulate import simulate
 from identification.validation import validate
 from idtest_synth import DATA, true_markov, true_system
@@ -29,7 +29,7 @@ def test_jacobian_is_exact():
     a = np.diag([0.9, 0.5, -0.3])
     data = IOData(((rng.normal(size=(40, m)), rng.normal(size=(40, q))),
                    (rng.normal(size=(30, m)), rng.normal(size=(30, q)))))
-    prob = _Problem(n, data, True, np.ones(m), np.ones(q))
+    prob = OutputErrorProblem(n, data, True, np.ones(m), np.ones(q))
     theta = prob.pack(a, rng.normal(size=(n, m)), rng.normal(size=(q, n)), rng.normal(size=(q, m)),
                       [rng.normal(size=n), rng.normal(size=n)])
     jac = prob.jacobian(theta)

@@ -50,7 +50,9 @@ def test_no_module_of_design_or_the_bench_stands_outside_a_room():
 
 
 def test_hil_drive_loads_nothing_of_the_simulator_or_the_bench():
-    """At run time too: what `hil drive` imports on a tractor (the contracts check the source).
+    """At run time too: what the vehicle's commands and modules import on a tractor (the contracts check the
+    source), and no solver of the MPC, the NMPC or the LMI synthesis; a drive with a linear controller file is
+    checked in tests/design/test_lean_runtime.py.
 
     matplotlib is not checked here: python-control (the certificate's disk margins) imports it
     itself; no module of ours does (the vehicle contract forbids it)."""
@@ -59,7 +61,8 @@ def test_hil_drive_loads_nothing_of_the_simulator_or_the_bench():
             "for command in ('drive', 'valve-test'):\n"
             "    try:\n        main([command, '--help'])\n    except SystemExit:\n        pass\n"
             "import hil.vehicle.drive, hil.vehicle.loop, hil.vehicle.valve_run, hil.vehicle.procedure\n"
-            "bad = sorted(m for m in sys.modules if m.split('.')[0] in ('tqdm', 'dask', 'distributed')"
+            "bad = sorted(m for m in sys.modules"
+            " if m.split('.')[0] in ('tqdm', 'dask', 'distributed', 'casadi', 'cvxpy')"
             " or m.startswith(('hil.truth', 'hil.devices', 'hil.bench')))\n"
             "print('LOADED', bad)\n")
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)

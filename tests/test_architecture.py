@@ -40,6 +40,16 @@ def test_every_hil_sub_package_has_a_contract_and_a_line_in_the_readme_map():
         assert f"hil.{sub}" in sources, f"no contract constrains hil.{sub}"
 
 
+def test_every_package_has_an_acyclic_contract_and_no_import_is_ignored():
+    cfg = configparser.ConfigParser()
+    cfg.read(CONFIG)
+    contracts = [cfg[sec] for sec in cfg.sections() if sec.startswith("importlinter:contract:")]
+    acyclic = {m.strip() for c in contracts if c.get("type") == "acyclic_siblings" for m in c["ancestors"].split()}
+    roots = {m.strip() for m in cfg["importlinter"]["root_packages"].split()}
+    assert roots == {"autosteer", "gnss", "identification", "design", "hil"} and roots <= acyclic, acyclic
+    assert not [c.name for c in contracts if "ignore_imports" in c], "an import contract ignores imports"
+
+
 def test_no_module_of_design_or_the_bench_stands_outside_a_room():
     """design and the bench keep their modules in rooms (design: core, laws, mpc, files, synthesis, export,
     commands; the bench: runs, fields, benches, commissioning, calibration): at their top only the

@@ -81,8 +81,7 @@ def drive_next_pass(folder: str | Path, cfg: DriveConfig, settings: ExcitationSe
         raise ProcedureError("identification passes run along the AB line (--line), not a field route (--field)")
     remaining = proc.remaining()
     if not remaining:
-        raise ProcedureError(f"every pass of {folder} is recorded: hil commission --logs {proc.logs} "
-                             f"--commissioning {com_file} --out DIR")
+        raise ProcedureError(f"{folder}: {proc.status()['next']}")
     p = remaining[0]
     com = load_commissioning(com_file)
     loop = settings.loop_config(com.loop_config(cfg.loop))

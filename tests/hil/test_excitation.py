@@ -153,7 +153,7 @@ def test_hil_drive_excite_drives_the_next_pass_of_the_procedure_on_the_emulated_
     # nothing is left to drive: one line that says what comes next
     assert hil_main(["drive", "--bridge", "/dev/null", "--position", "/dev/null", "--line=0,0,0,0.001",
                      "--excite", str(folder)]) == 1
-    assert "every pass of" in capsys.readouterr().err
+    assert "every pass is recorded: hil commission --logs" in capsys.readouterr().err
 
 
 @pytest.mark.slow

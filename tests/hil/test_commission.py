@@ -84,8 +84,11 @@ def test_the_command_refuses_bad_options(capsys) -> None:
     with pytest.raises(ValueError, match="must differ from hil_seeds"):
         CommissionOptions(hil_seeds=(0, 1), trial_seeds=(1, 5))
     with pytest.raises(ValueError, match="more_passes must be 0..5 rounds"):
-        CommissionOptions(more_passes=-1)
+        CommissionOptions(procedure="slews", more_passes=-1)
+    with pytest.raises(ValueError, match="the field procedure re-drives spoiled passes itself"):
+        CommissionOptions(more_passes=1)
     assert commission_options(p.parse_args(["commission", "--tractor", "x", "--out", "o", "--more-passes", "0"])).more_passes == 0
+    assert commission_options(p.parse_args(["commission", "--tractor", "x", "--out", "o"])).procedure == "field"
 
 
 def test_hil_run_takes_a_commissioning_file_and_hil_commission_refuses_an_unknown_tractor(tmp_path: Path,

@@ -59,10 +59,10 @@ def _hil_conditions(text: str):
 
 def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     """The recipe's options, shared by ``commission`` and ``commission-campaign``."""
-    c.add_argument("--procedure", choices=PROCEDURES, default="slews",
-                   help="slews (default): the paper's open-loop slews at every speed with the window and estimate "
-                        "trials; field: the field procedure as on a tractor, the runtime's excitation in its corridor "
-                        "within 30 min of driving, no trial drives")
+    c.add_argument("--procedure", choices=PROCEDURES, default="field",
+                   help="field (default): the field procedure as on a tractor, the runtime's excitation in its "
+                        "corridor within 30 min of driving, no trial drives; slews: the paper's open-loop slews at "
+                        "every speed (90 min of passes) with the window and estimate trials")
     c.add_argument("--speeds", nargs="+", type=number, default=None, metavar="M_PER_S",
                    help="speeds of the identification passes, m/s (default: 1.0 1.79 2.91 for the field procedure, "
                         "the paper's five gears for the slews)")

@@ -77,11 +77,12 @@ class CommissionOptions:
     Attributes
     ----------
     procedure
-        ``"slews"`` (default): the paper's open-loop slews at every speed and implement, more passes where a
-        model is refused, the window and estimate trials. ``"field"``: the field procedure as a tractor drives it
+        ``"field"`` (default): the field procedure as a tractor drives it
         (:mod:`hil.bench.commissioning.field_passes`: the runtime's excitation in its corridor, the plan of
         :class:`hil.vehicle.procedure.FieldPlan`, spoiled passes driven again, no trial drives); its HIL
-        comparison covers the paper's five speeds. ``result.json`` gives ``driving_s`` either way.
+        comparison covers the paper's five speeds. ``"slews"``: the paper's open-loop slews at every speed and
+        implement, more passes where a model is refused, the window and estimate trials. ``result.json`` gives
+        ``driving_s`` either way.
     speeds, implements
         Conditions of the identification passes and of the HIL comparison (default: the paper's 15 with the
         slews; 1.0, 1.79 and 2.91 m/s with each implement for the field procedure).
@@ -138,7 +139,7 @@ class CommissionOptions:
         per speed, where another is better there (:mod:`hil.bench.commissioning.window_trial`; apart from ``hil_seeds``).
     """
 
-    procedure: str = "slews"
+    procedure: str = "field"
     speeds: tuple[float, ...] | None = None
     implements: tuple[str, ...] = IMPLEMENTS
     passes: int | None = None

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import pytest
 
+from autosteer.cli import arguments
+
 ROOT = Path(__file__).resolve().parents[1]
 SITE_SCRIPT = ROOT / "docs" / "_ext" / "site.py"
 
@@ -101,7 +103,7 @@ def test_the_cli_reference_lists_every_subcommand(built, command):
     assert len(subs) >= 3
     for name, parser in subs.items():
         assert f'id="{"-".join([command, *name.split()])}"' in page, name
-        for action in parser._actions:     # each option by its name (old spellings are hidden from the help)
+        for action in arguments(parser):   # each option by its name (old spellings are hidden from the help)
             if action.option_strings and action.help != argparse.SUPPRESS:
                 assert action.option_strings[0] in page, f"{command} {name} {action.option_strings[0]}"
 

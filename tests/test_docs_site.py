@@ -34,7 +34,7 @@ KEY_OBJECTS = {
     "gnss.guidance": "gnss.guidance.ABLine",
     "identification.okid": "identification.okid.OKID",
     "identification.model": "identification.model.Model",
-    "design.files.linear": "design.files.linear.LinearController",
+    "design.laws.linear": "design.laws.linear.LinearController",
     "design.synthesis.recipes": "design.synthesis.recipes.design_robust_controller",
     "hil.vehicle.loop": "hil.vehicle.loop.VehicleLoop",
     "hil.truth.simulator": "hil.truth.simulator.TractorSimulator",

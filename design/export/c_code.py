@@ -7,7 +7,7 @@ The directory written holds
   matrices ``Ac, Bc, Cc, Dc, Ec, X0`` (17 significant digits: they read back exactly);
 * ``autosteer_step.h``, ``autosteer_step.c`` — the step (normalisation, clipping, the
   compensator step with anti-windup, bumpless engage), the same for every controller,
-  copied from ``design/export/c/``; it implements :meth:`design.files.linear.LinearController.step`
+  copied from ``design/export/c/``; it implements :meth:`design.laws.linear.LinearController.step`
   of the bare certified law (``acquisition=False``: no approach path, curvature feed-forward or
   held integrators, which the vehicle loop's Python controller adds) line by line
   (``docs/controller_export.md`` shows the two side by side);
@@ -35,7 +35,7 @@ from design.laws.estimate_schedule import RECORD, EstimateSchedule
 from design.files.atomic import check_replaceable, replace_directory
 from design.files.law_schedule import RECORD as LAW_RECORD
 from design.files.certificate import recorded_models
-from design.files.linear import MATRICES, MEASUREMENTS, ControllerFile, LinearController
+from design.files.linear import MATRICES, MEASUREMENTS, ControllerFile
 
 def safe_name(name: str) -> str:
     """``name`` with every character but letters, digits, ``_ . -`` replaced by ``_`` (safe in C and CSV comments)."""
@@ -112,7 +112,7 @@ def record_run(spec: ControllerFile, plant: Model, steps: int = 1200, seed: int 
         raise DesignInputError(f"the plant has {plant.n_outputs} outputs and {plant.n_inputs} inputs; the controller "
                                f"reads {spec.compensator.n_measurements} and writes 1")
     rng = np.random.default_rng(seed)
-    ctrl = LinearController(spec, acquisition=False)      # the bare law the C step implements
+    ctrl = spec.controller(acquisition=False)      # the bare law the C step implements
     x = np.zeros(plant.order)
     # start offset: the plant state whose outputs are closest to 0.8 s of y/V (far outside the clip)
     target = np.zeros(plant.n_outputs)

@@ -11,7 +11,8 @@ module             what it holds
 ``binding``        the certificate's digests of every law field, recorded and checked
 ``certificate``    the certificate a file must carry, re-computed on every load
 ``law_schedule``   window laws by speed in a linear file
-``linear``         kind ``"linear"``: a compensator and :class:`LinearController`
+``linear``         kind ``"linear"``: a compensator and its limits (the law that runs it:
+                   :class:`design.laws.linear.LinearController`)
 ``mpc``            kind ``"mpc"``: the MPC's model, weights, limits and solver
 ``nmpc``           kind ``"nmpc"``: the nonlinear MPC's settings
 ``schedule``       setting a file's speed schedules

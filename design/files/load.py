@@ -21,7 +21,7 @@ from design.files.signature import sign_body
 if TYPE_CHECKING:                                   # for the annotations only
     from design.mpc.controller import MPCController
     from design.mpc.nmpc import NonlinearMPC
-    from design.files.linear import LinearController
+    from design.laws.linear import LinearController
 
 #: Module of each file kind and its checking reader (``body, dt, public_key, legacy -> contents``).
 KIND_MODULES = {"linear": ("design.files.linear", "from_body"), "mpc": ("design.files.mpc", "mpc_from_body"),
@@ -52,7 +52,7 @@ def load_controller(path: str | Path, dt: float | None = 0.05, public_key: Ed255
                     legacy_certificate: bool = False) -> "LinearController | MPCController | NonlinearMPC":
     """Read, check and instantiate a controller file for the vehicle loop.
 
-    A file of kind ``"linear"`` gives a :class:`~design.files.linear.LinearController`,
+    A file of kind ``"linear"`` gives a :class:`~design.laws.linear.LinearController`,
     one of kind ``"mpc"`` a :class:`design.mpc.MPCController`, one of kind ``"nmpc"`` a
     :class:`design.mpc.nmpc.NonlinearMPC` (:mod:`design.files.nmpc`). Every check of
     :func:`~design.files.linear.read_controller_file` /
@@ -81,8 +81,8 @@ def load_controller(path: str | Path, dt: float | None = 0.05, public_key: Ed255
     """
     body = read_json(path)
     try:
-        kind, module, spec = _checked(body, dt, public_key, legacy_certificate)
-        return module.LinearController(spec) if kind == "linear" else spec.controller()
+        _, _, spec = _checked(body, dt, public_key, legacy_certificate)
+        return spec.controller()
     except (ControllerFileError, ValueError) as exc:
         raise ControllerFileError(f"{path}: {exc}") from None
 

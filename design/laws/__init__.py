@@ -1,1 +1,1 @@
-"""Runtime control laws and their parts: the controller interface, line acquisition, curvature feed-forward, the disturbance estimate, the estimate's speed schedule, the pure-pursuit and Stanley baselines."""
+"""Runtime control laws and their parts: the controller interface, the linear controller file's law, line acquisition, curvature feed-forward, the disturbance estimate, the estimate's speed schedule, the pure-pursuit and Stanley baselines."""

@@ -10,7 +10,8 @@ import pytest
 
 from design.cli import main as design_main
 from design.laws.controller import Controller, Measurement
-from design.files.linear import INTEGRAL_MEMORY_S, read_controller_file
+from design.files.linear import read_controller_file
+from design.laws.acquisition import INTEGRAL_MEMORY_S
 from design.files.load import load_controller
 from design.core.errors import ControllerFileError
 from design.synthesis.robust import RobustSpec, design_robust
@@ -46,7 +47,7 @@ def test_loaded_controller_implements_the_protocol_and_normalises(saved):
     ctrl = load_controller(saved)
     assert isinstance(ctrl, Controller) and ctrl.dt == 0.05
     ctrl.reference.on_line()                  # no approach path: the law sees the measurement itself
-    c = ctrl.spec.compensator
+    c = ctrl.compensator
     m = Measurement(t=0.0, cross_track=0.2, heading_error=0.01, wheel_angle=0.005, speed=2.0)
     y = np.array([0.1, 0.005, 0.005])
     u = ctrl.step(m)                          # first step after construction: xc = X0 y (bumpless engage)
@@ -133,7 +134,7 @@ def test_cli_robust_and_verify(tmp_path, capsys):
 def test_engage_is_bumpless_for_a_constant_error(saved):
     ctrl = load_controller(saved)
     ctrl.reference.on_line()
-    c = ctrl.spec.compensator
+    c = ctrl.compensator
     m = Measurement(t=0.0, cross_track=0.01, heading_error=0.0, wheel_angle=0.0, speed=1.0)
     y = np.array([0.01, 0.0, 0.0])
     u0, u1 = ctrl.step(m), ctrl.step(m)
@@ -157,7 +158,7 @@ def test_engage_is_bumpless_for_a_constant_error(saved):
 
 def test_outputs_are_clipped_after_normalisation(saved):
     ctrl = load_controller(saved)
-    clip = ctrl.spec.output_clip
+    clip = ctrl.output_clip
     assert clip == (0.1, 0.05, None)
     far = Measurement(t=0.0, cross_track=3.0, heading_error=-0.5, wheel_angle=0.3, speed=2.0)
     assert np.allclose(ctrl.outputs(far), [0.1, -0.05, 0.3])

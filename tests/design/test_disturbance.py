@@ -12,7 +12,7 @@ import pytest
 from design.laws.controller import Measurement
 from design.laws.disturbance import DisturbanceSpec, design_estimate, estimate_compensator, prediction_rows
 from design.core.errors import ControllerFileError, DesignInputError
-from design.files.linear import LinearController, estimate_states, read_controller_file
+from design.files.linear import estimate_states, read_controller_file
 from design.core.iostate import feedback_compensator
 from design.synthesis.robust import RobustSpec, design_problem, design_robust, with_disturbance_estimate
 from design.core.verify import certify
@@ -114,8 +114,9 @@ def test_the_runtime_holds_the_estimate_at_the_rate_limit(window_design, tmp_pat
     models, spec, res, layout, wm, data, k = window_design
     out = with_disturbance_estimate(res, models, spec, DisturbanceSpec(tau_f=0.5))
     path = out.file.save(tmp_path / "dob.json")
-    ctl = LinearController(read_controller_file(path))
-    states = list(estimate_states(ctl.spec))
+    read = read_controller_file(path)
+    ctl = read.controller()
+    states = list(estimate_states(read))
     assert states == out.file.design["disturbance_estimate"]["states"]
     # on the line, a small wobble: the estimate moves
     for j in range(40):
@@ -125,7 +126,7 @@ def test_the_runtime_holds_the_estimate_at_the_rate_limit(window_design, tmp_pat
     # a heading error that saturates the command: the estimate is held while at the limit
     for j in range(40, 45):
         u = ctl.step(Measurement(j * 0.05, 0.0, 0.06, 0.0, 1.79))
-        assert abs(u) == pytest.approx(ctl.spec.rate_limit)
+        assert abs(u) == pytest.approx(ctl.rate_limit)
         assert [ctl.estimate()[i] for i in states] == [before[i] for i in states]
 
 

@@ -14,7 +14,7 @@ from design.laws.controller import Measurement
 from design.laws.disturbance import DisturbanceSpec, estimate_compensator, prediction_rows
 from design.core.errors import ControllerFileError, DesignInputError
 from design.laws.estimate_schedule import EstimateSchedule, bands_for, law_without_estimate
-from design.files.linear import LinearController, read_controller_file
+from design.files.linear import read_controller_file
 from design.files.load import load_controller
 from design.files.mpc import read_mpc_file
 from design.files.schedule import set_estimate_schedule
@@ -70,9 +70,9 @@ def test_off_everywhere_the_file_runs_exactly_the_window_law(robust, tmp_path):
     assert rec["off_speed_bands"] == [] and rec["certificate_off"]["passed"]
     path = est.file.save(tmp_path / "est.json")
     set_estimate_schedule(path, EstimateSchedule(((0.0, math.inf),)), tmp_path / "off.json")
-    window = LinearController(read_controller_file(res.file.save(tmp_path / "window.json")))
-    off = LinearController(read_controller_file(tmp_path / "off.json"))
-    on = LinearController(read_controller_file(path))
+    window = read_controller_file(res.file.save(tmp_path / "window.json")).controller()
+    off = read_controller_file(tmp_path / "off.json").controller()
+    on = read_controller_file(path).controller()
     rng = np.random.default_rng(2)
     differs = 0.0
     for j in range(300):

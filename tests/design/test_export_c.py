@@ -16,7 +16,7 @@ from design.laws.controller import Measurement
 from design.core.errors import ControllerFileError, DesignInputError
 from design.export.formats import export_controller
 from design.export.c_code import C_SOURCES, DATA_HEADER, VECTORS, read_vectors
-from design.files.linear import LinearController, read_controller_file
+from design.files.linear import read_controller_file
 from design.synthesis.mpc_design import MPCSpec, design_mpc
 from design.synthesis.robust import RobustSpec, design_robust
 
@@ -63,7 +63,7 @@ def test_c_step_matches_the_python_controller_to_1e_12(exported):
 def test_the_vectors_are_the_python_controllers_and_exercise_every_branch(controller, exported):
     spec = read_controller_file(controller)
     rows = read_vectors(exported / VECTORS)
-    ctrl = LinearController(spec, acquisition=False)           # the bare certified law the C step implements
+    ctrl = spec.controller(acquisition=False)           # the bare certified law the C step implements
     u = []
     for k, (reset, ct, he, wa, v, _) in enumerate(rows):
         if reset:

@@ -16,7 +16,8 @@ from design.core.errors import ControllerFileError, DesignInputError
 from design.laws.estimate_schedule import EstimateSchedule, law_without_estimate
 from design.files.envelope import seal
 from design.files.law_schedule import RECORD
-from design.files.linear import LinearController, read_controller_file
+from design.files.linear import read_controller_file
+from design.laws.linear import LinearController
 from design.files.load import load_controller
 from design.files.schedule import law_mismatch, set_estimate_schedule, set_law_schedule
 from design.synthesis.robust import RobustSpec, design_robust, with_disturbance_estimate
@@ -51,7 +52,7 @@ def test_the_loop_runs_each_band_s_law_on_one_state(laws, tmp_path):
     spec = read_controller_file(out)
     rec = spec.design[RECORD]
     assert rec["bands"] == [[2.0, None]] and rec["laws"][0]["source"] == "b.json"
-    ctrl = LinearController(spec)
+    ctrl = spec.controller()
     la, lb = read_controller_file(a).compensator, read_controller_file(b).compensator
     for name in ("Ac", "Bc", "Cc", "Dc", "Ec", "X0"):
         np.testing.assert_array_equal(getattr(ctrl.law_at(1.0), name), getattr(la, name))
@@ -60,14 +61,14 @@ def test_the_loop_runs_each_band_s_law_on_one_state(laws, tmp_path):
         np.testing.assert_array_equal(getattr(ctrl.law_at(2.91), name), getattr(lb, name))
     # below the band the file is law a exactly; inside it from an engage, law b exactly
     low, high = [1.34] * 200, [2.91] * 200
-    assert _steps(LinearController(spec), low) == _steps(LinearController(read_controller_file(a)), low)
-    assert _steps(LinearController(spec), high) == _steps(LinearController(read_controller_file(b)), high)
+    assert _steps(spec.controller(), low) == _steps(read_controller_file(a).controller(), low)
+    assert _steps(spec.controller(), high) == _steps(read_controller_file(b).controller(), high)
     # crossing the band's edge changes the law, not the state: the step after the change is law b's on the
     # state law a left (a rate command, so the wheel angle stays continuous)
-    sched = LinearController(spec)
+    sched = spec.controller()
     _steps(sched, low[:150])
     xc = np.array(sched.estimate())
-    plain_b = LinearController(read_controller_file(b))
+    plain_b = read_controller_file(b).controller()
     _steps(plain_b, low[:150])                       # same inputs, law b all along: another state
     assert not np.allclose(xc, np.array(plain_b.estimate()))
     m = Measurement(150 * 0.05, 0.001, 0.0005, 0.0, 2.91)
@@ -84,11 +85,11 @@ def test_a_speed_on_a_band_s_edge_keeps_the_law_it_engaged_with(laws, tmp_path):
     rng = np.random.default_rng(11)
     noisy = [1.99] + list(2.0 + rng.uniform(-0.04, 0.04, 399))
     assert sum((u < 2.0) != (v < 2.0) for u, v in zip(noisy, noisy[1:])) > 100
-    sched = LinearController(spec)
-    assert _steps(sched, noisy) == _steps(LinearController(read_controller_file(a)), noisy)
+    sched = spec.controller()
+    assert _steps(sched, noisy) == _steps(read_controller_file(a).controller(), noisy)
     assert sched.latch.switches == 0
     # past the hysteresis it switches, once
-    sched = LinearController(spec)
+    sched = spec.controller()
     _steps(sched, noisy[:200] + [2.06] * 40)
     assert sched.latch.switches == 1
 

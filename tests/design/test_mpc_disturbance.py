@@ -126,11 +126,11 @@ def test_the_estimate_is_held_while_the_command_is_at_the_rate_limit(designed):
 
 def test_the_estimate_starts_afresh_on_entering_and_leaving_a_headland_turn(designed, tmp_path):
     from design.laws.disturbance import DisturbanceSpec as DS
-    from design.files.linear import LinearController, read_controller_file
+    from design.files.linear import read_controller_file
     from design.synthesis.robust import with_disturbance_estimate
     spec = RobustSpec(integral=True)
     res = with_disturbance_estimate(design_robust(LOCAL, spec), LOCAL, spec, DS(tau_f=0.5))
-    robust = LinearController(read_controller_file(res.file.save(tmp_path / "r.json")))
+    robust = read_controller_file(res.file.save(tmp_path / "r.json")).controller()
     mpc = designed.file.controller()
     states = res.file.design["disturbance_estimate"]["states"]
     def drive(k0):

@@ -136,7 +136,7 @@ def test_headland_integrals_are_set_aside_over_a_turn_and_given_back():
 def test_the_controllers_set_their_integral_aside_on_a_headland_turn(name):
     from design.laws.controller import Measurement
     ctl = make_controller(str(Path(ROBUST).with_name(f"{name}.json")))
-    slot = list(integrator_states(ctl.spec.compensator) if name == "robust" else ctl.integral_states)
+    slot = list(integrator_states(ctl.compensator) if name == "robust" else ctl.integral_states)
     state = lambda: np.array(ctl.estimate())[slot]       # noqa: E731 - the integral's states, as logged
     t = 0.0
     for k in range(400):                                 # 20 s 5 cm left of the line: the integral learns

@@ -1,4 +1,4 @@
-"""Sub-command ``design nmpc`` (thin layer over :mod:`design.files.nmpc`).
+"""Sub-command ``design nmpc`` (thin layer over :mod:`design.synthesis.nmpc_design`).
 
     design nmpc --models models/local_*.npz --out controllers/nmpc.json [--horizon N] [--y-max M]
                 [--y-max-speed V|none] [--integral-max M_S] [--rate-limit R] [--wheel-limit W] [--solver gauss-newton|sqp|ipopt]
@@ -18,7 +18,7 @@ import math
 
 from design.commands.robust import certificate_table
 from design.synthesis.recipes import load_models
-from design.files.nmpc import design_nmpc
+from design.synthesis.nmpc_design import design_nmpc
 from design.core.kinematic import KinematicWeights
 from design.mpc.nmpc import SOLVERS, NMPCSettings
 from design.mpc.nmpc_observer import ObserverSettings

@@ -12,7 +12,8 @@ and present, finite numbers, the loop's sample time, a checksum, an optional sig
      "design": {...}, "certificate": {...}, "models": [{"name", "hash"}],
      "checksum": "sha256:..."}
 
-The law is :class:`design.mpc.nmpc.NonlinearMPC` with these settings; a file must carry the integral
+The law is :class:`design.mpc.nmpc.NonlinearMPC` with these settings (a file is designed by
+:func:`design.synthesis.nmpc_design.design_nmpc`); a file must carry the integral
 state (``integral_max``, m s), so the NMPC has no steady bias. Limits are checked against
 :mod:`design.core.limits` (rate, wheel angle, sample time) and the NMPC's own bounds (horizon 1..400).
 
@@ -73,7 +74,7 @@ from design.core.limits import DT_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, in_ran
 from design.mpc.nmpc import NMPCSettings, NonlinearMPC, lqr_gain
 from design.mpc.nmpc_law import y_max_at
 from design.mpc.nmpc_observer import ObserverSettings, observed_law
-from design.core.verify import Certificate, check_model, model_hash
+from design.core.verify import Certificate, check_model
 from design.files.certificate import check_stated_radius, recorded_models
 from design.files.binding import bind, check_bound
 from design.files.envelope import SCHEMA, canonical_bytes, read_json, seal, write_atomically
@@ -414,36 +415,6 @@ def read_nmpc_file(path: str | Path, dt: float | None = 0.05, public_key: Ed2551
         return nmpc_from_body(body, dt, public_key)
     except ControllerFileError as exc:
         raise ControllerFileError(f"{path}: {exc}") from None
-
-
-def design_nmpc(models: Sequence[Model], settings: NMPCSettings, name: str = "nmpc") -> NMPCFile:
-    """An NMPC file certified on ``models``; refuses settings whose linearisation fails on one.
-
-    Raises
-    ------
-    VerificationError
-        Naming every model on which the linearised loop is not stable.
-    ControllerFileError
-        Settings a file cannot carry (no integral state, limits outside :mod:`design.core.limits`).
-    """
-    settings_from_dict(settings_to_dict(settings), settings.dt)          # what a reader will accept
-    cert = certify_nmpc(settings, models)
-    if not cert["passed"]:
-        bad = [f"{r['name']} (spectral radius {r['spectral_radius']:.6f})" for r in cert["models"]
-               if not r["spectral_radius"] < 1.0]
-        if bad:
-            raise VerificationError(f"the NMPC's linearisation does not stabilise {len(bad)} of {len(models)} models: "
-                                    f"{', '.join(bad)}; lower y_max/raise u_max, or check the models")
-        bad = rate_limited_failures(cert["rate_limited"])
-        raise VerificationError(f"the NMPC's law fails the rate-limited check on {len(bad)} of {len(models)} models: "
-                                f"{', '.join(bad[:3])}{', ...' if len(bad) > 3 else ''}; {RATE_FIX}")
-    return NMPCFile(name, settings, {"method": "nonlinear MPC (kinematic bicycle, path coordinates)",
-                                     "integral": "cross-track, as a model state",
-                                     "observer": ("Kalman filter with a steering offset and a lateral drift"
-                                                  if settings.observer is not None else "none (measured state)")},
-                    cert,
-                    tuple({"name": str(m.meta.get("name", f"model {i}")), "hash": model_hash(m)}
-                          for i, m in enumerate(models)))
 
 
 def recheck_nmpc(body: Any, models: Sequence[Model]) -> tuple[dict, list[str]]:

@@ -1,1 +1,1 @@
-"""Synthesis and its recipes: robust LMI synthesis (and its solvers), output-anchored coordinates, weights from specifications, the model family, the MPC's design, and the recipes as library functions."""
+"""Synthesis and its recipes: robust LMI synthesis (and its solvers), output-anchored coordinates, weights from specifications, the model family, the MPC's and the NMPC's designs, and the recipes as library functions."""

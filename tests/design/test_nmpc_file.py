@@ -11,7 +11,8 @@ import pytest
 from design.cli import main as design_main
 from design.core.errors import ControllerFileError, VerificationError
 from design.files.load import load_controller, sign_file
-from design.files.nmpc import certify_nmpc, design_nmpc, linearised_law, read_nmpc_file
+from design.files.nmpc import certify_nmpc, linearised_law, read_nmpc_file
+from design.synthesis.nmpc_design import design_nmpc
 from design.files.signature import keygen, load_private_key, load_public_key
 from design.core.kinematic import KinematicWeights
 from design.mpc.nmpc import NMPCSettings, NonlinearMPC, lqr_gain

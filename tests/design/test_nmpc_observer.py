@@ -12,7 +12,8 @@ from design.laws.controller import Measurement
 from design.laws.curvature import HEADLAND_KIND
 from design.core.errors import ControllerFileError, DesignInputError, VerificationError
 from design.files.load import load_controller
-from design.files.nmpc import design_nmpc, law_feedback, linearised_law, rate_limited_tail, read_nmpc_file
+from design.files.nmpc import law_feedback, linearised_law, rate_limited_tail, read_nmpc_file
+from design.synthesis.nmpc_design import design_nmpc
 from design.core.kinematic import KinematicWeights
 from design.mpc.nmpc import NMPCSettings, NonlinearMPC
 from design.mpc.nmpc_observer import NMPCObserver, ObserverSettings, observer_model

@@ -12,7 +12,8 @@ import pytest
 from design.cli import main as design_main
 from design.core.errors import ControllerFileError, DesignInputError
 from design.files.load import load_controller
-from design.files.nmpc import SETTING_KEYS, certify_nmpc, design_nmpc, settings_hash, settings_to_dict
+from design.files.nmpc import SETTING_KEYS, certify_nmpc, settings_hash, settings_to_dict
+from design.synthesis.nmpc_design import design_nmpc
 from design.core.kinematic import KinematicWeights
 from design.mpc.nmpc import NMPCSettings, NonlinearMPC, lqr_gain
 from design.mpc.nmpc_law import y_max_at

@@ -12,7 +12,7 @@ import math
 import sys
 from pathlib import Path
 
-from .bounded import parse_json
+from autosteer.bounded import parse_json
 from autosteer.cli import Parser, RawDescriptionFormatter, add_option
 from .errors import IdentificationError, OptionError
 from .outputs import output_file, write_stdout

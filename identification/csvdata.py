@@ -24,7 +24,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .bounded import read_text
+from autosteer.bounded import read_text
 from .data import IOData
 from .errors import DataError
 

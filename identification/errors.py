@@ -15,10 +15,6 @@ class PassLogError(IdentificationError, ValueError):
     """A pass log (file or arrays) is malformed, non-finite or unsafe to load."""
 
 
-class FileReadError(IdentificationError, ValueError):
-    """A file is too large, nested too deep, damaged, or holds a refused kind of content."""
-
-
 class OutputError(IdentificationError, OSError):
     """A result could not be written (standard output closed or full)."""
 

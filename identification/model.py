@@ -2,7 +2,7 @@
 
 A model file ``models/<name>.npz`` holds the arrays ``A``, ``B``, ``C``, ``D``,
 ``K`` (steady-state Kalman predictor gain), the scalar ``dt`` [s] and ``meta``,
-a JSON string. It is read by :func:`identification.bounded.read_npz` (never
+a JSON string. It is read by :func:`autosteer.bounded.read_npz` (never
 unpickled, at most :data:`MAX_FILE_BYTES`, each array checked from its header); anything pickled,
 missing, mis-shaped, non-finite or of another schema is refused.
 
@@ -25,7 +25,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .bounded import parse_json, read_npz
+from autosteer.bounded import parse_json, read_npz
 from autosteer.checks import finite
 from .errors import ModelFileError, OptionError
 from .outputs import atomic_write, check_name

@@ -6,7 +6,7 @@ pattern, :data:`NAME_PATTERN`; every output path built from such a name is
 resolved and must stay under the output folder the user gave. Output folders
 and files are checked before any work starts, so that a run is never lost to an
 unwritable path at its end, and written files appear whole or not at all
-(:func:`atomic_write`, the one atomic writer of the toolkit's files). Results
+(:func:`autosteer.atomic.atomic_write`, the one atomic writer of the toolkit's files). Results
 printed to standard output go through :func:`write_stdout`, so a closed pipe or
 a full disk is one line, not a traceback.
 """
@@ -20,7 +20,8 @@ import re
 import sys
 import tempfile
 from pathlib import Path
-from typing import IO, Iterator
+
+from autosteer.atomic import atomic_write  # noqa: F401  (its many callers import it from here)
 
 from .errors import OptionError, OutputError
 
@@ -105,80 +106,6 @@ def output_file(path: str | Path, suffixes: tuple[str, ...], what: str = "output
         raise OptionError(f"{what} {path}: is a folder; expected a file name")
     output_dir(p.parent if str(p.parent) else ".", what=f"{what} {path}: folder")
     return p
-
-
-def _umask() -> int:
-    """The process's file-creation mask (read from /proc where it can be, so it is never changed)."""
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-@contextlib.contextmanager
-def atomic_write(path: str | Path, mode: str = "wb", permissions: int | None = None) -> Iterator[IO]:
-    """Write ``path`` whole or not at all: a block writes a temporary file that replaces ``path`` at its end.
-
-    The temporary file has a unique name in ``path``'s folder (``.<name>.<random>.part``, made by
-    :func:`tempfile.mkstemp`), so two writers of the same path never share it: each writes its own
-    file, and ``path`` holds one of them whole. When the block ends normally the data are flushed
-    and synced to disk and the file is moved onto ``path`` with :func:`os.replace` (atomic on one
-    file system); on any exception, ``KeyboardInterrupt`` included, the temporary file is removed
-    and ``path`` is left as it was. The file gets the permissions a new file would (``0o666`` less
-    the umask), or those of the file it replaces, unless ``permissions`` says otherwise; they are set
-    on the temporary file before anything is written to it (a private key is never readable by others,
-    not even for a moment).
-
-    Parameters
-    ----------
-    path
-        The file to write; its folder is created if missing.
-    mode
-        ``"wb"`` (bytes) or ``"w"`` (text, UTF-8, no newline translation).
-    permissions
-        Permission bits of the file (e.g. ``0o600``); None: as described above.
-
-    Yields
-    ------
-    file object
-        Open for writing; do not close it inside the block.
-    """
-    if mode not in ("wb", "w"):
-        raise OptionError(f"atomic_write mode must be 'wb' or 'w', got {mode!r}")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if permissions is not None:
-        perms = permissions & 0o7777
-    else:
-        try:
-            perms = path.stat().st_mode & 0o7777
-        except OSError:
-            perms = 0o666 & ~_umask()
-    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:100]}.", suffix=".part")
-    tmp = Path(name)
-    try:
-        with (open(fd, "wb") if mode == "wb" else open(fd, "w", encoding="utf-8", newline="")) as fh:
-            os.fchmod(fh.fileno(), perms)
-            yield fh
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-    with contextlib.suppress(OSError):   # make the rename itself durable; not every file system can
-        dfd = os.open(path.parent, os.O_RDONLY)
-        try:
-            os.fsync(dfd)
-        finally:
-            os.close(dfd)
 
 
 def write_stdout(text: str, what: str) -> None:

@@ -26,7 +26,7 @@ Further channels (``fix_quality``, truth channels ``truth_*`` of a simulated pas
 base and unit.
 
 The canonical file is ``.npz`` (arrays named as above plus ``meta``, a JSON
-string) and is read by :func:`identification.bounded.read_npz` (never unpickled, at
+string) and is read by :func:`autosteer.bounded.read_npz` (never unpickled, at
 most :data:`MAX_FILE_BYTES`, each array checked from its header). CSV export and import
 are provided for logs that come from elsewhere.
 """
@@ -46,7 +46,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .bounded import parse_json, read_npz, read_text
+from autosteer.bounded import parse_json, read_npz, read_text
 from autosteer.checks import finite
 from .errors import OptionError, PassLogError
 from .outputs import atomic_write, check_name

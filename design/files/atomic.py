@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 from typing import Callable, Iterable
 
-from identification.outputs import atomic_write
+from autosteer.atomic import atomic_write
 
 from design.core.errors import DesignInputError
 
@@ -33,7 +33,7 @@ def _mode_of(path: Path) -> int:
 
 
 def write_bytes_atomically(path: str | Path, data: bytes, mode: int | None = None) -> Path:
-    """Write ``data`` to ``path`` atomically (:func:`identification.outputs.atomic_write`).
+    """Write ``data`` to ``path`` atomically (:func:`autosteer.atomic.atomic_write`).
 
     Parameters
     ----------

@@ -9,8 +9,8 @@ careless edits; only the signature says who made the file.
 Reading refuses, before parsing, a file larger than :data:`design.core.limits.MAX_FILE_BYTES`
 or nested deeper than :data:`design.core.limits.MAX_NESTING`, and while parsing any
 non-finite number (``NaN``, ``Infinity``). The nesting is measured in one pass over the
-text (:func:`nesting_depth`: time linear in the size, whatever the content), so the
-largest file allowed is checked in well under a second.
+text (:func:`autosteer.bounded.json_depth`, the toolkit's one depth check: time linear in the
+size, whatever the content), so the largest file allowed is checked in well under a second.
 """
 
 from __future__ import annotations
@@ -21,17 +21,13 @@ import os
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-import numpy as np
-
+from autosteer.bounded import json_depth
 from design.core.errors import ControllerFileError
 from design.core.limits import MAX_FILE_BYTES, MAX_NESTING
 from design.files.atomic import write_text_atomically
 
 SCHEMA = "design-controller/1"
 UNSEALED = ("checksum", "signature")          # keys the checksum does not cover
-#: Bytes scanned at once by :func:`nesting_depth` (its arrays stay in the processor's cache).
-SCAN_BLOCK = 1 << 15
-_QUOTE, _BACKSLASH, _OPENS, _CLOSES = ord('"'), ord("\\"), (ord("["), ord("{")), (ord("]"), ord("}"))
 
 
 def canonical_json(value: Any) -> bytes:
@@ -67,50 +63,13 @@ def _reject_constant(token: str) -> float:
     raise ControllerFileError(f"non-finite number {token} in the controller file")
 
 
-def nesting_depth(text: str) -> int:
-    """Deepest nesting of JSON arrays and objects in ``text`` (brackets inside strings ignored).
-
-    One pass of array operations over blocks of :data:`SCAN_BLOCK` bytes, linear in
-    ``len(text)``: a quote is escaped when an odd run of backslashes ends just before it; the
-    bytes from an unescaped quote to the next are inside a string; the depth is the running sum
-    of the opening minus the closing brackets outside strings. Each block starts from the state
-    the previous one left (depth, inside a string or not, a pending escape). On text that is not
-    JSON the number may be anything; the parser refuses such text.
-    """
-    raw = np.frombuffer(text.encode("utf-8", "surrogatepass"), dtype=np.uint8)
-    depth = deepest = 0
-    in_string = escape = 0           # inside a string; the block's first byte escaped by the last one's run
-    for start in range(0, raw.size, SCAN_BLOCK):
-        block = raw[start:start + SCAN_BLOCK]
-        index = np.arange(block.size, dtype=np.int32)
-        backslash = block == _BACKSLASH
-        # the last byte that is not a backslash, up to each byte (a run carried in counts as its parity)
-        last_other = np.maximum.accumulate(np.where(backslash, -1 - escape, index))
-        odd_run = backslash & ((index - last_other) & 1).astype(bool)       # ends an odd run of backslashes
-        quote = block == _QUOTE
-        quote[1:] &= ~odd_run[:-1]
-        if escape:
-            quote[0] = False
-        quotes = np.cumsum(quote, dtype=np.int32)
-        outside = ((quotes + in_string) & 1) == 0
-        step = ((block == _OPENS[0]) | (block == _OPENS[1])).astype(np.int32)
-        step -= (block == _CLOSES[0]) | (block == _CLOSES[1])
-        step *= outside
-        level = np.cumsum(step)
-        deepest = max(deepest, depth + int(level.max()))
-        depth += int(level[-1])
-        in_string = (in_string + int(quotes[-1])) & 1
-        escape = int(odd_run[-1])
-    return deepest
-
-
 def parse_json(text: str, where: str = "controller file") -> Any:
     """Parse a controller file's text within the stated limits; :class:`ControllerFileError` if not."""
     size = len(text.encode())
     if size > MAX_FILE_BYTES:
         raise ControllerFileError(f"{where}: {size} bytes exceeds MAX_FILE_BYTES = {MAX_FILE_BYTES} "
                                   "(4 MiB; designed files are about 0.1 MiB): not a controller file")
-    depth = nesting_depth(text)
+    depth = json_depth(text)
     if depth > MAX_NESTING:
         raise ControllerFileError(f"{where}: JSON nested {depth} levels deep exceeds MAX_NESTING = {MAX_NESTING} "
                                   "(controller files nest 7): not a controller file")

@@ -24,7 +24,7 @@ import math
 from pathlib import Path
 
 from design.core.limits import MAX_FILE_BYTES
-from identification.bounded import read_json
+from autosteer.bounded import read_json
 from typing import Callable, Sequence
 
 #: Measured windows (samples of past outputs and commands) the MPC's weights are searched with.

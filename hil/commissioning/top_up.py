@@ -27,7 +27,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Callable
 
-from identification.bounded import read_json
+from autosteer.bounded import read_json
 from identification.errors import IdentificationError
 from identification.passlog import PassLog
 from identification.workflow import identify_logs

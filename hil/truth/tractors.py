@@ -21,19 +21,17 @@ from a seed. ``docs/tractors.md`` is :func:`tractors_markdown` (kept equal by a 
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import math
-import os
-import re
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
+from autosteer.atomic import atomic_write
+from autosteer.bounded import read_json
 from hil.errors import SimulatorConfigError
 from hil.truth.params import _GROUPS, SimParams
 
@@ -156,78 +154,24 @@ class Tractor:
                    source=d.get("source", "assumption"))
 
 
-# hil.truth imports nothing of the toolkit (.importlinter), so the tractor file's bounded read and
-# atomic write are done here with the same rules as identification.bounded.read_json and
-# identification.outputs.atomic_write: a size limit before parsing, the JSON nesting depth checked in
-# one pass before json.loads, a uniquely named temporary file synced and renamed into place.
-_JSON_STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"?', re.S)
-
-
-def json_depth(text: str) -> int:
-    """Deepest nesting of arrays and objects in JSON ``text`` (strings skipped), in one pass.
-
-    The same count as :func:`identification.bounded.json_depth` (a test holds them equal): hil.truth
-    imports nothing of the toolkit, so it keeps this copy for its tractor files.
-    """
-    step = np.zeros(256, np.int64)        # +1 for '[' and '{', -1 for ']' and '}', by byte value
-    step[[ord("["), ord("{")]] = 1
-    step[[ord("]"), ord("}")]] = -1
-    bare = _JSON_STRING.sub("", text).encode("utf-8", "replace")
-    return int(np.cumsum(step[np.frombuffer(bare, np.uint8)]).max(initial=0))
-
-
-def _read_json(path: Path) -> Any:
-    where = f"tractor file {str(path)!r}"
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read(MAX_FILE_BYTES + 1)
-    except OSError as exc:
-        raise SimulatorConfigError(f"{where}: cannot be read ({exc.strerror or exc}); expected a tractor "
-                                   "file (JSON)") from None
-    if len(data) > MAX_FILE_BYTES:
-        raise SimulatorConfigError(f"{where}: larger than the {MAX_FILE_BYTES} bytes a tractor file may hold; "
-                                   "expected a tractor file (JSON, a few kB): is this the right file?")
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SimulatorConfigError(f"{where}: not UTF-8 text at byte {exc.start}; expected JSON") from None
-    depth = json_depth(text)
-    if depth > MAX_JSON_DEPTH:
-        raise SimulatorConfigError(f"{where}: JSON nested {depth} deep; expected at most {MAX_JSON_DEPTH} "
-                                   "levels (the file is damaged or not a tractor file)")
-    try:
-        return json.loads(text)
-    except ValueError as exc:
-        raise SimulatorConfigError(f"{where} is not valid JSON: {' '.join(str(exc).split())}") from None
-
-
 def save_tractor(tractor: Tractor, path: str | Path) -> Path:
-    """Write a tractor file (JSON, sorted groups as given) whole or not at all; returns the path."""
+    """Write a tractor file (JSON, sorted groups as given) whole or not at all
+    (:func:`autosteer.atomic.atomic_write`); returns the path."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    perms = path.stat().st_mode & 0o7777 if path.exists() else 0o644   # a file read by all, as before
-    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name[:100]}.", suffix=".part")
-    try:
-        with open(fd, "w", encoding="utf-8") as fh:
-            os.fchmod(fh.fileno(), perms)
-            fh.write(json.dumps(tractor.to_dict(), indent=2) + "\n")
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(name, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(name)
-        raise
+    with atomic_write(path, "w") as fh:
+        fh.write(json.dumps(tractor.to_dict(), indent=2) + "\n")
     return path
 
 
 def load_tractor(path: str | Path) -> Tractor:
-    """Read (at most :data:`MAX_FILE_BYTES`, nesting at most :data:`MAX_JSON_DEPTH`) and validate a tractor file."""
+    """Read (at most :data:`MAX_FILE_BYTES`, nesting at most :data:`MAX_JSON_DEPTH`: :func:`autosteer.bounded.read_json`)
+    and validate a tractor file."""
     path = Path(path)
     if not path.exists():
         raise SimulatorConfigError(f"tractor file {str(path)!r} does not exist; give a file or one of "
                                    f"{sorted(builtin_tractors())}")
-    return Tractor.from_dict(_read_json(path), where=f"tractor file {str(path)!r}")
+    return Tractor.from_dict(read_json(path, MAX_FILE_BYTES, "tractor file", SimulatorConfigError, MAX_JSON_DEPTH),
+                             where=f"tractor file {str(path)!r}")
 
 
 def builtin_tractors() -> dict[str, Tractor]:

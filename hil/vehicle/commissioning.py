@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-from identification.bounded import read_json
+from autosteer.bounded import read_json
 from identification.outputs import atomic_write
 
 from hil.vehicle.bridge.driver import BridgeDriver

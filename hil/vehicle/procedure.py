@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from identification.bounded import read_json
+from autosteer.bounded import read_json
 from identification.errors import IdentificationError
 from identification.outputs import atomic_write
 from identification.passlog import PassLog

@@ -10,7 +10,8 @@ import pytest
 
 from design.cli import main as design_main
 from design.core.errors import ControllerFileError, DesignInputError
-from design.files.envelope import nesting_depth, parse_json
+from autosteer.bounded import json_depth
+from design.files.envelope import parse_json
 from design.files.load import load_controller
 from design.core.limits import MAX_FILE_BYTES, MAX_HORIZON, MAX_MODEL_ORDER, MAX_NESTING
 from design.synthesis.mpc_design import MPCSpec, design_mpc
@@ -85,7 +86,7 @@ def test_the_nesting_check_is_linear_in_the_file_size(unit):
     # regular expression re-scanned to the end from every quote (20 kB 2.2 s, 40 kB 6.2 s, 80 kB 22.8 s).
     # Eight checks of a file against one check of a file eight times larger: the same work if linear.
     small, large = "[" + unit * 2048, "[" + unit * (8 * 2048)
-    assert nesting_depth(small) <= 2 and nesting_depth(large) <= 2
+    assert json_depth(small) <= 2 and json_depth(large) <= 2
     ratio = _check_seconds(large, 1) / _check_seconds(small, 8)
     assert ratio < 4, f"one check of 8x the input took {ratio:.1f}x eight of the input: not linear"  # quadratic: 8
 
@@ -103,7 +104,7 @@ ALPHABET = np.frombuffer(b'[]{}"\\ab', dtype=np.uint8)
 
 def _random_json(rng: np.random.Generator, depth: int):
     """Nested lists and objects whose strings are full of brackets, quotes and backslashes, some of them
-    long enough to span the scanner's blocks."""
+    50,000 characters long."""
     if depth == 0 or rng.random() < 0.2:
         n = int(rng.choice([0, 3, 40, 50_000]))
         return ALPHABET[rng.integers(0, ALPHABET.size, n)].tobytes().decode()
@@ -112,13 +113,13 @@ def _random_json(rng: np.random.Generator, depth: int):
 
 
 def test_the_nesting_depth_ignores_brackets_in_strings_and_counts_escapes():
-    assert nesting_depth('[{"a":[1,"]]]\\"[[[["]}]') == 3         # an escaped quote inside a string
-    assert nesting_depth('["\\\\"[[]]') == 3                    # an escaped backslash ends the string
-    assert nesting_depth("") == 0 and nesting_depth('"[[["') == 0
+    assert json_depth('[{"a":[1,"]]]\\"[[[["]}]') == 3         # an escaped quote inside a string
+    assert json_depth('["\\\\"[[]]') == 3                    # an escaped backslash ends the string
+    assert json_depth("") == 0 and json_depth('"[[["') == 0
     rng = np.random.default_rng(20261204)
     for _ in range(40):
         value = _random_json(rng, int(rng.integers(1, 9)))
-        assert nesting_depth(json.dumps(value)) == _depth(value)
+        assert json_depth(json.dumps(value)) == _depth(value)
 
 
 def test_a_file_over_the_size_limit_is_refused_before_it_is_read(tmp_path):

@@ -20,16 +20,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hostile_files import DEEP, broken_deflate, huge_member
 
+from autosteer import bounded
+from autosteer.atomic import atomic_write
+from autosteer.errors import FileReadError
 from hil.errors import SimulatorConfigError
 from hil.truth import tractors
 from hil.vehicle import commissioning
 from hil.vehicle.errors import VehicleConfigError
 from hil.vehicle.valve_map import ValveCurve
-from identification import bounded, csvdata, passlog
+from identification import csvdata, passlog
 from identification.csvdata import read_csv
-from identification.errors import DataError, FileReadError, ModelFileError, PassLogError
+from identification.errors import DataError, ModelFileError, PassLogError
 from identification.model import Model
-from identification.outputs import atomic_write
 from identification.passlog import PassLog, check_physical
 
 TRACTOR = Path(tractors.__file__).with_name("tractor_files") / "heavy-11t.json"
@@ -284,13 +286,6 @@ def test_a_sparse_file_larger_than_the_limit_is_refused_from_its_size(tmp_path):
     with pytest.raises(PassLogError, match="larger than the 64 MiB a .npz pass log may hold") as exc:
         PassLog.load(path)
     _one_line(exc, path)
-
-
-@settings(max_examples=60, deadline=None, database=None)
-@given(text=st.text(alphabet='[]{}"\\ ,:a1', max_size=200))
-def test_the_tractor_files_depth_check_agrees_with_the_one_reader(text):
-    # hil.truth may not import identification (.importlinter), so it keeps a copy of the check
-    assert tractors.json_depth(text) == bounded.json_depth(text)
 
 
 def _depth(value) -> int:

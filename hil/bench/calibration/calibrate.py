@@ -46,7 +46,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from identification.bounded import read_json
+from autosteer.bounded import read_json
 from identification.outputs import atomic_write
 from hil.bench.runs.campaign import Campaign, make_controller
 from hil.truth.conditions import GEAR_SPEEDS, condition_for

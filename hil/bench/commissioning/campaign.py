@@ -24,7 +24,7 @@ from typing import Callable, Sequence
 
 from identification.outputs import check_name
 
-from identification.bounded import read_json
+from autosteer.bounded import read_json
 from identification.outputs import atomic_write
 from hil.bench.commissioning.campaign_report import summarise_tractor, write_campaign_report
 from hil.bench.commissioning.recipe import CommissionOptions, commission, options_dict

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 from statistics import median
 from typing import Sequence
 
+from autosteer.atomic import atomic_write
 from hil.bench.commissioning.recipe import CommissionOptions, options_dict
 from hil.bench.commissioning.table import DIVERGED_M, hil_ratios
 
@@ -210,7 +210,6 @@ def write_campaign_report(rows: Sequence[dict], out: Path, opts: CommissionOptio
            "options": options_dict(opts), "files": files}
     for name, text in (("campaign.md", _markdown(rows, o, opts, planned)),
                        ("campaign.json", json.dumps(agg, indent=2, default=str) + "\n")):
-        tmp = out / (name + ".tmp")
-        tmp.write_text(text)
-        os.replace(tmp, out / name)
+        with atomic_write(out / name, "w") as fh:
+            fh.write(text)
     return agg

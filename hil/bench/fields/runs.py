@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from identification.bounded import read_json
+from autosteer.bounded import read_json
 from identification.passlog import PassLog
 
 from hil.bench.fields.metrics import field_metrics

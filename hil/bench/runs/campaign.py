@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from identification.bounded import read_json
+from autosteer.bounded import read_json
 
 from hil.truth.conditions import Condition, all_conditions
 from hil.errors import SimulatorConfigError

@@ -17,7 +17,7 @@ import os
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping, Sequence
 
-from identification.bounded import read_json
+from autosteer.bounded import read_json
 from identification.outputs import atomic_write
 
 from hil.bench.runs.workers import run_pool

@@ -9,7 +9,9 @@ bool, complex and structured dtypes are refused, no member may hold more than a 
 bytes, and a damaged archive (bad deflate stream, bad CRC, truncation) becomes one line.
 
 Each reader raises the error type its caller gives (a subclass of ``ValueError`` from the
-caller's package), with a message that names the file, what was expected and what came.
+caller's package; :class:`autosteer.errors.FileReadError` by default), with a message that names the
+file, what was expected and what came. Every package reads its files here: identification's pass logs
+and models, design's controller files, the simulator's tractor files, the bench's records.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.lib import format as npy_format
 
-from .errors import FileReadError
+from autosteer.errors import FileReadError
 
 __all__ = ["MAX_JSON_DEPTH", "MAX_NPZ_MEMBERS", "NPZ_KINDS", "read_bytes", "read_text", "json_depth",
            "parse_json", "read_json", "read_npz"]

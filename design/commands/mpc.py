@@ -17,7 +17,7 @@ import argparse
 from autosteer.cli import add_option
 from identification.model import Model
 
-from design.commands.robust import _weights, add_bryson_arguments, certificate_table, spec_lines
+from design.commands.robust import add_bryson_arguments, bryson_weights, certificate_table, spec_lines
 from design.commands.specs import (add_disturbance_arguments, add_spec_arguments, disturbance_of, parse_past, progress_of,
                         refuse_mixed, warn_relaxed, weight_search_of)
 from design.mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
@@ -30,7 +30,7 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
     models = load_models(args.models)
     validate = load_models(args.validate_on) if args.validate_on else []
     central = Model.load(args.central) if args.central else None
-    options = MPCOptions(args.horizon, MPCWeights(_weights(args), args.slack_weight, args.slack_weight * 1e-2,
+    options = MPCOptions(args.horizon, MPCWeights(bryson_weights(args), args.slack_weight, args.slack_weight * 1e-2,
                                                   args.terminal),
                          MPCLimits(args.rate_limit, args.wheel_angle_limit),
                          SolverSettings(args.backend, args.solver, args.max_iter, args.time_budget_ms * 1e-3),

@@ -19,7 +19,9 @@ from design.synthesis.robust import RobustSpec, design_lqr
 from design.core.weights import OutputWeights
 
 
-def _weights(args: argparse.Namespace) -> OutputWeights:
+def bryson_weights(args: argparse.Namespace) -> OutputWeights:
+    """The explicit weights of :func:`add_bryson_arguments`' options, each not given at its
+    :class:`~design.core.weights.OutputWeights` default."""
     d = OutputWeights()
     return OutputWeights(tuple(args.y_max) if args.y_max is not None else d.y_max,
                          d.u_max if args.u_max is None else args.u_max, d.i_max if args.i_max is None else args.i_max)
@@ -80,7 +82,7 @@ def cmd_robust(args: argparse.Namespace) -> dict:
     models = load_models(args.models)
     validate = load_models(args.validate_on) if args.validate_on else []
     nominal = Model.load(args.nominal) if args.nominal else None
-    spec = RobustSpec(_weights(args), args.formulation, args.solver, args.pole_radius, args.rate_limit,
+    spec = RobustSpec(bryson_weights(args), args.formulation, args.solver, args.pole_radius, args.rate_limit,
                       tuple(args.initial_errors), args.integral, args.past, args.command_limit, name=args.name,
                       structure=args.structure, nominal=nominal,
                       output_clip=tuple(None if c <= 0 else c for c in args.output_clip), method=args.method,
@@ -97,7 +99,7 @@ def cmd_robust(args: argparse.Namespace) -> dict:
 def cmd_lqr(args: argparse.Namespace) -> dict:
     model = Model.load(args.model)
     others = load_models(args.validate_on) if args.validate_on else []
-    file, cert = design_lqr(model, others, _weights(args), name=args.name, command_limit=args.command_limit,
+    file, cert = design_lqr(model, others, bryson_weights(args), name=args.name, command_limit=args.command_limit,
                             require=not args.allow_unstable)
     file.save(args.out)
     return {"out": str(args.out), "certificate": cert.to_dict()}

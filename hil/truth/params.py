@@ -244,7 +244,7 @@ class SimParams:
 
     def to_dict(self) -> dict[str, Any]:
         """Nested plain dict (JSON-serialisable), e.g. for a pass log's metadata."""
-        out: dict[str, Any] = {g: getattr(self, g).to_dict() for g in _GROUPS}
+        out: dict[str, Any] = {g: getattr(self, g).to_dict() for g in GROUPS}
         out["dt"] = self.dt
         return out
 
@@ -253,12 +253,12 @@ class SimParams:
         """Inverse of :meth:`to_dict`; missing entries take their defaults, unknown ones are refused."""
         if not isinstance(d, Mapping):
             raise SimulatorConfigError("simulator parameters must be a mapping of groups")
-        unknown = set(d) - set(_GROUPS) - {"dt"}
+        unknown = set(d) - set(GROUPS) - {"dt"}
         if unknown:
             raise SimulatorConfigError(f"unknown parameter group(s) {sorted(unknown)}; "
-                                       f"groups are {list(_GROUPS)} and 'dt'")
+                                       f"groups are {list(GROUPS)} and 'dt'")
         kw: dict[str, Any] = {}
-        for g, typ in _GROUPS.items():
+        for g, typ in GROUPS.items():
             if g in d:
                 known = {f.name for f in dataclasses.fields(typ)}
                 bad = set(d[g]) - known
@@ -278,13 +278,14 @@ class SimParams:
             if key == "dt":
                 d["dt"] = value
                 continue
-            if group not in _GROUPS or name not in d[group]:
+            if group not in GROUPS or name not in d[group]:
                 raise SimulatorConfigError(f"unknown parameter {key!r}; use 'group.name', see `hil params`")
             d[group][name] = value
         return SimParams.from_dict(d)
 
 
-_GROUPS: dict[str, type] = {"vehicle": VehicleParams, "steering": SteeringParams,
+#: The parameter groups of :class:`SimParams` (attribute name -> dataclass), in the order they are listed.
+GROUPS: dict[str, type] = {"vehicle": VehicleParams, "steering": SteeringParams,
                             "sensor": WheelSensorParams, "disker": DiskerParams,
                             "ripper": RipperParams, "hop": HopParams, "field": FieldParams,
                             "gps": GpsParams}
@@ -294,7 +295,7 @@ def parameter_table(params: SimParams | None = None) -> list[dict[str, Any]]:
     """Rows ``{name, value, unit, source, doc}`` for every parameter (for docs and ``hil params``)."""
     params = params or SimParams()
     rows = []
-    for g, typ in _GROUPS.items():
+    for g, typ in GROUPS.items():
         grp = getattr(params, g)
         for f in dataclasses.fields(typ):
             rows.append({"name": f"{g}.{f.name}", "value": getattr(grp, f.name),

@@ -33,7 +33,7 @@ import numpy as np
 from autosteer.atomic import atomic_write
 from autosteer.bounded import read_json
 from hil.errors import SimulatorConfigError
-from hil.truth.params import _GROUPS, SimParams
+from hil.truth.params import GROUPS, SimParams
 
 __all__ = ["Tractor", "RandomRange", "RANDOM_RANGES", "load_tractor", "save_tractor", "builtin_tractors",
            "tractor_by_name", "resolve_tractor", "random_tractor", "tractors_markdown"]
@@ -50,7 +50,7 @@ _G = 9.80665
 
 def _field_range(group: str, name: str) -> tuple[str, str]:
     """``(range text, unit)`` of a simulator parameter, e.g. ``("(0, inf)", "kg")``."""
-    f = next(f for f in dataclasses.fields(_GROUPS[group]) if f.name == name)
+    f = next(f for f in dataclasses.fields(GROUPS[group]) if f.name == name)
     m = f.metadata
     lo = "-inf" if m["lo"] is None else f"{m['lo']:g}"
     hi = "inf" if m["hi"] is None else f"{m['hi']:g}"
@@ -66,11 +66,11 @@ def _check_parameters(parameters: Any, where: str) -> dict[str, dict[str, float]
                                    f"got {type(parameters).__name__}")
     out: dict[str, dict[str, float]] = {}
     for group, values in parameters.items():
-        if group not in _GROUPS:
-            raise SimulatorConfigError(f"{where}: unknown parameter group {group!r}; groups are {list(_GROUPS)}")
+        if group not in GROUPS:
+            raise SimulatorConfigError(f"{where}: unknown parameter group {group!r}; groups are {list(GROUPS)}")
         if not isinstance(values, Mapping):
             raise SimulatorConfigError(f"{where}: group {group!r} must map parameter names to numbers")
-        known = {f.name for f in dataclasses.fields(_GROUPS[group])}
+        known = {f.name for f in dataclasses.fields(GROUPS[group])}
         out[group] = {}
         for name, value in values.items():
             if name not in known:
@@ -81,7 +81,7 @@ def _check_parameters(parameters: Any, where: str) -> dict[str, dict[str, float]
                 raise SimulatorConfigError(f"{where}: {group}.{name} must be a finite number in {rng} {unit}, "
                                            f"got {value!r}")
             try:
-                _GROUPS[group](**{name: value})
+                GROUPS[group](**{name: value})
             except SimulatorConfigError:
                 raise SimulatorConfigError(f"{where}: {group}.{name} = {value!r} {unit} is outside its range "
                                            f"{rng} {unit}; see `hil params`") from None

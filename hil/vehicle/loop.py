@@ -260,7 +260,7 @@ class VehicleLoop:
         self.engaged = False
         self.events: list[dict] = []
         self._rows: list[tuple[float, ...]] = []   # one tuple per cycle, fields in _COLUMNS order
-        self._line_errors = _scalar_line_errors(line) if self._path is None else None
+        self._line_errors = scalar_line_errors(line) if self._path is None else None
         self._center, self._rad_per_count = float(calibration.center_counts), float(calibration.rad_per_count)
         self._truths: list[dict[str, float]] = []   # the truth of every cycle
         self._estimates: list[tuple[float, ...]] = []
@@ -667,7 +667,7 @@ def _preview_request(controller: Controller) -> tuple[int, float]:
     return int(n), float(dt)
 
 
-def _scalar_line_errors(line: ABLine) -> Callable[[float, float, float], tuple[float, float]]:
+def scalar_line_errors(line: ABLine) -> Callable[[float, float, float], tuple[float, float]]:
     """``(cross_track, heading_error)`` of one point, as ``line.errors`` gives them, on floats.
 
     For an :class:`~gnss.guidance.ABLine` the same arithmetic as ``ABLine.errors`` (and

@@ -119,10 +119,10 @@ def test_one_tractor_path_records_the_batch_paths_epochs_counts_and_truth():
        a=st.tuples(_f(-50, 50), _f(-50, 50)), east=_f(-2000, 2000), north=_f(-2000, 2000), yaw=_f(-7, 7))
 def test_loop_line_errors_are_bit_identical_to_ab_line_errors(b, a, east, north, yaw):
     from gnss.guidance import ABLine
-    from hil.vehicle.loop import _scalar_line_errors
+    from hil.vehicle.loop import scalar_line_errors
     line = ABLine(np.array(a), np.array(a) + np.array(b))
     err = line.errors(east, north, yaw)
-    assert _scalar_line_errors(line)(east, north, yaw) == (float(err.cross_track), float(err.heading_error))
+    assert scalar_line_errors(line)(east, north, yaw) == (float(err.cross_track), float(err.heading_error))
 
 
 @settings(max_examples=500, deadline=None)

@@ -52,7 +52,7 @@ from hil.bench.runs.campaign import Campaign, make_controller
 from hil.truth.conditions import GEAR_SPEEDS, condition_for
 from hil.errors import SimulatorConfigError
 from hil.bench.runs.paper import TABLE2
-from hil.truth.params import _GROUPS, SimParams
+from hil.truth.params import GROUPS, SimParams
 from hil.bench.runs.report import cells
 
 #: Reference (uncalibrated, pre-issue-8) values of every parameter a knob scales.
@@ -213,7 +213,7 @@ def parameter_values(log2_scales: Mapping[str, float]) -> dict[str, float]:
 
     A value is capped at its parameter's upper bound (hop amplitude <= 0.95).
     """
-    his = {f"{g}.{f.name}": f.metadata["hi"] for g, t in _GROUPS.items() for f in fields(t)}
+    his = {f"{g}.{f.name}": f.metadata["hi"] for g, t in GROUPS.items() for f in fields(t)}
     out = {k: v for k, (v, _why) in FIXED.items()}
     for knob, x in log2_scales.items():
         for name in KNOBS[knob][0]:

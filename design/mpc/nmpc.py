@@ -65,6 +65,7 @@ from typing import Any, Mapping
 import casadi as ca
 import numpy as np
 
+from autosteer.checks import finite, positive
 from design.laws.acquisition import HeadlandIntegrals, IntegralGate, integral_kept
 from design.laws.controller import Measurement
 from design.laws.curvature import HEADLAND_KIND
@@ -164,13 +165,10 @@ class NMPCSettings:
     y_max_speed: float | None = None
 
     def __post_init__(self) -> None:
-        n = self.horizon
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 400:
-            raise DesignInputError(f"horizon must be an integer number of stages in 1..400, got {n!r}")
+        finite(self.horizon, "horizon", lo=1, hi=400, integer=True, noun="an integer number of stages",
+               error=DesignInputError)
         for name in ("dt", "rate_limit", "wheel_limit", "slack_weight", "wheelbase", "tol"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise DesignInputError(f"NMPCSettings.{name} must be a finite number > 0, got {v!r}")
+            positive(getattr(self, name), name, where="NMPCSettings", error=DesignInputError)
         if not isinstance(self.d2, (int, float)) or not 0 <= self.d2 < self.wheelbase:
             raise DesignInputError(f"d2 must lie in [0, wheelbase={self.wheelbase}) m, got {self.d2!r}")
         if not isinstance(self.weights, KinematicWeights):
@@ -182,27 +180,22 @@ class NMPCSettings:
                                    f"'daqp', 'hpipm' or 'osqp'")
         if self.max_iter is None:
             object.__setattr__(self, "max_iter", _DEFAULT_ITER.get(self.solver, 10))
-        m = self.max_iter
-        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or not 1 <= m <= 1000:
-            raise DesignInputError(f"max_iter must be an integer in 1..1000, got {m!r}")
-        mc = self.max_calls
-        if isinstance(mc, bool) or not isinstance(mc, (int, np.integer)) or not 1 <= mc <= 20:
-            raise DesignInputError(f"max_calls must be an integer in 1..20 (Gauss-Newton calls per tick), got {mc!r}")
+        finite(self.max_iter, "max_iter", lo=1, hi=1000, integer=True, error=DesignInputError)
+        finite(self.max_calls, "max_calls", lo=1, hi=20, integer=True, unit="Gauss-Newton calls per tick",
+               error=DesignInputError)
         if self.terminal not in ("lqr", "none"):
             raise DesignInputError(f"terminal must be 'lqr' or 'none', got {self.terminal!r}")
         lo, hi = self.speed_range
         if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
             raise DesignInputError(f"speed_range must be 0 < low < high m/s, got {self.speed_range!r}")
-        im = self.integral_max
-        if im is not None and (isinstance(im, bool) or not isinstance(im, (int, float)) or not math.isfinite(im)
-                               or im <= 0):
-            raise DesignInputError(f"integral_max must be a finite number > 0 (m s) or None, got {im!r}")
+        if self.integral_max is not None:
+            positive(self.integral_max, "integral_max", unit="m s", error=DesignInputError,
+                     fix="or None for no integral state")
         if self.observer is not None and not isinstance(self.observer, ObserverSettings):
             raise DesignInputError(f"observer must be ObserverSettings or None, got {type(self.observer).__name__}")
-        ys = self.y_max_speed
-        if ys is not None and (isinstance(ys, bool) or not isinstance(ys, (int, float)) or not lo <= ys <= hi):
-            raise DesignInputError(f"y_max_speed must be a speed within speed_range {self.speed_range!r} m/s (where "
-                                   f"weights.y_max holds) or None, got {ys!r}")
+        if self.y_max_speed is not None:
+            finite(self.y_max_speed, "y_max_speed", lo=lo, hi=hi, unit="m/s", noun="a speed within speed_range",
+                   error=DesignInputError, fix="the speed where weights.y_max holds, or None")
 
     @property
     def n_states(self) -> int:

@@ -23,6 +23,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Callable, Generic, Sequence, TypeVar
 
+from autosteer.checks import finite, positive
 from identification.model import Model
 
 from design.core.compensator import Compensator
@@ -39,8 +40,7 @@ BASE = OutputWeights()
 def scaled_weights(scale: float, base: OutputWeights = BASE) -> OutputWeights:
     """Bryson weights at aggressiveness ``scale`` (> 0): output and integral sizes ``base / sqrt(scale)``,
     the steering-rate size the base's (rad/s)."""
-    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) or scale <= 0:
-        raise DesignInputError(f"aggressiveness scale must be a finite number > 0, got {scale!r}")
+    positive(scale, "aggressiveness scale", error=DesignInputError)
     r = 1.0 / math.sqrt(scale)
     return OutputWeights(tuple(v * r for v in base.y_max), base.u_max, base.i_max * r)
 
@@ -75,15 +75,11 @@ class SearchOptions:
 
     def __post_init__(self) -> None:
         for nm in ("low", "high"):
-            v = getattr(self, nm)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise DesignInputError(f"SearchOptions.{nm} must be a finite number > 0, got {v!r}")
+            positive(getattr(self, nm), nm, where="SearchOptions", error=DesignInputError)
         if not self.low < self.high:
             raise DesignInputError(f"SearchOptions: low ({self.low!r}) must be below high ({self.high!r})")
-        if isinstance(self.steps, bool) or not isinstance(self.steps, int) or not 0 <= self.steps <= 30:
-            raise DesignInputError(f"SearchOptions.steps must be an integer in 0..30, got {self.steps!r}")
-        if isinstance(self.scan, bool) or not isinstance(self.scan, int) or not 2 <= self.scan <= 50:
-            raise DesignInputError(f"SearchOptions.scan must be an integer in 2..50, got {self.scan!r}")
+        finite(self.steps, "steps", where="SearchOptions", lo=0, hi=30, integer=True, error=DesignInputError)
+        finite(self.scan, "scan", where="SearchOptions", lo=2, hi=50, integer=True, error=DesignInputError)
         if not isinstance(self.relax, bool):
             raise DesignInputError(f"SearchOptions.relax must be true or false, got {self.relax!r}")
 

@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from autosteer.checks import finite
+
 from .curve import ArcPath
 from .errors import GeometryError
 from .geodesy import LocalFrame
@@ -191,14 +193,11 @@ class Field:
             raise GeometryError(f"Field.name: expected [A-Za-z0-9][A-Za-z0-9_-]{{0,63}}, got {self.name!r}")
         if not isinstance(self.reference, ArcPath):
             raise GeometryError(f"Field.reference: expected an ArcPath, got {type(self.reference).__name__}")
-        w = self.width
-        if isinstance(w, bool) or not isinstance(w, (int, float, np.floating)) or not 0.5 <= w <= 60.0:
-            raise GeometryError(f"Field.width: expected an implement width of 0.5-60 m, got {w!r}")
-        for name, hi in (("passes", 500), ("reference_pass", self.passes - 1)):
-            v = getattr(self, name)
-            lo = 1 if name == "passes" else 0
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
-                raise GeometryError(f"Field.{name}: expected an integer in [{lo}, {hi}], got {v!r}")
+        finite(self.width, "width", where="Field", lo=0.5, hi=60.0, unit="m", noun="an implement width",
+               error=GeometryError)
+        finite(self.passes, "passes", where="Field", lo=1, hi=500, integer=True, error=GeometryError)
+        finite(self.reference_pass, "reference_pass", where="Field", lo=0, hi=self.passes - 1, integer=True,
+               error=GeometryError)
         for i in range(self.passes):       # every pass must exist (offset refuses a cusp)
             self.pass_path(i)
 
@@ -208,8 +207,8 @@ class Field:
 
     def pass_path(self, index: int) -> ArcPath:
         """Pass ``index`` along the reference direction."""
-        if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= index < self.passes:
-            raise GeometryError(f"Field.pass_path: expected a pass index in [0, {self.passes - 1}], got {index!r}")
+        finite(index, "index", where="Field.pass_path", lo=0, hi=self.passes - 1, integer=True, noun="a pass index",
+               error=GeometryError)
         d = self.offset_of(int(index))
         return self.reference if d == 0 else self.reference.offset(d)
 
@@ -221,11 +220,11 @@ class Field:
         tractor's minimum radius, or a curvature step from a pass into its turn (or out of it)
         faster than ``limits.sigma``.
         """
-        if isinstance(first, bool) or not isinstance(first, (int, np.integer)) or not 0 <= first < self.passes:
-            raise GeometryError(f"Field.route: first must be a pass index in [0, {self.passes - 1}], got {first!r}")
+        finite(first, "first", where="Field.route", lo=0, hi=self.passes - 1, integer=True, noun="a pass index",
+               error=GeometryError)
         last = self.passes - first if count is None else count
-        if isinstance(last, bool) or not isinstance(last, (int, np.integer)) or not 1 <= last <= self.passes - first:
-            raise GeometryError(f"Field.route: count must be in [1, {self.passes - first}], got {count!r}")
+        finite(last, "count", where="Field.route", lo=1, hi=self.passes - first, integer=True,
+               noun="an integer number of passes", error=GeometryError)
         indices = tuple(range(first, first + last))
         driven = [self.pass_path(i) if k % 2 == 0 else self.pass_path(i).reversed() for k, i in enumerate(indices)]
         pieces: list[ArcPath] = []

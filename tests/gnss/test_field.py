@@ -84,7 +84,7 @@ def test_route_subset_and_refusals():
     r = field.route(first=2, count=3)
     assert r.pass_indices == (2, 3, 4)
     np.testing.assert_allclose(r.path.start, [-12.0, 0.0], atol=1e-12)
-    with pytest.raises(GeometryError, match="count must be in"):
+    with pytest.raises(GeometryError, match="count must be an integer number of passes >= 1 and <= 4"):
         field.route(first=2, count=5)
     with pytest.raises(GeometryError, match="first must be"):
         field.route(first=6)

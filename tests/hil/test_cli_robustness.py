@@ -54,10 +54,10 @@ def test_plot_output_must_be_a_figure_file(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, rc, message", [
-    (["run", "--controller", "kinematic", "--speed", "0"], 1, "speed must be 0.5-6 m/s"),
-    (["run", "--controller", "kinematic", "--speed", "nan"], 1, "speed must be 0.5-6 m/s"),
+    (["run", "--controller", "kinematic", "--speed", "0"], 1, "speed must be a finite number >= 0.5 and <= 6 m/s"),
+    (["run", "--controller", "kinematic", "--speed", "nan"], 1, "speed must be a finite number >= 0.5 and <= 6 m/s"),
     (["run", "--controller", "kinematic", "--initial-cross-track", "1e6"], 1,
-     "initial_cross_track must be a number within +-5 m"),
+     "initial_cross_track must be a finite number >= -5 and <= 5 m"),
     (["compare", "kinematic", "--workers", "0"], 2, "--workers: expected a number of processes from 1 to 256"),
     (["params", "--set", "vehicle.mass=1e308"], 1, "VehicleParams.mass must be <= 40000.0 [kg], got 1e+308"),
     (["params", "--set", "steering.lag=inf"], 1, "SteeringParams.lag must be finite"),

@@ -8,13 +8,13 @@ log; :func:`summarize` gives the paper's Table 2 numbers for it.
 
 from __future__ import annotations
 
-import math
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from typing import Callable
 
 import numpy as np
 
+from autosteer.checks import finite
 from design.laws.controller import Controller
 from gnss.frontend import FrontEndConfig, GnssFrontEnd
 from gnss.track import PathTracker
@@ -113,20 +113,14 @@ class RunSpec:
     field_driver: bool = True
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.duration, (int, float)) and math.isfinite(self.duration) and 1 <= self.duration <= 3600):
-            raise SimulatorConfigError(f"duration must be between 1 and 3600 s, got {self.duration!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise SimulatorConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
+        finite(self.duration, "duration", lo=1, hi=3600, unit="s", error=SimulatorConfigError)
+        finite(self.seed, "seed", lo=0, integer=True, error=SimulatorConfigError)
         for name, bound, unit in (("initial_cross_track", MAX_INITIAL_CROSS_TRACK, "m"),
                                   ("initial_heading", MAX_INITIAL_HEADING, "rad")):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and abs(v) <= bound):
-                raise SimulatorConfigError(f"{name} must be a number within +-{bound:g} {unit} (a pass starts "
-                                           f"near its line), got {v!r}")
-        if isinstance(self.speed, bool) or not isinstance(self.speed, (int, float)) or not (
-                math.isfinite(self.speed) and SPEED_RANGE[0] <= self.speed <= SPEED_RANGE[1]):
-            raise SimulatorConfigError(f"speed must be {SPEED_RANGE[0]:g}-{SPEED_RANGE[1]:g} m/s (field work; the "
-                                       f"paper's gears are 1.00-2.91 m/s), got {self.speed!r}")
+            finite(getattr(self, name), name, lo=-bound, hi=bound, unit=unit, error=SimulatorConfigError,
+                   fix="a pass starts near its line")
+        finite(self.speed, "speed", lo=SPEED_RANGE[0], hi=SPEED_RANGE[1], unit="m/s", error=SimulatorConfigError,
+               fix="field work; the paper's gears are 1.00-2.91 m/s")
         if self.bridge not in BRIDGES:
             raise SimulatorConfigError(f"bridge must be 'isobus', 'hc11' or 'agopengps', got {self.bridge!r}")
         if self.bridge == "isobus" and (self.realtime or self.link_faults):
@@ -140,9 +134,7 @@ class RunSpec:
             raise SimulatorConfigError("field_passes and start_station need a field")
         if not isinstance(self.field_driver, bool):
             raise SimulatorConfigError(f"field_driver must be True or False, got {self.field_driver!r}")
-        if isinstance(self.start_station, bool) or not isinstance(self.start_station, (int, float)) \
-                or not math.isfinite(self.start_station):
-            raise SimulatorConfigError(f"start_station must be a finite station in m, got {self.start_station!r}")
+        finite(self.start_station, "start_station", noun="a finite station in m", error=SimulatorConfigError)
 
 
 def simulated_run(spec: RunSpec, controller: Controller, params: SimParams | None = None,

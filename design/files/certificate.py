@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any
 
+from autosteer.checks import finite
 from identification.errors import ModelFileError
 from identification.model import Model
 
@@ -49,8 +50,7 @@ def recorded_models(cert: Any) -> list[tuple[str, str, Model]]:
             raise ControllerFileError(f"certificate model {row['name']!r} must record its matrices "
                                       f"{', '.join(MODEL_KEYS)}; got {sorted(md) if isinstance(md, dict) else md!r}")
         dt = md["dt"]
-        if isinstance(dt, bool) or not isinstance(dt, (int, float)):
-            raise ControllerFileError(f"certificate model {row['name']!r}: dt must be a number, got {dt!r}")
+        finite(dt, f"certificate model {row['name']!r}: dt", error=ControllerFileError)
         try:
             model = Model(md["A"], md["B"], md["C"], md["D"], md["K"], float(dt), {"name": row["name"]})
         except (ModelFileError, TypeError, ValueError) as exc:
@@ -166,8 +166,7 @@ def recorded_latency(cert: Any) -> float:
         if not isinstance(outs, dict):
             raise ControllerFileError(f"certificate: outputs_latency_s must map outputs to seconds, got {outs!r}")
         for name, v in outs.items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0 <= v <= 1.0):
-                raise ControllerFileError(f"certificate: latency of {name!r} must be 0-1 s, got {v!r}")
+            finite(v, f"certificate: latency of {name!r}", lo=0.0, hi=1.0, unit="s", error=ControllerFileError)
             most = max(most, float(v))
     return most
 

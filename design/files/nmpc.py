@@ -65,6 +65,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
+from autosteer.checks import finite
 from identification.model import Model
 
 from design.core.compensator import Compensator, closed_loop_matrix, spectral_radius
@@ -109,9 +110,7 @@ def settings_to_dict(s: NMPCSettings) -> dict:
 
 
 def _number(v: Any, what: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise ControllerFileError(f"settings: {what} must be a finite number, got {v!r}")
-    return float(v)
+    return finite(v, f"settings: {what}", error=ControllerFileError)
 
 
 def settings_from_dict(d: Any, dt: float) -> NMPCSettings:
@@ -139,8 +138,7 @@ def settings_from_dict(d: Any, dt: float) -> NMPCSettings:
         raise ControllerFileError("settings.integral_max is null: an NMPC file must carry the integral state "
                                   "(m s), or it keeps a steady bias under a pull; design it with --integral-max")
     for k in ("horizon", "max_iter", "max_calls"):
-        if isinstance(d[k], bool) or not isinstance(d[k], int):
-            raise ControllerFileError(f"settings: {k} must be an integer, got {d[k]!r}")
+        finite(d[k], f"settings: {k}", integer=True, error=ControllerFileError)
     for k in ("solver", "qpsol", "terminal"):
         if not isinstance(d[k], str):
             raise ControllerFileError(f"settings: {k} must be a string, got {d[k]!r}")
@@ -332,9 +330,8 @@ def check_nmpc_certificate(cert: Any, s: NMPCSettings) -> None:
     speeds = []
     for (name, _, model), row in zip(recorded_models(cert), cert["models"]):
         v = row.get("speed")
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not SPEED_RANGE[0] <= v <= SPEED_RANGE[1]:
-            raise ControllerFileError(f"certificate model {name!r}: speed must be {SPEED_RANGE[0]}-{SPEED_RANGE[1]} m/s, "
-                                      f"got {v!r}")
+        finite(v, f"certificate model {name!r}: speed", lo=SPEED_RANGE[0], hi=SPEED_RANGE[1], unit="m/s",
+               error=ControllerFileError)
         if abs(model.dt - s.dt) > 1e-9:
             raise ControllerFileError(f"certificate model {name!r} has dt={model.dt} s, the NMPC dt={s.dt} s")
         if ("y_max_m" in row) != (s.y_max_speed is not None) or (

@@ -43,6 +43,8 @@ from typing import Iterable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from autosteer.checks import finite, positive
+
 from .arcgeom import (ARRAY_OPS, MAX_TURN, SCALAR_OPS, chain_starts, foot_on_arc, foot_on_segment,
                       foot_on_straight, pose_on_segment)
 from .arcsolve import fit_chain
@@ -71,12 +73,8 @@ class Segment:
     curvature: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("length", "curvature"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not math.isfinite(v):
-                raise GeometryError(f"Segment.{name}: expected a finite number, got {v!r}")
-        if not self.length > 0:
-            raise GeometryError(f"Segment.length: expected > 0 m, got {self.length!r}")
+        positive(self.length, "length", where="Segment", unit="m", error=GeometryError)
+        finite(self.curvature, "curvature", where="Segment", unit="1/m", error=GeometryError)
         if abs(self.curvature) * self.length > MAX_TURN:
             raise GeometryError(f"Segment turns {abs(self.curvature) * self.length:.2f} rad, more than "
                                 f"{MAX_TURN:.2f} rad; split it into shorter segments")
@@ -103,8 +101,7 @@ class ArcPath:
 
     def __init__(self, start: ArrayLike, angle: float, segments: Iterable[Segment | tuple[float, float]]) -> None:
         self.start = point2(start, "ArcPath.start")
-        if isinstance(angle, bool) or not isinstance(angle, (int, float, np.floating)) or not math.isfinite(angle):
-            raise GeometryError(f"ArcPath.angle: expected a finite ENU angle in rad, got {angle!r}")
+        finite(angle, "angle", where="ArcPath", noun="a finite ENU angle in rad", error=GeometryError)
         segs = []
         for s in segments:
             if isinstance(s, Segment):
@@ -175,9 +172,7 @@ class ArcPath:
         normal. Refused (not trimmed) when an arc's radius is within 1 mm of the offset on its
         inner side or smaller: the offset curve would have a cusp there.
         """
-        if isinstance(distance, bool) or not isinstance(distance, (int, float, np.floating)) \
-                or not math.isfinite(distance):
-            raise GeometryError(f"offset: expected a finite distance in m, got {distance!r}")
+        finite(distance, "distance", where="ArcPath.offset", noun="a finite distance in m", error=GeometryError)
         d = float(distance)
         segs = []
         for i, seg in enumerate(self.segments):

@@ -114,8 +114,8 @@ def test_errors_vectorised_and_shape_preserving():
 
 @pytest.mark.parametrize("args, match", [
     (((0, 0), 0.0, []), "at least one segment"),
-    (((0, 0), 0.0, [(-1, 0)]), "length: expected > 0"),
-    (((0, 0), 0.0, [(10, float("nan"))]), "curvature: expected a finite"),
+    (((0, 0), 0.0, [(-1, 0)]), "Segment.length must be a finite number > 0 m"),
+    (((0, 0), 0.0, [(10, float("nan"))]), "Segment.curvature must be a finite number"),
     (((0, 0), 0.0, [(100, 1.0)]), "split it"),
     (((0, 0), float("inf"), [(10, 0)]), "angle"),
     (((0, float("nan")), 0.0, [(10, 0)]), "start"),

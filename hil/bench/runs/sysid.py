@@ -24,6 +24,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from autosteer.checks import finite
 from identification.passlog import PassLog
 
 from hil.truth.conditions import GEAR_SPEEDS, IMPLEMENTS, Condition, condition_for
@@ -115,15 +116,10 @@ class SysidPlan:
         for i in self.implements:
             if i not in IMPLEMENTS:
                 raise SimulatorConfigError(f"unknown implement {i!r}; expected one of {list(IMPLEMENTS)}")
-        if isinstance(self.passes, bool) or not isinstance(self.passes, int) or self.passes < 1:
-            raise SimulatorConfigError(f"passes must be an integer >= 1, got {self.passes!r}")
-        if not (isinstance(self.duration, (int, float)) and math.isfinite(self.duration)
-                and 5.0 <= self.duration <= 3600.0):
-            raise SimulatorConfigError(f"duration must be between 5 and 3600 s, got {self.duration!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise SimulatorConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
-        if isinstance(self.first_index, bool) or not isinstance(self.first_index, int) or self.first_index < 0:
-            raise SimulatorConfigError(f"first_index must be an integer >= 0, got {self.first_index!r}")
+        finite(self.passes, "passes", lo=1, integer=True, error=SimulatorConfigError)
+        finite(self.duration, "duration", lo=5.0, hi=3600.0, unit="s", error=SimulatorConfigError)
+        finite(self.seed, "seed", lo=0, integer=True, error=SimulatorConfigError)
+        finite(self.first_index, "first_index", lo=0, integer=True, error=SimulatorConfigError)
 
     def conditions(self) -> list[Condition]:
         return [condition_for(i, float(v)) for i in self.implements for v in self.speeds]

@@ -28,13 +28,13 @@ read and checked as a linear file's (:mod:`design.files.certificate`).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
+from autosteer.checks import finite
 from identification.errors import ModelFileError
 from identification.model import Model
 
@@ -200,15 +200,11 @@ def _object(body: Mapping[str, Any], key: str, keys: tuple[str, ...]) -> dict:
 
 
 def _number(v: Any, what: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise ControllerFileError(f"{what} must be a finite number, got {v!r}")
-    return float(v)
+    return finite(v, what, error=ControllerFileError)
 
 
 def _integer(v: Any, what: str) -> int:
-    if isinstance(v, bool) or not isinstance(v, int):
-        raise ControllerFileError(f"{what} must be an integer, got {v!r}")
-    return v
+    return int(finite(v, what, integer=True, error=ControllerFileError))
 
 
 def mpc_from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519PublicKey | None = None,

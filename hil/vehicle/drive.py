@@ -32,7 +32,7 @@ from gnss.curve import ArcPath
 from gnss.field import Route, place_on_line
 from gnss.guidance import ABLine
 from gnss.track import PathTracker
-from autosteer.checks import finite, finite_tuple
+from autosteer.checks import finite, finite_tuple, positive
 from identification.errors import OptionError
 from identification.outputs import check_name
 from identification.passlog import MAX_NOMINAL_SPEED, PassLog
@@ -130,9 +130,8 @@ class DriveConfig:
         if parse_bridge(self.bridge_port).kind == "isobus":
             IsobusDriverConfig(wheelbase=self.wheelbase)      # checks the wheelbase
         for name in ("bridge_baud", "gnss_baud"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or not 300 <= v <= 4_000_000:
-                raise VehicleConfigError(f"{name} must be an integer bit rate, got {v!r}")
+            finite(getattr(self, name), name, lo=300, hi=4_000_000, integer=True, noun="an integer bit rate",
+                   error=VehicleConfigError)
 
     def geometry(self) -> tuple[LocalFrame, ABLine]:
         """The ENU frame about A and the guidance line A -> B in it."""
@@ -150,18 +149,13 @@ def check_run_labels(duration: float, implement: str, nominal_speed: float) -> N
         ``duration`` is not a finite number of seconds > 0, ``implement`` is not a plain name
         (letters, digits, ``_``, ``-``), or ``nominal_speed`` is not a finite speed 0-30 m/s.
     """
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not (math.isfinite(duration)
-                                                                                    and duration > 0):
-        raise VehicleConfigError(f"duration must be a finite number of seconds > 0, got {duration!r}")
+    positive(duration, "duration", noun="a finite number of seconds", error=VehicleConfigError)
     try:
         check_name(implement, "the implement label (--implement)")
     except OptionError as exc:
         raise VehicleConfigError(str(exc)) from None
-    v = nominal_speed
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v)
-                                                                      and 0 <= v <= MAX_NOMINAL_SPEED):
-        raise VehicleConfigError(f"the nominal speed (--speed) must be a finite number 0-{MAX_NOMINAL_SPEED:g} m/s, "
-                                 f"got {v!r}")
+    finite(nominal_speed, "the nominal speed (--speed)", lo=0.0, hi=MAX_NOMINAL_SPEED, unit="m/s",
+           error=VehicleConfigError)
 
 
 class _StopRequest:

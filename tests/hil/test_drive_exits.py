@@ -37,7 +37,7 @@ def unread_controller(tmp_path) -> list[str]:
 
 @pytest.mark.parametrize("option, value, message", [
     ("--implement", "../../x", "the implement label (--implement) must be a name"),
-    ("--speed", "45", "the nominal speed (--speed) must be a finite number 0-30 m/s, got 45.0"),
+    ("--speed", "45", "the nominal speed (--speed) must be a finite number >= 0 and <= 30 m/s, got 45.0"),
 ])
 def test_labels_are_refused_before_anything_is_opened_or_driven(tmp_path, capsys, unread_controller, option, value,
                                                                 message):

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from autosteer.bounded import read_json
+from autosteer.checks import finite, finite_tuple
 from identification.errors import IdentificationError
 from identification.outputs import atomic_write
 from identification.passlog import PassLog
@@ -108,14 +109,9 @@ class FieldPlan:
                 or not set(self.top_ups) <= set(self.implements) or set(self.top_ups) == set(self.implements):
             raise ProcedureError(f"top_ups must be distinct implements of the plan, not all of them, got "
                                  f"{self.top_ups!r}")
-        if not self.speeds or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                                      and 0.3 <= v <= 5.0 for v in self.speeds):
-            raise ProcedureError(f"speeds must be 0.3-5 m/s, got {self.speeds!r}")
-        if isinstance(self.passes, bool) or not isinstance(self.passes, int) or not 1 <= self.passes <= 10:
-            raise ProcedureError(f"passes must be 1..10 per speed, got {self.passes!r}")
-        if isinstance(self.duration, bool) or not isinstance(self.duration, (int, float)) or not (
-                math.isfinite(self.duration) and 10.0 <= self.duration <= 600.0):
-            raise ProcedureError(f"duration must be 10-600 s per pass, got {self.duration!r}")
+        finite_tuple(self.speeds, "speeds", lo=0.3, hi=5.0, unit="m/s", error=ProcedureError)
+        finite(self.passes, "passes", lo=1, hi=10, integer=True, unit="per speed", error=ProcedureError)
+        finite(self.duration, "duration", lo=10.0, hi=600.0, unit="s per pass", error=ProcedureError)
 
     def to_dict(self) -> dict:
         """The plan as ``plan.json`` holds it (the valve test by its duties and step time)."""

@@ -47,6 +47,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from autosteer.bounded import read_json
+from autosteer.checks import finite, positive
 from identification.outputs import atomic_write
 from hil.bench.runs.campaign import Campaign, make_controller
 from hil.truth.conditions import GEAR_SPEEDS, condition_for
@@ -191,21 +192,18 @@ class CalibrationOptions:
             raise SimulatorConfigError(f"start may only name searched knobs {list(self.knobs)}, "
                                        f"got {sorted(self.start)}")
         for name in ("duration", "step", "min_step", "bias_weight", "bias_scale", "min_improvement"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 \
-                    or (v == 0 and name not in ("bias_weight", "min_improvement")):
-                raise SimulatorConfigError(f"CalibrationOptions.{name} must be a finite number > 0, got {v!r}")
+            positive(getattr(self, name), name, where="CalibrationOptions",
+                     allow_zero=name in ("bias_weight", "min_improvement"), error=SimulatorConfigError)
         if self.duration < 10:
             raise SimulatorConfigError(f"duration must be >= 10 s (statistics start 5 s after the engage), "
                                        f"got {self.duration!r}")
-        if isinstance(self.budget, bool) or not isinstance(self.budget, int) or self.budget < 1:
-            raise SimulatorConfigError(f"budget must be an integer number of evaluations >= 1, got {self.budget!r}")
+        finite(self.budget, "budget", lo=1, integer=True, noun="an integer number of evaluations",
+               error=SimulatorConfigError)
         for k, v in self.start.items():
             lo, hi = LOG2_LOWER.get(k, -LOG2_BOUND), LOG2_UPPER.get(k, LOG2_BOUND)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo <= v <= hi:
-                what = f"value in units of {LINEAR[k]}" if k in LINEAR else "log2 scale factor"
-                raise SimulatorConfigError(f"start[{k!r}] must be a {what} in [{lo:.3g}, {hi:.3g}] "
-                                           f"(the knob's bounds), got {v!r}")
+            what = f"value in units of {LINEAR[k]}" if k in LINEAR else "log2 scale factor"
+            finite(v, f"start[{k!r}]", lo=lo, hi=hi, noun=f"a {what}", error=SimulatorConfigError,
+                   fix="the knob's bounds")
 
 
 def parameter_values(log2_scales: Mapping[str, float]) -> dict[str, float]:

@@ -9,11 +9,11 @@ finite number > 0 s, equal to the loop's when the loop states one).
 
 from __future__ import annotations
 
-import math
 from typing import Any, Sequence
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
 
+from autosteer.checks import positive
 from design.core.errors import ControllerFileError
 from design.files.envelope import check_envelope
 from design.files.signature import check_signature
@@ -46,8 +46,7 @@ def check_header(body: Any, kind: str, top_keys: Sequence[str], dt: float | None
     if public_key is not None:
         check_signature(body, public_key)
     fdt = body["dt"]
-    if isinstance(fdt, bool) or not isinstance(fdt, (int, float)) or not math.isfinite(fdt) or fdt <= 0:
-        raise ControllerFileError(f"dt must be a finite sample time > 0 s, got {fdt!r}")
+    positive(fdt, "dt", unit="s", noun="a finite sample time", error=ControllerFileError)
     if dt is not None and abs(fdt - dt) > DT_TOLERANCE:
         raise ControllerFileError(f"sample time mismatch: the file is for dt={fdt} s, the loop runs at dt={dt} s")
     return float(fdt)

@@ -34,6 +34,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from autosteer.checks import positive
 from design.core.compensator import Compensator, integrator_states
 from design.core.errors import ControllerFileError, DesignInputError
 from design.laws.estimate_schedule import RECORD as ESTIMATE_RECORD
@@ -127,9 +128,7 @@ class LawSchedule:
 def _scale(v: Any, what: str) -> float | None:
     if v is None:
         return None
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-        raise ControllerFileError(f"{what} must be a finite number >= 0 or null, got {v!r}")
-    return float(v)
+    return positive(v, what, allow_zero=True, error=ControllerFileError, fix="or null")
 
 
 def parse_law_schedule(rec: Any, main: Compensator) -> LawSchedule:

@@ -31,6 +31,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from autosteer.checks import finite, positive
 from design.core.errors import DesignInputError
 from design.mpc.problem import MPCProblem
 
@@ -75,11 +76,8 @@ class SolverSettings:
             object.__setattr__(self, "solver", "osqp")
         if self.max_iter is None:
             object.__setattr__(self, "max_iter", 4000 if self.backend == "osqp" else 1000)
-        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, int) or self.max_iter < 1:
-            raise DesignInputError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
-        tb = self.time_budget
-        if isinstance(tb, bool) or not isinstance(tb, (int, float)) or not np.isfinite(tb) or tb <= 0:
-            raise DesignInputError(f"time_budget must be a finite number of seconds > 0, got {tb!r}")
+        finite(self.max_iter, "max_iter", lo=1, integer=True, error=DesignInputError)
+        positive(self.time_budget, "time_budget", noun="a finite number of seconds", error=DesignInputError)
         if not isinstance(self.options, Mapping):
             raise DesignInputError(f"options must be a mapping, got {type(self.options).__name__}")
         object.__setattr__(self, "options", dict(self.options))

@@ -32,12 +32,12 @@ re-checks, with the command the observer is told clipped to the rate limit as on
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any, Mapping, Protocol
 
 import numpy as np
 
+from autosteer.checks import positive
 from design.core.errors import DesignInputError
 from design.mpc.nmpc_law import dare_doubling, nilpotent_zoh
 
@@ -81,8 +81,7 @@ class ObserverSettings:
 
     def __post_init__(self) -> None:
         for k, v in asdict(self).items():
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise DesignInputError(f"ObserverSettings.{k} must be a finite standard deviation > 0, got {v!r}")
+            positive(v, k, where="ObserverSettings", noun="a finite standard deviation", error=DesignInputError)
 
     def to_dict(self) -> dict[str, float]:
         """The settings as a JSON object (the NMPC file's ``settings.observer``)."""

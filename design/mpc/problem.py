@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from autosteer.checks import positive
+from autosteer.checks import finite, positive
 from identification.model import Model
 
 from design.laws.disturbance import DisturbanceSpec
@@ -298,8 +298,7 @@ def mpc_problem(model: Model, horizon: int, weights: MPCWeights | None = None, l
     """
     weights = weights or MPCWeights()
     limits = limits or MPCLimits()
-    if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)) or horizon < 1:
-        raise DesignInputError(f"horizon must be an integer >= 1 step, got {horizon!r}")
+    finite(horizon, "horizon", lo=1, integer=True, unit="steps", error=DesignInputError)
     if model.n_inputs != 1 or model.n_outputs <= WHEEL_ANGLE_OUTPUT:
         raise DesignInputError(f"the MPC needs one input (steering rate) and the outputs y/V, psi/V, delta; "
                                f"the model has {model.n_inputs} inputs and {model.n_outputs} outputs")

@@ -53,6 +53,7 @@ import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
+from autosteer.checks import finite
 from design.synthesis import lmi_direct
 from design.core.compensator import spectral_radius
 from design.core.errors import DesignInputError, SynthesisError
@@ -130,8 +131,7 @@ class LMIOptions:
             raise DesignInputError(f"the direct backend calls Clarabel; solver {self.solver!r} needs backend 'cvxpy'")
         if self.direct_method not in DIRECT_METHODS:
             raise DesignInputError(f"direct_method must be one of {DIRECT_METHODS}, got {self.direct_method!r}")
-        if isinstance(self.refine, bool) or not isinstance(self.refine, int) or self.refine < 0:
-            raise DesignInputError(f"refine must be an integer >= 0 (slack-update steps), got {self.refine!r}")
+        finite(self.refine, "refine", lo=0, integer=True, unit="slack-update steps", error=DesignInputError)
         for name in ("strictness", "cost_tolerance", "refine_tolerance"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Sequence
 
+from autosteer.checks import finite
 from identification.model import Model
 
 from design.synthesis.auto_designs import auto_mpc, auto_robust, spec_names
@@ -386,8 +387,8 @@ class MPCOptions:
     require_stable: bool = True
 
     def __post_init__(self) -> None:
-        if self.past is not None and (isinstance(self.past, bool) or not isinstance(self.past, int) or self.past < 1):
-            raise DesignInputError(f"past must be an integer >= 1 or None (automatic), got {self.past!r}")
+        if self.past is not None:
+            finite(self.past, "past", lo=1, integer=True, error=DesignInputError, fix="or None (automatic)")
 
 
 @dataclass(frozen=True)
@@ -491,6 +492,6 @@ def fallback_past(path: str | Path) -> int:
     """The measured window (``past``) of a robust controller file, so the MPC's state is the fallback's."""
     d = read_controller_file(path, dt=None).design
     past = d.get("past")
-    if isinstance(past, bool) or not isinstance(past, int) or past < 1:
-        raise DesignInputError(f"{path}: the design records no measured window (past = {past!r}); give --past")
+    finite(past, f"{path}: the design's measured window (past)", lo=1, integer=True, error=DesignInputError,
+           fix="give --past")
     return past

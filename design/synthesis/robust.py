@@ -17,6 +17,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from autosteer.checks import finite
 from identification.model import Model
 
 from design.synthesis.anchored import anchored, augment_integral, best_anchor, observer_compensator
@@ -131,8 +132,8 @@ class RobustSpec:
             raise DesignInputError(f"reduce must be one of {REDUCE_MODES}, got {self.reduce!r}")
         if self.method not in METHODS:
             raise DesignInputError(f"method must be one of {METHODS}, got {self.method!r}")
-        if self.past is not None and (isinstance(self.past, bool) or not isinstance(self.past, int) or self.past < 1):
-            raise DesignInputError(f"past must be an integer >= 1 or None (automatic), got {self.past!r}")
+        if self.past is not None:
+            finite(self.past, "past", lo=1, integer=True, error=DesignInputError, fix="or None (automatic)")
 
 
 @dataclass(frozen=True)

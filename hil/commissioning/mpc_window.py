@@ -20,10 +20,10 @@ design in ``result.json``, and the report). When the MPC relaxed nothing, nothin
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 from design.core.limits import MAX_FILE_BYTES
+from autosteer.checks import finite, positive
 from autosteer.bounded import read_json
 from typing import Callable, Sequence
 
@@ -55,12 +55,10 @@ def auto_record(path: str | Path) -> tuple[int, list[str], float]:
         relaxed, scale = aw["relaxed"], aw["chosen_scale"]
     except (KeyError, TypeError) as exc:
         raise ValueError(f"{path}: no record of automatic weights ({exc})") from None
-    if isinstance(past, bool) or not isinstance(past, int) or not 1 <= past <= 40:
-        raise ValueError(f"{path}: measured window must be 1..40 samples, got {past!r}")
+    finite(past, f"{path}: measured window", lo=1, hi=40, integer=True, unit="samples", error=ValueError)
     if not isinstance(relaxed, list) or not all(isinstance(r, str) for r in relaxed):
         raise ValueError(f"{path}: relaxed specifications must be a list of text, got {relaxed!r}")
-    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not (math.isfinite(scale) and scale > 0):
-        raise ValueError(f"{path}: chosen scale must be a finite number > 0, got {scale!r}")
+    positive(scale, f"{path}: chosen scale", error=ValueError)
     return past, list(relaxed), float(scale)
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from autosteer.checks import finite
 from hil.errors import SimulatorConfigError
 from hil.links.link import ByteLink
 
@@ -44,9 +45,8 @@ class DatagramFaultRates:
 
     def __post_init__(self) -> None:
         for name in ("loss", "duplicate", "reorder", "corrupt"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and 0 <= v <= 1):
-                raise SimulatorConfigError(f"DatagramFaultRates.{name} must be a probability in [0, 1], got {v!r}")
+            finite(getattr(self, name), name, where="DatagramFaultRates", lo=0.0, hi=1.0, noun="a probability",
+                   error=SimulatorConfigError)
 
 
 class DatagramFaults:

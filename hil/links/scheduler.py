@@ -16,6 +16,7 @@ import math
 from collections.abc import Iterable
 from typing import Protocol, runtime_checkable
 
+from autosteer.checks import finite, positive
 from hil.links.clock import VirtualClock
 from hil.links.errors import ClockError, LinkConfigError, SchedulerStallError
 
@@ -75,10 +76,8 @@ class LockstepScheduler:
         if not isinstance(clock, VirtualClock):
             raise LinkConfigError(f"LockstepScheduler needs a VirtualClock, got {type(clock).__name__}; "
                                   "use RealTimeRunner for real time")
-        if not (isinstance(max_step, (int, float)) and math.isfinite(max_step) and max_step > 0):
-            raise LinkConfigError(f"max_step must be a positive number of seconds, got {max_step!r}")
-        if isinstance(max_same_instant, bool) or not isinstance(max_same_instant, int) or max_same_instant < 1:
-            raise LinkConfigError(f"max_same_instant must be a positive int, got {max_same_instant!r}")
+        positive(max_step, "max_step", noun="a finite number of seconds", error=LinkConfigError)
+        finite(max_same_instant, "max_same_instant", lo=1, integer=True, error=LinkConfigError)
         self.clock = clock
         self.devices: list[Device] = list(devices)
         self.plant = plant

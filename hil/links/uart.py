@@ -17,6 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
+from autosteer.checks import finite
 from hil.links.errors import LinkConfigError
 from hil.links.link import ByteLink
 
@@ -47,8 +48,7 @@ class LineConfig:
     stop_bits: int = 1
 
     def __post_init__(self) -> None:
-        if isinstance(self.baud, bool) or not isinstance(self.baud, int) or not 50 <= self.baud <= 10_000_000:
-            raise LinkConfigError(f"baud must be an int in 50..10000000 bit/s, got {self.baud!r}")
+        finite(self.baud, "baud", lo=50, hi=10_000_000, integer=True, unit="bit/s", error=LinkConfigError)
         if self.data_bits not in (5, 6, 7, 8):
             raise LinkConfigError(f"data_bits must be 5, 6, 7 or 8, got {self.data_bits!r}")
         if self.parity not in _PARITY:

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
+from autosteer.checks import finite
 from hil.errors import SimulatorConfigError
 
 #: Gear -> nominal speed, m/s (DESIGN section 2: 2.25, 3.0, 4.0, 5.0, 6.5 mph).
@@ -38,9 +38,7 @@ class Condition:
         if self.implement not in IMPLEMENTS:
             raise SimulatorConfigError(f"unknown implement {self.implement!r}; expected one of "
                                        f"{list(IMPLEMENTS)}")
-        if isinstance(self.speed, bool) or not isinstance(self.speed, (int, float)) \
-                or not math.isfinite(self.speed) or not 0 <= self.speed <= 10:
-            raise SimulatorConfigError(f"speed must be a finite number in [0, 10] m/s, got {self.speed!r}")
+        finite(self.speed, "speed", lo=0.0, hi=10.0, unit="m/s", error=SimulatorConfigError)
         if self.gear is not None and self.gear not in GEAR_SPEEDS:
             raise SimulatorConfigError(f"unknown gear {self.gear!r}; gears are {sorted(GEAR_SPEEDS)}")
 

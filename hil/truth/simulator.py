@@ -23,6 +23,7 @@ from typing import Sequence
 
 import numpy as np
 
+from autosteer.checks import finite
 from hil.truth import disturbances, dynamics as vehicle, gps_errors as gps
 from hil.truth.conditions import Condition
 from hil.errors import SimulatorConfigError
@@ -39,8 +40,7 @@ SOIL_CHANNELS = ("ripper_force", "ripper_moment", "draft", "gang_pull")
 def _seed_sequence(seed: SeedLike) -> np.random.SeedSequence:
     if isinstance(seed, np.random.SeedSequence):
         return seed
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise SimulatorConfigError(f"a seed must be a non-negative integer, got {seed!r}")
+    finite(seed, "a seed", lo=0, integer=True, error=SimulatorConfigError)
     return np.random.SeedSequence(int(seed))
 
 

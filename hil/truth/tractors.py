@@ -30,6 +30,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from autosteer.checks import finite
 from autosteer.atomic import atomic_write
 from autosteer.bounded import read_json
 from hil.errors import SimulatorConfigError
@@ -77,9 +78,8 @@ def _check_parameters(parameters: Any, where: str) -> dict[str, dict[str, float]
                 raise SimulatorConfigError(f"{where}: unknown parameter {group}.{name!s}; known in {group!r}: "
                                            f"{sorted(known)} (see `hil params`)")
             rng, unit = _field_range(group, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise SimulatorConfigError(f"{where}: {group}.{name} must be a finite number in {rng} {unit}, "
-                                           f"got {value!r}")
+            finite(value, f"{where}: {group}.{name}", unit=unit, noun=f"a finite number in {rng}",
+                   error=SimulatorConfigError)
             try:
                 GROUPS[group](**{name: value})
             except SimulatorConfigError:
@@ -255,8 +255,7 @@ def random_tractor(seed: int) -> Tractor:
     Derived quantities keep the tractor consistent: the CG from the front-load share, the yaw
     inertia from the radius of gyration, each axle's cornering stiffness from its static load.
     """
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise SimulatorConfigError(f"a tractor seed must be an integer >= 0, got {seed!r}")
+    finite(seed, "a tractor seed", lo=0, integer=True, error=SimulatorConfigError)
     rng = np.random.default_rng(np.random.SeedSequence([14, seed]))
     x = {k: r.draw(rng) for k, r in RANDOM_RANGES.items()}
     m, L, f = x["mass"], x["wheelbase"], x["front_load_fraction"]

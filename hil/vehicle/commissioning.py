@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
+from autosteer.checks import positive
 from autosteer.bounded import read_json
 from identification.outputs import atomic_write
 
@@ -128,10 +129,7 @@ def _check_linearity(lin: Any) -> dict[str, Any]:
     if len(out["wanted"]) != len(out["measured"]):
         raise VehicleConfigError("commissioning: linearity.wanted and .measured must have the same length")
     for k in ("max_error", "max_error_fraction"):
-        v = lin[k]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            raise VehicleConfigError(f"commissioning: linearity.{k} must be a finite number >= 0, got {v!r}")
-        out[k] = float(v)
+        out[k] = positive(lin[k], f"commissioning: linearity.{k}", allow_zero=True, error=VehicleConfigError)
     return out
 
 

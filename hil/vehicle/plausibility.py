@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 
+from autosteer.checks import positive
 from hil.vehicle.errors import VehicleConfigError
 
 __all__ = ["Plausibility"]
@@ -66,10 +67,8 @@ class Plausibility:
         for name, value in (("wheel_limit", wheel_limit), ("wheel_rate", wheel_rate), ("wheel_step", wheel_step),
                             ("report_max_age", report_max_age), ("speed_max", speed_max),
                             ("position_jump", position_jump), ("gnss_max_age", gnss_max_age), ("hold", hold)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value < 0 or (value == 0 and name != "hold"):
-                raise VehicleConfigError(f"Plausibility.{name}: expected a finite number > 0 "
-                                         f"(hold: >= 0), got {value!r}; fix the loop configuration")
+            positive(value, name, where="Plausibility", allow_zero=name == "hold", error=VehicleConfigError,
+                     fix="fix the loop configuration")
         self.wheel_limit, self.wheel_rate, self.wheel_step = float(wheel_limit), float(wheel_rate), float(wheel_step)
         self.report_max_age, self.speed_max = float(report_max_age), float(speed_max)
         self.position_jump, self.gnss_max_age, self.hold = float(position_jump), float(gnss_max_age), float(hold)

@@ -27,6 +27,7 @@ from typing import Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
+from autosteer.checks import finite
 from hil.vehicle.errors import VehicleConfigError
 
 __all__ = ["ValveCurve", "RateStep", "fit_valve_curve"]
@@ -74,11 +75,8 @@ class ValveCurve:
 
     def __post_init__(self) -> None:
         for name, (lo, hi, unit) in RANGES.items():
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
-                raise VehicleConfigError(f"valve curve: {name} must be a number in [{lo}, {hi}] {unit}, got {v!r}; "
-                                         "re-run the valve characterisation")
-            object.__setattr__(self, name, float(v))
+            object.__setattr__(self, name, finite(getattr(self, name), f"valve curve: {name}", lo=lo, hi=hi, unit=unit,
+                                                  error=VehicleConfigError, fix="re-run the valve characterisation"))
 
     # -- the curve and its inverse ------------------------------------------------------
     @property

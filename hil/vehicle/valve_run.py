@@ -13,7 +13,6 @@ AgOpenGPS: it takes no duty steps, so the test is refused for it with that reaso
 from __future__ import annotations
 
 import json
-import math
 import signal
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -21,6 +20,7 @@ from typing import Callable
 
 import serial
 
+from autosteer.checks import finite
 from identification.outputs import atomic_write
 
 from hil.errors import HilError
@@ -72,9 +72,8 @@ class ValveTestConfig:
             raise VehicleConfigError(f"the valve test steps the valve's duty through an HC11 bridge; "
                                      f"{self.bridge_port!r} is {what}")
         WheelAngleCalibration(*self.wheel_calibration)
-        if isinstance(self.full_scale, bool) or not isinstance(self.full_scale, (int, float)) or not (
-                math.isfinite(self.full_scale) and 0 < self.full_scale <= 2.0):
-            raise VehicleConfigError(f"full_scale must be the bridge's rate at full duty, 0-2 rad/s, got {self.full_scale!r}")
+        finite(self.full_scale, "full_scale", lo=0.0, lo_open=True, hi=2.0, unit="rad/s",
+               noun="the bridge's rate at full duty", error=VehicleConfigError)
         if not isinstance(self.tractor, str) or not self.tractor or len(self.tractor) > 200:
             raise VehicleConfigError("tractor must be a name of 1-200 characters")
 

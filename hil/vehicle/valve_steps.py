@@ -22,6 +22,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from autosteer.checks import positive
 from hil.links.clock import Clock
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.vehicle.calibration import WheelAngleCalibration
@@ -67,9 +68,7 @@ class ValveTestPlan:
         if not self.duties or not all(isinstance(d, (int, float)) and 0 < d <= 1 for d in self.duties):
             raise VehicleConfigError(f"ValveTestPlan.duties must be numbers in (0, 1], got {self.duties!r}")
         for name in ("start_angle", "step_time", "settle", "transient", "position_duty", "period"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise VehicleConfigError(f"ValveTestPlan.{name} must be a finite number > 0, got {v!r}")
+            positive(getattr(self, name), name, where="ValveTestPlan", error=VehicleConfigError)
         if self.transient >= self.step_time:
             raise VehicleConfigError(f"ValveTestPlan: transient ({self.transient} s) must be shorter than "
                                      f"step_time ({self.step_time} s)")

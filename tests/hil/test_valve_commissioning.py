@@ -106,7 +106,7 @@ def test_commissioning_file_round_trips_and_is_validated(measured, tmp_path: Pat
     assert back == c and back.loop_config() == c.loop_config()
     d = c.to_dict()
     for mutate, msg in [
-        (lambda d: d["valve"].update(deadband=0.95), r"deadband must be a number in \[0.0, 0.9\] duty"),
+        (lambda d: d["valve"].update(deadband=0.95), r"deadband must be a finite number >= 0 and <= 0.9 duty"),
         (lambda d: d["valve"].update(colour=1), r"unknown \['colour'\]"),
         (lambda d: d.update(extra=1), r"unknown key\(s\) \['extra'\]"),
         (lambda d: d.update(format="x"), "not a commissioning file"),

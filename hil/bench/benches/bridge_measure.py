@@ -12,7 +12,7 @@ import statistics
 import time
 from dataclasses import asdict, dataclass
 
-from autosteer.checks import positive
+from autosteer.checks import finite, positive
 
 from hil.bench.benches.bridge import LockstepBridge, PtyBridge
 from hil.vehicle.bridge.config import DriverConfig, FirmwareConfig
@@ -155,8 +155,7 @@ def measure_pty_latency(plant: SteeringPlant, samples: int = 50, timeout: float 
 
     Takes about ``samples * 0.08`` s of wall-clock time.
     """
-    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
-        raise ConfigError(f"samples must be a positive int, got {samples!r}")
+    finite(samples, "samples", lo=1, integer=True, error=ConfigError)
     positive(timeout, "timeout", unit="s", error=ConfigError)
     probe = _ValveClock(plant)
     with PtyBridge(probe, firmware_config, driver_config) as bench:

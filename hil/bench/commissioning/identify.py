@@ -15,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
+from autosteer.checks import finite
 from identification.errors import ModelRefusedError
 from identification.workflow import identify_logs
 
@@ -155,8 +156,7 @@ def identify_with_more_passes(plan: SysidPlan, params: SimParams, valve: ValveCu
     identification.errors.ModelRefusedError
         Still refused after ``rounds`` rounds, or refused models whose conditions are not in ``plan``.
     """
-    if isinstance(rounds, bool) or not isinstance(rounds, int) or rounds < 0:
-        raise SimulatorConfigError(f"rounds must be an integer >= 0, got {rounds!r}")
+    finite(rounds, "rounds", lo=0, integer=True, error=SimulatorConfigError)
     say = say or (lambda line: None)
     tick = progress or (lambda step, done, total: None)
     record = record if record is not None else []

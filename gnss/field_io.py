@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from autosteer.checks import finite
+
 from .curve import ArcPath, Segment
 from .errors import FieldFileError, GeometryError
 from .field import Field
@@ -70,15 +72,11 @@ def field_names() -> list[str]:
 
 
 def _number(v: Any, where: str, lo: float, hi: float) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
-        raise FieldFileError(f"{where}: expected a number in [{lo:g}, {hi:g}], got {v!r:.60}")
-    return float(v)
+    return finite(v, where, lo=lo, hi=hi, error=FieldFileError)
 
 
 def _integer(v: Any, where: str, lo: int, hi: int) -> int:
-    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-        raise FieldFileError(f"{where}: expected an integer in [{lo}, {hi}], got {v!r:.60}")
-    return v
+    return int(finite(v, where, lo=lo, hi=hi, integer=True, error=FieldFileError))
 
 
 def _pairs(v: Any, where: str, most: int, least: int) -> list[tuple[float, float]]:

@@ -31,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from autosteer.checks import positive
+from autosteer.checks import finite, positive
 
 from .arcgeom import SCALAR_OPS, nearest_in_window, pose_on_segment
 from .curve import ArcPath
@@ -106,10 +106,8 @@ class PathTracker:
     def reset(self, station_hint: float | None = None) -> None:
         """Track from ``station_hint`` m (or, with ``None``, from a whole-path search at the next update)."""
         if station_hint is not None:
-            if isinstance(station_hint, bool) or not isinstance(station_hint, (int, float, np.floating)) \
-                    or not math.isfinite(station_hint):
-                raise GeometryError(f"PathTracker.reset: expected a finite station in m or None, got {station_hint!r}")
-            station_hint = float(station_hint)
+            station_hint = finite(station_hint, "station_hint", where="PathTracker.reset", noun="a finite station in m",
+                                  error=GeometryError, fix="or None")
         self._station = station_hint
 
     def update(self, east: float, north: float, yaw: float = math.nan, elapsed: float | None = None) -> Tracked:

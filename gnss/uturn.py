@@ -32,6 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from autosteer.checks import finite
+
 from .curve import ArcPath, Segment
 from .errors import GeometryError
 
@@ -69,9 +71,7 @@ class TurnLimits:
         bounds = {"wheelbase": (0.5, 20.0), "max_wheel_angle": (0.05, 1.2), "max_steer_rate": (0.01, 5.0),
                   "speed": (0.1, 15.0), "margin": (0.05, 1.0), "step": (0.01, 10.0)}
         for name, (lo, hi) in bounds.items():
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not lo <= v <= hi:
-                raise GeometryError(f"TurnLimits.{name}: expected a number in [{lo}, {hi}], got {v!r}")
+            finite(getattr(self, name), name, where="TurnLimits", lo=lo, hi=hi, error=GeometryError)
 
     @property
     def kappa_max(self) -> float:

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from autosteer.checks import finite
 from .errors import OptionError, RealizationError
 
 
@@ -187,12 +188,9 @@ def era(markov: np.ndarray, order: int | str = "auto", rows: int | None = None,
 
 
 def _order(order: int | str, s: np.ndarray, max_order: int) -> int:
-    if isinstance(order, str):
-        if order != "auto":
-            raise OptionError(f"order must be a positive integer or 'auto', got {order!r}")
+    if isinstance(order, str) and order == "auto":
         return select_order(s, max_order)
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1:
-        raise OptionError(f"order must be a positive integer or 'auto', got {order!r}")
+    finite(order, "order", lo=1, integer=True, error=OptionError, fix="or 'auto'")
     if order > s.size:
         raise OptionError(f"order {order} exceeds the Hankel matrix rank bound {s.size}; "
                           "use more Markov parameters or a lower order")

@@ -109,9 +109,8 @@ class OKID:
             v = getattr(self, name)
             if (allow_none and v is None) or (allow_auto and v == "auto"):
                 return
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                extra = " or 'auto'" if allow_auto else (" or None" if allow_none else "")
-                raise OptionError(f"{name} must be a positive integer{extra}, got {v!r}")
+            finite(v, name, lo=1, integer=True, error=OptionError,
+                   fix="or 'auto'" if allow_auto else ("or None" if allow_none else ""))
         for name in ("order", "markov"):
             if getattr(self, name) == "validate":
                 raise OptionError(f"{name}='validate' is chosen by identification.selection.fit_select "

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from autosteer.checks import finite
 from .data import IOData
 from .errors import DataError, RealizationError
 
@@ -130,9 +131,8 @@ def subspace(data: IOData, order: int, weighting: str = "cva", horizon: int = HO
         raise RealizationError(f"the subspace weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
     m, q = data.n_inputs, data.n_outputs
     f = int(horizon)
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= f * q:
-        raise RealizationError(f"the subspace order must be an integer in 1 .. horizon x outputs = {f * q}, "
-                               f"got {order!r}; lower the order or raise the horizon")
+    finite(order, "the subspace order", lo=1, hi=f * q, integer=True, error=RealizationError,
+           fix=f"horizon x outputs = {f * q} bounds it: lower the order or raise the horizon")
     short = [u.shape[0] for u, _ in data.experiments if u.shape[0] < 2 * f + 2]
     if short:
         raise DataError(f"the subspace method with horizon {f} needs experiments of at least {2 * f + 2} "

@@ -46,7 +46,7 @@ def test_order_rule_and_override():
     assert select_order(s2, 3) == 1
     ymk = true_markov(40)
     assert era(ymk, 3, 10, 10).A.shape == (3, 3)
-    with pytest.raises(OptionError, match="positive integer or 'auto'"):
+    with pytest.raises(OptionError, match="order must be an integer >= 1, got 'four'; or 'auto'"):
         era(ymk, "four", 10, 10)
     with pytest.raises(RealizationError, match="numerical rank"):
         era(ymk, 6, 10, 10)

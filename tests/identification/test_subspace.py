@@ -87,7 +87,7 @@ def test_cva_refuses_what_it_cannot_realise():
     u, y = simulate_data(200, rng)
     with pytest.raises(DataError, match="at least 42 samples"):
         cva(IOData.from_arrays(u[:41], y[:41]), 4)
-    with pytest.raises(RealizationError, match="1 .. horizon x outputs = 40"):
+    with pytest.raises(RealizationError, match="order must be an integer >= 1 and <= 40, got 41; horizon x outputs = 40 bounds it"):
         cva(IOData.from_arrays(u, y), 41)
     with pytest.raises(RealizationError, match="integer"):
         cva(IOData.from_arrays(u, y), True)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
+from autosteer.checks import finite
 from hil.links.clock import Clock
 from hil.links.errors import LinkClosedError, LinkConfigError
 
@@ -238,7 +239,6 @@ def memory_link_pair(clock: Clock, capacity: int = 1 << 20,
     (MemoryEndpoint, MemoryEndpoint)
         What one end writes, the other reads.
     """
-    if isinstance(capacity, bool) or not isinstance(capacity, int) or capacity <= 0:
-        raise LinkConfigError(f"capacity must be a positive int (bytes), got {capacity!r}")
+    finite(capacity, "capacity", lo=1, integer=True, unit="bytes", error=LinkConfigError)
     a_to_b, b_to_a = _Pipe(capacity), _Pipe(capacity)
     return (MemoryEndpoint(clock, b_to_a, a_to_b, names[0]), MemoryEndpoint(clock, a_to_b, b_to_a, names[1]))

@@ -23,6 +23,7 @@ import socket
 from collections import deque
 from types import TracebackType
 
+from autosteer.checks import finite
 from hil.links.errors import LinkClosedError, LinkConfigError
 
 __all__ = ["UdpLink", "udp_loopback_pair", "MAX_DATAGRAM", "MAX_DATAGRAMS_PER_DRAIN", "MAX_QUEUED"]
@@ -75,9 +76,8 @@ class UdpLink:
     def __init__(self, local: tuple[str, int], peer: tuple[str, int] | None = None, accept_any: bool = False,
                  broadcast: bool = False, max_queued: int = MAX_QUEUED) -> None:
         local = _address("local", local)
-        if isinstance(max_queued, bool) or not isinstance(max_queued, int) or max_queued < MAX_DATAGRAM:
-            raise LinkConfigError(f"max_queued must be an int of at least {MAX_DATAGRAM} bytes (one datagram), "
-                                  f"got {max_queued!r}")
+        finite(max_queued, "max_queued", lo=MAX_DATAGRAM, integer=True, unit="bytes", error=LinkConfigError,
+               fix="at least one datagram")
         self.max_queued = max_queued
         self.peer = None if peer is None else _address("peer", peer)
         self.accept_any = bool(accept_any)

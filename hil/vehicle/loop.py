@@ -634,8 +634,7 @@ def _checked_parts(parts: Sequence) -> tuple[tuple[float, float, float, float], 
             raise VehicleConfigError(f"parts: expected objects with start, end, pass_index and kind, got {p!r}") from None
         if not (math.isfinite(a) and math.isfinite(b) and b > a):
             raise VehicleConfigError(f"parts: expected finite stations with end > start, got {a!r}, {b!r}")
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
-            raise VehicleConfigError(f"parts: pass_index must be an integer >= 0, got {n!r}")
+        finite(n, "parts: pass_index", lo=0, integer=True, error=VehicleConfigError)
         if kind not in PART_KINDS:
             raise VehicleConfigError(f"parts: kind must be one of {sorted(PART_KINDS)}, got {kind!r}")
         if out and a < out[-1][1] - 1e-9:

@@ -29,7 +29,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 
-from autosteer.checks import positive
+from autosteer.checks import finite, positive
 
 from hil.links.clock import Clock
 from hil.links.link import ByteLink, read_bounded
@@ -133,12 +133,8 @@ class AgioDriverConfig:
         if self.max_angle > _WIRE_LIMIT:
             raise AgioConfigError(f"max_angle {self.max_angle} rad exceeds what PGN 254 carries ({_WIRE_LIMIT:.3f} rad)")
         for name in ("max_pending_reports", "read_chunk"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise AgioConfigError(f"AgioDriverConfig.{name} must be a positive int, got {value!r}")
-        lead = self.lead_time
-        if isinstance(lead, bool) or not isinstance(lead, (int, float)) or not (math.isfinite(lead) and 0 <= lead <= 1):
-            raise AgioConfigError(f"AgioDriverConfig.lead_time must be 0..1 s, got {lead!r}")
+            finite(getattr(self, name), name, where="AgioDriverConfig", lo=1, integer=True, error=AgioConfigError)
+        finite(self.lead_time, "lead_time", where="AgioDriverConfig", lo=0.0, hi=1.0, unit="s", error=AgioConfigError)
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from autosteer.checks import positive
+from autosteer.checks import finite, positive
 
 from hil.vehicle.bridge.errors import ConfigError
 from hil.vehicle.bridge.protocol import MAX_PAYLOAD, MESSAGE_TABLE, RATE_SCALE
@@ -20,9 +20,8 @@ _LARGEST = max(layout.size for layout in MESSAGE_TABLE.values())
 
 
 def _payload_limit(value: object) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or not _LARGEST <= value <= 255:
-        raise ConfigError(f"max_payload must be an int in {_LARGEST}..255 bytes (the largest message needs "
-                          f"{_LARGEST}), got {value!r}")
+    finite(value, "max_payload", lo=_LARGEST, hi=255, integer=True, unit="bytes", error=ConfigError,
+           fix=f"the largest message needs {_LARGEST}")
 
 
 def _build(cls: type, options: Mapping[str, Any], nested: Mapping[str, Any] | None = None) -> Any:
@@ -121,9 +120,7 @@ class DriverConfig:
         positive(self.poll_interval, "poll_interval", unit="s", error=ConfigError)
         positive(self.report_timeout, "report_timeout", unit="s", error=ConfigError)
         for name in ("max_pending_reports", "read_chunk"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ConfigError(f"{name} must be a positive int, got {value!r}")
+            finite(getattr(self, name), name, lo=1, integer=True, error=ConfigError)
         _payload_limit(self.max_payload)
 
     @classmethod

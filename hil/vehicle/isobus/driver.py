@@ -35,7 +35,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-from autosteer.checks import positive
+from autosteer.checks import finite, positive
 
 from hil.links.clock import Clock
 from hil.vehicle.calibration import WheelAngleCalibration
@@ -134,12 +134,10 @@ class IsobusDriverConfig:
         for name, unit in (("wheelbase", "m"), ("max_angle", "rad"), ("max_curvature", "1/m"), ("max_rate", "rad/s"),
                            ("max_windup", "rad"), ("max_dt", "s"), ("period", "s"), ("report_timeout", "s")):
             positive(getattr(self, name), name, unit=unit, where="IsobusDriverConfig", error=IsobusConfigError)
-        a = self.controller_address
-        if isinstance(a, bool) or not isinstance(a, int) or not 0 <= a <= 253:
-            raise IsobusConfigError(f"IsobusDriverConfig.controller_address must be an int in [0, 253], got {a!r}")
-        n = self.max_pending_reports
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise IsobusConfigError(f"IsobusDriverConfig.max_pending_reports must be a positive int, got {n!r}")
+        finite(self.controller_address, "controller_address", where="IsobusDriverConfig", lo=0, hi=253, integer=True,
+               error=IsobusConfigError)
+        finite(self.max_pending_reports, "max_pending_reports", where="IsobusDriverConfig", lo=1, integer=True,
+               error=IsobusConfigError)
 
 
 @dataclass(frozen=True)

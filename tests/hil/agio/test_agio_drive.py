@@ -71,4 +71,4 @@ def test_drive_refuses_a_lead_time_out_of_range(tmp_path, capsys):
     rc = hil_main(["drive", "--bridge", "agopengps:udp:127.0.0.1:8888:0", "--position", str(tmp_path / "none"),
                    "--controller", "kinematic", "--line=37,-122,37.001,-122", "--duration", "1", "--lead-time", "2",
                    "--out", str(tmp_path / "out")])
-    assert rc == 1 and "lead_time must be 0..1 s, got 2.0" in capsys.readouterr().err
+    assert rc == 1 and "AgioDriverConfig.lead_time must be a finite number >= 0 and <= 1 s, got 2.0" in capsys.readouterr().err

@@ -12,6 +12,8 @@ cm; 12 m at 1.79 m/s: 2.4 -> 1.8 cm), on the calm simulator of tests/hil/test_fi
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import sys
 from pathlib import Path
 
@@ -68,6 +70,9 @@ def test_curve_entry_with_the_preview_stays_within_6_cm_on_the_simulator(tmp_pat
     field = circle_field(tmp_path, radius)
     fr = field_run(field, CALM, speed)
     ctrl = make_controller(str(CONTROLLERS / "mpc.json"))
+    # lockstep: the solve's wall-clock budget is not what this test is about (a loaded host exceeds 25 ms now and
+    # then, and the fall-back would steer that tick); every other reason for a fall-back still counts below
+    ctrl.settings = replace(ctrl.settings, time_budget=10.0)
     log = simulated_run(RunSpec(speed=speed, duration=fr.path.length / speed, seed=2, field=field), ctrl, CALM)
     ch = log.channels
     s, x, engaged = ch["truth_along_track"], ch["truth_cross_track"], ch["engaged"] > 0.5

@@ -277,8 +277,13 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
             chosen, scale = cand, s
             break
     each = _cost(window_models, layout, chosen, qz, r, spec, delays)
+    with np.errstate(divide="ignore", invalid="ignore"):    # a model without a finite cost has no ratio
+        ratio = each / each0
+    ratio = ratio[np.isfinite(ratio)]
     record = {**spec.to_dict(), "gain_Kd": (scale * kd).tolist(), "optimal_Kd": kd.tolist(), "scale": scale,
               "h2_cost_without": float(each0.sum()), "h2_cost": float(each.sum()),
-              "h2_ratio_worst": float(np.max(each / each0)), "h2_ratio_mean": float(np.mean(each / each0)), "latency_samples": delays, "prediction": "mean of the design models' y[k+1] rows",
+              "h2_ratio_worst": float(np.max(ratio)) if ratio.size else None,
+              "h2_ratio_mean": float(np.mean(ratio)) if ratio.size else None,
+              "latency_samples": delays, "prediction": "mean of the design models' y[k+1] rows",
               "states": list(range(base.order + layout.n_outputs, base.order + layout.n_outputs + nd))}
     return chosen, record

@@ -60,13 +60,6 @@ class ExcitationSettings:
         meanwhile; without one the rule holds the wheel still.
     return_at
         Cross-track beyond which the rule steers back to the line without randomness, m.
-    return_lead
-        How far ahead the return looks, s: it starts when the cross-track ``return_lead`` s from now, at the
-        pass's speed and the present heading, is beyond ``return_at`` (a tractor heading away at 0.2 rad and
-        2.91 m/s starts back 0.6 m earlier); 0: the cross-track alone.
-    return_limit
-        Largest wheel angle the servo steers to on the way back, rad (``soft_limit`` elsewhere): a towed implement's
-        pull or a side slope can take more than the slews' amplitude to overcome.
     corridor
         The pass's hard corridor, m: the loop disengages beyond it (:meth:`loop_config`).
     servo
@@ -86,8 +79,6 @@ class ExcitationSettings:
     direction_noise: float = 0.04
     settle: float = 2.0
     return_at: float = 0.6
-    return_lead: float = 1.0
-    return_limit: float = 0.35
     corridor: float = 1.5
     servo: float = 1.5
     offset: float = 0.3
@@ -142,8 +133,7 @@ class SlewRule:
         self.n_dec = n_dec
         self.u_len = np.stack([r.random(n_dec) for r in rngs])
         self.u_dir = np.stack([r.standard_normal(n_dec) for r in rngs])
-        self.nominal = np.asarray(nominal, dtype=float)
-        self.lookahead = np.maximum(4.0, 3.0 * self.nominal)
+        self.lookahead = np.maximum(4.0, 3.0 * np.asarray(nominal, dtype=float))
         self.rows = np.arange(B)
         self.mode = np.zeros(B)
         # With the servo, it steers from the start (every hold_min s towards the line itself) and only the slews
@@ -179,8 +169,7 @@ class SlewRule:
         s, mode = self.settings, self.mode
         y_m = np.asarray(y_m, dtype=float)
         # beyond the soft corridor: back to the line, no randomness, until well inside it again
-        ahead = y_m + s.return_lead * self.nominal * np.sin(yaw) if s.return_lead > 0 else y_m
-        self.returning = np.where((np.abs(y_m) > s.return_at) | (np.abs(ahead) > s.return_at), True,
+        self.returning = np.where(np.abs(y_m) > s.return_at, True,
                                   np.where(np.abs(y_m) < 0.5 * s.return_at, False, self.returning))
         # end a slew early at the soft limit; then choose the next stretch when one ends
         mode = np.where((mode > 0) & (delta_m >= s.soft_limit), 0.0, mode)
@@ -220,8 +209,8 @@ class SlewRule:
             # would correlate the input with the measurement noise and bias the models)
             y_ref = np.where(self.returning, 0.0, self.y_ref)
             look = self.lookahead
-            limit = np.where(self.returning, s.return_limit, s.soft_limit)
-            want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m - y_ref + look * yaw), -limit, limit)
+            want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m - y_ref + look * yaw), -s.soft_limit,
+                           s.soft_limit)
             self.servo_u = np.where(due, s.servo * (want - delta_m), self.servo_u)
         return np.clip(mode * self.max_rate + self.servo_u, -self.max_rate, self.max_rate)
 

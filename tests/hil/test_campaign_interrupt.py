@@ -124,3 +124,28 @@ def test_a_failing_callback_stops_the_workers():
     with pytest.raises(OSError, match="disk full"):
         run_pool(os.getpid, [()] * 3, 2, save)
     assert not multiprocessing.active_children()
+
+
+def test_a_worker_terminated_before_its_initializer_exits_at_once(tmp_path):
+    """A worker is forked with the parent's SIGTERM handler; terminated before its initializer ran, it
+    must exit there and then, not unwind its copy of the parent's stack (the test code, run twice)."""
+    from hil.bench.runs import workers
+
+    marker = tmp_path / "unwound"
+    previous = signal.signal(signal.SIGTERM, workers._on_sigterm)
+    saved_pid, workers._HANDLER_PID = getattr(workers, "_HANDLER_PID", 0), os.getpid()
+    try:
+        pid = os.fork()
+        if pid == 0:                       # the child: what a fresh pool worker inherits
+            try:
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(5.0)
+            finally:                       # only reached if the handler raised in the child
+                marker.write_text("the child unwound the parent's stack")
+                os._exit(0)
+        _, status = os.waitpid(pid, 0)
+    finally:
+        workers._HANDLER_PID = saved_pid
+        signal.signal(signal.SIGTERM, previous)
+    assert os.waitstatus_to_exitcode(status) == EXIT_TERMINATED
+    assert not marker.exists()

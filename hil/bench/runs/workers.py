@@ -15,6 +15,7 @@ so that the same clean-up runs; the previous handler is put back afterwards.
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -31,7 +32,15 @@ def _init_worker() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)    # terminate() ends a worker at once
 
 
+#: The process whose :func:`run_pool` installed :func:`_on_sigterm` (0 while none has).
+_HANDLER_PID = 0
+
+
 def _on_sigterm(signum, frame) -> None:   # noqa: ARG001 - the signal module's signature
+    if os.getpid() != _HANDLER_PID:
+        # A worker forked with this handler and terminated before its initializer ran: raising here
+        # would unwind the copy of the parent's stack in the child (the caller's code, run twice).
+        os._exit(EXIT_TERMINATED)
     raise SystemExit(EXIT_TERMINATED)
 
 
@@ -72,7 +81,10 @@ def run_pool(fn: Callable[..., Any], calls: Sequence[tuple], workers: int,
     KeyboardInterrupt, SystemExit
         Ctrl-C or SIGTERM to this process, after the workers are stopped.
     """
+    global _HANDLER_PID
     main = threading.current_thread() is threading.main_thread()
+    if main:
+        _HANDLER_PID = os.getpid()
     previous = signal.signal(signal.SIGTERM, _on_sigterm) if main else None
     pool = ProcessPoolExecutor(max_workers=workers, initializer=_init_worker)
     clean = False

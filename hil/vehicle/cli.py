@@ -25,6 +25,7 @@ from design.files.signature import load_public_key
 
 from hil.errors import HilError
 from hil.vehicle.agio.driver import LEAD_TIME, AgioDriverConfig
+from hil.vehicle.agio.spec import parse_bridge
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, vehicle_controller
 from hil.vehicle.outputs import prepare_out_dir, write_text_atomic
 from hil.vehicle.procedure import FieldPlan
@@ -298,6 +299,10 @@ def add_procedure_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentPa
                    help=f"a new plan's passes per speed (default {FieldPlan.passes})")
     p.add_argument("--duration", type=parse_float, default=None,
                    help=f"a new plan's seconds per pass (default {FieldPlan.duration:g})")
+    p.add_argument("--bridge", default=None, metavar="SPEC",
+                   help="the tractor's steering bridge, as hil drive takes it: through an ISO 11783 steering "
+                        "controller (isobus, isobus:socketcan:can0, ...) a new plan has no valve test, which the "
+                        "controller does not take (it closes its own loop)")
     p.add_argument("--add-implement", metavar="NAME", default=None,
                    help="add an implement bought later to the folder's plan: its passes (the plan's speeds, passes "
                         "and seconds, at most 10 min) are then what remains to drive; the recorded passes are kept")
@@ -312,18 +317,24 @@ def _cmd_procedure(args: argparse.Namespace) -> dict:
                                ("duration", args.duration)) if v is not None}
     plan = None
     if args.add_implement is not None:
-        if given:
+        if given or args.bridge is not None:
             raise HilError("--add-implement adds to the folder's plan: drop "
-                           + ", ".join(f"--{k}" for k in given))
+                           + ", ".join(f"--{k}" for k in [*given, *(["bridge"] if args.bridge is not None else [])]))
         proc = Procedure(Path(args.folder)).add_implement(args.add_implement)
         moved = proc.review() if args.review else []
         return {"folder": args.folder, "moved": moved, "added": args.add_implement, "plan": proc.plan.to_dict(),
                 "plan_minutes": {k: v / 60 for k, v in proc.plan.seconds().items()}, **proc.status()}
-    if given:
+    controller = args.bridge is not None and parse_bridge(args.bridge).kind == "isobus"
+    saved = Path(args.folder) / "plan.json"
+    if given or (controller and not saved.is_file()):
         d = FieldPlan()
         plan = FieldPlan(tuple(given.get("implements", d.implements)), tuple(given.get("speeds", d.speeds)),
-                         given.get("passes", d.passes), given.get("duration", d.duration))
+                         given.get("passes", d.passes), given.get("duration", d.duration),
+                         None if controller else d.valve_test)
     proc = Procedure.open(args.folder, plan)
+    if controller and proc.plan.valve_test is not None and not (Path(args.folder) / "commissioning.json").is_file():
+        raise HilError(f"{saved} plans a valve test, which an ISO 11783 steering controller does not take: start "
+                       "the procedure in another folder with --bridge isobus")
     moved = proc.review() if args.review else []
     return {"folder": args.folder, "moved": moved, "plan": proc.plan.to_dict(),
             "plan_minutes": {k: v / 60 for k, v in proc.plan.seconds().items()}, **proc.status()}

@@ -365,6 +365,9 @@ class Procedure:
             hitch = "" if any(q.implement == p.implement and q.key in good for q in planned) else \
                 f"hitch the {p.implement} (none: no implement); "
             nxt = f"{hitch}drive {p.label()} along the line, recorded into {self.logs}"
+            if not valve_done and self.plan.valve_test is None:
+                nxt += (" (no valve test: an ISO 11783 steering controller closes its own loop, and the first pass "
+                        "through it, hil drive --bridge isobus:... --excite, writes its commissioning.json)")
         elif self.plan.top_ups:
             nxt = (f"every pass is recorded: hil commission --logs {self.logs} --commissioning "
                    f"{Path(self.folder) / 'commissioning.json'} --out DIR --top-up {self.plan.top_ups[-1]} (DIR: "

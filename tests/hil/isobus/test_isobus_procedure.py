@@ -52,13 +52,34 @@ def test_the_valve_test_refuses_a_steering_controller(tmp_path, capsys):
     assert "is an ISO 11783 steering controller, which closes its own loop" in capsys.readouterr().err
 
 
+def test_the_procedure_of_a_steering_controller_plans_no_valve_test(tmp_path, capsys):
+    """``hil procedure --bridge isobus...`` plans no valve test, and the operator's next step is the first pass,
+    not the valve test that ``hil valve-test`` would refuse; a folder planned for a valve test is refused."""
+    folder = tmp_path / "tractor"
+    assert hil_main(["procedure", str(folder), "--bridge", "isobus:socketcan:can0", "--implements", "none",
+                     "--speeds", "1.34", "--passes", "1", "--duration", "20"]) == 0
+    out = capsys.readouterr().out
+    assert "valve-test" not in out and "next: hitch the none (none: no implement); drive none at 1.34 m/s" in out
+    assert "no valve test" in out
+    proc = Procedure.open(folder)
+    assert proc.plan.valve_test is None and proc.plan.seconds()["valve test"] == 0.0
+    assert hil_main(["procedure", str(folder), "--bridge", "isobus"]) == 0      # the folder's plan, unchanged
+    assert "next: hitch the none" in capsys.readouterr().out
+    # without --bridge the plan has a valve test, the HC11 board's first step; a steering controller refuses it
+    hc11 = tmp_path / "hc11"
+    assert hil_main(["procedure", str(hc11)]) == 0
+    assert "next: valve test at standstill" in capsys.readouterr().out
+    assert hil_main(["procedure", str(hc11), "--bridge", "isobus"]) == 1
+    assert "plans a valve test, which an ISO 11783 steering controller does not take" in capsys.readouterr().err
+
+
 @pytest.mark.slow
 @pytest.mark.realtime
 @pytest.mark.timeout(600)
 def test_a_shortened_field_procedure_through_the_steering_controller(tmp_path, capsys):
     folder = tmp_path / "tractor"
-    assert hil_main(["procedure", str(folder), "--implements", "none", "--speeds", *map(str, SPEEDS),
-                     "--passes", "2", "--duration", "20"]) == 0
+    assert hil_main(["procedure", str(folder), "--bridge", "isobus", "--implements", "none", "--speeds",
+                     *map(str, SPEEDS), "--passes", "2", "--duration", "20"]) == 0
     capsys.readouterr()
     for k in range(4):
         nxt = Procedure.open(folder).remaining()[0]

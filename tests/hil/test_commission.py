@@ -27,7 +27,8 @@ def _parser() -> argparse.ArgumentParser:
 def test_commission_runs_end_to_end_and_writes_everything_under_out(tmp_path: Path) -> None:
     out = tmp_path / "worn"
     opts = CommissionOptions(procedure="slews", speeds=(1.0, 2.24), implements=("none",), passes=2,
-                             pass_duration=40.0, hil_duration=20.0, acceptance="warn", weights="default")
+                             pass_duration=40.0, hil_duration=20.0, acceptance="warn", weights="default",
+                             oracle_search=False)
     lines: list[str] = []
     res = commission(resolve_tractor("worn-valve"), out, opts, say=lines.append)
     for name in ("valve", "passes", "identification", "design central-lqr", "design robust", "design mpc", "hil"):

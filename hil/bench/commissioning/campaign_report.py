@@ -53,8 +53,10 @@ def summarise_tractor(name: str, res: dict | None, failure: str | None, code: di
         fallbacks.append(label.split(", ")[-1])
     if "weights default" in label and res.get("weights", "").startswith("auto"):
         fallbacks.append("default weights")
+    searched = [x["oracle_scale"] for x in cells if x["oracle_scale"] is not None]
     row.update(status="ok", cells=len(cells), robust_attempts=len(attempts), fallbacks=fallbacks,
-               weights=label, reason="")
+               weights=label, reason="", oracle_searched=len(searched),
+               oracle_scales=[min(searched), max(searched)] if searched else None)
     missing = [c for c in _DESIGNED if c not in designs]
     if missing:
         row["reason"] = "; ".join(f"no {c}: {_why_missing(res, c)}" for c in missing)
@@ -79,6 +81,15 @@ def summarise_tractor(name: str, res: dict | None, failure: str | None, code: di
 
 def _r(v: float | None) -> str:
     return "-" if v is None else f"{v:.2f}"
+
+
+def _oracle(r: dict) -> str:
+    """The oracle's weights of a tractor: ``searched, x0.7-x2.8`` (the scales kept), or ``default``."""
+    scales = r.get("oracle_scales")
+    if not scales:
+        return "default"
+    lo, hi = scales
+    return f"searched, x{lo:g}" + (f"-x{hi:g}" if hi != lo else "")
 
 
 def _dis(r: dict, c: str) -> str:
@@ -157,14 +168,15 @@ def _markdown(rows: Sequence[dict], o: dict, opts: CommissionOptions, planned: S
              f"method's; cells within {ORACLE_BOUND:g}x the oracle and within {PAPER_BOUND:g}x the paper's method; "
              f"diverging passes (true cross-track beyond {DIVERGED_M:g} m, or a pass that did not run to its end); "
              "disengagements (in brackets those the GPS caused: RTK float, a stale fix); robust design attempts and "
-             "the fallbacks the design needed.", "",
+             "the fallbacks the design needed; the oracle's weights: searched per condition (the range of the scales "
+             "kept, `hil.bench.runs.oracle_search`) or its defaults.", "",
              "| tractor | robust / oracle | MPC / oracle | robust / paper | MPC / paper | robust cells <= 1.3x / "
              "<= 1.0x | MPC cells <= 1.3x / <= 1.0x | diverging (robust, MPC) | disengagements (robust, MPC) | "
-             "robust attempts | fallbacks | note |",
-             "|---|---|---|---|---|---|---|---|---|---:|---|---|"]
+             "robust attempts | fallbacks | oracle's weights | note |",
+             "|---|---|---|---|---|---|---|---|---|---:|---|---|---|"]
     for r in rows:
         if r["status"] != "ok":
-            lines.append(f"| {r['tractor']} | failed | | | | | | | | | | {r['reason'].replace('|', '/')[:200]} |")
+            lines.append(f"| {r['tractor']} | failed | | | | | | | | | | | {r['reason'].replace('|', '/')[:200]} |")
             continue
 
         def mw(key: str) -> str:
@@ -179,7 +191,7 @@ def _markdown(rows: Sequence[dict], o: dict, opts: CommissionOptions, planned: S
                      f"{r['robust_diverging'] if r['robust_diverging'] is not None else '-'}, "
                      f"{r['mpc_diverging'] if r['mpc_diverging'] is not None else '-'} | "
                      f"{_dis(r, 'robust')}, {_dis(r, 'mpc')} | "
-                     f"{r['robust_attempts']} | {', '.join(r['fallbacks']) or '-'} | "
+                     f"{r['robust_attempts']} | {', '.join(r['fallbacks']) or '-'} | {_oracle(r)} | "
                      f"{r['reason'].replace('|', '/')[:200]} |")
     lines += ["", "Overall: " + overall_line(o), "", "![per-cell ratios](campaign_ratios.png)", "",
               "Options of every tractor's recipe: `" + json.dumps(options_dict(opts)) + "`"]

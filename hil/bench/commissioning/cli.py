@@ -7,7 +7,7 @@ tractor, and on many (thin layers over :func:`hil.bench.commissioning.recipe.com
     hil commission --tractor NAME|FILE --out DIR [--speeds ...] [--implements ...] [--passes N]
         [--duration S] [--seed S] [--hil-seeds SEEDS] [--hil-duration S] [--hil-conditions all|IMPLEMENT:SPEED,...]
         [--weights auto-if-available|auto|default] [--order N|auto|validate] [--markov N|auto|validate]
-        [--acceptance refuse|warn] [--set group.name=value ...] [--quiet] [--json]
+        [--acceptance refuse|warn] [--oracle-search on|off] [--set group.name=value ...] [--quiet] [--json]
     hil commission --logs DIR --commissioning FILE --out DIR --top-up IMPLEMENT [--quiet] [--json]
     hil commission-campaign [--random 0-19 ...] [--tractor NAME|FILE ...] --out DIR [the recipe's options]
 """
@@ -103,9 +103,9 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
                    help="choose per speed whether the estimate acts, by a trial drive with it and without it "
                         "(design estimate-schedule; default on with the slews, off with the field procedure, "
                         "whose budget has no trial drives)")
-    c.add_argument("--oracle-search", choices=("on", "off"), default="off",
-                   help="search the oracle's weights per condition before the HIL comparison (its own seeds, "
-                        "scales of its weights from 0.25 to 2.8; default off)")
+    c.add_argument("--oracle-search", choices=("on", "off"), default="on",
+                   help="search the oracle's weights per condition before the HIL comparison, on passes of seeds "
+                        "of its own, so that it is a bound (default on; off: its default weights, a quicker run)")
     c.add_argument("--quiet", action="store_true", help="no progress")
     c.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
 

@@ -131,9 +131,9 @@ class CommissionOptions:
         Choose per speed whether the estimate acts by a trial drive with and without it
         (:mod:`hil.bench.commissioning.estimate_trial`), on passes with ``trial_seeds`` (apart from ``hil_seeds``).
     oracle_search
-        Search the oracle's weights per condition before the HIL comparison
-        (:mod:`hil.bench.runs.oracle_search`), so that it is a bound on a tractor its default weights do not
-        suit (a slow valve).
+        Search the oracle's weights per condition before the HIL comparison (default on;
+        :mod:`hil.bench.runs.oracle_search`, on passes of seeds of its own), so that it is a bound on a tractor its
+        default weights do not suit (a slow valve); off, the oracle keeps its default weights (quicker; tests).
     window_seeds
         Seeds of the robust controller's window trial, which chooses its window law for every speed and,
         per speed, where another is better there (:mod:`hil.bench.commissioning.window_trial`; apart from ``hil_seeds``).
@@ -160,7 +160,7 @@ class CommissionOptions:
     estimate_trial: bool | None = None
     trial_seeds: tuple[int, ...] = TRIAL_SEEDS
     window_seeds: tuple[int, ...] = WINDOW_SEEDS
-    oracle_search: bool = False
+    oracle_search: bool = True
 
     def __post_init__(self) -> None:
         if self.procedure not in PROCEDURES:
@@ -209,6 +209,11 @@ class CommissionOptions:
             return list(self.hil_conditions)
         speeds = tuple(GEAR_SPEEDS.values()) if self.procedure == "field" else tuple(self.speeds)
         return all_conditions(speeds, tuple(self.implements))
+
+    def oracle_search_plan(self) -> OracleSearch | None:
+        """How the HIL comparison searches the oracle's weights (:class:`OracleSearch`, its passes as long as the
+        comparison's), or ``None`` with ``oracle_search`` off (the default weights)."""
+        return OracleSearch(duration=self.hil_duration) if self.oracle_search else None
 
     def field_plan(self) -> FieldPlan:
         """The field procedure's plan: the implements, speeds, passes and their length; the valve test."""
@@ -363,9 +368,10 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
 
     def hil() -> list[dict]:
         return hil_table(params, com, designs, opts.conditions(), opts.hil_seeds, opts.hil_duration,
-                         lambda d, n: tick("hil", d, n), OracleSearch() if opts.oracle_search else None)
+                         lambda d, n: tick("hil", d, n), opts.oracle_search_plan())
     table = steps.run("hil", f"HIL comparison on the tractor ({len(opts.conditions())} conditions, "
-                      f"{len(opts.hil_seeds)} seed(s), {opts.hil_duration:g} s, commissioned loop)",
+                      f"{len(opts.hil_seeds)} seed(s), {opts.hil_duration:g} s, commissioned loop"
+                      + (", the oracle's weights searched per condition)" if opts.oracle_search else ")"),
                       hil) if com is not None else None
     res["hil"] = table or []
     res["driving_s"] = driving_seconds(opts, res, out)

@@ -33,6 +33,14 @@ def _x(v: float) -> str:
     return "-" if v is None or not math.isfinite(v) else f"{v:.2f}"
 
 
+def _kept(cell: dict) -> str:
+    """What the oracle's search kept in a cell: ``x2.8, 0.05`` (scale, approach heading), ``-`` if not searched."""
+    if cell.get("oracle_scale") is None:
+        return "-"
+    heading = cell.get("oracle_approach_heading")
+    return f"x{cell['oracle_scale']:g}" + ("" if heading is None else f", {heading:g}")
+
+
 def _valve_figure(res: dict, path: Path) -> Path:
     import matplotlib
     matplotlib.use("Agg")
@@ -242,21 +250,31 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
         lines += ["", "Schedule written: the estimate off at " + (", ".join(
             f"{lo:g}-{'inf' if hi is None else f'{hi:g}'} m/s" for lo, hi in bands) or "no speed") + "."]
     cells = hil_ratios(res.get("hil", []))
+    searched = any(c["oracle_scale"] is not None for c in cells)
     if cells:
         lines += ["", "## HIL on this tractor (commissioned loop)", "",
                   "1-sigma of the measured cross-track, cm (disengagements in brackets), pooled over "
                   f"{_seeds(res)} with each pass weighted by its samples and scored until its first GPS fault "
                   "(the re-acquisition after it starts wherever the unsteered tractor drifted); ratios of the robust "
-                  "controller and the MPC to the oracle and to the paper's method (central LQR).", "",
-                  "| implement | m/s | paper's method | robust | MPC | oracle | robust/oracle | MPC/oracle | "
-                  "robust/paper | MPC/paper |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+                  "controller and the MPC to the oracle and to the paper's method (central LQR). "
+                  + ("The oracle's weights were searched per condition on passes of their own seeds "
+                     "(`hil.bench.runs.oracle_search`); the column after its 1-sigma gives what was kept: the scale "
+                     "of its weights against the steering rate's (x1: the defaults) and its approach heading, "
+                     "rad." if searched else
+                     "The oracle kept its default weights (no search: `--oracle-search off`)."), "",
+                  "| implement | m/s | paper's method | robust | MPC | oracle | "
+                  + ("oracle's weights | " if searched else "") + "robust/oracle | MPC/oracle | robust/paper | "
+                  "MPC/paper |", "|---|---:|---:|---:|---:|---:|" + ("---:|" if searched else "")
+                  + "---:|---:|---:|---:|"]
         for c in cells:
             def s(k: str) -> str:
                 if c[k + "_disengagements"] is None:
                     return "-"
                 return f"{_cm(c[k])} ({c[k + '_disengagements']})" if math.isfinite(c[k]) else "failed"
             lines.append(f"| {c['implement']} | {c['speed']:.2f} | {s('central-lqr')} | {s('robust')} | {s('mpc')} | "
-                         f"{s('oracle')} | {_x(c['robust_over_oracle'])} | {_x(c['mpc_over_oracle'])} | "
+                         f"{s('oracle')} | "
+                         + (f"{_kept(c)} | " if searched else "")
+                         + f"{_x(c['robust_over_oracle'])} | {_x(c['mpc_over_oracle'])} | "
                          f"{_x(c['robust_over_paper'])} | {_x(c['mpc_over_paper'])} |")
         after = [r for r in res.get("hil", []) if r.get("max_abs_after_fault_m", 0.0) > 0.0]
         if after:

@@ -31,12 +31,13 @@ def hil_table(params: SimParams, com: Commissioning, designs: Mapping[str, Mappi
     commissioned loop, per condition: each cell's 1-sigma and bias pooled over ``seeds`` (passes of ``duration``
     s), its disengagements and their reasons, and the passes that diverged (:data:`DIVERGED_M`). With
     ``oracle_search`` the oracle's weights are searched per condition first (:mod:`hil.bench.runs.oracle_search`,
-    on seeds of its own; the oracle's row records the scale kept and what was tried)."""
+    on seeds of its own; the oracle's row records, in ``oracle_search``, the scale of its weights and the approach
+    heading kept and what was tried)."""
     names = [n for n in CONTROLLERS if n == "oracle" or n in designs]
     conds = list(conditions)
-    per_search = len(oracle_search.scales) * len(oracle_search.seeds) if oracle_search else 0
-    total, done = len(names) * len(conds) * len(seeds) + len(conds) * per_search, 0
     base = OracleOptions(invert_valve=False, host_map=True)
+    per_search = len(oracle_search.candidates(base.approach_heading)) * len(oracle_search.seeds) if oracle_search else 0
+    total, done = len(names) * len(conds) * len(seeds) + len(conds) * per_search, 0
     rows = []
     for cond in conds:
         oracle_options, searched = base, None
@@ -81,12 +82,13 @@ def hil_table(params: SimParams, com: Commissioning, designs: Mapping[str, Mappi
                          "max_abs_cross_track_m": worst, "diverging": diverging, "disengage_reasons": reasons,
                          "max_abs_after_fault_m": reacquired})
             if name == "oracle" and searched is not None:
-                rows[-1]["oracle_search"] = {"scale": searched["scale"], "tried": searched["tried"]}
+                rows[-1]["oracle_search"] = {k: searched[k] for k in ("scale", "approach_heading", "tried")}
     return rows
 
 
 def hil_ratios(rows: Sequence[dict]) -> list[dict]:
-    """Per condition: 1-sigma of robust and MPC over the oracle's and the paper's method's."""
+    """Per condition: 1-sigma of robust and MPC over the oracle's and the paper's method's, and ``oracle_scale``
+    and ``oracle_approach_heading``: what the oracle's search kept (``None``: not searched, the defaults)."""
     by = {(r["implement"], r["speed"], r["controller"]): r for r in rows}
     out = []
     for imp, speed in sorted({(r["implement"], r["speed"]) for r in rows}, key=lambda k: (IMPLEMENTS.index(k[0]), k[1])):
@@ -98,6 +100,9 @@ def hil_ratios(rows: Sequence[dict]) -> list[dict]:
             cell[f"{c}_diverging"] = r.get("diverging") if r else None
             cell[f"{c}_gps_disengagements"] = (sum(n for k, n in r.get("disengage_reasons", {}).items()
                                                    if k.startswith("gps")) if r and "disengage_reasons" in r else None)
+        searched = (by.get((imp, speed, "oracle")) or {}).get("oracle_search")
+        cell["oracle_scale"] = searched["scale"] if isinstance(searched, dict) else None   # None: default weights
+        cell["oracle_approach_heading"] = searched.get("approach_heading") if isinstance(searched, dict) else None
         for c in ("robust", "mpc"):
             cell[f"{c}_over_oracle"] = cell[c] / cell["oracle"] if cell["oracle"] > 0 else math.nan
             cell[f"{c}_over_paper"] = cell[c] / cell["central-lqr"] if cell["central-lqr"] > 0 else math.nan

@@ -109,37 +109,6 @@ def test_leaving_the_corridor_disengages_and_spoils_the_pass(com):
     assert any("corridor" in f for f in pass_faults(log, 40.0))
 
 
-def test_the_trim_is_the_wheel_angle_that_drives_straight_and_the_servo_works_around_it():
-    # the kinematics of a pull: the wheel at -0.10 rad turns the tractor as if it were at 0 (the trim is -0.10);
-    # from the heading's rate alone, whatever the cross-track says
-    from hil.vehicle.excitation import SlewRule
-    wb, v, dt = 3.0, 2.0, 0.05
-    st = ExcitationSettings(trim_time=2.0)
-    rule = SlewRule(st, [np.random.default_rng(0)], np.array([v]), 60.0, wb, 0.4)
-    yaw, t = 0.0, 0.0
-    for k in range(400):                                  # 20 s: ten trim times
-        delta = -0.10 + 0.05 * np.sin(0.7 * t)            # slewing around the trim
-        yaw += v * (delta + 0.10) / wb * dt               # the heading turns by the wheel beyond the trim
-        rule.rate(t, np.array([delta]), np.array([0.3 * np.sin(0.2 * t)]), np.array([yaw]))
-        t += dt
-    assert rule.trim[0] == pytest.approx(-0.10, abs=0.01)
-    # the servo aims at the trim: on the line, heading straight, the wheel at 0 is steered to the right
-    rule.mode[:] = 0.0
-    rule.t_end[:] = t
-    rule.y_ref[:] = 0.0
-    rule.rate(t, np.array([0.0]), np.array([0.0]), np.array([yaw]))
-    assert rule.servo_u[0] == pytest.approx(st.servo * rule.trim[0], rel=0.05)
-    # a wheel held hard over without turning: the trim stops at the soft limit
-    for k in range(400):
-        t += dt
-        rule.rate(t, np.array([-0.5]), np.array([0.0]), np.array([yaw]))
-    assert rule.trim[0] == pytest.approx(-st.soft_limit)
-    # without the trim (trim_time 0) the servo aims at the straight wheel
-    plain = SlewRule(ExcitationSettings(trim_time=0.0), [np.random.default_rng(0)], np.array([v]), 60.0, wb, 0.4)
-    plain.rate(0.0, np.array([-0.1]), np.array([0.0]), np.array([0.0]))
-    assert plain.trim[0] == 0.0
-
-
 def test_settings_are_checked():
     with pytest.raises(VehicleConfigError, match="return_at"):
         ExcitationSettings(return_at=2.0, corridor=1.5)

@@ -67,6 +67,13 @@ CONTROLLER_NAME = Name(identity=0x1C0DE, manufacturer=0, function=130, vehicle_s
 class IsobusControllerConfig:
     """Parameters of the emulated steering controller.
 
+    The sources fix the timing: the sample period (PVED-CL Communication Protocol v1.38, Guidance: "PVED-CL
+    sample period is 20 ms"), the command timeout (its guidance state machine: no new curvature request for
+    200 ms) and the report period (100 ms, as the ISOBUS data dictionary gives PGN 44032; a PVED-CL sends
+    it every 80 ms). None of them says how fast a controller follows the curvature: ``lag``,
+    ``max_curvature_rate``, ``kp`` and ``min_duty`` are the emulation's own (docs/isobus_protocol.md,
+    "The emulated controller's settings").
+
     Parameters
     ----------
     calibration : WheelAngleCalibration
@@ -74,17 +81,18 @@ class IsobusControllerConfig:
     wheelbase : float
         m; curvature = tan(wheel angle) / wheelbase.
     lag : float
-        Time constant of the first-order filter on the commanded curvature, s.
+        Time constant of the first-order filter on the commanded curvature, s (no source; 0.1).
     period : float
         Inner loop period, s (20 ms, PVED-CL's sample period).
     report_period : float
-        Period of Guidance Machine Info, s.
+        Period of Guidance Machine Info, s (100 ms, ISO 11783-7's; 80 ms on a PVED-CL).
     timeout : float
-        Longest gap between commands while engaged, s.
+        Longest gap between commands while engaged, s (200 ms, PVED-CL's).
     max_curvature : float
         Largest curvature it steers to, 1/m (beyond: clipped, limit status high / low).
     max_curvature_rate : float
-        Largest rate of change of its curvature setpoint, 1/m/s.
+        Largest rate of change of its curvature setpoint, 1/m/s (no source; 0.2, which is 0.57 rad/s of
+        wheel near straight ahead on a 2.85 m wheelbase, above what the valve gives).
     speed_window : tuple of float
         Speeds at which it follows commands, m/s, (low, high).
     kp : float

@@ -11,11 +11,14 @@ those ``hil drive --bridge isobus...`` builds (:class:`hil.vehicle.isobus.link.I
 from __future__ import annotations
 
 import itertools
+import math
 import os
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from types import TracebackType
 
 import can
+import numpy as np
 
 from hil.devices.firmware import SteeringPlant
 from hil.devices.isobus_controller import IsobusController, IsobusControllerConfig
@@ -25,7 +28,7 @@ from hil.vehicle.calibration import WheelAngleCalibration
 from hil.vehicle.isobus.driver import IsobusDriver, IsobusDriverConfig
 from hil.vehicle.isobus.link import IsobusLink, isobus_driver_config
 
-__all__ = ["IsobusLockstepBench"]
+__all__ = ["IsobusLockstepBench", "ControllerDelays", "controller_delays"]
 
 _benches = itertools.count()
 
@@ -91,3 +94,78 @@ class IsobusLockstepBench:
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         self.close()
+
+
+@dataclass(frozen=True)
+class ControllerDelays:
+    """How far each stage of the steering controller trails the driver's wheel-angle setpoint, s.
+
+    Parameters
+    ----------
+    setpoint : float
+        The controller's own setpoint (after its curvature filter and rate limit).
+    wheel : float
+        The true wheel angle.
+    measured : float
+        The wheel angle of the reported curvature, as the loop reads it at 20 Hz.
+    """
+
+    setpoint: float
+    wheel: float
+    measured: float
+
+
+def _lag(a: np.ndarray, b: np.ndarray, dt: float, max_lag: int = 30) -> float:
+    """The shift of ``b`` behind ``a`` that correlates best, s (whole samples refined by a parabola)."""
+    a, b = a - a.mean(), b - b.mean()
+    corr = np.array([np.dot(a[:len(a) - k], b[k:]) / (np.linalg.norm(a[:len(a) - k]) * np.linalg.norm(b[k:]))
+                     for k in range(max_lag + 1)])
+    k = int(np.argmax(corr))
+    if 0 < k < max_lag:
+        c0, c1, c2 = corr[k - 1:k + 2]
+        return float(k + 0.5 * (c0 - c2) / (c0 - 2.0 * c1 + c2)) * dt
+    return float(k * dt)
+
+
+def controller_delays(seconds: float = 60.0, seed: int = 0, **controller: float) -> ControllerDelays:
+    """Measure the steering controller's delays on the lockstep bench (the simulated tractor, no implement,
+    1.79 m/s): the driver steers a random wheel-angle rate (up to 0.35 rad/s, pulled back to straight ahead)
+    at 20 Hz, as the loop does, and each stage is compared with the setpoint it integrates.
+
+    Parameters
+    ----------
+    seconds
+        Length of the measurement, s.
+    seed
+        Of the rate signal and the simulator.
+    controller
+        Settings of the controller (:class:`IsobusControllerConfig`) other than its calibration and
+        wheelbase, the tractor's (default: its defaults).
+    """
+    from hil.devices.plant import SimulatedTractor
+    from hil.devices.wheel_calibration import two_point_calibration
+    from hil.truth.conditions import condition_for
+    plant = SimulatedTractor(condition_for("none", 1.79), seconds + 5.0, seed)
+    p = plant.params
+    cal = two_point_calibration(p.sensor, p.steering)
+    rng = np.random.default_rng(seed)
+    dt, rows = 0.05, []
+    config = IsobusControllerConfig(calibration=cal, wheelbase=p.vehicle.wheelbase, **controller)
+    with IsobusLockstepBench(plant, cal, p.vehicle.wheelbase, controller_config=config, max_step=0.01) as bench:
+        t, driver = 0.0, bench.driver
+        for _ in range(20):                           # the claim and the handshake
+            t += dt
+            bench.clock.sleep_until(t)
+            driver.poll()
+        driver.engage()
+        rate = 0.0
+        for _ in range(round(seconds / dt)):
+            t += dt
+            bench.clock.sleep_until(t)
+            driver.poll()
+            rate = min(0.35, max(-0.35, 0.9 * rate + rng.normal(0.0, 0.06) - 0.5 * driver.setpoint))
+            driver.send_rate(rate)
+            rows.append((driver.setpoint, math.atan(config.wheelbase * bench.firmware.state.setpoint),
+                         float(plant.truth()["wheel_angle"]), driver.latest.angle))
+    s, c, w, m = np.array(rows).T
+    return ControllerDelays(setpoint=_lag(s, c, dt), wheel=_lag(s, w, dt), measured=_lag(s, m, dt))

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from hil.bench.benches.isobus import IsobusLockstepBench
+from hil.bench.benches.isobus import IsobusLockstepBench, controller_delays
 from hil.bench.runs.run import RunSpec
 from hil.cli import main as hil_main
 from hil.devices.faults import LinkFault
@@ -15,7 +15,7 @@ from hil.devices.plant import SimulatedTractor
 from hil.devices.wheel_calibration import two_point_calibration
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import condition_for
-from hil.vehicle.isobus.driver import IsobusDriverConfig
+from hil.vehicle.isobus.driver import ISOBUS_LAG, IsobusDriverConfig
 from hil.vehicle.isobus.link import isobus_driver_config
 from identification.passlog import PassLog
 
@@ -102,3 +102,15 @@ def test_the_driver_default_and_the_vehicle_settings_are_one_anti_windup_bound()
     assert IsobusDriverConfig(wheelbase=2.85) == isobus_driver_config(2.85)
     assert IsobusDriverConfig(wheelbase=2.85).max_windup == pytest.approx(0.115)
     assert isobus_driver_config(2.85, lag=0.5).max_windup == pytest.approx(0.5 * 0.35 + 0.01)
+
+
+def test_the_driver_declares_the_delay_measured_through_the_emulated_controller():
+    """:data:`ISOBUS_LAG`, which sets the driver's anti-windup and the loop's rate limit and response monitor, is the
+    delay of the measured angle behind the driver's setpoint through the emulated controller (0.31 s: 0.12 s to
+    its own setpoint through the curvature filter and the 20 ms sample, 0.13 s more to the wheel, 0.05 s more to
+    the report). Without the curvature filter's 0.1 s (one sample of 20 ms instead) the wheel is 0.07 s sooner."""
+    d = controller_delays(seconds=40.0)
+    assert d.setpoint < d.wheel < d.measured
+    assert d.setpoint == pytest.approx(0.12, abs=0.02) and d.measured == pytest.approx(ISOBUS_LAG, abs=0.03)
+    fast = controller_delays(seconds=40.0, lag=0.02)
+    assert d.measured - fast.measured == pytest.approx(0.07, abs=0.02)

@@ -22,7 +22,7 @@ Measured on the field procedure's commissionings (15 cells, the comparison's see
 valve) the default weights held 20.7 cm at 2.91 m/s without an implement where the robust controller held 10.4 cm
 (0.50 x the oracle); the searched oracle held 11.4 cm, and the robust controller and the MPC were 0.92-1.23 and
 1.07-1.39 x it over the cells (0.50-1.15 and 0.60-1.31 x the default oracle). On random-3 and heavy-11t the search
-took 3-10 % off the oracle's 1-sigma per cell. It drives 28 passes per cell: about 13 s of CPU a cell, 190-210 s a
+took 4-11 % off the oracle's 1-sigma per cell. It drives 28 passes per cell: about 13 s of CPU a cell, 185-210 s a
 tractor of 15 cells.
 """
 

@@ -33,8 +33,8 @@ from hil.truth.params import SimParams
 from hil.devices.plant import SimulatedTractor
 from hil.devices.receivers import AttitudeReceiver, PositionReceiver
 from hil.devices.wheel_calibration import two_point_calibration
-from hil.vehicle.agio.errors import AgioConfigError
-from hil.vehicle.agio.spec import parse_bridge
+from hil.vehicle.errors import BridgeSpecError
+from hil.vehicle.bridge_spec import parse_bridge
 from hil.vehicle.isobus.bus import bus_text, open_isobus_bus
 
 
@@ -118,7 +118,7 @@ class EmulatedTractor:
     module_port
         UDP port of the emulated module (0: chosen by the system; 8888 as on a tractor).
     can_bus
-        The ISOBUS bridge's bus, a ``--bridge`` specification (:func:`hil.vehicle.agio.spec.parse_bridge`):
+        The ISOBUS bridge's bus, a ``--bridge`` specification (:func:`hil.vehicle.bridge_spec.parse_bridge`):
         ``isobus`` (python-can's UDP multicast bus, 239.74.163.2 port 43113, with TTL 1: this host and its
         link only), ``isobus:udp_multicast:GROUP[:PORT]`` or ``isobus:socketcan:IFACE``; programs on one
         group and port share one bus, so runs side by side each need their own.
@@ -149,7 +149,7 @@ class EmulatedTractor:
             raise SimulatorConfigError(f"bridge must be 'isobus', 'hc11' or 'agopengps', got {self.bridge!r}")
         try:
             can_spec = parse_bridge(self.can_bus) if self.bridge == "isobus" else None
-        except AgioConfigError as exc:
+        except BridgeSpecError as exc:
             raise SimulatorConfigError(f"the CAN bus of the emulated controller: {exc}") from None
         if can_spec is not None and (can_spec.kind != "isobus" or can_spec.transport == "virtual"):
             raise SimulatorConfigError(f"the CAN bus of the emulated controller must be isobus, "

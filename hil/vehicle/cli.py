@@ -25,7 +25,7 @@ from design.files.signature import load_public_key
 
 from hil.errors import HilError
 from hil.vehicle.agio.driver import LEAD_TIME, AgioDriverConfig
-from hil.vehicle.agio.spec import parse_bridge
+from hil.vehicle.bridge_spec import parse_bridge
 from hil.vehicle.controllers import VEHICLE_CONTROLLERS, controller_label, vehicle_controller
 from hil.vehicle.outputs import prepare_out_dir, write_text_atomic
 from hil.vehicle.procedure import FieldPlan

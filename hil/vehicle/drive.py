@@ -38,7 +38,8 @@ from identification.outputs import check_name
 from identification.passlog import MAX_NOMINAL_SPEED, PassLog
 
 from hil.vehicle.agio.driver import ANGLE_CALIBRATION, AgioDriver, AgioDriverConfig, module_loop_config
-from hil.vehicle.agio.spec import open_agio_link, parse_bridge
+from hil.vehicle.agio.link import open_agio_link
+from hil.vehicle.bridge_spec import parse_bridge
 from hil.vehicle.isobus.driver import ANGLE_CALIBRATION as ISOBUS_CALIBRATION, IsobusDriverConfig
 from hil.vehicle.isobus.link import isobus_driver_config, isobus_loop_config, open_isobus_link
 from hil.vehicle.bridge.driver import BridgeDriver
@@ -57,7 +58,7 @@ class DriveConfig:
     Attributes
     ----------
     bridge_port
-        The steering bridge (:func:`hil.vehicle.agio.spec.parse_bridge`): a serial device of the HC11
+        The steering bridge (:func:`hil.vehicle.bridge_spec.parse_bridge`): a serial device of the HC11
         board (``/dev/ttyS0`` or ``hc11:/dev/ttyS0``), or an AgOpenGPS steer module,
         ``agopengps:udp:192.168.5.126:8888`` or ``agopengps:serial:/dev/ttyACM0`` (its angle comes in
         0.01 degree: ``wheel_calibration`` is not used), or an ISO 11783 steering-ready tractor,

@@ -12,3 +12,8 @@ class VehicleConfigError(HilError, ValueError):
 class SteeringLinkError(ConnectionError):
     """Reading from or writing to a steering device's link failed (port gone, socket closed, bus down). Every
     bridge's own link error subclasses it, so the loop handles them all alike without knowing the bridges."""
+
+
+class BridgeSpecError(VehicleConfigError):
+    """A ``--bridge`` specification cannot be parsed (unknown kind, transport or CAN interface, a malformed
+    address or port, an empty device)."""

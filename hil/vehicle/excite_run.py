@@ -19,7 +19,7 @@ import numpy as np
 
 from identification.passlog import PassLog
 
-from hil.vehicle.agio.spec import parse_bridge
+from hil.vehicle.bridge_spec import parse_bridge
 from hil.vehicle.commissioning import load_commissioning, save_commissioning
 from hil.vehicle.drive import DriveConfig, drive
 from hil.vehicle.excitation import ExcitationController, ExcitationSettings

@@ -25,7 +25,7 @@ from identification.outputs import atomic_write
 
 from hil.errors import HilError
 from hil.links.clock import RealClock
-from hil.vehicle.agio.spec import parse_bridge
+from hil.vehicle.bridge_spec import parse_bridge
 from hil.vehicle.bridge.driver import BridgeDriver
 from hil.vehicle.calibration import WheelAngleCalibration
 from hil.vehicle.commissioning import Commissioning, save_commissioning

@@ -1,11 +1,11 @@
-"""The python-can bus of an ``isobus`` bridge specification (:func:`hil.vehicle.agio.spec.parse_bridge`), for
+"""The python-can bus of an ``isobus`` bridge specification (:func:`hil.vehicle.bridge_spec.parse_bridge`), for
 the vehicle's end (:mod:`hil.vehicle.isobus.link`) and the emulated controller's (``hil emulate``) alike."""
 
 from __future__ import annotations
 
 import can
 
-from hil.vehicle.agio.spec import BridgeSpec
+from hil.vehicle.bridge_spec import BridgeSpec
 from hil.vehicle.isobus.errors import IsobusConfigError, IsobusLinkError
 
 __all__ = ["open_isobus_bus", "bus_text"]

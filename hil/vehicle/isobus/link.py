@@ -2,7 +2,7 @@
 this guidance system's node on it, and the driver and loop settings the vehicle loop steers with.
 
 :func:`open_isobus_link` opens the bus a parsed specification names
-(:func:`hil.vehicle.agio.spec.parse_bridge`, :func:`hil.vehicle.isobus.bus.open_isobus_bus`:
+(:func:`hil.vehicle.bridge_spec.parse_bridge`, :func:`hil.vehicle.isobus.bus.open_isobus_bus`:
 ``isobus:socketcan:can0`` on a tractor, ``isobus:udp_multicast:GROUP[:PORT]`` against
 ``hil emulate --bridge isobus``, ``isobus:virtual:NAME`` in one process); :meth:`IsobusLink.driver`
 puts the guidance system's node on it (NAME :data:`GUIDANCE_NAME`, preferred address
@@ -20,7 +20,7 @@ from __future__ import annotations
 import can
 
 from hil.links.clock import Clock
-from hil.vehicle.agio.spec import BridgeSpec
+from hil.vehicle.bridge_spec import BridgeSpec
 from hil.vehicle.commissioning import Commissioning, loop_settings
 from hil.vehicle.isobus.bus import open_isobus_bus
 from hil.vehicle.isobus.driver import (

@@ -9,8 +9,8 @@ import pytest
 
 from hil.cli import main as hil_main
 from hil.devices.emulate import EmulatedTractor
-from hil.vehicle.agio.errors import AgioConfigError
-from hil.vehicle.agio.spec import BridgeSpec, parse_bridge
+from hil.vehicle.errors import BridgeSpecError
+from hil.vehicle.bridge_spec import BridgeSpec, parse_bridge
 from hil.vehicle.drive import DriveConfig
 
 pytestmark = pytest.mark.timeout(60)
@@ -34,7 +34,7 @@ def test_bridge_specifications(text, spec):
     ("agopengps:udp:127.0.0.1", "HOST:PORT"), ("hc11:", "needs a serial device"), ("", "must be named"),
 ])
 def test_bad_bridge_specifications_are_refused_with_the_form_expected(text, match):
-    with pytest.raises(AgioConfigError, match=match):
+    with pytest.raises(BridgeSpecError, match=match):
         parse_bridge(text)
     if text:
         with pytest.raises(ValueError):

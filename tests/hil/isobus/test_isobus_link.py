@@ -8,8 +8,8 @@ import can
 import pytest
 
 from hil.links.clock import VirtualClock
-from hil.vehicle.agio.errors import AgioConfigError
-from hil.vehicle.agio.spec import BridgeSpec, parse_bridge
+from hil.vehicle.errors import BridgeSpecError
+from hil.vehicle.bridge_spec import BridgeSpec, parse_bridge
 from hil.vehicle.drive import DriveConfig
 from hil.vehicle.isobus.driver import IsobusDriverConfig
 from hil.vehicle.isobus.errors import IsobusConfigError, IsobusLinkError
@@ -43,7 +43,7 @@ def test_isobus_bridge_specifications(text, spec):
     ("isobus:", "must be one of"),
 ])
 def test_bad_isobus_specifications_are_refused_with_the_form_expected(text, match):
-    with pytest.raises(AgioConfigError, match=match) as info:
+    with pytest.raises(BridgeSpecError, match=match) as info:
         parse_bridge(text)
     assert repr(text) in str(info.value) and "\n" not in str(info.value)
     with pytest.raises(ValueError):

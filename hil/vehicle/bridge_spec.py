@@ -1,4 +1,6 @@
-"""Bridge specifications of ``hil drive --bridge``: which steering bridge, over which link.
+"""Bridge specifications of ``--bridge`` (``hil drive``, ``hil valve-test``, ``hil emulate``, ...): which
+steering bridge, over which link. Shared by the three bridges; each opens its own link from the parsed
+specification.
 
 ::
 
@@ -17,14 +19,11 @@
 from __future__ import annotations
 
 import ipaddress
-from collections.abc import Callable
 from dataclasses import dataclass
 
-from hil.links.link import ByteLink
-from hil.links.udp import UdpLink
-from hil.vehicle.agio.errors import AgioConfigError
+from hil.vehicle.errors import BridgeSpecError
 
-__all__ = ["BridgeSpec", "parse_bridge", "open_agio_link", "AGIO_LOCAL_PORT", "AGIO_MODULE_PORT", "ISOBUS_GROUP",
+__all__ = ["BridgeSpec", "parse_bridge", "AGIO_LOCAL_PORT", "AGIO_MODULE_PORT", "ISOBUS_GROUP",
            "ISOBUS_PORT", "ISOBUS_INTERFACES"]
 
 AGIO_LOCAL_PORT = 9999
@@ -67,7 +66,7 @@ class BridgeSpec:
 
 def _port(text: str, what: str, spec: str) -> int:
     if not text.isdigit() or not 0 <= int(text) <= 65535:
-        raise AgioConfigError(f"bridge {spec!r}: {what} must be a port number 0..65535, got {text!r}")
+        raise BridgeSpecError(f"bridge {spec!r}: {what} must be a port number 0..65535, got {text!r}")
     return int(text)
 
 
@@ -77,15 +76,15 @@ def _isobus(text: str, rest: str) -> BridgeSpec:
         return BridgeSpec("isobus", "udp_multicast", device=ISOBUS_GROUP, port=ISOBUS_PORT)
     interface, sep, channel = rest.partition(":")
     if interface not in ISOBUS_INTERFACES:
-        raise AgioConfigError(f"bridge {text!r}: the CAN interface must be one of {', '.join(ISOBUS_INTERFACES)}, "
+        raise BridgeSpecError(f"bridge {text!r}: the CAN interface must be one of {', '.join(ISOBUS_INTERFACES)}, "
                               f"got {interface!r}; e.g. isobus:socketcan:can0")
     if not sep or not channel:
-        raise AgioConfigError(f"bridge {text!r}: expected isobus:{interface}:CHANNEL, e.g. "
+        raise BridgeSpecError(f"bridge {text!r}: expected isobus:{interface}:CHANNEL, e.g. "
                               + {"socketcan": "isobus:socketcan:can0", "virtual": "isobus:virtual:bench",
                                  "udp_multicast": f"isobus:udp_multicast:{ISOBUS_GROUP}"}[interface])
     if interface == "socketcan":
         if len(channel) > 15 or not all(c.isalnum() or c in "_-." for c in channel):
-            raise AgioConfigError(f"bridge {text!r}: {channel!r} is not a network interface name (up to 15 "
+            raise BridgeSpecError(f"bridge {text!r}: {channel!r} is not a network interface name (up to 15 "
                                   "letters, digits, '_', '-', '.'), e.g. can0")
         return BridgeSpec("isobus", "socketcan", device=channel)
     if interface == "virtual":
@@ -96,11 +95,11 @@ def _isobus(text: str, rest: str) -> BridgeSpec:
     except ValueError:
         multicast = False
     if not multicast:
-        raise AgioConfigError(f"bridge {text!r}: {group!r} is not an IPv4 multicast group (224.0.0.0/4); expected "
+        raise BridgeSpecError(f"bridge {text!r}: {group!r} is not an IPv4 multicast group (224.0.0.0/4); expected "
                               f"isobus:udp_multicast:GROUP[:PORT], e.g. isobus:udp_multicast:{ISOBUS_GROUP}")
     number = _port(port, "the UDP port", text) if port else ISOBUS_PORT
     if number == 0:
-        raise AgioConfigError(f"bridge {text!r}: the UDP port must be 1..65535 (every node of the bus uses the same "
+        raise BridgeSpecError(f"bridge {text!r}: the UDP port must be 1..65535 (every node of the bus uses the same "
                               "one), got 0")
     return BridgeSpec("isobus", "udp_multicast", device=group, port=number)
 
@@ -111,69 +110,40 @@ def parse_bridge(text: str) -> BridgeSpec:
 
     Raises
     ------
-    AgioConfigError
+    BridgeSpecError
         An unknown kind, transport or CAN interface, a malformed address or port, an empty device.
     """
     if not isinstance(text, str) or not text:
-        raise AgioConfigError("the bridge must be named: hc11:PORT, agopengps:serial:PORT, agopengps:udp:HOST:PORT "
+        raise BridgeSpecError("the bridge must be named: hc11:PORT, agopengps:serial:PORT, agopengps:udp:HOST:PORT "
                               "or isobus:INTERFACE:CHANNEL")
     kind, sep, rest = text.partition(":")
     if kind == "isobus":
         return _isobus(text, rest)
     if kind == "hc11":
         if not rest:
-            raise AgioConfigError(f"bridge {text!r}: hc11:PORT needs a serial device, e.g. hc11:/dev/ttyS0")
+            raise BridgeSpecError(f"bridge {text!r}: hc11:PORT needs a serial device, e.g. hc11:/dev/ttyS0")
         return BridgeSpec("hc11", "serial", device=rest)
     if kind != "agopengps":
         if kind.startswith("/") or not sep:      # a bare device path: the HC11 board, as before
             return BridgeSpec("hc11", "serial", device=text)
-        raise AgioConfigError(f"unknown bridge {kind!r} in {text!r}; expected hc11:PORT, agopengps:serial:PORT, "
+        raise BridgeSpecError(f"unknown bridge {kind!r} in {text!r}; expected hc11:PORT, agopengps:serial:PORT, "
                               "agopengps:udp:HOST:PORT or isobus:INTERFACE:CHANNEL")
     transport, _, where = rest.partition(":")
     if transport == "serial":
         if not where:
-            raise AgioConfigError(f"bridge {text!r}: agopengps:serial:PORT needs a device, e.g. /dev/ttyACM0")
+            raise BridgeSpecError(f"bridge {text!r}: agopengps:serial:PORT needs a device, e.g. /dev/ttyACM0")
         return BridgeSpec("agopengps", "serial", device=where)
     if transport != "udp":
-        raise AgioConfigError(f"bridge {text!r}: the transport must be serial or udp, got {transport!r}")
+        raise BridgeSpecError(f"bridge {text!r}: the transport must be serial or udp, got {transport!r}")
     parts = where.split(":")
     if len(parts) not in (2, 3):
-        raise AgioConfigError(f"bridge {text!r}: expected agopengps:udp:HOST:PORT[:LOCALPORT], "
+        raise BridgeSpecError(f"bridge {text!r}: expected agopengps:udp:HOST:PORT[:LOCALPORT], "
                               f"e.g. agopengps:udp:192.168.5.126:8888")
     try:
         ipaddress.IPv4Address(parts[0])
     except ValueError:
-        raise AgioConfigError(f"bridge {text!r}: {parts[0]!r} is not an IPv4 address (the module is "
+        raise BridgeSpecError(f"bridge {text!r}: {parts[0]!r} is not an IPv4 address (the module is "
                               "usually 192.168.5.126)") from None
     local = _port(parts[2], "the local port", text) if len(parts) == 3 else AGIO_LOCAL_PORT
     return BridgeSpec("agopengps", "udp", host=parts[0], port=_port(parts[1], "the module's port", text),
                       local_port=local)
-
-
-def open_agio_link(spec: BridgeSpec, open_port: Callable[..., ByteLink], baud: int) -> ByteLink:
-    """Open the link to an AgOpenGPS module.
-
-    Parameters
-    ----------
-    spec
-        A parsed ``agopengps:...`` specification.
-    open_port
-        Opens a serial port (``serial.Serial``'s signature), for the serial transport.
-    baud
-        Serial line rate, bit/s (a USB CDC port ignores it).
-
-    Raises
-    ------
-    AgioConfigError
-        ``spec`` is not an AgOpenGPS bridge.
-    OSError
-        The socket cannot be bound or the port opened.
-    """
-    if spec.kind != "agopengps":
-        raise AgioConfigError(f"not an AgOpenGPS bridge: {spec}")
-    if spec.transport == "serial":
-        return open_port(spec.device, baudrate=baud, timeout=0)
-    broadcast = ipaddress.IPv4Address(spec.host) == ipaddress.IPv4Address("255.255.255.255") \
-        or spec.host.endswith(".255")
-    return UdpLink(("0.0.0.0", spec.local_port), peer=(spec.host, spec.port), accept_any=broadcast,
-                   broadcast=broadcast)

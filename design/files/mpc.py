@@ -24,6 +24,11 @@ MPC's state is the measured window, which needs no estimator. The certificate is
 of the MPC's unconstrained law (:func:`design.mpc.law.unconstrained_gain`: the linear
 law the MPC is wherever no limit binds), recomputed from the file's problem on every
 read and checked as a linear file's (:mod:`design.files.certificate`).
+
+``design["prediction_schedule"]`` (optional; :mod:`design.files.prediction_schedule`) names, per speed
+band, another model the MPC predicts with there, each band's unconstrained law certified on the band's
+own models and checked on every read as the file's own; a file without it predicts with ``model`` at
+every speed.
 """
 
 from __future__ import annotations
@@ -47,12 +52,14 @@ from design.laws.estimate_schedule import RECORD, EstimateSchedule, trailing_sta
 from design.core.limits import SPEED_MIN_RANGE, RATE_LIMIT_MAX, WHEEL_ANGLE_MAX, DT_RANGE, check_horizon, check_model_order, in_range
 from design.mpc.backends import SolverSettings
 from design.mpc.controller import MPCController
-from design.mpc.law import unconstrained_gain, unconstrained_law
+from design.mpc.law import checked_gain, unconstrained_law
 from design.mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 from design.core.verify import model_hash
 from design.core.weights import OutputWeights
 from design.files.certificate import check_certificate, check_estimate_schedule, recorded_latency
 from design.files.law_schedule import RECORD as LAW_RECORD
+from design.files.prediction_schedule import RECORD as PREDICTION_RECORD
+from design.files.prediction_schedule import PredictionSchedule, check_prediction_schedule, parse_prediction_schedule
 from design.files.binding import bind, check_bound
 from design.files.envelope import SCHEMA, read_json, seal, write_atomically
 from design.files.header import check_header
@@ -61,9 +68,6 @@ from design.files.linear import INPUT, VELOCITY_OUTPUTS, check_coefficients, che
 TOP_KEYS = ("schema", "kind", "name", "dt", "outputs", "input", "model", "estimator", "horizon", "weights", "limits",
             "solver", "fallback", "design", "certificate", "models", "checksum")
 FALLBACK_LAWS = ("robust-lmi", "lqr")
-#: Largest difference, relative to the gain's largest entry (at least 1), between the recorded and the
-#: re-derived unconstrained gain: round-off of a different BLAS, thread count or CPU is ~1e-13.
-GAIN_TOLERANCE = 1e-8
 
 
 @dataclass(frozen=True)
@@ -108,15 +112,24 @@ class MPCFile:
         object.__setattr__(self, "speed_min", in_range(self.speed_min, *SPEED_MIN_RANGE, "limits: speed_min (m/s)",
                                                        ControllerFileError, low_open=False))
         object.__setattr__(self, "_problem", problem)
+        rec = self.design.get(PREDICTION_RECORD) if isinstance(self.design, Mapping) else None
+        schedule = None if rec is None else parse_prediction_schedule(rec, self.model.dt, self.model)
+        band_problems = ()
+        if schedule is not None:
+            try:
+                band_problems = tuple(mpc_problem(m, self.horizon, self.weights, self.limits, self.past,
+                                                  self.disturbance) for m in schedule.models)
+            except DesignInputError as exc:
+                raise ControllerFileError(f"design.{PREDICTION_RECORD}: a band's MPC cannot be built: {exc}") from None
+        object.__setattr__(self, "_schedule", schedule)
+        object.__setattr__(self, "_band_problems", band_problems)
 
     def law(self):
         """The MPC's unconstrained law as a compensator (what the certificate is about).
 
-        The gain is the one the design recorded (``design["unconstrained_gain"]``, exact
-        through JSON) once it agrees with the gain re-derived from the file's problem to
-        :data:`GAIN_TOLERANCE` (relative): the derivation's last bits depend on the BLAS, its
-        thread count and the CPU, so a law re-derived on the tractor's computer must not be
-        hashed as it comes. A file without a recorded gain uses the re-derived one.
+        The gain is the one the design recorded (``design["unconstrained_gain"]``) once it agrees with
+        the one re-derived from the file's problem (:func:`design.mpc.law.checked_gain`); a file without
+        a recorded gain uses the re-derived one.
 
         Raises
         ------
@@ -125,23 +138,29 @@ class MPCFile:
             re-derived one (the weights, model or horizon were changed after the design).
         """
         problem: MPCProblem = self._problem
-        k = unconstrained_gain(problem)
         stored = self.design.get("unconstrained_gain") if isinstance(self.design, Mapping) else None
-        if stored is not None:
+        try:
+            return unconstrained_law(problem, checked_gain(problem, stored))
+        except DesignInputError as exc:
+            raise DesignInputError(f"design: {exc}") from None
+
+    @property
+    def prediction_schedule(self) -> PredictionSchedule | None:
+        """The prediction models by speed band (:mod:`design.files.prediction_schedule`), or None."""
+        return self._schedule
+
+    def band_laws(self) -> tuple[Compensator, ...]:
+        """Each band's unconstrained law (its recorded gain checked against its problem as :meth:`law`'s);
+        () without a prediction schedule. ``DesignInputError`` as :meth:`law`."""
+        if self._schedule is None:
+            return ()
+        out = []
+        for i, (problem, stored) in enumerate(zip(self._band_problems, self._schedule.gains)):
             try:
-                ks = np.array(stored, dtype=float)
-            except (TypeError, ValueError):
-                raise DesignInputError("design: unconstrained_gain must be a matrix of numbers") from None
-            if ks.shape != k.shape or not np.all(np.isfinite(ks)):
-                raise DesignInputError(f"design: unconstrained_gain must be a finite {k.shape} matrix, got shape "
-                                       f"{ks.shape}")
-            gap = float(np.max(np.abs(ks - k))) if k.size else 0.0
-            if not gap <= GAIN_TOLERANCE * max(1.0, float(np.max(np.abs(k)))):
-                raise DesignInputError(f"the recorded unconstrained gain differs from the one the file's model, "
-                                       f"weights and horizon give (by {gap:.3g}): the file was edited after its "
-                                       "design; design the controller again")
-            k = ks
-        return unconstrained_law(problem, k)
+                out.append(unconstrained_law(problem, checked_gain(problem, stored)))
+            except DesignInputError as exc:
+                raise DesignInputError(f"design.{PREDICTION_RECORD} band {i}: {exc}") from None
+        return tuple(out)
 
     @property
     def dt(self) -> float:
@@ -153,13 +172,15 @@ class MPCFile:
         return trailing_states(law, 0 if self.disturbance is None else len(self.disturbance.channels))
 
     def controller(self, approach: bool = True) -> MPCController:
-        """A fresh :class:`MPCController` for the vehicle loop (with the file's estimate schedule, if any;
-        ``approach``: :class:`design.mpc.controller.MPCController`'s, False for the bare law)."""
+        """A fresh :class:`MPCController` for the vehicle loop (with the file's estimate and prediction
+        schedules, if any; ``approach``: :class:`design.mpc.controller.MPCController`'s, False for the bare law)."""
         problem = mpc_problem(self.model, self.horizon, self.weights, self.limits, self.past, self.disturbance)
         rec = self.design.get(RECORD) if isinstance(self.design, Mapping) else None
+        sched = self._schedule
         return MPCController(problem, self.settings, self.fallback_gain, self.fallback_law, self.output_clip,
                              self.speed_min, self.name, recorded_latency(self.certificate),
-                             None if rec is None else EstimateSchedule.from_record(rec), approach=approach)
+                             None if rec is None else EstimateSchedule.from_record(rec), approach=approach,
+                             bands=() if sched is None else sched.bands, band_problems=self._band_problems)
 
     def to_dict(self) -> dict:
         """The file's JSON object, checksum included."""
@@ -218,6 +239,13 @@ def mpc_from_body(body: Any, dt: float | None = 0.05, public_key: Ed25519PublicK
         raise ControllerFileError(f"the MPC's unconstrained law cannot be formed: {exc}") from None
     check_certificate(body["certificate"], law, "the MPC's unconstrained law", legacy_certificate)
     check_estimate_schedule(body["design"], body["certificate"], law, spec.estimate_states(law), legacy_certificate)
+    if spec.prediction_schedule is not None:
+        try:
+            laws = spec.band_laws()
+        except DesignInputError as exc:
+            raise ControllerFileError(f"a band's unconstrained law cannot be formed: {exc}") from None
+        check_prediction_schedule(body["design"], body["certificate"], spec.prediction_schedule, laws,
+                                  spec.estimate_states(law), legacy_certificate)
     if isinstance(body["design"], dict) and body["design"].get(LAW_RECORD) is not None:
         raise ControllerFileError(f"design.{LAW_RECORD} is for linear files; an MPC file runs one law at every speed")
     check_bound(body, legacy_certificate)

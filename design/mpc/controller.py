@@ -13,6 +13,15 @@ command and a fresh start on the next tick, as the linear controller files do. T
 integral of y/V is held while a measured output is at its clip (far from the line:
 :class:`design.laws.acquisition.IntegralGate` without the crossing rule) and while the approach path to
 the line is travelled (:class:`design.laws.curvature.Reference`, as the linear controllers).
+
+With speed bands (a file's prediction schedule, :mod:`design.files.prediction_schedule`) the QP of the
+band holding the measured speed is solved: each band's problem differs only in its prediction model
+(the same weights, limits, horizon and window), and each is set up once, with its own solver, when the
+controller is made; a tick solves the one of the latched band
+(:class:`design.core.speed_latch.SpeedLatch`: hysteresis and a dwell at the band's edge), so switching
+costs nothing at run time. The measured state (window, integral, estimate) means the same in every band
+and carries over; only the estimate's one-step prediction of the outputs follows the band's model, as
+the band's certified law does.
 """
 
 from __future__ import annotations
@@ -115,6 +124,10 @@ class MPCController:
     approach
         Plan the approach path (default). False: the line is taken as acquired at once, so on a
         straight line the command is the certified law on the measurement itself (the law's tests).
+    bands, band_problems
+        Speed bands ``(low, high)``, m/s (``low <= v < high``, not overlapping), and the problem solved
+        in each (the same layout, horizon and limits as ``problem``, another prediction model);
+        ``problem`` is solved at every other speed (module docstring).
 
     Attributes
     ----------
@@ -126,20 +139,37 @@ class MPCController:
         :class:`FallbackEvent` per fallback tick.
     solve_times
         Wall-clock time of the QP calls, s (the latest :data:`KEEP_TIMES`: an hour at 20 Hz).
+    problem, backend
+        The problem and solver of the band being run (``problems[0]`` outside every band).
+    problems
+        ``problem`` and then each band's.
     """
 
     def __init__(self, problem: MPCProblem, settings: SolverSettings | None = None,
                  fallback_gain: np.ndarray | None = None, fallback_name: str = "lqr",
                  output_clip: Sequence[float | None] | None = (0.1, 0.05, None), speed_min: float = 0.3,
                  name: str = "mpc", latency: float = 0.0, schedule: EstimateSchedule | None = None,
-                 approach: bool = True) -> None:
+                 approach: bool = True, bands: Sequence[tuple[float, float]] = (),
+                 band_problems: Sequence[MPCProblem] = ()) -> None:
         self.problem = problem
         #: Where the disturbance estimate acts (:mod:`design.laws.estimate_schedule`; None: at every speed).
         self.schedule = schedule
-        #: Whether the estimate acts, switched with hysteresis and a dwell (:class:`design.core.speed_latch.SpeedLatch`).
-        self.latch = SpeedLatch(lambda v: schedule is None or schedule.acts_at(v))
+        self.bands = tuple((float(lo), float(hi)) for lo, hi in bands)
+        if len(self.bands) != len(band_problems):
+            raise DesignInputError(f"{len(self.bands)} speed bands and {len(band_problems)} band problems were given")
+        for p in band_problems:
+            if (p.nz, p.horizon, p.layout, p.limits, p.dt) != (problem.nz, problem.horizon, problem.layout,
+                                                                problem.limits, problem.dt):
+                raise DesignInputError("a band's problem must have the state, horizon, limits and sample time of "
+                                       "the central one")
+        self.problems = (problem, *band_problems)
+        #: The band run (0: the central problem, i: band i - 1) and whether the estimate acts, switched with
+        #: hysteresis and a dwell (:class:`design.core.speed_latch.SpeedLatch`).
+        self.latch = SpeedLatch(self._key_at)
         self.settings = settings or SolverSettings()
-        self.backend = make_backend(problem, self.settings)
+        self.backends = tuple(make_backend(p, self.settings) for p in self.problems)   # each set up once
+        self.backend = self.backends[0]
+        self._band = 0
         self.name = f"mpc:{name}"
         self.dt = problem.dt
         nz = problem.nz
@@ -174,8 +204,7 @@ class MPCController:
         nw = problem.n_window_state
         self._dist = np.arange(nw, nz)
         if dis is not None:
-            rows = problem.layout.output_slot(0)
-            self._f, self._g = problem.A[rows, :nw], problem.B[rows, 0]
+            self._use(0)
             self._sel = np.zeros((len(dis.channels), q))
             self._sel[np.arange(len(dis.channels)), list(dis.channels)] = 1.0
             self._a = math.exp(-self.dt / dis.tau_d)
@@ -187,6 +216,26 @@ class MPCController:
         n, step = self.reference.preview_request
         #: The curvature preview over the whole horizon (and the latency), stretches of ``V dt``.
         self.preview_request = (min(n + problem.horizon, PREVIEW_MAX), step)
+
+    # -- the bands -----------------------------------------------------------------
+    def _key_at(self, speed: float) -> tuple[int, bool]:
+        band = next((i + 1 for i, (lo, hi) in enumerate(self.bands) if lo <= speed < hi), 0)
+        return band, self.schedule is None or self.schedule.acts_at(speed)
+
+    def _use(self, band: int) -> None:
+        """Run band ``band``'s problem (0: the central one) from this tick on."""
+        if band != self._band:
+            self.backends[band].reset()
+        self._band = band
+        self.problem, self.backend = self.problems[band], self.backends[band]
+        if self.problem.disturbance is not None:        # the estimate's prediction: the band model's
+            rows, nw = self.problem.layout.output_slot(0), self.problem.n_window_state
+            self._f, self._g = self.problem.A[rows, :nw], self.problem.B[rows, 0]
+
+    @property
+    def band(self) -> int | None:
+        """Index of the speed band whose problem runs (None: the central problem)."""
+        return self._band - 1 if self._band else None
 
     # -- the QP --------------------------------------------------------------------
     def solve_qp(self, z0: np.ndarray, rate_ref: np.ndarray | None = None,
@@ -294,6 +343,9 @@ class MPCController:
             d = np.array(self.reference.wheel_plan(m, self.problem.horizon + 1))  # the bounds hold on the total
             rate_ref, wheel_ref = np.diff(d) / self.dt, d[1:]
         m, ff = self.reference.track(m)
+        band, acts = self.latch.at(float(m.speed), float(m.t))
+        if band != self._band:
+            self._use(band)
         y = self.outputs(m)
         z = self.state(y)
         if kept:
@@ -302,7 +354,7 @@ class MPCController:
             self._headland.forget()
         self._last_t = float(m.t)
         zq = z
-        if self._dist.size and not self.latch.at(float(m.speed), float(m.t)):
+        if self._dist.size and not acts:
             zq = z.copy()
             zq[self._dist] = 0.0             # the estimate off at this speed: the QP does not see it (it still runs)
         info = self.solve_qp(zq, rate_ref, wheel_ref)

@@ -11,7 +11,12 @@ import numpy as np
 from design.core.compensator import Compensator
 from design.laws.disturbance import estimate_compensator
 from design.core.iostate import feedback_compensator
+from design.core.errors import DesignInputError
 from design.mpc.problem import MPCProblem
+
+#: Largest difference, relative to the gain's largest entry (at least 1), between a recorded and the
+#: re-derived unconstrained gain: round-off of a different BLAS, thread count or CPU is ~1e-13.
+GAIN_TOLERANCE = 1e-8
 
 
 def unconstrained_gain(problem: MPCProblem) -> np.ndarray:
@@ -20,6 +25,37 @@ def unconstrained_gain(problem: MPCProblem) -> np.ndarray:
     n = problem.horizon
     sol = np.linalg.solve(qp.H[:n, :n], qp.G[:n])
     return -sol[:1]
+
+
+def checked_gain(problem: MPCProblem, stored) -> np.ndarray:
+    """The unconstrained gain a file records (``stored``, nested lists; None: none recorded) once it agrees
+    with the gain re-derived from ``problem`` to :data:`GAIN_TOLERANCE` (relative); the re-derived one when
+    none is recorded.
+
+    The derivation's last bits depend on the BLAS, its thread count and the CPU, so a law re-derived on the
+    tractor's computer must not be hashed as it comes: the recorded gain, exact through JSON, is used.
+
+    Raises
+    ------
+    DesignInputError
+        The recorded gain is not a finite matrix of the law's shape, or differs from the re-derived one
+        (the weights, model or horizon were changed after the design).
+    """
+    k = unconstrained_gain(problem)
+    if stored is None:
+        return k
+    try:
+        ks = np.array(stored, dtype=float)
+    except (TypeError, ValueError):
+        raise DesignInputError("unconstrained_gain must be a matrix of numbers") from None
+    if ks.shape != k.shape or not np.all(np.isfinite(ks)):
+        raise DesignInputError(f"unconstrained_gain must be a finite {k.shape} matrix, got shape {ks.shape}")
+    gap = float(np.max(np.abs(ks - k))) if k.size else 0.0
+    if not gap <= GAIN_TOLERANCE * max(1.0, float(np.max(np.abs(k)))):
+        raise DesignInputError(f"the recorded unconstrained gain differs from the one the file's model, weights "
+                               f"and horizon give (by {gap:.3g}): the file was edited after its design; design the "
+                               "controller again")
+    return ks
 
 
 def unconstrained_law(problem: MPCProblem, k: np.ndarray | None = None) -> Compensator:

@@ -6,22 +6,30 @@ LQR with the Riccati terminal) closed around every model it is given, as the rob
 design does for its compensator (:mod:`design.core.verify`), sets the solver up once and
 checks that its first move from a small state is that law's, and returns the file.
 The constrained closed loop is non-linear; the tests and the HIL bench check it.
+
+:func:`with_prediction_schedule` adds the prediction schedule (:mod:`design.files.prediction_schedule`):
+per design speed of the local models, the MPC predicting with that speed's model of one implement,
+the same weights, certified on the models of its band.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from identification.model import Model
 
 from design.core.errors import DesignInputError, SynthesisError
-from design.laws.estimate_schedule import RECORD, schedule_record, trailing_states
+from design.laws.estimate_schedule import RECORD, bands_for, law_without_estimate, schedule_record, trailing_states
 from design.files.linear import read_controller_file
-from design.files.mpc import MPCFile
+from design.files.mpc import MPCFile, mpc_from_body
+from design.files.prediction_schedule import RECORD as PREDICTION_RECORD
+from design.files.prediction_schedule import model_record
+from design.files.prediction_schedule import schedule_record as prediction_record
 from design.core.iostate import window_to_state
 from design.synthesis.family import as_family
 from design.core.reduction import design_model
@@ -56,6 +64,8 @@ class MPCDesign:
     problem: MPCProblem
     certificate: Certificate
     unconstrained_gain: np.ndarray
+    #: What :func:`with_prediction_schedule` made (bands kept, speeds left out and why), or None.
+    prediction_schedule: dict | None = None
 
 
 def fallback_from_file(path: str | Path, problem: MPCProblem) -> np.ndarray:
@@ -152,12 +162,13 @@ def design_mpc(model: Model, verify_on: Sequence[Model] = (), spec: MPCSpec | No
     return MPCDesign(file, problem, cert, k)
 
 
-def _check_solver(file: MPCFile, k: np.ndarray) -> None:
-    """The solver, with the file's settings but time to converge, reproduces the unconstrained law."""
+def _check_solver(file: MPCFile, k: np.ndarray, model: Model | None = None) -> None:
+    """The solver, with the file's settings but time to converge, reproduces the unconstrained law (of the
+    file's problem with ``model`` predicting; None: the file's own model)."""
     relaxed = replace(file.settings, time_budget=max(file.settings.time_budget, 5.0),
                       max_iter=max(file.settings.max_iter, 20000))
-    ctrl = MPCController(mpc_problem(file.model, file.horizon, file.weights, file.limits, file.past,
-                                     file.disturbance), relaxed,
+    ctrl = MPCController(mpc_problem(file.model if model is None else model, file.horizon, file.weights,
+                                     file.limits, file.past, file.disturbance), relaxed,
                          file.fallback_gain, file.fallback_law, file.output_clip, file.speed_min, file.name)
     nz = ctrl.problem.nz
     z = np.zeros(nz)
@@ -168,3 +179,108 @@ def _check_solver(file: MPCFile, k: np.ndarray) -> None:
         raise SynthesisError(f"the {ctrl.backend.name} solver's first move from a small state is {info.u0!r} rad/s "
                              f"({info.status}; {info.reason or 'no fallback'}), the unconstrained law gives {want!r}; "
                              "check the solver settings")
+
+
+def design_speed(model: Model) -> float | None:
+    """The speed (m/s) a local model was identified at: its one condition's ``nominal_speed``; None for a
+    model of several conditions (central, velocity-invariant) or without conditions."""
+    conds = model.meta.get("conditions")
+    if not isinstance(conds, list) or len(conds) != 1 or not isinstance(conds[0], dict):
+        return None
+    v = conds[0].get("nominal_speed")
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0 \
+        else None
+
+
+def _implement(model: Model) -> str | None:
+    conds = model.meta.get("conditions")
+    return str(conds[0].get("implement")) if isinstance(conds, list) and len(conds) == 1 \
+        and isinstance(conds[0], dict) else None
+
+
+def _neighbour_rows(law, models: Sequence[Model], speeds: Sequence[float]) -> list[dict]:
+    """A band law's margins on other bands' models (recorded, not required)."""
+    if not models:
+        return []
+    cert = certify(law, models)
+    keep = ("name", "spectral_radius", "disk_margin", "gain_margin_db", "gain_reduction_margin_db", "delay_margin_s")
+    return [{**{k: row.get(k) for k in keep}, "speed": v, "stable": row["spectral_radius"] < 1.0}
+            for row, v in zip(cert.to_dict()["models"], speeds)]
+
+
+def with_prediction_schedule(res: MPCDesign, models: Sequence[Model], implement: str = "none") -> MPCDesign:
+    """``res`` with a prediction schedule: per design speed of the local ``models``, the MPC predicting with
+    that speed's model of ``implement``, the file's weights, horizon, limits, window and estimate
+    (:mod:`design.files.prediction_schedule`).
+
+    Each speed's band reaches half-way to its neighbours (:func:`design.laws.estimate_schedule.bands_for`).
+    Its unconstrained law is certified on the band's models (every implement identified at that speed);
+    a speed whose law is not stable on them, whose law without the disturbance estimate is not (the
+    estimate's schedule could then not turn it off there), whose window does not determine its model's state
+    or that has no model of ``implement`` is left to the central law and listed in ``left_out``. Each law's
+    margins on the other bands' models are recorded (``neighbours``). Fewer than two design speeds, or no
+    band kept: ``res`` as it is (with the summary in :attr:`MPCDesign.prediction_schedule`).
+
+    Raises
+    ------
+    SynthesisError
+        The solver does not reproduce a band's unconstrained law from a small state.
+    """
+    f = res.file
+    local = [(design_speed(m), m) for m in models]
+    local = [(v, m) for v, m in local if v is not None]
+    speeds = sorted({v for v, _ in local})
+    summary: dict[str, Any] = {"design_speeds": speeds, "implement": implement, "bands": [], "left_out": []}
+    if len(speeds) < 2:
+        summary["left_out"] = [{"speed": v, "reason": "fewer than two design speeds"} for v in speeds]
+        return replace(res, prediction_schedule=summary)
+    bands, entries, left_out = [], [], []
+    nd = 0 if f.disturbance is None else len(f.disturbance.channels)
+    for v in speeds:
+        band = bands_for(speeds, [v]).off[0]
+        inside = [(s, m) for s, m in local if band[0] <= s < band[1]]
+        outside = [(s, m) for s, m in local if not band[0] <= s < band[1]]
+        names = [str(m.meta.get("name", "model")) for _, m in inside]
+        pred = next((m for _, m in inside if _implement(m) == implement), None)
+        if pred is None:
+            left_out.append({"speed": v, "reason": f"no model of the implement {implement!r} at this speed"})
+            continue
+        try:
+            problem = mpc_problem(pred, f.horizon, f.weights, f.limits, f.past, f.disturbance)
+        except DesignInputError as exc:
+            left_out.append({"speed": v, "reason": f"{pred.meta.get('name')}: {exc}"})
+            continue
+        k = unconstrained_gain(problem)
+        law = unconstrained_law(problem, k)
+        cert = certify(law, [m for _, m in inside], names)
+        cert_off = None
+        if nd:
+            cert_off = certify(law_without_estimate(law, trailing_states(law, nd)), [m for _, m in inside], names)
+        bad = cert if not cert.passed else cert_off if cert_off is not None and not cert_off.passed else None
+        if bad is not None:
+            what = "its law" if bad is cert else "its law without the disturbance estimate"
+            left_out.append({"speed": v, "reason": f"{what} is not stable on {bad.worst.name} (spectral radius "
+                                                   f"{bad.worst.spectral_radius:.6f}) of its band's models"})
+            continue
+        _check_solver(f, k, pred)
+        neighbours = _neighbour_rows(law, [m for _, m in outside], [s for s, _ in outside])
+        bands.append(band)
+        entries.append({"model": model_record(pred), "unconstrained_gain": k.tolist(),
+                        "band_models": [{"name": n, "hash": model_hash(m), "speed": s}
+                                        for n, (s, m) in zip(names, inside)],
+                        "certificate": cert.to_dict(),
+                        "certificate_off": None if cert_off is None else cert_off.to_dict(),
+                        "neighbours": neighbours})
+        summary["bands"].append({"band_mps": [band[0], None if math.isinf(band[1]) else band[1]],
+                                 "model": str(pred.meta.get("name")), "models": names,
+                                 "worst": cert.worst.name, "max_spectral_radius": cert.worst.spectral_radius,
+                                 "min_disk_margin": min(c.disk_margin for c in cert.checks),
+                                 "neighbours_stable": all(r["stable"] for r in neighbours),
+                                 "neighbours_min_disk_margin": min((r["disk_margin"] for r in neighbours),
+                                                                   default=None)})
+    summary["left_out"] = left_out
+    if not entries:
+        return replace(res, prediction_schedule=summary)
+    file = replace(f, design={**f.design, PREDICTION_RECORD: prediction_record(bands, entries, left_out)})
+    mpc_from_body(file.to_dict(), None)           # every check the vehicle applies, before it is handed back
+    return replace(res, file=file, prediction_schedule=summary)

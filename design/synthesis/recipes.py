@@ -40,7 +40,8 @@ from design.core.iostate import observable_past
 from design.mpc.backends import SolverSettings
 from design.mpc.law import unconstrained_law
 from design.mpc.problem import MPCLimits, MPCWeights, mpc_problem
-from design.synthesis.mpc_design import MPCDesign, MPCSpec, design_mpc, fallback_from_file, prediction_model, read_controller_file
+from design.synthesis.mpc_design import (MPCDesign, MPCSpec, design_mpc, fallback_from_file, prediction_model,
+                                         read_controller_file, with_prediction_schedule)
 from design.synthesis.robust import RobustResult, RobustSpec, design_robust, with_disturbance_estimate
 from design.synthesis.specs import Specifications, check_specs, latency_from_logs, latency_from_models
 
@@ -371,6 +372,10 @@ class MPCOptions:
         A robust controller file (window structure) whose law is the fall-back; None: the unconstrained LQR.
     require_stable
         Refuse a design whose unconstrained law is unstable on some model (False: record it).
+    prediction_schedule
+        Predict, in each design speed's band, with that speed's local model of the implement ``none``
+        (:func:`design.synthesis.mpc_design.with_prediction_schedule`) when the models hold local models
+        of two or more design speeds; False: the central model predicts at every speed.
     """
 
     horizon: int = 50
@@ -385,6 +390,7 @@ class MPCOptions:
     search: WeightSearch = field(default_factory=WeightSearch)
     fallback: str | Path | None = None
     require_stable: bool = True
+    prediction_schedule: bool = True
 
     def __post_init__(self) -> None:
         if self.past is not None:
@@ -420,7 +426,8 @@ class MPCControllerResult:
                 "solver": o.settings.to_dict(), "fallback": f.fallback_law,
                 "unconstrained_gain": f.design["unconstrained_gain"], "certificate": dict(f.certificate),
                 "auto_weights": f.design.get("auto_weights"), "specifications_check": self.specifications_check,
-                "disturbance_estimate": f.design.get("disturbance_estimate")}
+                "disturbance_estimate": f.design.get("disturbance_estimate"),
+                "prediction_schedule": self.design.prediction_schedule}
 
 
 def _central(models: Sequence[Model], central: Model | None) -> tuple[Model, list[Model]]:
@@ -437,7 +444,8 @@ def design_mpc_controller(models: Sequence[Model], options: MPCOptions | None = 
                           central: Model | None = None, validate_on: Sequence[Model] = (),
                           progress: Progress | None = None) -> MPCControllerResult:
     """The constrained MPC on the central model, its unconstrained law checked on every other model
-    (``design mpc``).
+    (``design mpc``); with :attr:`MPCOptions.prediction_schedule`, another model predicting in each
+    design speed's band.
 
     Parameters
     ----------
@@ -485,6 +493,8 @@ def design_mpc_controller(models: Sequence[Model], options: MPCOptions | None = 
             res = _with_design(res, specifications_check=checked)
     if truncation is not None:
         res = _with_design(res, prediction_truncated=truncation)
+    if o.prediction_schedule:
+        res = with_prediction_schedule(res, others)      # certified in the file: not the validation models
     return MPCControllerResult(res, o, checked)
 
 

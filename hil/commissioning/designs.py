@@ -20,6 +20,7 @@ from design.laws.disturbance import DisturbanceSpec
 from design.mpc.problem import MPCLimits
 from design.synthesis.recipes import (MPCOptions, RobustOptions, WeightSearch, design_mpc_controller, design_robust_controller,
                             load_models)
+from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands
 from design.synthesis.robust import RobustSpec, design_lqr
 from design.synthesis.specs import Specifications
 from identification.model import Model
@@ -66,6 +67,14 @@ class Designer:
         Integral action in the robust design.
     estimate
         The disturbance estimate in the robust controller and the MPC.
+    robust_bands
+        With automatic weights, the robust controller's file also carries a law per speed band designed and
+        certified on that band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False:
+        its one law at every speed.
+    prediction_schedule
+        The MPC predicts, in each design speed's band, with that speed's local model of the implement
+        ``none`` (:func:`design.synthesis.mpc_design.with_prediction_schedule`); False: the central model at
+        every speed.
     """
 
     rate_limit: float
@@ -75,6 +84,8 @@ class Designer:
     delay_reserve: float = Specifications.delay_reserve
     integral: bool = True
     estimate: bool = True
+    robust_bands: bool = True
+    prediction_schedule: bool = True
 
     def search(self, attempt: DesignTry) -> WeightSearch:
         """The weights' mode and specifications of ``attempt``."""
@@ -107,32 +118,42 @@ class Designer:
                 "settings": self._settings("lqr", "central.npz", None)}
 
     def robust(self, models_dir: Path, attempt: DesignTry, out: Path, candidates_dir: Path | None = None,
-               progress: Callable[[str], None] | None = None) -> dict:
+               progress: Callable[[str], None] | None = None, bands: bool | None = None) -> dict:
         """The robust controller on the local models of ``models_dir``; with ``candidates_dir`` (automatic
-        weights and the estimate) the window laws its back-off made and did not keep are written there."""
-        local = sorted(models_dir.glob("local_*.npz"))
+        weights and the estimate) the window laws its back-off made and did not keep are written there. With
+        ``bands`` (None: :attr:`robust_bands`) and automatic weights, its law schedule holds the band laws."""
+        local = load_models(sorted(models_dir.glob("local_*.npz")))
         keep = candidates_dir is not None and attempt.auto and self.estimate
+        by_band = (self.robust_bands if bands is None else bands) and attempt.auto
         options = RobustOptions(RobustSpec(integral=self.integral, past=attempt.past, command_limit=self.rate_limit),
                                 self.search(attempt), DisturbanceSpec() if self.estimate else None, candidates=keep)
-        res = design_robust_controller(load_models(local), options, progress=progress)
+        res = design_robust_controller(local, options, progress=progress)
+        if by_band:
+            res = design_robust_bands(local, options, res, progress)
         res.save(out, candidates_dir if keep else None)
-        return {"file": str(out), "result": {"out": str(out), **res.summary()},
+        summary = {"out": str(out), **res.summary()}
+        if SEARCH_RECORD in res.file.design:
+            summary[SEARCH_RECORD] = res.file.design[SEARCH_RECORD]
+        return {"file": str(out), "result": summary,
                 "settings": self._settings("robust", f"{models_dir.name}/local_*.npz", attempt,
-                                           integral=self.integral, disturbance_estimate=self.estimate)}
+                                           integral=self.integral, disturbance_estimate=self.estimate,
+                                           robust_bands=by_band)}
 
     def mpc(self, models_dir: Path, attempt: DesignTry, out: Path, fallback: Path | None,
             progress: Callable[[str], None] | None = None) -> dict:
-        """The MPC on the models of ``models_dir`` (the central one predicts), with the robust law of
-        ``fallback`` as its fall-back (None: none, for a search of the weights alone)."""
+        """The MPC on the models of ``models_dir`` (the central one predicts, and with :attr:`prediction_schedule`
+        each design speed's local model in its band), with the robust law of ``fallback`` as its fall-back
+        (None: none, for a search of the weights alone)."""
         options = MPCOptions(limits=MPCLimits(rate=self.rate_limit), past=attempt.past,
                              disturbance=DisturbanceSpec() if self.estimate else None, search=self.search(attempt),
-                             fallback=fallback)
+                             fallback=fallback, prediction_schedule=self.prediction_schedule)
         res = design_mpc_controller(load_models([models_dir]), options, progress=progress)
         res.save(out)
         return {"file": str(out), "result": {"out": str(out), **res.summary()},
                 "settings": self._settings("mpc", f"{models_dir.name}/*.npz", attempt,
                                            fallback=None if fallback is None else str(fallback),
-                                           disturbance_estimate=self.estimate)}
+                                           disturbance_estimate=self.estimate,
+                                           prediction_schedule=self.prediction_schedule)}
 
 
 def settings_text(settings: dict) -> str:
@@ -184,8 +205,8 @@ def window_designers(designer: Designer, models_dir: Path, auto: bool) -> Window
     def mpc_design(fallback: Path | None, past: int, out_file: Path) -> dict:
         return designer.mpc(models_dir, DesignTry(auto, past), out_file, fallback)
 
-    def robust_design(past: int, out_file: Path) -> dict:
-        return designer.robust(models_dir, DesignTry(auto, past), out_file)
+    def robust_design(past: int, out_file: Path) -> dict:       # the MPC's fall-back: its own law only
+        return designer.robust(models_dir, DesignTry(auto, past), out_file, bands=False)
     return mpc_design, robust_design
 
 

@@ -91,9 +91,9 @@ def test_a_law_re_derived_with_other_round_off_still_loads(saved, monkeypatch):
     """Another BLAS, thread count or CPU re-derives the unconstrained gain with other last bits (seen: the
     demo's MPC file, designed with two BLAS threads, was refused with one). The recorded gain is what the
     certificate is about, once it agrees with the re-derived one; before, any round-off refused the file."""
-    import design.files.mpc as mpc_file
-    real = mpc_file.unconstrained_gain
-    monkeypatch.setattr(mpc_file, "unconstrained_gain", lambda problem: real(problem) * (1.0 + 3e-14))
+    import design.mpc.law as mpc_law
+    real = mpc_law.unconstrained_gain
+    monkeypatch.setattr(mpc_law, "unconstrained_gain", lambda problem: real(problem) * (1.0 + 3e-14))
     assert isinstance(load_controller(saved), MPCController)
 
 

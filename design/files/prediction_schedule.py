@@ -1,0 +1,236 @@
+"""An MPC file's prediction models by speed (``design["prediction_schedule"]``).
+
+Why: the MPC predicts with one model, the central one, at every speed, and at the top design speed
+that model mispredicts: on a generated tractor of the family its free-run cross-track fit at 2.91 m/s
+was 18 % against 39-76 % for the local models of that speed, and an MPC predicting with the local
+model of the speed being driven was no worse in any of 30 cells of two tractors and better in the
+2.91 m/s cells (on random-3 the worst cell went from 1.52 to 1.32x the oracle). The file carries, per
+speed band, the model the MPC predicts with there.
+
+Layout: ``design["prediction_schedule"] = {"bands": [[low, high | null], ...], "laws": [law, ...],
+"left_out": [...]}``, band ``i`` (m/s, ``low <= v < high``; bands reach half-way between design speeds,
+:func:`design.laws.estimate_schedule.bands_for`) predicted with ``laws[i]["model"]``; at every other
+speed the file's own (central) model predicts. Each law is ``{"model": {A, B, C, D, K, name, hash},
+"unconstrained_gain": [[...]], "band_models": [{"name", "hash", "speed"}, ...], "certificate": {...},
+"certificate_off": {...} | null, "neighbours": [...]}``; ``left_out`` lists the design speeds whose band
+the design left to the central model, and why (a record only).
+
+What the reader checks (:func:`check_prediction_schedule`, on every read): the bands (no overlap,
+within 0-20 m/s, at most :data:`MAX_BANDS`); each model's hash, sample time, inputs and outputs; its
+unconstrained gain re-derived from the file's horizon, weights, limits, window and estimate with that
+model (as the file's own: :func:`design.mpc.law.checked_gain`); its certificate certifies exactly that
+law (:func:`design.files.certificate.check_certificate`) on exactly the band's models, every one of
+which has its design speed inside the band and is among the models the file's own certificate lists;
+the prediction model is one of them. Where the file's estimate schedule turns the estimate off at a
+speed of the band, the band's law without the estimate is certified likewise (``certificate_off``).
+``neighbours`` (each band law's margins on the other bands' models) is recorded, not required.
+
+What is proven, and what is not. Each band's law (the MPC's unconstrained law with the band's model
+predicting) is stable, with the recorded margins, on every model identified at a speed of its band,
+every implement: every identified condition is certified with the law that runs at its speed. The
+central law (the file's own) runs outside every band, and when the file has no schedule; it keeps its
+certificate on every model. The fall-back gain is the same in every band. A band's law is in general
+not stable on the models of the other bands (at the bench's speeds the 2.91 m/s law leaves a 1.00 m/s
+model unstable), and switching between the band laws is not covered by a common Lyapunov function:
+the loop switches only when the measured speed crosses a band's edge, half-way between two design
+speeds, with :class:`design.core.speed_latch.SpeedLatch`'s hysteresis and dwell, as the linear files'
+law schedule does (:mod:`design.files.law_schedule`). The states (the measured window, the integral,
+the estimate) mean the same in every band, so nothing resets at a switch.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from identification.errors import ModelFileError
+from identification.model import Model
+
+from design.core.compensator import Compensator
+from design.core.errors import ControllerFileError, DesignInputError
+from design.core.verify import model_hash
+from design.files.certificate import check_certificate, is_legacy, recorded_models
+from design.laws.estimate_schedule import RECORD as ESTIMATE_RECORD
+from design.laws.estimate_schedule import EstimateSchedule, check_bands, law_without_estimate
+
+#: Key of the record in an MPC file's ``design`` object.
+RECORD = "prediction_schedule"
+#: Most bands a schedule may carry (one per design speed is five).
+MAX_BANDS = 8
+REC_KEYS = ("bands", "laws", "left_out")
+LAW_KEYS = ("model", "unconstrained_gain", "band_models", "certificate", "certificate_off", "neighbours")
+MODEL_KEYS = ("A", "B", "C", "D", "K", "name", "hash")
+#: Most entries of ``left_out`` and ``neighbours`` (records only, bounded).
+MAX_NOTES = 64
+
+
+@dataclass(frozen=True)
+class PredictionSchedule:
+    """Prediction models by speed band (module docstring), as read (certificates not yet checked).
+
+    Attributes
+    ----------
+    bands
+        ``((low, high), ...)``, m/s, sorted, not overlapping; ``high`` may be ``inf``.
+    models
+        The model each band predicts with.
+    gains
+        The unconstrained gain each band's file entry records (nested lists, as read).
+    """
+
+    bands: tuple[tuple[float, float], ...]
+    models: tuple[Model, ...]
+    gains: tuple[Any, ...]
+
+    def index_at(self, speed: float) -> int | None:
+        """The band holding ``speed`` (m/s), or None (the central model predicts there)."""
+        for i, (lo, hi) in enumerate(self.bands):
+            if lo <= speed < hi:
+                return i
+        return None
+
+
+def model_record(model: Model) -> dict:
+    """The file record of a prediction model (as the MPC file's own ``model``)."""
+    return {**{k: getattr(model, k).tolist() for k in ("A", "B", "C", "D", "K")},
+            "name": str(model.meta.get("name", "model")), "hash": model_hash(model)}
+
+
+def model_from_record(md: Any, dt: float, like: Model, what: str) -> Model:
+    """A prediction model from its record, checked: exactly :data:`MODEL_KEYS`, numeric matrices, its hash,
+    and the inputs and outputs of ``like`` (the file's own model); ``ControllerFileError`` naming ``what``."""
+    if not isinstance(md, dict) or sorted(md) != sorted(MODEL_KEYS):
+        got = sorted(md) if isinstance(md, dict) else type(md).__name__
+        raise ControllerFileError(f"{what} must hold exactly {', '.join(MODEL_KEYS)}; got {got}")
+    mats = {}
+    for k in ("A", "B", "C", "D", "K"):
+        try:
+            mats[k] = np.array(md[k], dtype=float)
+        except (TypeError, ValueError):
+            raise ControllerFileError(f"{what} {k} is not a numeric matrix") from None
+    try:
+        model = Model(**mats, dt=dt, meta={"name": str(md["name"]), "normalization": "velocity"})
+    except ModelFileError as exc:
+        raise ControllerFileError(f"{what}: {exc}") from None
+    if model_hash(model) != md["hash"]:
+        raise ControllerFileError(f"{what}: hash mismatch (recorded {md['hash']!r}, its matrices give "
+                                  f"{model_hash(model)!r})")
+    if (model.n_inputs, model.n_outputs) != (like.n_inputs, like.n_outputs):
+        raise ControllerFileError(f"{what} has {model.n_inputs} inputs and {model.n_outputs} outputs, the file's "
+                                  f"model {like.n_inputs} and {like.n_outputs}")
+    return model
+
+
+def parse_prediction_schedule(rec: Any, dt: float, like: Model) -> PredictionSchedule:
+    """The schedule of a file's record without its certificates (:func:`check_prediction_schedule` checks
+    those); ``like`` is the file's own model. ``ControllerFileError`` if malformed."""
+    if not isinstance(rec, Mapping) or sorted(rec) != sorted(REC_KEYS):
+        got = sorted(rec) if isinstance(rec, Mapping) else type(rec).__name__
+        raise ControllerFileError(f"design.{RECORD} must hold exactly {', '.join(REC_KEYS)}; got {got}")
+    bands, laws = rec["bands"], rec["laws"]
+    if not isinstance(bands, list) or not isinstance(laws, list) or len(bands) != len(laws) or not laws:
+        raise ControllerFileError(f"design.{RECORD}: bands and laws must be lists of the same length >= 1, got "
+                                  f"{type(bands).__name__} and {type(laws).__name__}")
+    if len(laws) > MAX_BANDS:
+        raise ControllerFileError(f"design.{RECORD}: {len(laws)} bands, at most {MAX_BANDS}")
+    if not isinstance(rec["left_out"], list) or len(rec["left_out"]) > MAX_NOTES:
+        raise ControllerFileError(f"design.{RECORD}.left_out must be a list of at most {MAX_NOTES} entries")
+    raw = [(b[0], math.inf if b[1] is None else b[1]) if isinstance(b, list) and len(b) == 2 else b for b in bands]
+    try:
+        sorted_bands = check_bands(raw, "prediction-schedule")
+    except DesignInputError as exc:
+        raise ControllerFileError(f"design.{RECORD}: {exc}") from None
+    if [tuple(map(float, b)) for b in raw] != list(sorted_bands):
+        raise ControllerFileError(f"design.{RECORD}: bands must be listed from the slowest, got {bands!r}")
+    models, gains = [], []
+    for i, law in enumerate(laws):
+        what = f"design.{RECORD} band {i}"
+        if not isinstance(law, Mapping) or sorted(law) != sorted(LAW_KEYS):
+            got = sorted(law) if isinstance(law, Mapping) else type(law).__name__
+            raise ControllerFileError(f"{what} must hold exactly {', '.join(LAW_KEYS)}; got {got}")
+        if not isinstance(law["neighbours"], list) or len(law["neighbours"]) > MAX_NOTES:
+            raise ControllerFileError(f"{what} neighbours must be a list of at most {MAX_NOTES} entries")
+        models.append(model_from_record(law["model"], dt, like, f"{what} model"))
+        gains.append(law["unconstrained_gain"])
+    return PredictionSchedule(sorted_bands, tuple(models), tuple(gains))
+
+
+def _band_models(rows: Any, band: tuple[float, float], what: str) -> dict[str, float]:
+    """``{hash: speed}`` of a band's listed models, each with its design speed inside ``band``."""
+    if not isinstance(rows, list) or not rows or len(rows) > MAX_NOTES:
+        raise ControllerFileError(f"{what} band_models must list the band's models (1 to {MAX_NOTES})")
+    out = {}
+    lo, hi = band
+    for row in rows:
+        if not isinstance(row, dict) or sorted(row) != ["hash", "name", "speed"] or not isinstance(row["hash"], str):
+            raise ControllerFileError(f"{what} band_models entries must be {{name, hash, speed}}, got {row!r}")
+        v = row["speed"]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v < hi):
+            raise ControllerFileError(f"{what}: model {row['name']!r} was identified at {v!r} m/s, outside the band "
+                                      f"{lo:g}-{hi:g} m/s: a band's law is certified on its own band's models")
+        out[row["hash"]] = float(v)
+    return out
+
+
+def check_prediction_schedule(design: Any, cert: Any, schedule: PredictionSchedule,
+                              laws: Sequence[Compensator], dp_states: tuple[int, ...], legacy: bool = False) -> None:
+    """Check every band's certificates (module docstring).
+
+    Parameters
+    ----------
+    design, cert
+        The file's ``design`` object and its own certificate, as read.
+    schedule
+        :func:`parse_prediction_schedule` of the record.
+    laws
+        Each band's unconstrained law, its gain re-derived and checked (:meth:`design.files.mpc.MPCFile.band_laws`).
+    dp_states
+        The disturbance estimate's states of the laws (() without an estimate).
+    legacy
+        As :func:`design.files.certificate.check_certificate`'s.
+
+    Raises
+    ------
+    ControllerFileError
+        Naming the band and what does not hold.
+    """
+    rec = design[RECORD]
+    main = {h for _, h, _ in recorded_models(cert)} if isinstance(cert, dict) and not is_legacy(cert) else None
+    est = design.get(ESTIMATE_RECORD)
+    off = EstimateSchedule.from_record(est).off if isinstance(est, dict) else ()
+    for i, (band, model, law, entry) in enumerate(zip(schedule.bands, schedule.models, laws, rec["laws"])):
+        what = f"design.{RECORD} band {i} ({band[0]:g}-{band[1]:g} m/s)"
+        listed = _band_models(entry["band_models"], band, what)
+        if model_hash(model) not in listed:
+            raise ControllerFileError(f"{what}: its prediction model {model.meta.get('name')!r} is not one of the "
+                                      "band's models")
+        if main is not None and set(listed) - main:
+            raise ControllerFileError(f"{what}: {len(set(listed) - main)} of the band's models are not among the "
+                                      "models of the file's own certificate: the central law must be certified "
+                                      "on them too")
+        try:
+            check_certificate(entry["certificate"], law, f"the law of {what}", legacy)
+        except ControllerFileError as exc:
+            raise ControllerFileError(f"{what}: {exc}") from None
+        have = {h for _, h, _ in recorded_models(entry["certificate"])}
+        if have != set(listed):
+            raise ControllerFileError(f"{what}: its certificate was made on {len(have)} models, not exactly the "
+                                      f"band's {len(listed)}: design the controller again")
+        if dp_states and any(lo < band[1] and band[0] < hi for lo, hi in off):
+            try:
+                check_certificate(entry["certificate_off"], law_without_estimate(law, dp_states),
+                                  f"the law of {what} without the disturbance estimate", legacy)
+            except (ControllerFileError, DesignInputError) as exc:
+                raise ControllerFileError(f"{what}.certificate_off (the estimate is off at some of its speeds): "
+                                          f"{exc}") from None
+            if {h for _, h, _ in recorded_models(entry["certificate_off"])} != set(listed):
+                raise ControllerFileError(f"{what}.certificate_off was not made on exactly the band's models")
+
+
+def schedule_record(bands: Sequence[tuple[float, float]], laws: Sequence[dict], left_out: Sequence[dict]) -> dict:
+    """``design["prediction_schedule"]`` of bands (m/s), their laws' records and the speeds left out."""
+    return {"bands": [[lo, None if math.isinf(hi) else hi] for lo, hi in bands], "laws": list(laws),
+            "left_out": list(left_out)}

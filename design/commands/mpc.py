@@ -7,7 +7,9 @@
                [--fallback controllers/robust.json] --out controllers/mpc.json [--json]
 
 The prediction model is the model of kind ``central`` among ``--models`` (or ``--central``);
-the unconstrained law is checked closed around every other model given.
+the unconstrained law is checked closed around every other model given. With local models of two or
+more design speeds, each speed's band predicts with its model of the implement none
+(``--prediction-schedule off``: not).
 """
 
 from __future__ import annotations
@@ -36,7 +38,8 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
                          SolverSettings(args.backend, args.solver, args.max_iter, args.time_budget_ms * 1e-3),
                          args.past, tuple(None if c <= 0 else c for c in args.output_clip), args.speed_min, args.name,
                          disturbance_of(args), weight_search_of(args), args.fallback,
-                         require_stable=not args.allow_unstable)
+                         require_stable=not args.allow_unstable,
+                         prediction_schedule=args.prediction_schedule == "on")
     res = design_mpc_controller(models, options, central, validate, progress_of(args))
     warn_relaxed(res.file.design.get("auto_weights"))
     res.save(args.out)
@@ -75,6 +78,10 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     add_bryson_arguments(p, number)
     add_spec_arguments(p, number)
     add_disturbance_arguments(p, number, "carry it in the MPC's state and prediction")
+    p.add_argument("--prediction-schedule", choices=("on", "off"), default="on",
+                   help="predict in each design speed's band with that speed's local model of the implement none, "
+                        "certified on the band's models, when --models hold local models of two or more speeds "
+                        "(default on; off: the central model at every speed)")
     p.add_argument("--allow-unstable", action="store_true",
                    help="write it even if the unconstrained law is unstable on some model (recorded)")
     p.add_argument("--name", default=None, help="the controller's name in its file (default: mpc)")
@@ -96,5 +103,22 @@ def render(result: dict) -> str:
              "unconstrained law closed around each model:",
              certificate_table(result["certificate"]),
              *spec_lines(result),
+             *schedule_lines(result.get("prediction_schedule")),
              f"wrote {result['out']}"]
     return "\n".join(lines)
+
+
+def schedule_lines(rec: dict | None) -> list[str]:
+    """The prediction schedule's lines of the summary (none without one)."""
+    if not rec or (not rec["bands"] and not rec["left_out"]):
+        return []
+    lines = ["prediction by speed band (each law certified on its band's models):"]
+    for b in rec["bands"]:
+        lo, hi = b["band_mps"]
+        nb = b["neighbours_min_disk_margin"]
+        lines.append(f"  {lo:g}-{'' if hi is None else f'{hi:g}'} m/s: {b['model']}, worst {b['worst']} "
+                     f"(spectral radius {b['max_spectral_radius']:.4f}, disk margin >= {b['min_disk_margin']:.2f}); "
+                     f"on the other bands' models {'stable' if b['neighbours_stable'] else 'NOT stable'}"
+                     + ("" if nb is None else f", disk margin >= {nb:.2f}"))
+    lines += [f"  {x['speed']:g} m/s left to the central model: {x['reason']}" for x in rec["left_out"]]
+    return lines

@@ -71,6 +71,8 @@ class LogOptions:
         ``"auto"`` (from specifications), ``"default"`` or ``"auto-if-available"`` (auto, then the defaults).
     integral, disturbance_estimate
         Integral action in the robust design; the disturbance estimate in the robust controller and the MPC.
+    prediction_schedule
+        The MPC predicts in each design speed's band with that speed's local model (:class:`hil.commissioning.designs.Designer`).
     robust_past
         Longer measured windows tried, in order, when the design with the window from observability fails.
     fallback_order
@@ -85,6 +87,7 @@ class LogOptions:
     weights: str = "auto-if-available"
     integral: bool = True
     disturbance_estimate: bool = True
+    prediction_schedule: bool = True
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
 
@@ -185,7 +188,8 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
     designs: dict[str, dict] = {}
     if ident is not None:
         res["identification"] = ident
-        designer = Designer(rate_limit=com.valve.max_rate, integral=opts.integral, estimate=opts.disturbance_estimate)
+        designer = Designer(rate_limit=com.valve.max_rate, integral=opts.integral, estimate=opts.disturbance_estimate,
+                            prediction_schedule=opts.prediction_schedule)
         designs, again = design_with_fallback(steps, designer, logs, models_dir, out,
                                               attempts(opts.weights, opts.robust_past), opts.fallback_order,
                                               opts.markov, progress=lambda d, n: tick("identification", d, n))

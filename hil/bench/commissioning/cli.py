@@ -99,6 +99,10 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
     c.add_argument("--disturbance-estimate", choices=("on", "off"), default="on",
                    help="the robust controller and the MPC with the disturbance estimate (design robust/mpc "
                         "--disturbance-estimate; default on)")
+    c.add_argument("--prediction-schedule", choices=("on", "off"), default="on",
+                   help="the MPC predicts in each design speed's band with that speed's local model of the "
+                        "implement none (design mpc --prediction-schedule; default on; off: the central model at "
+                        "every speed)")
     c.add_argument("--estimate-trial", choices=("on", "off"), default=None,
                    help="choose per speed whether the estimate acts, by a trial drive with it and without it "
                         "(design estimate-schedule; default on with the slews, off with the field procedure, "
@@ -158,7 +162,8 @@ def commission_options(args: argparse.Namespace) -> CommissionOptions:
                              weights=args.weights, order=args.order, markov=args.markov, acceptance=args.acceptance,
                              more_passes=args.more_passes, disturbance_estimate=args.disturbance_estimate == "on",
                              estimate_trial=None if args.estimate_trial is None else args.estimate_trial == "on",
-                             oracle_search=args.oracle_search == "on")
+                             oracle_search=args.oracle_search == "on",
+                             prediction_schedule=args.prediction_schedule == "on")
 
 
 def _reporters(quiet: bool):
@@ -231,7 +236,8 @@ def _run_from_logs(args: argparse.Namespace) -> dict:
     if args.top_up is not None:
         return _run_top_up(args)
     opts = LogOptions(order=args.order, markov=args.markov, acceptance=args.acceptance, latency=args.latency,
-                      weights=args.weights, disturbance_estimate=args.disturbance_estimate == "on")
+                      weights=args.weights, disturbance_estimate=args.disturbance_estimate == "on",
+                      prediction_schedule=args.prediction_schedule == "on")
     say, progress, close = _reporters(args.quiet)
     res = commission_from_logs(args.logs, args.commissioning, args.out, opts, say=say, progress=progress)
     close()
@@ -240,7 +246,8 @@ def _run_from_logs(args: argparse.Namespace) -> dict:
 
 
 #: Design and identification options a top-up takes from the commissioning it adds to, not from the command line.
-COMMISSIONING_SETTINGS = ("order", "markov", "acceptance", "latency", "weights", "disturbance_estimate")
+COMMISSIONING_SETTINGS = ("order", "markov", "acceptance", "latency", "weights", "disturbance_estimate",
+                          "prediction_schedule")
 
 
 def _run_top_up(args: argparse.Namespace) -> dict:

@@ -1,0 +1,163 @@
+"""An MPC file's prediction models by speed band (design/files/prediction_schedule.py): written by the design,
+checked on every read (a tampered band refused), run by the controller on one state with the latched band's
+QP, and a band whose law is not stable on its own band's models left to the central law."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from design.core.errors import ControllerFileError
+from design.core.speed_latch import DWELL_S
+from design.core.weights import OutputWeights
+from design.laws.controller import Measurement
+from design.laws.disturbance import DisturbanceSpec
+from design.files.mpc import read_mpc_file
+from design.files.prediction_schedule import RECORD
+from design.mpc import MPCLimits, MPCWeights, SolverSettings
+from design.synthesis.mpc_design import MPCSpec, design_mpc, with_prediction_schedule
+
+from design_family import rewrite, tractor_model
+
+SPEEDS = (1.0, 1.79, 2.91)
+SPEC = MPCSpec(horizon=20, limits=MPCLimits(0.3, 0.1), settings=SolverSettings(time_budget=1.0),
+               disturbance=DisturbanceSpec())
+
+
+def local(speed: float, implement: str, authority: float, **kw):
+    """A local model as identification names it: one condition with its implement and nominal speed."""
+    return tractor_model(speed, authority, name=f"local_{implement}_{speed:g}", **kw).with_meta(
+        conditions=[{"implement": implement, "nominal_speed": speed}])
+
+
+@pytest.fixture(scope="module")
+def scheduled():
+    models = [local(v, imp, a) for v in SPEEDS for imp, a in (("none", 1.0), ("disker", 0.7))]
+    central = tractor_model(1.79, name="central").with_meta(kind="central")
+    return with_prediction_schedule(design_mpc(central, models, SPEC), models), models
+
+
+@pytest.fixture()
+def saved(scheduled, tmp_path):
+    return scheduled[0].file.save(tmp_path / "mpc.json")
+
+
+def test_each_design_speed_gets_its_band_and_its_none_model(scheduled, saved):
+    res, _ = scheduled
+    rec = res.file.design[RECORD]
+    assert rec["bands"] == [[0.0, 1.395], [1.395, 2.35], [2.35, None]] and rec["left_out"] == []
+    assert [law["model"]["name"] for law in rec["laws"]] == ["local_none_1", "local_none_1.79", "local_none_2.91"]
+    for law, v in zip(rec["laws"], SPEEDS):         # certified on exactly its band's models, every implement
+        assert [r["name"] for r in law["certificate"]["models"]] == [f"local_none_{v:g}", f"local_disker_{v:g}"]
+        assert law["certificate"]["passed"] and law["certificate_off"]["passed"]
+        assert len(law["neighbours"]) == 4 and {r["speed"] for r in law["neighbours"]} == set(SPEEDS) - {v}
+    spec = read_mpc_file(saved)
+    assert spec.to_dict() == json.loads(saved.read_text())
+    assert spec.prediction_schedule.bands == ((0.0, 1.395), (1.395, 2.35), (2.35, float("inf")))
+
+
+def _step(ctrl, t: float, v: float) -> float:
+    return ctrl.step(Measurement(t, 0.01, 0.002, 0.0, v))
+
+
+def test_the_controller_switches_band_past_the_hysteresis_and_runs_the_band_law(saved):
+    spec = read_mpc_file(saved)
+    ctrl = spec.controller(approach=False)
+    t = 0.0
+    for _ in range(30):
+        _step(ctrl, t, 1.79)
+        t += 0.05
+    assert ctrl.band == 1
+    for _ in range(40):                               # just past the edge at 2.35 m/s, inside the hysteresis
+        _step(ctrl, t, 2.37)
+        t += 0.05
+    assert ctrl.band == 1 and ctrl.latch.switches == 0
+    _step(ctrl, t, 2.45)                              # 0.1 m/s inside the band, after the dwell: band 2's QP
+    assert ctrl.band == 2 and ctrl.latch.switches == 1 and ctrl.backend is ctrl.backends[3]
+    assert ctrl.last.fallback is False and DWELL_S <= 40 * 0.05
+    # the latched band's QP gives its own unconstrained law's first move from a small state
+    laws, central = spec.band_laws(), spec.law()
+    z = np.zeros(ctrl.problem.nz)
+    z[ctrl.problem.layout.output_slot(0)] = (1e-3, 5e-4, 1e-3)
+    k2 = np.array(spec.design[RECORD]["laws"][2]["unconstrained_gain"])
+    k0 = np.array(spec.design["unconstrained_gain"])
+    assert ctrl.solve_qp(z).u0 == pytest.approx(float(k2[0] @ z), rel=1e-4)
+    assert abs(float(k0[0] @ z) - float(k2[0] @ z)) > 1e-2 * abs(float(k2[0] @ z))   # not the central law's
+    # from an engage at 2.91 m/s the first command is band 2's law on the measured state (the window filled
+    # with the present outputs), as its compensator gives it
+    fresh = spec.controller(approach=False)
+    m = Measurement(0.0, 0.01, 0.002, 0.0, 2.91)
+    y = fresh.outputs(m)
+    assert fresh.step(m) == pytest.approx(float(laws[2].Dc[0] @ y + laws[2].Cc[0] @ (laws[2].X0 @ y)), rel=1e-4)
+    assert fresh.band == 2 and central is not None
+
+
+def test_a_tampered_band_is_refused(saved):
+    def refused(edit, match):
+        body = json.loads(saved.read_text())
+        path = saved.with_name("t.json")
+        path.write_text(json.dumps(body))
+        rewrite(path, edit)
+        with pytest.raises(ControllerFileError, match=match):
+            read_mpc_file(path)
+
+    def gain(b):
+        g = b["design"][RECORD]["laws"][2]["unconstrained_gain"]
+        g[0][0] *= 1.001
+    refused(gain, "band 2: the recorded unconstrained gain differs")
+
+    def swap(b):                                      # band 0 runs band 2's law: its models are not band 0's
+        laws = b["design"][RECORD]["laws"]
+        laws[0], laws[2] = laws[2], laws[0]
+    refused(swap, r"band 0 \(0-1.395 m/s\): model 'local_none_2.91' was identified at 2.91 m/s, outside the band")
+
+    def uncertified(b):                               # a band's model taken out of its law's certificate
+        b["design"][RECORD]["laws"][1]["certificate"]["models"].pop()
+    refused(uncertified, r"band 1 \(1.395-2.35 m/s\): its certificate was made on 1 models, not exactly the band's 2")
+
+    def overlap(b):
+        b["design"][RECORD]["bands"][1] = [1.0, 2.35]
+    refused(overlap, "prediction-schedule bands overlap")
+
+    def foreign(b):                                   # a prediction model that is none of the band's models
+        law = b["design"][RECORD]["laws"][1]
+        law["band_models"] = [r for r in law["band_models"] if r["name"] != "local_none_1.79"]
+    refused(foreign, "its prediction model 'local_none_1.79' is not one of the band's models")
+
+
+def test_a_band_whose_law_its_own_models_do_not_hold_is_left_to_the_central_law():
+    """A slow valve on the disker at 2.91 m/s (0.8 s lag): the central law, predicting with a slow model, holds
+    it; the band's law predicting with the fast none model at the same weights does not."""
+    models = [local(1.0, "none", 1.0), local(1.0, "disker", 0.7), local(2.91, "none", 1.0),
+              local(2.91, "disker", 1.0, tau=0.8)]
+    central = tractor_model(2.91, name="central", tau=0.8).with_meta(kind="central")
+    spec = MPCSpec(horizon=20, limits=MPCLimits(0.3, 0.1), settings=SolverSettings(time_budget=1.0), past=2,
+                   weights=MPCWeights(OutputWeights()))
+    res = with_prediction_schedule(design_mpc(central, models, spec), models)
+    rec = res.file.design[RECORD]
+    assert rec["bands"] == [[0.0, 1.955]]
+    assert [x["speed"] for x in rec["left_out"]] == [2.91]
+    assert "not stable on local_disker_2.91" in rec["left_out"][0]["reason"]
+    assert res.prediction_schedule["left_out"] == rec["left_out"]
+    ctrl = res.file.controller(approach=False)
+    _step(ctrl, 0.0, 2.91)
+    assert ctrl.band is None                          # the central law runs where the band was left out
+
+
+def test_design_mpc_adds_the_schedule_unless_told_not_to(scheduled, tmp_path, capsys):
+    from design.cli import main as design_main
+    _, models = scheduled
+    central = tractor_model(1.79, name="central").with_meta(kind="central")
+    paths = [str(m.save(tmp_path / f"{m.meta['name']}.npz")) for m in [central, *models]]
+    common = ["mpc", "--models", *paths, "--horizon", "20", "--time-budget-ms", "1000"]
+    assert design_main([*common, "--out", str(tmp_path / "on.json")]) == 0
+    text = capsys.readouterr().out
+    assert "2.35- m/s: local_none_2.91, worst local_" in text and "on the other bands' models stable" in text
+    assert [law["model"]["name"] for law in read_mpc_file(tmp_path / "on.json").design[RECORD]["laws"]] == \
+        ["local_none_1", "local_none_1.79", "local_none_2.91"]
+    assert design_main([*common, "--prediction-schedule", "off", "--out", str(tmp_path / "off.json")]) == 0
+    capsys.readouterr()
+    off = read_mpc_file(tmp_path / "off.json")
+    assert RECORD not in off.design and off.prediction_schedule is None and off.controller().bands == ()

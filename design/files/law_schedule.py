@@ -1,29 +1,46 @@
 """A linear controller file's window laws by speed (``design["law_schedule"]``).
 
-Why: on random-1 the robust window laws the estimate's back-off makes are ordered by their bandwidth
-(the window weights' scale), and the order turns over with speed: over 12 HIL seeds the law of scale
-1.48 is 0.93x the paper's method at 2.91 m/s where the law chosen for every speed (1.05) is 1.04x, and
-at 1.00 m/s the wider laws cost (docs/tractor_campaign.md). One law for every speed takes
-the middle; the window trial (:mod:`hil.bench.commissioning.window_trial`) now chooses per speed, and the file
-carries the laws it chose.
+Why: one robust law certified on every identified model stops at the model whose margin binds first (on
+random-1 the ripper's 1.79 m/s model), so at the top speed it is slower than that speed's models allow;
+through a steering controller's delay one law fast enough for 2.91 m/s is unstable at 1.00-1.79 m/s. A law
+per speed band, each certified on the models of its own band, lifts that. The window trial
+(:mod:`hil.bench.commissioning.window_trial`) fills the schedule with laws certified on every model (the
+estimate's back-off: on random-1 the law of scale 1.48 was 0.93x the paper's method at 2.91 m/s where the
+law chosen for every speed, 1.05, was 1.04x); :func:`design.synthesis.recipes.design_robust_bands` fills it
+with laws designed and certified on their band's models.
 
-Layout: ``design["law_schedule"] = {"bands": [[low, high | null], ...], "laws": [law, ...]}``, band
-``i`` (m/s, ``low <= v < high``) run by ``laws[i]``; at every other speed the file's own compensator
-runs. Each law is ``{"compensator": {Ac, Bc, Cc, Dc, Ec, X0}, "certificate": {...},
-"certificate_off": {...} | null, "source": name, "window_scale": s, "estimate_scale": e}``.
+Layout: ``design["law_schedule"] = {"bands": [[low, high | null], ...], "laws": [law, ...],
+"model_speeds": {name: m/s}}``, band ``i`` (m/s, ``low <= v < high``) run by ``laws[i]``; at every other
+speed the file's own compensator runs. Each law is ``{"compensator": {Ac, Bc, Cc, Dc, Ec, X0},
+"certificate": {...}, "certificate_off": {...} | null, "source": name, "window_scale": s, "estimate_scale":
+e, "certified_on": rule, "neighbours": [...]}``. ``model_speeds`` gives the design speed of every model the
+file's certificate lists (the speed its passes were driven at); it is needed only by a band law.
+``certified_on`` is the rule the law was certified under (absent in files written before it: ``"every
+model"``):
+
+- ``"every model"``: its certificate lists every model of the file's certificate;
+- ``"band"``: its certificate lists exactly the models of the file's certificate whose design speed
+  (``model_speeds``) lies in its band, at least one.
+
+``neighbours`` (band laws; recorded, not required) gives the law's spectral radius and disk margin on the
+models of the other bands, with the latency in the loop: how far from its band the law still holds.
 
 What the reader checks (:func:`check_law_schedule`, on every read): the bands (as an estimate schedule's:
 no overlap, within 0-20 m/s); each law of the same size as the file's compensator, with the same pure
 integrators (the loop holds them by index) and coefficients within the file limits; its certificate
-certifies exactly its matrices (:func:`design.files.certificate.check_certificate`) on every model the
-file's own certificate lists; and where the file's estimate schedule turns the estimate off, its law
-without the estimate is certified likewise (``certificate_off``). The states of every law mean the same
-(the measured window of outputs and commands, the integral, the estimate's prediction and
+certifies exactly its matrices (:func:`design.files.certificate.check_certificate`, the spectral radii
+recomputed) on the models its rule names; and where the file's estimate schedule turns the estimate off,
+its law without the estimate is certified likewise (``certificate_off``). The states of every law mean the
+same (the measured window of outputs and commands, the integral, the estimate's prediction and
 disturbance), so the loop changes law at a band's edge without resetting anything.
 
-What it does not prove: each law is stable on every model, but switching between them is not covered by
-a common Lyapunov function. The loop switches only when the speed crosses a band's edge (half-way
-between two design speeds), as it does for the estimate's schedule.
+What is proven: at frozen speed, every identified condition is certified with the law that runs at its
+speed (a model whose design speed lies in a band with the band's law, every other model with the file's
+own law, which is certified on every model). What is not: a band law on the models of other speeds
+(``neighbours`` records it, and may show it unstable there), and switching between laws, which no common
+Lyapunov function covers. The loop switches only when the speed crosses a band's edge (half-way between
+two design speeds, :func:`design.laws.estimate_schedule.bands_for`), with the hysteresis and dwell time of
+:class:`design.core.speed_latch.SpeedLatch`, as it does for the estimate's schedule.
 """
 
 from __future__ import annotations
@@ -49,6 +66,13 @@ MATRICES = ("Ac", "Bc", "Cc", "Dc", "Ec", "X0")
 #: Most laws a schedule may carry (one per design speed is five).
 MAX_LAWS = 8
 LAW_KEYS = ("compensator", "certificate", "certificate_off", "source", "window_scale", "estimate_scale")
+#: Keys a law may carry beside :data:`LAW_KEYS` (files written before them have neither).
+OPTIONAL_LAW_KEYS = ("certified_on", "neighbours")
+#: The rules a law may be certified under (module docstring); the first is the rule of a law without one.
+EVERY_MODEL, BAND = "every model", "band"
+RULES = (EVERY_MODEL, BAND)
+#: Most models ``model_speeds`` and a law's ``neighbours`` may list.
+MAX_MODELS = 64
 
 
 def check_coefficients(mats: Mapping[str, np.ndarray], what: str) -> None:
@@ -111,11 +135,14 @@ class LawSchedule:
         The law of each band.
     sources
         Each law's name where it came from (a candidate file's name), for reports.
+    rules
+        The rule each law was certified under (:data:`RULES`).
     """
 
     bands: tuple[tuple[float, float], ...]
     laws: tuple[Compensator, ...]
     sources: tuple[str, ...]
+    rules: tuple[str, ...] = ()
 
     def index_at(self, speed: float) -> int | None:
         """The band holding ``speed`` (m/s), or None (the file's own law runs there)."""
@@ -134,9 +161,9 @@ def _scale(v: Any, what: str) -> float | None:
 def parse_law_schedule(rec: Any, main: Compensator) -> LawSchedule:
     """The schedule of a file's record, each law shaped as ``main`` (the file's compensator) is, without
     its certificates (:func:`check_law_schedule` checks those); ``ControllerFileError`` if malformed."""
-    if not isinstance(rec, Mapping) or sorted(rec) != ["bands", "laws"]:
+    if not isinstance(rec, Mapping) or sorted(set(rec) - {"model_speeds"}) != ["bands", "laws"]:
         got = sorted(rec) if isinstance(rec, Mapping) else type(rec).__name__
-        raise ControllerFileError(f"design.{RECORD} must hold exactly bands and laws; got {got}")
+        raise ControllerFileError(f"design.{RECORD} must hold exactly bands and laws (and model_speeds); got {got}")
     bands, laws = rec["bands"], rec["laws"]
     if not isinstance(bands, list) or not isinstance(laws, list) or len(bands) != len(laws) or not laws:
         raise ControllerFileError(f"design.{RECORD}: bands and laws must be lists of the same length >= 1, got "
@@ -148,12 +175,17 @@ def parse_law_schedule(rec: Any, main: Compensator) -> LawSchedule:
         check_bands(raw, "law-schedule")
     except DesignInputError as exc:
         raise ControllerFileError(f"design.{RECORD}: {exc}") from None
-    comps, sources = [], []
+    comps, sources, rules = [], [], []
     for i, law in enumerate(laws):
         what = f"design.{RECORD} law {i}"
-        if not isinstance(law, Mapping) or sorted(law) != sorted(LAW_KEYS):
+        if not isinstance(law, Mapping) or sorted(set(law) - set(OPTIONAL_LAW_KEYS)) != sorted(LAW_KEYS):
             got = sorted(law) if isinstance(law, Mapping) else type(law).__name__
-            raise ControllerFileError(f"{what} must hold exactly {', '.join(LAW_KEYS)}; got {got}")
+            raise ControllerFileError(f"{what} must hold exactly {', '.join(LAW_KEYS)} (and {', '.join(OPTIONAL_LAW_KEYS)}"
+                                      f"); got {got}")
+        rule = law.get("certified_on", EVERY_MODEL)
+        if rule not in RULES:
+            raise ControllerFileError(f"{what} certified_on must be one of {list(RULES)}, got {rule!r}")
+        _check_neighbours(law.get("neighbours", []), what)
         comp = compensator_from_record(law["compensator"], main.dt, main.n_measurements, f"{what} compensator")
         if comp.order != main.order:
             raise ControllerFileError(f"{what} has {comp.order} states, the file's compensator {main.order}: a law "
@@ -167,7 +199,39 @@ def parse_law_schedule(rec: Any, main: Compensator) -> LawSchedule:
         _scale(law["estimate_scale"], f"{what} estimate_scale")
         comps.append(comp)
         sources.append(law["source"])
-    return LawSchedule(tuple((float(lo), float(hi)) for lo, hi in raw), tuple(comps), tuple(sources))
+        rules.append(rule)
+    return LawSchedule(tuple((float(lo), float(hi)) for lo, hi in raw), tuple(comps), tuple(sources), tuple(rules))
+
+
+def _check_neighbours(rows: Any, what: str) -> None:
+    """A law's ``neighbours`` record: a list of at most :data:`MAX_MODELS` objects with a model's name and the
+    law's spectral radius and disk margin on it (numbers; the margin may be null). Recorded, not a proof."""
+    if not isinstance(rows, list) or len(rows) > MAX_MODELS:
+        raise ControllerFileError(f"{what} neighbours must be a list of at most {MAX_MODELS} models")
+    for row in rows:
+        if not isinstance(row, Mapping) or sorted(row) != ["band_mps", "disk_margin", "name", "spectral_radius"] \
+                or not isinstance(row["name"], str) or len(row["name"]) > 200 \
+                or not all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool))
+                           for v in (row["spectral_radius"], row["disk_margin"])):
+            raise ControllerFileError(f"{what} neighbours: each must be {{name, band_mps, spectral_radius, "
+                                      f"disk_margin}}, got {row!r:.200}")
+
+
+def model_speeds(rec: Mapping[str, Any], names: Sequence[str]) -> dict[str, float]:
+    """The schedule record's design speed of each model ``names`` lists (the file's certificate's), m/s;
+    ``ControllerFileError`` unless it gives exactly those models a finite speed > 0 each."""
+    speeds = rec.get("model_speeds")
+    if not isinstance(speeds, Mapping) or len(speeds) > MAX_MODELS:
+        raise ControllerFileError(f"design.{RECORD} has a law certified on its band's models but no model_speeds "
+                                  "(the design speed of each model of the file's certificate)")
+    if len(set(names)) != len(names) or set(speeds) != set(names):
+        raise ControllerFileError(f"design.{RECORD}.model_speeds must name exactly the models of the file's "
+                                  f"certificate, once each: it names {sorted(speeds)!r:.300}, the certificate "
+                                  f"{sorted(names)!r:.300}")
+    out = {}
+    for n, v in speeds.items():
+        out[n] = positive(v, f"design.{RECORD}.model_speeds[{n!r}]", error=ControllerFileError)
+    return out
 
 
 def check_law_schedule(design: Any, cert: Any, main: Compensator, dp_states: tuple[int, ...],
@@ -194,7 +258,9 @@ def check_law_schedule(design: Any, cert: Any, main: Compensator, dp_states: tup
     if rec is None:
         return None
     schedule = parse_law_schedule(rec, main)
-    main_models = {h for _, h, _ in recorded_models(cert)} if isinstance(cert, dict) and not is_legacy(cert) else set()
+    rows = recorded_models(cert) if isinstance(cert, dict) and not is_legacy(cert) else []
+    main_models = {h for _, h, _ in rows}
+    speeds = model_speeds(rec, [n for n, _, _ in rows]) if BAND in schedule.rules else {}
     est = design.get(ESTIMATE_RECORD)
     for i, (comp, law) in enumerate(zip(schedule.laws, rec["laws"])):
         what = f"design.{RECORD} law {i} ({law['source']})"
@@ -202,7 +268,9 @@ def check_law_schedule(design: Any, cert: Any, main: Compensator, dp_states: tup
             check_certificate(law["certificate"], comp, what, legacy)
         except ControllerFileError as exc:
             raise ControllerFileError(f"{what}: {exc}") from None
-        if not (legacy and is_legacy(law["certificate"])):
+        if schedule.rules[i] == BAND:
+            _check_band(law["certificate"], rows, speeds, schedule.bands[i], what)
+        elif not (legacy and is_legacy(law["certificate"])):
             have = {h for _, h, _ in recorded_models(law["certificate"])}
             if main_models - have:
                 raise ControllerFileError(f"{what} was not checked on every model of the file's certificate "
@@ -215,6 +283,36 @@ def check_law_schedule(design: Any, cert: Any, main: Compensator, dp_states: tup
             except ControllerFileError as exc:
                 raise ControllerFileError(f"{what}: {exc}") from None
     return schedule
+
+
+def band_models(rows: Sequence[tuple[str, str, Any]], speeds: Mapping[str, float],
+                band: tuple[float, float]) -> dict[str, str]:
+    """``{name: hash}`` of the models among ``rows`` (:func:`recorded_models` of the file's certificate) whose
+    design speed (``speeds``, m/s) lies in ``band`` (``low <= v < high``)."""
+    lo, hi = band
+    return {n: h for n, h, _ in rows if lo <= speeds[n] < hi}
+
+
+def _check_band(cert: Any, rows: Sequence[tuple[str, str, Any]], speeds: Mapping[str, float],
+                band: tuple[float, float], what: str) -> None:
+    """Refuse a band law's certificate unless it lists exactly the file's models of its band (one line)."""
+    want = band_models(rows, speeds, band)
+    span = f"{band[0]:g}-{band[1]:g} m/s"
+    if not want:
+        raise ControllerFileError(f"{what} is certified on its band's models, but no model of the file's "
+                                  f"certificate has its design speed in {span}")
+    if is_legacy(cert):
+        raise ControllerFileError(f"{what}: a band law's certificate must record its models' matrices")
+    have = {h: n for n, h, _ in recorded_models(cert)}
+    missing = sorted(n for n, h in want.items() if h not in have)
+    extra = sorted(n for h, n in have.items() if h not in want.values())
+    if missing or extra:
+        raise ControllerFileError(
+            f"{what} is certified on its band's models, but its certificate "
+            + (f"lacks {', '.join(missing)} of its band {span}" if missing else "")
+            + ("; and " if missing and extra else "")
+            + (f"lists {', '.join(extra)}, not of its band {span}" if extra else "")
+            + ": a band law must be certified on exactly the models whose design speed lies in its band")
 
 
 def law_entry(body: Mapping[str, Any], comp: Compensator, source: str) -> dict:
@@ -230,6 +328,11 @@ def law_entry(body: Mapping[str, Any], comp: Compensator, source: str) -> dict:
             "estimate_scale": float(est["scale"]) if isinstance(est, dict) and "scale" in est else None}
 
 
-def schedule_record(bands: Sequence[tuple[float, float]], laws: Sequence[dict]) -> dict:
-    """``design["law_schedule"]`` of bands (m/s) and their laws' records (:func:`law_entry`)."""
-    return {"bands": [[lo, None if math.isinf(hi) else hi] for lo, hi in bands], "laws": list(laws)}
+def schedule_record(bands: Sequence[tuple[float, float]], laws: Sequence[dict],
+                    speeds: Mapping[str, float] | None = None) -> dict:
+    """``design["law_schedule"]`` of bands (m/s), their laws' records (:func:`law_entry`) and, for band laws, the
+    design speed of every model of the file's certificate (m/s)."""
+    rec = {"bands": [[lo, None if math.isinf(hi) else hi] for lo, hi in bands], "laws": list(laws)}
+    if speeds is not None:
+        rec["model_speeds"] = {n: float(v) for n, v in speeds.items()}
+    return rec

@@ -25,7 +25,7 @@ from design.files.binding import check_bound
 from design.files.envelope import read_json
 from design.laws.estimate_schedule import RECORD, law_without_estimate
 from design.files.law_schedule import RECORD as LAW_RECORD
-from design.files.law_schedule import parse_law_schedule
+from design.files.law_schedule import BAND, parse_law_schedule
 from design.files.linear import estimate_states, uncertified_from_body
 from design.files.mpc import uncertified_mpc_from_body
 from design.files.nmpc import recheck_nmpc
@@ -108,7 +108,8 @@ def recheck(path: str | Path, models: Sequence[Model]) -> dict:
         else:
             for i, (law, rec_i) in enumerate(zip(schedule.laws, laws["laws"])):
                 what = f"law schedule law {i} ({schedule.sources[i]})"
-                problems += [f"{what}: {p}" for p in _compare(law, rec_i.get("certificate"), models)[0]]
+                on = models if schedule.rules[i] != BAND else _listed(models, rec_i.get("certificate"))
+                problems += [f"{what}: {p}" for p in _compare(law, rec_i.get("certificate"), on)[0]]
                 if isinstance(rec, dict):
                     try:
                         off = law_without_estimate(law, _estimate_states(body, comp))
@@ -116,7 +117,7 @@ def recheck(path: str | Path, models: Sequence[Model]) -> dict:
                         problems.append(f"{what}: the law without the estimate cannot be formed: {exc}")
                     else:
                         problems += [f"{what} without the estimate: {p}"
-                                     for p in _compare(off, rec_i.get("certificate_off"), models)[0]]
+                                     for p in _compare(off, rec_i.get("certificate_off"), on)[0]]
     problems += _binding_problems(body)
     return {"controller": str(path), "certificate": fresh, "problems": problems, "passed": not problems,
             "max_radius_difference_from_file": diff}
@@ -129,6 +130,14 @@ def _binding_problems(body: dict) -> list[str]:
     except ControllerFileError as exc:
         return [str(exc)]
     return []
+
+
+def _listed(models: Sequence[Model], cert: Any) -> list[Model]:
+    """The models among ``models`` that ``cert`` lists (by hash): a band law is certified on its band's models
+    only (:mod:`design.files.law_schedule`), and is not expected to be stable on the others."""
+    rows = cert.get("models") if isinstance(cert, dict) else None
+    hashes = {r.get("hash") for r in rows if isinstance(r, dict)} if isinstance(rows, list) else set()
+    return [m for m in models if model_hash(m) in hashes]
 
 
 def _estimate_states(body: dict, comp: Compensator) -> tuple[int, ...]:

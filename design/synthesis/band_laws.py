@@ -1,0 +1,217 @@
+"""A robust law per speed band, each designed and certified on its own band's models, with no trial drive.
+
+The robust controller of :func:`design.synthesis.recipes.design_robust_controller` is one window law
+certified on every local model; its automatic weights stop at the model whose margin binds first (on
+random-3 the ripper's 2.91 m/s model at scale 1.10, where a law on the 2.91 m/s models alone reaches 4.03),
+so at the speeds whose models would allow a faster loop it is slower than it need be.
+:func:`design_robust_bands` keeps that law as the file's own (the law at every speed no band holds, and the
+certificate on every model), then designs, for each design speed, a law on the local models of that speed's
+band (:func:`design.laws.estimate_schedule.bands_for`: half-way to the neighbouring design speeds, every
+implement) with the same specifications, its automatic weights' scale chosen on the band's models, and on
+the base law's state layout (its measured window, the integral, the disturbance estimate): the loop holds
+the states by index, so every law must carry the same ones. A band law whose window scale is not above the
+base law's (or that relaxed more specifications) is left out: the base law runs there. The laws kept go
+into the file's law schedule (:mod:`design.files.law_schedule`), each certified on its band's models under
+the rule ``"band"``, with its spectral radius and disk margin on the other bands' models recorded.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
+from typing import Any, Callable, Sequence
+
+from identification.model import Model
+
+from design.core.compensator import integrator_states
+from design.core.errors import ControllerFileError, DesignError, DesignInputError
+from design.core.verify import model_hash
+from design.files.law_schedule import BAND, RECORD, law_entry, schedule_record
+from design.files.linear import from_body
+from design.laws.estimate_schedule import bands_for
+from design.synthesis.family import model_names
+from design.synthesis.recipes import RobustControllerResult, RobustOptions, design_robust_controller
+from design.synthesis.specs import check_specs, resolve_latency
+
+__all__ = ["design_speed", "design_robust_bands", "no_bands_because", "window_scale", "SEARCH_RECORD"]
+
+#: Key of the band search's record in the file's ``design`` object (what was tried, kept and why).
+SEARCH_RECORD = "band_laws"
+
+
+def design_speed(model: Model) -> float | None:
+    """The speed a local model's passes were driven at, m/s (``meta["conditions"][*]["nominal_speed"]``, one
+    speed), or None when its metadata gives none or several."""
+    conds = model.meta.get("conditions")
+    if not isinstance(conds, list) or not conds:
+        return None
+    speeds = {c.get("nominal_speed") for c in conds if isinstance(c, dict)}
+    if len(speeds) != 1:
+        return None
+    v = next(iter(speeds))
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0 \
+        else None
+
+
+def no_bands_because(models: Sequence[Model], options: RobustOptions) -> str | None:
+    """Why :func:`design_robust_bands` cannot design laws per speed band on ``models`` with ``options`` (None:
+    it can): explicit weights, another structure than the window, or a model without one design speed."""
+    if not options.search.auto or options.spec.structure != "window":
+        return "laws per speed band need automatic weights (--weights auto) and the window structure"
+    names = model_names(models)
+    bad = [n for n, m in zip(names, models) if design_speed(m) is None]
+    if bad:
+        return (f"laws per speed band need models of one design speed each (meta conditions' nominal_speed); "
+                f"{', '.join(bad[:5])}{' ...' if len(bad) > 5 else ''} give none or several")
+    return None
+
+
+def window_scale(design: dict) -> float:
+    """The aggressiveness scale of a design's window law: the scale the estimate's back-off kept, else the
+    automatic weights' chosen scale."""
+    back = (design.get("disturbance_estimate") or {}).get("window_backoff")
+    if isinstance(back, dict) and "kept_scale" in back:
+        return float(back["kept_scale"])
+    return float(design["auto_weights"]["chosen_scale"])
+
+
+def _layout(res: RobustControllerResult) -> tuple:
+    """What the loop holds by index: the compensator's order, its integrators and the estimate's states."""
+    f = res.file
+    est = f.design.get("disturbance_estimate")
+    return (f.compensator.order, integrator_states(f.compensator),
+            tuple(est.get("states", ())) if isinstance(est, dict) else ())
+
+
+def design_robust_bands(models: Sequence[Model], options: RobustOptions | None = None,
+                        base: RobustControllerResult | None = None,
+                        progress: Callable[[str], None] | None = None) -> RobustControllerResult:
+    """The robust controller on every model with, per speed band, a law designed and certified on that band's
+    models in its law schedule (module docstring).
+
+    Parameters
+    ----------
+    models
+        The local models, each of one design speed (:func:`design_speed`), at two design speeds or more.
+    options
+        As :func:`design.synthesis.recipes.design_robust_controller`'s; the weights must be automatic and the
+        structure a window.
+    base
+        The robust controller already designed on ``models`` with ``options`` (None: designed here).
+    progress
+        Called with one line per step of the searches.
+
+    Returns
+    -------
+    RobustControllerResult
+        ``base`` with its file's ``design["law_schedule"]`` (when a band law was kept) and
+        ``design["band_laws"]`` (each band: its models, its scale or why it was left to the base law,
+        seconds), read back with every check of the vehicle.
+
+    Raises
+    ------
+    DesignInputError
+        Explicit weights, another structure, or a model without one design speed.
+    DesignError
+        The base design failed.
+    """
+    opts = options or RobustOptions()
+    models = list(models)
+    why = no_bands_because(models, opts)
+    if why is not None:
+        raise DesignInputError(why)
+    names = model_names(models)
+    speeds = {n: float(design_speed(m)) for n, m in zip(names, models)}     # type: ignore[arg-type]
+    t0 = time.process_time()
+    base = base or design_robust_controller(models, opts, progress=progress)
+    d0 = base.file.design
+    base_scale, base_relaxed = window_scale(d0), len(d0["auto_weights"].get("relaxed", ()))
+    design_speeds = sorted(set(speeds.values()))
+    record: dict[str, Any] = {"rule": "a band's law is kept when its window scale is above the base law's and it "
+                                      "relaxed no more specifications",
+                              "base_scale": base_scale, "base_relaxed": base_relaxed, "bands": []}
+    if len(design_speeds) < 2:
+        record["bands"] = []
+        record["why"] = f"one design speed ({design_speeds[0]:g} m/s): the base law is every band's"
+        return _finish(base, [], [], speeds, models, record, t0)
+    spec = replace(opts.spec, past=d0["past"], integral=bool(d0["integral"]))
+    specs = opts.search.specifications(opts.search.latency_of(models), spec.command_limit, spec.integral)
+    latency = resolve_latency(specs, models)     # every band's specifications: the base law's, latency included
+    band_opts = replace(opts, spec=spec, candidates=False,
+                        search=replace(opts.search, latency=tuple(latency), latency_from_logs=()))
+    layout = _layout(base)
+    kept_bands, entries = [], []
+    for v in design_speeds:
+        band = bands_for(design_speeds, [v]).off[0]
+        span = f"{band[0]:g}-{band[1]:g} m/s"
+        inside = [i for i, n in enumerate(names) if band[0] <= speeds[n] < band[1]]
+        row: dict[str, Any] = {"band_mps": [band[0], None if math.isinf(band[1]) else band[1]],
+                               "models": [names[i] for i in inside]}
+        t1 = time.process_time()
+        say = None if progress is None else (lambda line, span=span: progress(f"band {span}: {line}"))
+        try:
+            r = design_robust_controller([models[i] for i in inside], band_opts, progress=say)
+        except DesignError as exc:
+            row.update(kept=False, why=f"no design on the band's models: {exc}")
+        else:
+            d = r.file.design
+            row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())),
+                       estimate_scale=(d.get("disturbance_estimate") or {}).get("scale"))
+            if _layout(r) != layout:
+                row.update(kept=False, why=f"its states {_layout(r)} are not the base law's {layout}")
+            elif not (row["scale"] > base_scale and len(row["relaxed"]) <= base_relaxed):
+                row.update(kept=False, why=f"scale {row['scale']:.4g} (relaxed {len(row['relaxed'])}) is not above the "
+                                           f"base law's {base_scale:.4g} (relaxed {base_relaxed})")
+            else:
+                row["kept"] = True
+                others = [i for i in range(len(models)) if i not in inside]
+                entry = law_entry(r.file.to_dict(), r.file.compensator, f"band {span}: {', '.join(row['models'])}")
+                entry["certified_on"] = BAND
+                entry["neighbours"] = _neighbours(r, [models[i] for i in others], [names[i] for i in others],
+                                                  [speeds[names[i]] for i in others], design_speeds, specs,
+                                                  latency)
+                kept_bands.append(band)
+                entries.append(entry)
+        row["seconds"] = round(time.process_time() - t1, 1)
+        record["bands"].append(row)
+    return _finish(base, kept_bands, entries, speeds, models, record, t0)
+
+
+def _neighbours(res: RobustControllerResult, models: Sequence[Model], names: Sequence[str],
+                speeds: Sequence[float], design_speeds: Sequence[float], specs, latency) -> list[dict]:
+    """A band law's spectral radius and disk margin on the models of the other bands, the latency in the loop."""
+    if not models:
+        return []
+    rep = check_specs(res.file.compensator, models, specs, latency, names)
+    out = []
+    for c, v in zip(rep.checks, speeds):
+        lo, hi = bands_for(design_speeds, [v]).off[0]
+        out.append({"name": c.name, "band_mps": [lo, None if math.isinf(hi) else hi],
+                    "spectral_radius": float(c.spectral_radius) if math.isfinite(c.spectral_radius) else None,
+                    "disk_margin": float(c.disk_margin) if math.isfinite(c.disk_margin) else None})
+    return out
+
+
+def _finish(base: RobustControllerResult, bands: list, entries: list, speeds: dict, models: Sequence[Model],
+            record: dict, t0: float) -> RobustControllerResult:
+    """``base`` with the schedule of the kept band laws and the search's record, read back as the vehicle reads
+    it (a band law's certificate against exactly its band's models)."""
+    file = base.file
+    by_hash = {model_hash(m): speeds[n] for n, m in zip(model_names(models), models)}
+    design = {k: v for k, v in file.design.items() if k != RECORD}
+    record["seconds"] = round(time.process_time() - t0, 1)
+    design[SEARCH_RECORD] = record
+    if entries:
+        cert_speeds = {}
+        for row in file.certificate["models"]:
+            if row["hash"] not in by_hash:
+                raise DesignInputError(f"model {row['name']!r} of the certificate is not one of the models given")
+            cert_speeds[row["name"]] = by_hash[row["hash"]]
+        design[RECORD] = schedule_record(bands, entries, cert_speeds)
+    file = replace(file, design=design)
+    try:
+        from_body(file.to_dict(), None)
+    except ControllerFileError as exc:          # a bug here, not a property of the models
+        raise DesignError(f"the file with its band laws does not read back: {exc}") from None
+    return replace(base, design=replace(base.design, file=file))

@@ -14,6 +14,8 @@ from design.export.formats import FORMATS, export_controller
 from design.core.errors import VerificationError
 from design.commands.specs import (add_disturbance_arguments, add_spec_arguments, disturbance_of, parse_past, progress_of,
                         refuse_mixed, warn_relaxed, weight_search_of)
+from design.core.errors import DesignInputError
+from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands, no_bands_because
 from design.synthesis.recipes import RobustOptions, design_robust_controller, load_models
 from design.synthesis.robust import RobustSpec, design_lqr
 from design.core.weights import OutputWeights
@@ -90,10 +92,20 @@ def cmd_robust(args: argparse.Namespace) -> dict:
                       reduce={"truncated": "always", "as-given": "never"}.get(args.design_models, "if-needed"))
     options = RobustOptions(spec, weight_search_of(args), disturbance_of(args),
                             candidates=bool(getattr(args, "window_candidates", None)))
+    why = no_bands_because(models, options) if args.robust_bands != "off" else "off"
+    if args.robust_bands == "on" and why is None and validate:
+        why = "laws per speed band are checked on their band's models only: give no --validate-on"
+    if args.robust_bands == "on" and why is not None:
+        raise DesignInputError(f"--robust-bands on: {why}")
     res = design_robust_controller(models, options, validate, progress_of(args))
     warn_relaxed(res.file.design.get("auto_weights"))
+    if why is None and not validate:
+        res = design_robust_bands(models, options, res, progress_of(args))
     res.save(args.out, args.window_candidates)
-    return {"out": str(args.out), **res.summary()}
+    out = {"out": str(args.out), **res.summary()}
+    if SEARCH_RECORD in res.file.design:
+        out[SEARCH_RECORD] = res.file.design[SEARCH_RECORD]
+    return out
 
 
 def cmd_lqr(args: argparse.Namespace) -> dict:
@@ -168,6 +180,12 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
                    help="with --weights auto and the estimate on: also write, in DIR, each window law the "
                         "estimate's back-off made and did not keep, the searched one included (for a trial drive "
                         "to choose among); DIR's earlier <out stem>.window-*.json are removed")
+    r.add_argument("--robust-bands", choices=("on", "off"), default=None,
+                   help="also design, per design speed's band, a law on that band's local models with automatic "
+                        "weights, certified on them, run in its band (the file's law schedule); a band whose law "
+                        "is not faster than the one law is left to it. Default: wherever it can (automatic weights, "
+                        "window structure, models of one design speed each, no --validate-on); on: refuse "
+                        "otherwise; off: one law at every speed")
     r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
     add_spec_arguments(r, number)
@@ -237,6 +255,12 @@ def render(result: dict) -> str:
             lines.append(f"window weights backed off from scale {back['search_scale']:.4g} to {back['kept_scale']:.4g} "
                          f"for the estimate (scale {back['estimate_scale_at_search_weights']:g} beside the searched law); "
                          "the file's weights are those")
+    for b in (result.get("band_laws") or {}).get("bands", []):
+        lo, hi = b["band_mps"]
+        span = f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s"
+        lines.append(f"band {span} ({', '.join(b['models'])}): "
+                     + (f"its own law, scale {b['scale']:.4g}, certified on its band's models" if b["kept"]
+                        else f"the one law ({b['why']})"))
     for c in result.get("implausible_models", []):
         lines.append(f"warning: {c['name']}: a left steering pulse gives outputs "
                      f"{', '.join(f'{v:+.3g}' for v in c['pulse_outputs'])} after 3 s (expected all > 0); "

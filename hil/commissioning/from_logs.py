@@ -73,6 +73,9 @@ class LogOptions:
         Integral action in the robust design; the disturbance estimate in the robust controller and the MPC.
     prediction_schedule
         The MPC predicts in each design speed's band with that speed's local model (:class:`hil.commissioning.designs.Designer`).
+    robust_bands
+        The robust controller's file also carries a law per design speed's band, designed and certified on that
+        band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False: one law at every speed.
     robust_past
         Longer measured windows tried, in order, when the design with the window from observability fails.
     fallback_order
@@ -88,6 +91,7 @@ class LogOptions:
     integral: bool = True
     disturbance_estimate: bool = True
     prediction_schedule: bool = True
+    robust_bands: bool = True
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
 
@@ -189,7 +193,7 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
     if ident is not None:
         res["identification"] = ident
         designer = Designer(rate_limit=com.valve.max_rate, integral=opts.integral, estimate=opts.disturbance_estimate,
-                            prediction_schedule=opts.prediction_schedule)
+                            prediction_schedule=opts.prediction_schedule, robust_bands=opts.robust_bands)
         designs, again = design_with_fallback(steps, designer, logs, models_dir, out,
                                               attempts(opts.weights, opts.robust_past), opts.fallback_order,
                                               opts.markov, progress=lambda d, n: tick("identification", d, n))

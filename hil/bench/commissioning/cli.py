@@ -103,6 +103,10 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
                    help="the MPC predicts in each design speed's band with that speed's local model of the "
                         "implement none (design mpc --prediction-schedule; default on; off: the central model at "
                         "every speed)")
+    c.add_argument("--robust-bands", choices=("on", "off"), default="on",
+                   help="the robust controller's file also carries a law per design speed's band, designed and "
+                        "certified on that band's local models, where it is faster than the one law (design robust "
+                        "--robust-bands; default on; off: one law at every speed)")
     c.add_argument("--estimate-trial", choices=("on", "off"), default=None,
                    help="choose per speed whether the estimate acts, by a trial drive with it and without it "
                         "(design estimate-schedule; default on with the slews, off with the field procedure, "
@@ -163,7 +167,8 @@ def commission_options(args: argparse.Namespace) -> CommissionOptions:
                              more_passes=args.more_passes, disturbance_estimate=args.disturbance_estimate == "on",
                              estimate_trial=None if args.estimate_trial is None else args.estimate_trial == "on",
                              oracle_search=args.oracle_search == "on",
-                             prediction_schedule=args.prediction_schedule == "on")
+                             prediction_schedule=args.prediction_schedule == "on",
+                             robust_bands=args.robust_bands == "on")
 
 
 def _reporters(quiet: bool):
@@ -237,7 +242,8 @@ def _run_from_logs(args: argparse.Namespace) -> dict:
         return _run_top_up(args)
     opts = LogOptions(order=args.order, markov=args.markov, acceptance=args.acceptance, latency=args.latency,
                       weights=args.weights, disturbance_estimate=args.disturbance_estimate == "on",
-                      prediction_schedule=args.prediction_schedule == "on")
+                      prediction_schedule=args.prediction_schedule == "on",
+                      robust_bands=args.robust_bands == "on")
     say, progress, close = _reporters(args.quiet)
     res = commission_from_logs(args.logs, args.commissioning, args.out, opts, say=say, progress=progress)
     close()
@@ -247,7 +253,7 @@ def _run_from_logs(args: argparse.Namespace) -> dict:
 
 #: Design and identification options a top-up takes from the commissioning it adds to, not from the command line.
 COMMISSIONING_SETTINGS = ("order", "markov", "acceptance", "latency", "weights", "disturbance_estimate",
-                          "prediction_schedule")
+                          "prediction_schedule", "robust_bands")
 
 
 def _run_top_up(args: argparse.Namespace) -> dict:

@@ -183,8 +183,9 @@ def export_c(spec: ControllerFile, certificate: dict, checksum: str, out: str | 
                                "speed: export it with the estimate at every speed (design estimate-schedule FILE --out COPY, no --off)")
     if isinstance(spec.design, dict) and spec.design.get(LAW_RECORD) is not None:
         raise DesignInputError("the file runs other window laws at some speeds (design.law_schedule); the C step "
-                               "runs one law at every speed: export a file without a law schedule (the robust "
-                               "design's own, hil commission's controllers/trial/robust.as-designed.json)")
+                               "runs one law at every speed: export a file without a law schedule (design law-schedule "
+                               "FILE --out COPY writes the file's own law alone; the slews' window trial keeps the "
+                               "robust design's own as controllers/trial/robust.as-designed.json)")
     name, _, plant = recorded_models(certificate)[0]
     rows = record_run(spec, plant)
     header = data_header(spec, checksum)

@@ -2,8 +2,8 @@
 
 A controller file may schedule its law by speed: the disturbance estimate on or off
 (:mod:`design.laws.estimate_schedule`) and another certified window law per speed band
-(:mod:`design.files.law_schedule`). Each law is certified on every model; a switch between
-them is not, and a tractor driven at a speed on a band's edge, with the receiver's speed
+(:mod:`design.files.law_schedule`). Each law is certified (on every model, a band's law on its
+band's models); a switch between them is not, and a tractor driven at a speed on a band's edge, with the receiver's speed
 noise, would otherwise switch on every cycle. :class:`SpeedLatch` keeps the law it chose:
 another runs only once the measured speed is at least :data:`HYSTERESIS_MPS` inside that
 law's band (the band of ``v - h`` and of ``v + h`` both name it) and the current law has run

@@ -158,3 +158,13 @@ def test_the_loop_switches_to_the_band_s_law_past_its_edge(designed):
         np.testing.assert_array_equal(getattr(ctrl.law_at(1.0), name), getattr(band_law, name))
         np.testing.assert_array_equal(getattr(ctrl.law_at(edge + 0.1), name), getattr(spec.compensator, name))
     assert not np.array_equal(band_law.Dc, spec.compensator.Dc)
+
+
+def test_a_band_whose_models_meet_every_specification_at_the_search_s_top_is_left_to_the_base_law(designed):
+    # capped at scale 2, the 1.0 m/s band's models meet every specification at the top: they bound nothing there
+    base, _, _, models, _ = designed
+    res = design_robust_bands(models, _options(SearchOptions(low=0.05, high=2.0, scan=3, steps=1)), base)
+    band = res.file.design[SEARCH_RECORD]["bands"][0]
+    assert band["scale"] == pytest.approx(2.0) and not band["kept"]
+    assert "up to the search's top scale 2" in band["why"]
+    assert RECORD not in res.file.design

@@ -280,8 +280,23 @@ def _model_table(ident: dict) -> list[str]:
 
 
 def _controller_line(name: str, d: dict) -> str:
-    """The report's line of one design: its file, certificate, weights and settings."""
+    """The report's line of one design: its file, certificate, weights and settings, and the robust controller's
+    laws per speed band."""
     cert = d["result"]["certificate"]
     return (f"- `{name}` ({d['file']}): {'stable on every model' if cert.get('passed') else 'NOT STABLE'}"
             f", worst spectral radius {cert.get('max_spectral_radius', float('nan')):.4f} "
-            f"({cert.get('worst', '')}); weights {d.get('weights', '')}; {settings_text(d.get('settings', {}))}")
+            f"({cert.get('worst', '')}); weights {d.get('weights', '')}; {settings_text(d.get('settings', {}))}"
+            + _bands_text(d["result"].get("band_laws")))
+
+
+def _bands_text(rec: dict | None) -> str:
+    """``; laws per speed band: 0-1.395 m/s scale 0.47 (certified on its band's models), ...`` (empty without)."""
+    if not rec or not rec.get("bands"):
+        return ""
+    parts = []
+    for b in rec["bands"]:
+        lo, hi = b["band_mps"]
+        span = f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s"
+        parts.append(f"{span} scale {b['scale']:.3g} (certified on its band's models)" if b["kept"] else
+                     f"{span} the one law")
+    return f"; laws per speed band (the one law's scale {rec['base_scale']:.3g}): " + ", ".join(parts)

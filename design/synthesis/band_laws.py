@@ -183,7 +183,9 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
             else:
                 row["kept"] = True
                 others = [i for i in range(len(models)) if i not in inside]
-                entry = law_entry(r.file.to_dict(), r.file.compensator, f"band {span}: {', '.join(row['models'])}")
+                # the law's records as its file holds them (not the file itself: only its law runs)
+                entry = law_entry({"design": r.file.design, "certificate": r.file.certificate}, r.file.compensator,
+                                  f"band {span}: {', '.join(row['models'])}")
                 entry["certified_on"] = BAND
                 entry["neighbours"] = _neighbours(r, [models[i] for i in others], [names[i] for i in others],
                                                   [speeds[names[i]] for i in others], design_speeds, specs,

@@ -69,8 +69,8 @@ class Designer:
         The disturbance estimate in the robust controller and the MPC.
     robust_bands
         With automatic weights, the robust controller's file also carries a law per speed band designed and
-        certified on that band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False:
-        its one law at every speed.
+        certified on that band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False
+        (default): its one law at every speed (what the band laws measured: that module's docstring).
     prediction_schedule
         The MPC predicts, in each design speed's band, with that speed's local model of the implement
         ``none`` (:func:`design.synthesis.mpc_design.with_prediction_schedule`); False: the central model at
@@ -84,7 +84,7 @@ class Designer:
     delay_reserve: float = Specifications.delay_reserve
     integral: bool = True
     estimate: bool = True
-    robust_bands: bool = True
+    robust_bands: bool = False
     prediction_schedule: bool = True
 
     def search(self, attempt: DesignTry) -> WeightSearch:

@@ -75,7 +75,8 @@ class LogOptions:
         The MPC predicts in each design speed's band with that speed's local model (:class:`hil.commissioning.designs.Designer`).
     robust_bands
         The robust controller's file also carries a law per design speed's band, designed and certified on that
-        band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False: one law at every speed.
+        band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False (default): one law at
+        every speed.
     robust_past
         Longer measured windows tried, in order, when the design with the window from observability fails.
     fallback_order
@@ -91,7 +92,7 @@ class LogOptions:
     integral: bool = True
     disturbance_estimate: bool = True
     prediction_schedule: bool = True
-    robust_bands: bool = True
+    robust_bands: bool = False
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
 

@@ -131,7 +131,8 @@ class CommissionOptions:
         The MPC predicts in each design speed's band with that speed's local model (:class:`hil.commissioning.designs.Designer`).
     robust_bands
         The robust controller's file also carries a law per design speed's band, designed and certified on that
-        band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False: one law at every speed.
+        band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False (default): one law at
+        every speed.
     estimate_trial, trial_seeds
         Choose per speed whether the estimate acts by a trial drive with and without it
         (:mod:`hil.bench.commissioning.estimate_trial`), on passes with ``trial_seeds`` (apart from ``hil_seeds``).
@@ -163,7 +164,7 @@ class CommissionOptions:
     fallback_order: int | None = 4
     disturbance_estimate: bool = True
     prediction_schedule: bool = True
-    robust_bands: bool = True
+    robust_bands: bool = False
     estimate_trial: bool | None = None
     trial_seeds: tuple[int, ...] = TRIAL_SEEDS
     window_seeds: tuple[int, ...] = WINDOW_SEEDS

@@ -15,7 +15,7 @@ from design.core.errors import VerificationError
 from design.commands.specs import (add_disturbance_arguments, add_spec_arguments, disturbance_of, parse_past, progress_of,
                         refuse_mixed, warn_relaxed, weight_search_of)
 from design.core.errors import DesignInputError
-from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands, no_bands_because
+from design.synthesis.band_laws import MEASUREMENT_NOISE, SEARCH_RECORD, design_robust_bands, no_bands_because
 from design.synthesis.recipes import RobustOptions, design_robust_controller, load_models
 from design.synthesis.robust import RobustSpec, design_lqr
 from design.core.weights import OutputWeights
@@ -101,7 +101,7 @@ def cmd_robust(args: argparse.Namespace) -> dict:
     res = design_robust_controller(models, options, validate, progress_of(args))
     warn_relaxed(res.file.design.get("auto_weights"))
     if bands:
-        res = design_robust_bands(models, options, res, progress_of(args))
+        res = design_robust_bands(models, options, res, progress_of(args), noise=tuple(args.measurement_noise))
     res.save(args.out, args.window_candidates)
     out = {"out": str(args.out), **res.summary()}
     if SEARCH_RECORD in res.file.design:
@@ -182,12 +182,18 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
                         "estimate's back-off made and did not keep, the searched one included (for a trial drive "
                         "to choose among); DIR's earlier <out stem>.window-*.json are removed")
     r.add_argument("--robust-bands", choices=("on", "off"), default="off",
-                   help="on: also design, per design speed's band, a law on that band's local models with automatic "
-                        "weights, certified on them, run in its band (the file's law schedule); a band whose law "
-                        "is not faster than the one law is left to it. Needs automatic weights, the window "
-                        "structure, models of one design speed each and no --validate-on. Default off: one law at "
-                        "every speed (a band's law certified on its band's three models alone diverged on random-0 "
-                        "at 1.00 m/s)")
+                   help="on: also design, per design speed's band, a law on that band's local models, certified on "
+                        "them, run in its band (the file's law schedule). With automatic weights a band whose law is "
+                        "not faster than the one law is left to it; with explicit weights every band's law has the "
+                        "given weights. A band law whose command, driven by the sensors' noise alone "
+                        "(--measurement-noise), leaves the rate limit less gain than the disk margin certifies is "
+                        "left to the one law. Needs the window structure, models of one design speed each and no "
+                        "--validate-on. Default off: one law at every speed")
+    r.add_argument("--measurement-noise", nargs=3, type=float, metavar=("POSITION", "HEADING", "ANGLE"),
+                   default=list(MEASUREMENT_NOISE),
+                   help="1-sigma of the sensors for --robust-bands' noise check: position m, heading rad, wheel "
+                        "angle rad (default: %(default)s; the valve test's commissioning.json measures the wheel "
+                        "angle's as valve.angle_noise)")
     r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
     add_spec_arguments(r, number)
@@ -260,8 +266,10 @@ def render(result: dict) -> str:
     for b in (result.get("band_laws") or {}).get("bands", []):
         lo, hi = b["band_mps"]
         span = f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s"
+        scale = "" if b.get("scale") is None else f", scale {b['scale']:.4g}"
+        noise = "" if b.get("noise_gain") is None else f"; the rate limit's gain under the sensors' noise {b['noise_gain']:.2f}"
         lines.append(f"band {span} ({', '.join(b['models'])}): "
-                     + (f"its own law, scale {b['scale']:.4g}, certified on its band's models" if b["kept"]
+                     + (f"its own law{scale}, certified on its band's models{noise}" if b["kept"]
                         else f"the one law ({b['why']})"))
     for c in result.get("implausible_models", []):
         lines.append(f"warning: {c['name']}: a left steering pulse gives outputs "

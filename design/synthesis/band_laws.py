@@ -17,17 +17,21 @@ from 2 to 50 steered the 2.91 m/s cells 1.01-1.19x worse than the one law of sca
 into the file's law schedule (:mod:`design.files.law_schedule`), each certified on its band's models under
 the rule ``"band"``, with its spectral radius and disk margin on the other bands' models recorded.
 
-Measured (designed from the field procedure's recorded models, the commissioned loop on the 15 cells, seeds
-0-2, 1-sigma over the oracle's with its default weights; the searched oracle's in brackets where the
-commissioning searched it), worst cell of the one law -> with the band laws: random-5 1.55 -> 1.17 (1.70 ->
-1.29), random-7 1.46 -> 1.21 (1.64 -> 1.30), heavy-11t 1.28 -> 1.06 (1.39 -> 1.15), random-3 1.40 -> 1.40
-(its 2.91 m/s band left to the one law; 11 cells better), default 1.12 -> 1.12 (the 1.00 m/s band's law 0-4 %
-worse at 1.00-1.34 m/s). But the 1.00 m/s band's law, meeting every specification on its band's three models,
-was worse on two tractors: random-1 1.15 -> 1.36 (disker at 1.00 and 1.34 m/s; scale 4.45, the one law's
-1.96), and on random-0 (scale 3.10, the one law's 0.77) it diverged at 1.00 m/s (disker: 90 cm, 41x the
-oracle; the one law 2.10 cm). A law certified on three models alone is not robust to their errors the way one
-certified on all nine is, and nothing here detects that. So the commissioning designs them only when asked
-(``--robust-bands on``).
+With explicit weights (``--weights explicit``) every band's law is designed with the given weights on its
+band's models, and kept when certified there and past the noise check below.
+
+A law certified on its band's three models is not robust to their errors the way one certified on all nine
+is, and the slow speeds' models allow laws that are too fast for the sensors: velocity-normalised, the
+receiver's centimetre is 1 cm/(1 m/s) of ``y/V`` at 1.00 m/s. So each band's law must also pass a **noise
+check** on its band's models (:mod:`design.core.noise`): its rate command driven by the sensors' noise alone
+(``noise``: position, heading, wheel angle; the commissioning's measured wheel-angle noise in the field
+procedure) must leave the rate limit's equivalent gain at or above the lowest gain the specified disk margin
+certifies. Measured on seven generated tractors' recorded models before the check (the commissioned loop on
+the 15 cells, seeds 0-2, worst cell over the oracle with its default weights): random-5 1.55 -> 1.17, random-7
+1.46 -> 1.21, heavy-11t 1.28 -> 1.06; but random-0's 1.00 m/s band law (its noise-driven command 2.1 times the
+valve's rate, gain 0.36 against the floor 0.54) diverged at 1.00 m/s (disker 90 cm, 41x the oracle) and
+random-1's (1.7 times, gain 0.45) took the disker at 1.00 m/s from 1.02 to 1.36. The check leaves exactly
+those two bands to the base law; the kept ones are at 0.3-1.3 times the rate (gain 0.55 or more).
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from typing import Any, Callable, Sequence
 from identification.model import Model
 
 from design.core.compensator import integrator_states
+from design.core.noise import disk_gain_floor, noise_command_sigma, saturation_gain, velocity_noise
 from design.core.errors import ControllerFileError, DesignError, DesignInputError
 from design.core.verify import model_hash
 from design.files.law_schedule import BAND, RECORD, law_entry, schedule_record
@@ -49,10 +54,15 @@ from design.synthesis.family import model_names
 from design.synthesis.recipes import RobustControllerResult, RobustOptions, design_robust_controller
 from design.synthesis.specs import check_specs, resolve_latency
 
-__all__ = ["design_speed", "design_robust_bands", "no_bands_because", "window_scale", "SEARCH_RECORD"]
+__all__ = ["design_speed", "design_robust_bands", "no_bands_because", "window_scale", "SEARCH_RECORD",
+           "MEASUREMENT_NOISE"]
 
 #: Key of the band search's record in the file's ``design`` object (what was tried, kept and why).
 SEARCH_RECORD = "band_laws"
+#: Sensors' 1-sigma of the noise check when none is given: an RTK receiver's position (m), a dual-antenna
+#: receiver's heading (0.1 deg, rad) and a wheel-angle sensor's (rad; the field procedure passes the valve
+#: test's measured one).
+MEASUREMENT_NOISE = (0.01, math.radians(0.1), 0.005)
 
 
 def design_speed(model: Model) -> float | None:
@@ -71,9 +81,9 @@ def design_speed(model: Model) -> float | None:
 
 def no_bands_because(models: Sequence[Model], options: RobustOptions) -> str | None:
     """Why :func:`design_robust_bands` cannot design laws per speed band on ``models`` with ``options`` (None:
-    it can): explicit weights, another structure than the window, or a model without one design speed."""
-    if not options.search.auto or options.spec.structure != "window":
-        return "laws per speed band need automatic weights (--weights auto) and the window structure"
+    it can): another structure than the window, or a model without one design speed."""
+    if options.spec.structure != "window":
+        return "laws per speed band need the window structure"
     names = model_names(models)
     bad = [n for n, m in zip(names, models) if design_speed(m) is None]
     if bad:
@@ -102,7 +112,8 @@ def _layout(res: RobustControllerResult) -> tuple:
 def design_robust_bands(models: Sequence[Model], options: RobustOptions | None = None,
                         base: RobustControllerResult | None = None,
                         progress: Callable[[str], None] | None = None,
-                        neighbours: bool = False) -> RobustControllerResult:
+                        neighbours: bool = False,
+                        noise: Sequence[float] = MEASUREMENT_NOISE) -> RobustControllerResult:
     """The robust controller on every model with, per speed band, a law designed and certified on that band's
     models in its law schedule (module docstring).
 
@@ -111,8 +122,8 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
     models
         The local models, each of one design speed (:func:`design_speed`), at two design speeds or more.
     options
-        As :func:`design.synthesis.recipes.design_robust_controller`'s; the weights must be automatic and the
-        structure a window.
+        As :func:`design.synthesis.recipes.design_robust_controller`'s; the structure must be a window. With
+        explicit weights every band's law has the same weights.
     base
         The robust controller already designed on ``models`` with ``options`` (None: designed here).
     progress
@@ -121,6 +132,8 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
         Also hold each band law's specifications on the models of the neighbouring design speeds (not certified
         there). Off by default: on random-5 it kept a 1.79 m/s band law at scale 0.30 that steered the disker at
         2.24 m/s 1.51x the oracle, where the base law (0.24) did 1.35x and the band law without it (4.67) 1.00x.
+    noise
+        The sensors' 1-sigma of the noise check: position (m), heading (rad), wheel angle (rad).
 
     Returns
     -------
@@ -132,7 +145,7 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
     Raises
     ------
     DesignInputError
-        Explicit weights, another structure, or a model without one design speed.
+        Another structure, a model without one design speed, or a noise that is not three values >= 0.
     DesignError
         The base design failed.
     """
@@ -141,17 +154,45 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
     why = no_bands_because(models, opts)
     if why is not None:
         raise DesignInputError(why)
+    noise = tuple(float(x) for x in noise)
+    if len(noise) != 3 or not all(math.isfinite(x) and x >= 0 for x in noise):
+        raise DesignInputError(f"noise must be three values >= 0 (position m, heading rad, wheel angle rad), "
+                               f"got {noise}")
     names = model_names(models)
     speeds = {n: float(design_speed(m)) for n, m in zip(names, models)}     # type: ignore[arg-type]
     t0 = time.process_time()
     base = base or design_robust_controller(models, opts, progress=progress)
     d0 = base.file.design
-    base_scale, base_relaxed = window_scale(d0), len(d0["auto_weights"].get("relaxed", ()))
+    auto = opts.search.auto
+    base_scale = window_scale(d0) if auto else None
+    base_relaxed = len(d0["auto_weights"].get("relaxed", ())) if auto else 0
     design_speeds = sorted(set(speeds.values()))
-    record: dict[str, Any] = {"rule": "a band's law is kept when its window scale is above the base law's, it "
-                                      "relaxed no more specifications and a specification bound its scale below "
-                                      "the search's top",
-                              "base_scale": base_scale, "base_relaxed": base_relaxed, "bands": []}
+    rate = opts.search.actuator_rate or opts.spec.command_limit
+    floor = disk_gain_floor(opts.search.disk_margin)
+
+    def noise_gain(comp, idx) -> tuple[float, float, str]:
+        """The worst (lowest) rate-limit gain of ``comp``'s noise-driven command over the models ``idx``."""
+        worst = (math.inf, 0.0, "")
+        for i in idx:
+            m = models[i]
+            s = noise_command_sigma(comp, m.A, m.B, m.C, m.D, velocity_noise(*noise, speeds[names[i]]))
+            g = saturation_gain(s, rate) if rate else 1.0
+            if g < worst[0]:
+                worst = (g, s, names[i])
+        return worst
+
+    base_g = noise_gain(base.file.compensator, range(len(models)))
+    rule = ("a band's law is kept when its window scale is above the base law's, it relaxed no more "
+            "specifications and a specification bound its scale below the search's top" if auto else
+            "every band's law has the given weights and is kept when certified on its band's models")
+    record: dict[str, Any] = {"rule": rule + f"; and when its command driven by the sensors' noise alone leaves the "
+                                             f"rate limit a gain of at least {floor:.3f} (the disk margin "
+                                             f"{opts.search.disk_margin:g}'s floor) on its band's models",
+                              "base_scale": base_scale, "base_relaxed": base_relaxed,
+                              "noise": {"position_m": noise[0], "heading_rad": noise[1], "wheel_angle_rad": noise[2],
+                                        "rate_limit_rad_s": rate, "gain_floor": floor,
+                                        "base_gain": _finite(base_g[0]), "base_command_sigma_rad_s": _finite(base_g[1])},
+                              "bands": []}
     if len(design_speeds) < 2:
         record["bands"] = []
         record["why"] = f"one design speed ({design_speeds[0]:g} m/s): the base law is every band's"
@@ -180,11 +221,20 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
             row.update(kept=False, why=f"no design on the band's models: {exc}")
         else:
             d = r.file.design
-            row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())),
-                       estimate_scale=(d.get("disturbance_estimate") or {}).get("scale"))
+            if auto:
+                row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())))
+            row["estimate_scale"] = (d.get("disturbance_estimate") or {}).get("scale")
+            gain, sig, worst_model = noise_gain(r.file.compensator, inside)
+            row.update(noise_gain=_finite(gain), noise_command_sigma_rad_s=_finite(sig))
             top = opts.search.search.high
             if _layout(r) != layout:
                 row.update(kept=False, why=f"its states {_layout(r)} are not the base law's {layout}")
+            elif gain < floor:
+                row.update(kept=False, why=f"the sensors' noise alone drives its command to {sig:.3g} rad/s (1-sigma) "
+                                           f"on {worst_model}, which leaves the rate limit {rate:.3g} rad/s a gain "
+                                           f"of {gain:.2f}, below the disk margin's floor {floor:.2f}")
+            elif not auto:
+                row["kept"] = True
             elif d["auto_weights"]["chosen_scale"] >= top * (1 - 1e-9):
                 row.update(kept=False, why=f"its models meet every specification up to the search's top scale "
                                            f"{top:g}: they bound no bandwidth, so that scale is the range's, not "
@@ -194,6 +244,7 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                                            f"base law's {base_scale:.4g} (relaxed {base_relaxed})")
             else:
                 row["kept"] = True
+            if row["kept"]:
                 others = [i for i in range(len(models)) if i not in inside]
                 # the law's records as its file holds them (not the file itself: only its law runs)
                 entry = law_entry({"design": r.file.design, "certificate": r.file.certificate}, r.file.compensator,
@@ -207,6 +258,11 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
         row["seconds"] = round(time.process_time() - t1, 1)
         record["bands"].append(row)
     return _finish(base, kept_bands, entries, speeds, models, record, t0)
+
+
+def _finite(x: float) -> float | None:
+    """``x``, or None where a file cannot hold it (not finite)."""
+    return float(x) if math.isfinite(x) else None
 
 
 def _neighbours(res: RobustControllerResult, models: Sequence[Model], names: Sequence[str],

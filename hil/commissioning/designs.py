@@ -20,7 +20,7 @@ from design.laws.disturbance import DisturbanceSpec
 from design.mpc.problem import MPCLimits
 from design.synthesis.recipes import (MPCOptions, RobustOptions, WeightSearch, design_mpc_controller, design_robust_controller,
                             load_models)
-from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands
+from design.synthesis.band_laws import MEASUREMENT_NOISE, SEARCH_RECORD, design_robust_bands
 from design.synthesis.robust import RobustSpec, design_lqr
 from design.synthesis.specs import Specifications
 from identification.model import Model
@@ -69,8 +69,11 @@ class Designer:
         The disturbance estimate in the robust controller and the MPC.
     robust_bands
         With automatic weights, the robust controller's file also carries a law per speed band designed and
-        certified on that band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False
-        (default): its one law at every speed (what the band laws measured: that module's docstring).
+        certified on that band's local models and past its noise check
+        (:func:`design.synthesis.band_laws.design_robust_bands`; default); False: its one law at every speed.
+    angle_noise
+        The wheel-angle sensor's 1-sigma, rad, of the band laws' noise check (the valve test's measurement; None:
+        :data:`design.synthesis.band_laws.MEASUREMENT_NOISE`'s).
     prediction_schedule
         The MPC predicts, in each design speed's band, with that speed's local model of the implement
         ``none`` (:func:`design.synthesis.mpc_design.with_prediction_schedule`); False: the central model at
@@ -84,8 +87,15 @@ class Designer:
     delay_reserve: float = Specifications.delay_reserve
     integral: bool = True
     estimate: bool = True
-    robust_bands: bool = False
+    robust_bands: bool = True
+    angle_noise: float | None = None
     prediction_schedule: bool = True
+
+    @property
+    def noise(self) -> tuple[float, float, float]:
+        """The sensors' 1-sigma of the band laws' noise check: position (m), heading (rad), wheel angle (rad)."""
+        pos, heading, angle = MEASUREMENT_NOISE
+        return (pos, heading, angle if self.angle_noise is None else self.angle_noise)
 
     def search(self, attempt: DesignTry) -> WeightSearch:
         """The weights' mode and specifications of ``attempt``."""
@@ -129,7 +139,7 @@ class Designer:
                                 self.search(attempt), DisturbanceSpec() if self.estimate else None, candidates=keep)
         res = design_robust_controller(local, options, progress=progress)
         if by_band:
-            res = design_robust_bands(local, options, res, progress)
+            res = design_robust_bands(local, options, res, progress, noise=self.noise)
         res.save(out, candidates_dir if keep else None)
         summary = {"out": str(out), **res.summary()}
         if SEARCH_RECORD in res.file.design:

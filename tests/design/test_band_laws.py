@@ -134,14 +134,47 @@ def test_a_band_whose_law_is_not_faster_than_the_base_law_is_left_to_it(designed
     np.testing.assert_array_equal(ctrl.law_at(2.9).Cc, base.file.compensator.Cc)
 
 
-def test_bands_need_automatic_weights_and_models_of_one_design_speed(designed):
+def test_bands_need_the_window_structure_and_models_of_one_design_speed(designed):
     _, _, _, models, _ = designed
-    with pytest.raises(DesignInputError, match="automatic weights"):
-        design_robust_bands(models, RobustOptions(RobustSpec(integral=True), WeightSearch()))
+    with pytest.raises(DesignInputError, match="window structure"):
+        design_robust_bands(models, RobustOptions(RobustSpec(integral=True, structure="observer", nominal=models[0]),
+                                                  WeightSearch()))
     m = models[0]
     bare = type(m)(m.A, m.B, m.C, m.D, m.K, m.dt, {k: v for k, v in m.meta.items() if k != "conditions"})
     with pytest.raises(DesignInputError, match="v1_a1 give none or several"):
         design_robust_bands([bare, *models[1:]], _options())
+    with pytest.raises(DesignInputError, match="three values"):
+        design_robust_bands(models, _options(), designed[0], noise=(0.01, -1.0, 0.005))
+
+
+def test_a_band_law_the_sensors_noise_would_hold_at_the_rate_limit_is_left_to_the_base_law(designed):
+    base, res, _, models, _ = designed
+    rec = res.file.design[SEARCH_RECORD]
+    floor = rec["noise"]["gain_floor"]
+    assert floor == pytest.approx(1.4 / 2.6)                     # the disk margin 0.6's
+    kept = [b for b in rec["bands"] if b["kept"]]
+    assert kept and all(b["noise_gain"] >= floor for b in kept)
+    # ten times the receiver's noise: the 1.0 m/s band's faster law would sit at the rate limit
+    noisy = design_robust_bands(models, _options(), base, noise=(0.1, 0.0175, 0.005)).file.design
+    band = noisy[SEARCH_RECORD]["bands"][0]
+    assert not band["kept"] and band["noise_gain"] < floor
+    assert band["why"].startswith("the sensors' noise alone drives its command to") and "below the disk margin" in band["why"]
+    assert RECORD not in noisy
+
+
+def test_with_explicit_weights_every_band_s_law_has_them_and_is_certified_on_its_band(designed, tmp_path):
+    _, _, _, models, _ = designed
+    opts = RobustOptions(RobustSpec(integral=True, past=1), WeightSearch(latency=(0.1,), actuator_rate=0.35),
+                         DisturbanceSpec())
+    res = design_robust_bands(models, opts)
+    rec = res.file.design[SEARCH_RECORD]
+    assert rec["rule"].startswith("every band's law has the given weights")
+    assert [b["kept"] for b in rec["bands"]] == [True, True] and all("scale" not in b for b in rec["bands"])
+    spec = read_controller_file(res.save(tmp_path / "explicit.json"))
+    laws = spec.design[RECORD]["laws"]
+    assert [[r["name"] for r in law["certificate"]["models"]] for law in laws] == \
+        [["v1_a1", "v1_a0.7"], ["v2.9_a1", "v2.9_a0.7"]]
+    assert spec.controller().law_schedule.rules == (BAND, BAND)
 
 
 def test_the_loop_switches_to_the_band_s_law_past_its_edge(designed):

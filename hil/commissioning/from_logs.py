@@ -75,8 +75,8 @@ class LogOptions:
         The MPC predicts in each design speed's band with that speed's local model (:class:`hil.commissioning.designs.Designer`).
     robust_bands
         The robust controller's file also carries a law per design speed's band, designed and certified on that
-        band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False (default): one law at
-        every speed.
+        band's local models and past its noise check (:func:`design.synthesis.band_laws.design_robust_bands`;
+        default); False: one law at every speed.
     robust_past
         Longer measured windows tried, in order, when the design with the window from observability fails.
     fallback_order
@@ -92,7 +92,7 @@ class LogOptions:
     integral: bool = True
     disturbance_estimate: bool = True
     prediction_schedule: bool = True
-    robust_bands: bool = False
+    robust_bands: bool = True
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
 
@@ -194,7 +194,8 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
     if ident is not None:
         res["identification"] = ident
         designer = Designer(rate_limit=com.valve.max_rate, integral=opts.integral, estimate=opts.disturbance_estimate,
-                            prediction_schedule=opts.prediction_schedule, robust_bands=opts.robust_bands)
+                            prediction_schedule=opts.prediction_schedule, robust_bands=opts.robust_bands,
+                            angle_noise=com.valve.angle_noise)
         designs, again = design_with_fallback(steps, designer, logs, models_dir, out,
                                               attempts(opts.weights, opts.robust_past), opts.fallback_order,
                                               opts.markov, progress=lambda d, n: tick("identification", d, n))

@@ -103,11 +103,11 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
                    help="the MPC predicts in each design speed's band with that speed's local model of the "
                         "implement none (design mpc --prediction-schedule; default on; off: the central model at "
                         "every speed)")
-    c.add_argument("--robust-bands", choices=("on", "off"), default="off",
+    c.add_argument("--robust-bands", choices=("on", "off"), default="on",
                    help="the robust controller's file also carries a law per design speed's band, designed and "
-                        "certified on that band's local models, where it is faster than the one law (design robust "
-                        "--robust-bands; default off, one law at every speed: a band's law certified on its three "
-                        "models diverged on random-0 at 1.00 m/s)")
+                        "certified on that band's local models, where it is faster than the one law and the "
+                        "sensors' noise leaves its rate limit the gain its disk margin certifies (design robust "
+                        "--robust-bands; default on; off: one law at every speed)")
     c.add_argument("--estimate-trial", choices=("on", "off"), default=None,
                    help="choose per speed whether the estimate acts, by a trial drive with it and without it "
                         "(design estimate-schedule; default on with the slews, off with the field procedure, "

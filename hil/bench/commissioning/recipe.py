@@ -131,8 +131,8 @@ class CommissionOptions:
         The MPC predicts in each design speed's band with that speed's local model (:class:`hil.commissioning.designs.Designer`).
     robust_bands
         The robust controller's file also carries a law per design speed's band, designed and certified on that
-        band's local models (:func:`design.synthesis.band_laws.design_robust_bands`); False (default): one law at
-        every speed.
+        band's local models and past its noise check (:func:`design.synthesis.band_laws.design_robust_bands`;
+        default); False: one law at every speed.
     estimate_trial, trial_seeds
         Choose per speed whether the estimate acts by a trial drive with and without it
         (:mod:`hil.bench.commissioning.estimate_trial`), on passes with ``trial_seeds`` (apart from ``hil_seeds``).
@@ -164,7 +164,7 @@ class CommissionOptions:
     fallback_order: int | None = 4
     disturbance_estimate: bool = True
     prediction_schedule: bool = True
-    robust_bands: bool = False
+    robust_bands: bool = True
     estimate_trial: bool | None = None
     trial_seeds: tuple[int, ...] = TRIAL_SEEDS
     window_seeds: tuple[int, ...] = WINDOW_SEEDS
@@ -352,7 +352,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         # record holds after identification
         designer = Designer(rate_limit=com.valve.max_rate, logs=None if field else out / "logs", integral=opts.integral,
                             estimate=opts.disturbance_estimate, prediction_schedule=opts.prediction_schedule,
-                            robust_bands=opts.robust_bands)
+                            robust_bands=opts.robust_bands, angle_noise=com.valve.angle_noise)
         designs, again = design_with_fallback(
             steps, designer, out / "logs", models_dir, out, attempts(opts.weights, opts.robust_past),
             opts.fallback_order, opts.markov, candidates=opts.disturbance_estimate and opts.estimate_trial,

@@ -1,0 +1,32 @@
+"""``hil commission --robust-bands on|off``: the commissioning's robust step designs a law per speed band (on by
+default), whose noise check uses the valve test's measured wheel-angle noise."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from design.synthesis.band_laws import MEASUREMENT_NOISE
+from hil.bench.commissioning.cli import add_commission_parser, commission_options
+from hil.bench.commissioning.recipe import CommissionOptions
+from hil.commissioning.designs import Designer
+from hil.commissioning.from_logs import LogOptions
+
+
+def _options(*extra: str):
+    sub = argparse.ArgumentParser().add_subparsers(dest="command")
+    add_commission_parser(sub, float, lambda t: t)
+    args = sub.choices["commission"].parse_args(["--tractor", "default", "--out", "x", *extra])
+    return commission_options(args)
+
+
+def test_the_option_reaches_the_commissioning_on_by_default():
+    assert _options().robust_bands is True
+    assert _options("--robust-bands", "off").robust_bands is False
+    assert CommissionOptions().robust_bands is True and LogOptions().robust_bands is True
+
+
+def test_the_noise_check_takes_the_measured_wheel_angle_noise():
+    assert Designer(rate_limit=0.3).noise == MEASUREMENT_NOISE
+    pos, heading, angle = Designer(rate_limit=0.3, angle_noise=0.0042).noise
+    assert (pos, angle) == (0.01, 0.0042) and math.isclose(heading, math.radians(0.1))

@@ -39,7 +39,7 @@ from hil.vehicle.commissioning import Commissioning, load_commissioning
 from hil.vehicle.errors import VehicleConfigError
 
 __all__ = ["LogOptions", "CommissioningError", "commission_from_logs", "driving_seconds", "load_inputs",
-           "write_results", "report_text", "top_up_lines"]
+           "speed_bands_text", "write_results", "report_text", "top_up_lines"]
 
 LATENCY_SOURCES = ("auto", "valid-time", "declared", "identified")
 
@@ -288,7 +288,38 @@ def _controller_line(name: str, d: dict) -> str:
     return (f"- `{name}` ({d['file']}): {'stable on every model' if cert.get('passed') else 'NOT STABLE'}"
             f", worst spectral radius {cert.get('max_spectral_radius', float('nan')):.4f} "
             f"({cert.get('worst', '')}); weights {d.get('weights', '')}; {settings_text(d.get('settings', {}))}"
-            + _bands_text(d["result"].get("band_laws")))
+            + speed_bands_text(d["result"]))
+
+
+def speed_bands_text(result: dict) -> str:
+    """What a design's ``result`` runs by speed band, for a report line: the robust controller's laws per band and
+    the MPC's prediction models (empty when it has neither)."""
+    return _bands_text(result.get("band_laws")) + _prediction_text(result.get("prediction_schedule"))
+
+
+def _prediction_text(rec: dict | None) -> str:
+    """``; predicts by speed band: 0-1.395 m/s with local_none_5th (certified on its band's models), ...`` (empty
+    without a prediction schedule)."""
+    if not rec or not rec.get("bands"):
+        return ""
+    parts = []
+    for b in rec["bands"]:
+        lo, hi = b["band_mps"]
+        parts.append(f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s with {b['model']}")
+    left = rec.get("left_out") or []
+    return ("; predicts by speed band, each law certified on its band's models: " + ", ".join(parts)
+            + (f" (left to the central model: {len(left)} band{'s' if len(left) > 1 else ''})" if left else ""))
+
+
+def _short_why(why: str) -> str:
+    """Why a band runs the one law, in a few words."""
+    if why.startswith("the sensors' noise"):
+        return "noise check"
+    if "not above the base law" in why:
+        return "not faster"
+    if "search's top scale" in why:
+        return "bound by no specification"
+    return "no band law"
 
 
 def _bands_text(rec: dict | None) -> str:
@@ -300,5 +331,5 @@ def _bands_text(rec: dict | None) -> str:
         lo, hi = b["band_mps"]
         span = f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s"
         parts.append(f"{span} scale {b['scale']:.3g} (certified on its band's models)" if b["kept"] else
-                     f"{span} the one law")
+                     f"{span} the one law ({_short_why(b.get('why', ''))})")
     return f"; laws per speed band (the one law's scale {rec['base_scale']:.3g}): " + ", ".join(parts)

@@ -20,8 +20,8 @@ from autosteer.cli import add_option
 from identification.model import Model
 
 from design.commands.robust import add_bryson_arguments, bryson_weights, certificate_table, spec_lines
-from design.commands.specs import (add_disturbance_arguments, add_spec_arguments, disturbance_of, parse_past, progress_of,
-                        refuse_mixed, warn_relaxed, weight_search_of)
+from design.commands.specs import (add_disturbance_arguments, add_noise_argument, add_spec_arguments, disturbance_of,
+                                    parse_past, progress_of, refuse_mixed, warn_relaxed, weight_search_of)
 from design.mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
 from design.mpc.problem import TERMINALS, MPCLimits, MPCWeights
 from design.synthesis.recipes import MPCOptions, design_mpc_controller, load_models
@@ -39,7 +39,8 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
                          args.past, tuple(None if c <= 0 else c for c in args.output_clip), args.speed_min, args.name,
                          disturbance_of(args), weight_search_of(args), args.fallback,
                          require_stable=not args.allow_unstable,
-                         prediction_schedule=args.prediction_schedule == "on")
+                         prediction_schedule=args.prediction_schedule == "on",
+                         noise=tuple(args.measurement_noise))
     res = design_mpc_controller(models, options, central, validate, progress_of(args))
     warn_relaxed(res.file.design.get("auto_weights"))
     res.save(args.out)
@@ -82,6 +83,7 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
                    help="predict in each design speed's band with that speed's local model of the implement none, "
                         "certified on the band's models, when --models hold local models of two or more speeds "
                         "(default on; off: the central model at every speed)")
+    add_noise_argument(p, "--prediction-schedule's")
     p.add_argument("--allow-unstable", action="store_true",
                    help="write it even if the unconstrained law is unstable on some model (recorded)")
     p.add_argument("--name", default=None, help="the controller's name in its file (default: mpc)")

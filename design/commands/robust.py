@@ -12,10 +12,10 @@ from identification.model import Model
 from design.files.recheck import recheck
 from design.export.formats import FORMATS, export_controller
 from design.core.errors import VerificationError
-from design.commands.specs import (add_disturbance_arguments, add_spec_arguments, disturbance_of, parse_past, progress_of,
-                        refuse_mixed, warn_relaxed, weight_search_of)
+from design.commands.specs import (add_disturbance_arguments, add_noise_argument, add_spec_arguments, disturbance_of,
+                                    parse_past, progress_of, refuse_mixed, warn_relaxed, weight_search_of)
 from design.core.errors import DesignInputError
-from design.synthesis.band_laws import MEASUREMENT_NOISE, SEARCH_RECORD, design_robust_bands, no_bands_because
+from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands, no_bands_because
 from design.synthesis.recipes import RobustOptions, design_robust_controller, load_models
 from design.synthesis.robust import RobustSpec, design_lqr
 from design.core.weights import OutputWeights
@@ -189,11 +189,7 @@ def add_parsers(sub: argparse._SubParsersAction, number) -> None:
                         "(--measurement-noise), leaves the rate limit less gain than the disk margin certifies is "
                         "left to the one law. Needs the window structure, models of one design speed each and no "
                         "--validate-on. Default off: one law at every speed")
-    r.add_argument("--measurement-noise", nargs=3, type=float, metavar=("POSITION", "HEADING", "ANGLE"),
-                   default=list(MEASUREMENT_NOISE),
-                   help="1-sigma of the sensors for --robust-bands' noise check: position m, heading rad, wheel "
-                        "angle rad (default: %(default)s; the valve test's commissioning.json measures the wheel "
-                        "angle's as valve.angle_noise)")
+    add_noise_argument(r, "--robust-bands'")
     r.add_argument("--nominal", help="model whose Kalman predictor the observer structure uses (e.g. central)")
     common(r)
     add_spec_arguments(r, number)

@@ -17,6 +17,7 @@ from typing import Callable
 from design.synthesis.autotune import SearchOptions
 from design.laws.disturbance import DisturbanceSpec
 from design.core.errors import DesignInputError
+from design.core.noise import MEASUREMENT_NOISE
 from design.synthesis.recipes import WEIGHT_MODES, WeightSearch
 from design.synthesis.specs import Specifications
 
@@ -64,6 +65,16 @@ def add_spec_arguments(p: argparse.ArgumentParser, number: Callable[[str], float
                    help="refuse when no weights meet the specifications (default: relax them in the stated order, "
                         "delay reserve, disk margin, peak command, and say so)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+
+
+def add_noise_argument(p: argparse.ArgumentParser, what: str) -> None:
+    """``--measurement-noise POSITION HEADING ANGLE``: the sensors' 1-sigma of ``what`` noise check
+    (:mod:`design.core.noise`)."""
+    p.add_argument("--measurement-noise", nargs=3, type=float, metavar=("POSITION", "HEADING", "ANGLE"),
+                   default=list(MEASUREMENT_NOISE),
+                   help=f"1-sigma of the sensors for {what} noise check: position m, heading rad, wheel angle rad "
+                        "(default: %(default)s; the valve test's commissioning.json measures the wheel angle's as "
+                        "valve.angle_noise)")
 
 
 def add_disturbance_arguments(p: argparse.ArgumentParser, number: Callable[[str], float], what: str) -> None:

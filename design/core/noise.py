@@ -30,7 +30,12 @@ from scipy.linalg import solve_discrete_lyapunov
 from design.core.compensator import Compensator, closed_loop_matrix
 from design.core.errors import DesignInputError
 
-__all__ = ["noise_command_sigma", "saturation_gain", "disk_gain_floor", "velocity_noise"]
+__all__ = ["noise_command_sigma", "saturation_gain", "disk_gain_floor", "velocity_noise", "worst_noise_gain",
+           "MEASUREMENT_NOISE"]
+
+#: Sensors' 1-sigma when none is given: an RTK receiver's position (m), a dual-antenna receiver's heading
+#: (0.1 deg, rad) and a wheel-angle sensor's (rad; the field procedure passes the valve test's measured one).
+MEASUREMENT_NOISE = (0.01, math.radians(0.1), 0.005)
 
 
 def velocity_noise(position: float, heading: float, wheel_angle: float, speed: float) -> tuple[float, float, float]:
@@ -69,6 +74,21 @@ def noise_command_sigma(comp: Compensator, a: np.ndarray, b: np.ndarray, c: np.n
     p = solve_discrete_lyapunov(acl, bw @ bw.T)
     var = cu @ p @ cu.T + du @ du.T
     return float(math.sqrt(max(float(var[0, 0]), 0.0)))
+
+
+def worst_noise_gain(comp: Compensator, models: Sequence, speeds: Sequence[float], noise: Sequence[float],
+                     limit: float) -> tuple[float, float, int]:
+    """The lowest rate-limit gain (:func:`saturation_gain`) of ``comp``'s noise-driven command over ``models``
+    (each velocity-normalised at its design speed in ``speeds``, m/s), with the sensors' 1-sigma ``noise``
+    (position m, heading rad, wheel angle rad) and the rate limit ``limit`` (rad/s): ``(gain, sigma, index)``
+    of the worst model (``(1.0, 0.0, -1)`` without models)."""
+    worst = (1.0, 0.0, -1)
+    for i, (m, v) in enumerate(zip(models, speeds)):
+        s = noise_command_sigma(comp, m.A, m.B, m.C, m.D, velocity_noise(*noise, v))
+        g = saturation_gain(s, limit)
+        if worst[2] < 0 or g < worst[0]:
+            worst = (g, s, i)
+    return worst
 
 
 def saturation_gain(sigma: float, limit: float) -> float:

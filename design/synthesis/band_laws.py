@@ -44,7 +44,7 @@ from typing import Any, Callable, Sequence
 from identification.model import Model
 
 from design.core.compensator import integrator_states
-from design.core.noise import disk_gain_floor, noise_command_sigma, saturation_gain, velocity_noise
+from design.core.noise import MEASUREMENT_NOISE, disk_gain_floor, worst_noise_gain
 from design.core.errors import ControllerFileError, DesignError, DesignInputError
 from design.core.verify import model_hash
 from design.files.law_schedule import BAND, RECORD, law_entry, schedule_record
@@ -59,10 +59,6 @@ __all__ = ["design_speed", "design_robust_bands", "no_bands_because", "window_sc
 
 #: Key of the band search's record in the file's ``design`` object (what was tried, kept and why).
 SEARCH_RECORD = "band_laws"
-#: Sensors' 1-sigma of the noise check when none is given: an RTK receiver's position (m), a dual-antenna
-#: receiver's heading (0.1 deg, rad) and a wheel-angle sensor's (rad; the field procedure passes the valve
-#: test's measured one).
-MEASUREMENT_NOISE = (0.01, math.radians(0.1), 0.005)
 
 
 def design_speed(model: Model) -> float | None:
@@ -172,14 +168,11 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
 
     def noise_gain(comp, idx) -> tuple[float, float, str]:
         """The worst (lowest) rate-limit gain of ``comp``'s noise-driven command over the models ``idx``."""
-        worst = (math.inf, 0.0, "")
-        for i in idx:
-            m = models[i]
-            s = noise_command_sigma(comp, m.A, m.B, m.C, m.D, velocity_noise(*noise, speeds[names[i]]))
-            g = saturation_gain(s, rate) if rate else 1.0
-            if g < worst[0]:
-                worst = (g, s, names[i])
-        return worst
+        idx = list(idx)
+        if not rate:
+            return (1.0, 0.0, "")
+        g, s, i = worst_noise_gain(comp, [models[j] for j in idx], [speeds[names[j]] for j in idx], noise, rate)
+        return (g, s, names[idx[i]] if i >= 0 else "")
 
     base_g = noise_gain(base.file.compensator, range(len(models)))
     rule = ("a band's law is kept when its window scale is above the base law's, it relaxed no more "

@@ -37,6 +37,7 @@ from design.laws.disturbance import DisturbanceSpec
 from design.core.errors import DesignError, DesignInputError
 from design.synthesis.family import as_family
 from design.core.iostate import observable_past
+from design.core.noise import MEASUREMENT_NOISE
 from design.mpc.backends import SolverSettings
 from design.mpc.law import unconstrained_law
 from design.mpc.problem import MPCLimits, MPCWeights, mpc_problem
@@ -376,6 +377,8 @@ class MPCOptions:
         Predict, in each design speed's band, with that speed's local model of the implement ``none``
         (:func:`design.synthesis.mpc_design.with_prediction_schedule`) when the models hold local models
         of two or more design speeds; False: the central model predicts at every speed.
+    noise
+        The sensors' 1-sigma of the bands' noise check: position (m), heading (rad), wheel angle (rad).
     """
 
     horizon: int = 50
@@ -391,6 +394,7 @@ class MPCOptions:
     fallback: str | Path | None = None
     require_stable: bool = True
     prediction_schedule: bool = True
+    noise: tuple[float, float, float] = MEASUREMENT_NOISE
 
     def __post_init__(self) -> None:
         if self.past is not None:
@@ -494,7 +498,8 @@ def design_mpc_controller(models: Sequence[Model], options: MPCOptions | None = 
     if truncation is not None:
         res = _with_design(res, prediction_truncated=truncation)
     if o.prediction_schedule:
-        res = with_prediction_schedule(res, others)      # certified in the file: not the validation models
+        # certified in the file: not the validation models
+        res = with_prediction_schedule(res, others, noise=o.noise, disk_margin=o.search.disk_margin)
     return MPCControllerResult(res, o, checked)
 
 

@@ -156,7 +156,7 @@ class Designer:
         (None: none, for a search of the weights alone)."""
         options = MPCOptions(limits=MPCLimits(rate=self.rate_limit), past=attempt.past,
                              disturbance=DisturbanceSpec() if self.estimate else None, search=self.search(attempt),
-                             fallback=fallback, prediction_schedule=self.prediction_schedule)
+                             fallback=fallback, prediction_schedule=self.prediction_schedule, noise=self.noise)
         res = design_mpc_controller(load_models([models_dir]), options, progress=progress)
         res.save(out)
         return {"file": str(out), "result": {"out": str(out), **res.summary()},

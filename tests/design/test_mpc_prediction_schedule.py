@@ -161,3 +161,15 @@ def test_design_mpc_adds_the_schedule_unless_told_not_to(scheduled, tmp_path, ca
     capsys.readouterr()
     off = read_mpc_file(tmp_path / "off.json")
     assert RECORD not in off.design and off.prediction_schedule is None and off.controller().bands == ()
+
+
+def test_a_band_whose_law_the_sensors_noise_would_hold_at_the_rate_limit_is_left_to_the_central_law(scheduled):
+    res, models = scheduled
+    assert all(b["noise_gain"] >= 1.4 / 2.6 for b in res.prediction_schedule["bands"])   # the receiver's noise: kept
+    central = tractor_model(1.79, name="central").with_meta(kind="central")
+    # a metre of position noise: at 1.00 m/s every band's law would sit at the rate limit
+    noisy = with_prediction_schedule(design_mpc(central, models, SPEC), models, noise=(1.0, 0.0175, 0.005))
+    left = noisy.prediction_schedule["left_out"]
+    assert 1.0 in [x["speed"] for x in left]
+    reason = next(x["reason"] for x in left if x["speed"] == 1.0)
+    assert reason.startswith("the sensors' noise alone drives its command to") and "below the disk margin" in reason

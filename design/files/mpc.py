@@ -40,7 +40,6 @@ from typing import Any, Mapping
 import numpy as np
 
 from autosteer.checks import finite
-from identification.errors import ModelFileError
 from identification.model import Model
 
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
@@ -59,7 +58,8 @@ from design.core.weights import OutputWeights
 from design.files.certificate import check_certificate, check_estimate_schedule, recorded_latency
 from design.files.law_schedule import RECORD as LAW_RECORD
 from design.files.prediction_schedule import RECORD as PREDICTION_RECORD
-from design.files.prediction_schedule import PredictionSchedule, check_prediction_schedule, parse_prediction_schedule
+from design.files.prediction_schedule import (PredictionSchedule, check_prediction_schedule, model_from_record,
+                                              parse_prediction_schedule)
 from design.files.binding import bind, check_bound
 from design.files.envelope import SCHEMA, read_json, seal, write_atomically
 from design.files.header import check_header
@@ -263,20 +263,7 @@ def uncertified_mpc_from_body(body: Any, dt: float | None = 0.05,
         raise ControllerFileError(f"outputs must be the velocity-normalised {expect}, got {outs!r}")
     if body["input"] != INPUT:
         raise ControllerFileError(f"input must be {INPUT}, got {body['input']!r}")
-    md = _object(body, "model", ("A", "B", "C", "D", "K", "name", "hash"))
-    mats = {}
-    for k in ("A", "B", "C", "D", "K"):
-        try:
-            mats[k] = np.array(md[k], dtype=float)
-        except (TypeError, ValueError):
-            raise ControllerFileError(f"model {k} is not a numeric matrix") from None
-    try:
-        model = Model(**mats, dt=fdt, meta={"name": str(md["name"]), "normalization": "velocity"})
-    except ModelFileError as exc:
-        raise ControllerFileError(f"model: {exc}") from None
-    if model_hash(model) != md["hash"]:
-        raise ControllerFileError(f"model hash mismatch: file says {md['hash']!r}, its matrices give "
-                                  f"{model_hash(model)!r}")
+    model = model_from_record(_object(body, "model", ("A", "B", "C", "D", "K", "name", "hash")), fdt, None, "model")
     est = body["estimator"]
     with_d = isinstance(est, dict) and est.get("kind") == "measured-window+disturbance"
     est = _object(body, "estimator", ("kind", "past", "integral", *(("disturbance",) if with_d else ())))

@@ -101,9 +101,10 @@ def model_record(model: Model) -> dict:
             "name": str(model.meta.get("name", "model")), "hash": model_hash(model)}
 
 
-def model_from_record(md: Any, dt: float, like: Model, what: str) -> Model:
+def model_from_record(md: Any, dt: float, like: Model | None, what: str) -> Model:
     """A prediction model from its record, checked: exactly :data:`MODEL_KEYS`, numeric matrices, its hash,
-    and the inputs and outputs of ``like`` (the file's own model); ``ControllerFileError`` naming ``what``."""
+    and the inputs and outputs of ``like`` (the file's own model; None: the file's own model itself is read);
+    ``ControllerFileError`` naming ``what``."""
     if not isinstance(md, dict) or sorted(md) != sorted(MODEL_KEYS):
         got = sorted(md) if isinstance(md, dict) else type(md).__name__
         raise ControllerFileError(f"{what} must hold exactly {', '.join(MODEL_KEYS)}; got {got}")
@@ -118,9 +119,9 @@ def model_from_record(md: Any, dt: float, like: Model, what: str) -> Model:
     except ModelFileError as exc:
         raise ControllerFileError(f"{what}: {exc}") from None
     if model_hash(model) != md["hash"]:
-        raise ControllerFileError(f"{what}: hash mismatch (recorded {md['hash']!r}, its matrices give "
-                                  f"{model_hash(model)!r})")
-    if (model.n_inputs, model.n_outputs) != (like.n_inputs, like.n_outputs):
+        raise ControllerFileError(f"{what} hash mismatch: the file says {md['hash']!r}, its matrices give "
+                                  f"{model_hash(model)!r}")
+    if like is not None and (model.n_inputs, model.n_outputs) != (like.n_inputs, like.n_outputs):
         raise ControllerFileError(f"{what} has {model.n_inputs} inputs and {model.n_outputs} outputs, the file's "
                                   f"model {like.n_inputs} and {like.n_outputs}")
     return model

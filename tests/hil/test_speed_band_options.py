@@ -1,0 +1,80 @@
+"""``hil commission --prediction-schedule on|off`` and ``--robust-bands on|off``: the commissioning's MPC step
+predicts in each design speed's band with that speed's local model of the implement none, or with the central
+model at every speed; its robust step designs a law per speed band (on by default), whose noise check uses the
+valve test's measured wheel-angle noise; the report names what runs in each band."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+from design.core.noise import MEASUREMENT_NOISE
+from design.files.mpc import read_mpc_file
+from design.files.prediction_schedule import RECORD
+from hil.bench.commissioning.cli import add_commission_parser, commission_options
+from hil.bench.commissioning.recipe import CommissionOptions
+from hil.commissioning.designs import Designer, DesignTry
+from hil.commissioning.from_logs import LogOptions, speed_bands_text
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "design"))
+from design_family import tractor_model  # noqa: E402
+
+
+def _options(*extra: str):
+    sub = argparse.ArgumentParser().add_subparsers(dest="command")
+    add_commission_parser(sub, float, lambda t: t)
+    args = sub.choices["commission"].parse_args(["--tractor", "default", "--out", "x", *extra])
+    return commission_options(args)
+
+
+def test_the_option_reaches_the_commissioning():
+    assert _options().prediction_schedule is True
+    assert _options("--prediction-schedule", "off").prediction_schedule is False
+
+
+def test_the_mpc_step_designs_with_the_schedule_or_without(tmp_path):
+    models = tmp_path / "models"
+    models.mkdir()
+    tractor_model(1.79, name="central").with_meta(kind="central").save(models / "central.npz")
+    for v in (1.0, 2.91):
+        for imp, a in (("none", 1.0), ("disker", 0.7)):
+            tractor_model(v, a, name=f"local_{imp}_{v:g}").with_meta(
+                conditions=[{"implement": imp, "nominal_speed": v}]).save(models / f"local_{imp}_{v:g}.npz")
+    for on in (True, False):
+        designer = Designer(rate_limit=0.3, estimate=False, prediction_schedule=on)
+        rec = designer.mpc(models, DesignTry(False), tmp_path / f"mpc_{on}.json", None)
+        assert rec["settings"]["prediction_schedule"] is on
+        spec = read_mpc_file(tmp_path / f"mpc_{on}.json")
+        if on:
+            assert spec.prediction_schedule.bands == ((0.0, 1.955), (1.955, float("inf")))
+            assert [b["model"] for b in rec["result"]["prediction_schedule"]["bands"]] == ["local_none_1",
+                                                                                           "local_none_2.91"]
+        else:
+            assert RECORD not in spec.design and rec["result"]["prediction_schedule"] is None
+
+
+def test_the_option_reaches_the_commissioning_on_by_default():
+    assert _options().robust_bands is True
+    assert _options("--robust-bands", "off").robust_bands is False
+    assert CommissionOptions().robust_bands is True and LogOptions().robust_bands is True
+
+
+def test_the_noise_check_takes_the_measured_wheel_angle_noise():
+    assert Designer(rate_limit=0.3).noise == MEASUREMENT_NOISE
+    pos, heading, angle = Designer(rate_limit=0.3, angle_noise=0.0042).noise
+    assert (pos, angle) == (0.01, 0.0042) and math.isclose(heading, math.radians(0.1))
+
+
+def test_the_report_line_names_each_band_s_law_and_prediction_model():
+    robust = {"band_laws": {"base_scale": 0.77, "bands": [
+        {"band_mps": [0.0, 1.395], "kept": False, "why": "the sensors' noise alone drives its command to 0.9 rad/s"},
+        {"band_mps": [2.35, None], "kept": True, "scale": 0.83}]}}
+    assert speed_bands_text(robust) == ("; laws per speed band (the one law's scale 0.77): 0-1.395 m/s the one law "
+                                        "(noise check), 2.35-inf m/s scale 0.83 (certified on its band's models)")
+    mpc = {"prediction_schedule": {"bands": [{"band_mps": [0.0, 1.955], "model": "local_none_5th"}],
+                                   "left_out": [{"speed": 2.91, "reason": "unstable"}]}}
+    assert speed_bands_text(mpc) == ("; predicts by speed band, each law certified on its band's models: 0-1.955 m/s "
+                                     "with local_none_5th (left to the central model: 1 band)")
+    assert speed_bands_text({}) == ""

@@ -6,7 +6,7 @@ through a steering controller's delay one law fast enough for 2.91 m/s is unstab
 per speed band, each certified on the models of its own band, lifts that. The window trial
 (:mod:`hil.bench.commissioning.window_trial`) fills the schedule with laws certified on every model (the
 estimate's back-off: on random-1 the law of scale 1.48 was 0.93x the paper's method at 2.91 m/s where the
-law chosen for every speed, 1.05, was 1.04x); :func:`design.synthesis.recipes.design_robust_bands` fills it
+law chosen for every speed, 1.05, was 1.04x); :func:`design.synthesis.band_laws.design_robust_bands` fills it
 with laws designed and certified on their band's models.
 
 Layout: ``design["law_schedule"] = {"bands": [[low, high | null], ...], "laws": [law, ...],

@@ -54,8 +54,7 @@ from design.synthesis.family import model_names
 from design.synthesis.recipes import RobustControllerResult, RobustOptions, design_robust_controller
 from design.synthesis.specs import check_specs, resolve_latency
 
-__all__ = ["design_speed", "design_robust_bands", "no_bands_because", "window_scale", "SEARCH_RECORD",
-           "MEASUREMENT_NOISE"]
+__all__ = ["design_speed", "design_robust_bands", "no_bands_because", "window_scale", "SEARCH_RECORD"]
 
 #: Key of the band search's record in the file's ``design`` object (what was tried, kept and why).
 SEARCH_RECORD = "band_laws"

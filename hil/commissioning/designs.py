@@ -20,7 +20,8 @@ from design.laws.disturbance import DisturbanceSpec
 from design.mpc.problem import MPCLimits
 from design.synthesis.recipes import (MPCOptions, RobustOptions, WeightSearch, design_mpc_controller, design_robust_controller,
                             load_models)
-from design.synthesis.band_laws import MEASUREMENT_NOISE, SEARCH_RECORD, design_robust_bands
+from design.core.noise import MEASUREMENT_NOISE
+from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands
 from design.synthesis.robust import RobustSpec, design_lqr
 from design.synthesis.specs import Specifications
 from identification.model import Model
@@ -73,7 +74,7 @@ class Designer:
         (:func:`design.synthesis.band_laws.design_robust_bands`; default); False: its one law at every speed.
     angle_noise
         The wheel-angle sensor's 1-sigma, rad, of the band laws' noise check (the valve test's measurement; None:
-        :data:`design.synthesis.band_laws.MEASUREMENT_NOISE`'s).
+        :data:`design.core.noise.MEASUREMENT_NOISE`'s).
     prediction_schedule
         The MPC predicts, in each design speed's band, with that speed's local model of the implement
         ``none`` (:func:`design.synthesis.mpc_design.with_prediction_schedule`); False: the central model at

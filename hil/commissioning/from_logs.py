@@ -330,6 +330,8 @@ def _bands_text(rec: dict | None) -> str:
     for b in rec["bands"]:
         lo, hi = b["band_mps"]
         span = f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s"
-        parts.append(f"{span} scale {b['scale']:.3g} (certified on its band's models)" if b["kept"] else
+        scale = "" if b.get("scale") is None else f" scale {b['scale']:.3g}"
+        parts.append(f"{span}{scale} (certified on its band's models)" if b["kept"] else
                      f"{span} the one law ({_short_why(b.get('why', ''))})")
-    return f"; laws per speed band (the one law's scale {rec['base_scale']:.3g}): " + ", ".join(parts)
+    base = "" if rec.get("base_scale") is None else f" (the one law's scale {rec['base_scale']:.3g})"
+    return f"; laws per speed band{base}: " + ", ".join(parts)

@@ -158,23 +158,32 @@ def _scale(v: Any, what: str) -> float | None:
     return positive(v, what, allow_zero=True, error=ControllerFileError, fix="or null")
 
 
+def record_bands(rec: Mapping[str, Any], record: str, noun: str, most: int, kind: str) -> list[tuple[float, float]]:
+    """The bands of a speed schedule's record ``rec`` (``design.<record>``), as listed: ``rec["bands"]`` and
+    ``rec["laws"]`` lists of one length, 1 to ``most`` entries (``noun`` counts them in the error), each band
+    ``[low, high | null]`` m/s, not overlapping (:func:`design.laws.estimate_schedule.check_bands`, ``kind``
+    naming the schedule); ``ControllerFileError`` otherwise."""
+    bands, laws = rec["bands"], rec["laws"]
+    if not isinstance(bands, list) or not isinstance(laws, list) or len(bands) != len(laws) or not laws:
+        raise ControllerFileError(f"design.{record}: bands and laws must be lists of the same length >= 1, got "
+                                  f"{type(bands).__name__} and {type(laws).__name__}")
+    if len(laws) > most:
+        raise ControllerFileError(f"design.{record}: {len(laws)} {noun}s, at most {most}")
+    raw = [(b[0], math.inf if b[1] is None else b[1]) if isinstance(b, list) and len(b) == 2 else b for b in bands]
+    try:
+        check_bands(raw, kind)
+    except DesignInputError as exc:
+        raise ControllerFileError(f"design.{record}: {exc}") from None
+    return [(float(lo), float(hi)) for lo, hi in raw]
+
+
 def parse_law_schedule(rec: Any, main: Compensator) -> LawSchedule:
     """The schedule of a file's record, each law shaped as ``main`` (the file's compensator) is, without
     its certificates (:func:`check_law_schedule` checks those); ``ControllerFileError`` if malformed."""
     if not isinstance(rec, Mapping) or sorted(set(rec) - {"model_speeds"}) != ["bands", "laws"]:
         got = sorted(rec) if isinstance(rec, Mapping) else type(rec).__name__
         raise ControllerFileError(f"design.{RECORD} must hold exactly bands and laws (and model_speeds); got {got}")
-    bands, laws = rec["bands"], rec["laws"]
-    if not isinstance(bands, list) or not isinstance(laws, list) or len(bands) != len(laws) or not laws:
-        raise ControllerFileError(f"design.{RECORD}: bands and laws must be lists of the same length >= 1, got "
-                                  f"{type(bands).__name__} and {type(laws).__name__}")
-    if len(laws) > MAX_LAWS:
-        raise ControllerFileError(f"design.{RECORD}: {len(laws)} laws, at most {MAX_LAWS}")
-    raw = [(b[0], math.inf if b[1] is None else b[1]) if isinstance(b, list) and len(b) == 2 else b for b in bands]
-    try:
-        check_bands(raw, "law-schedule")
-    except DesignInputError as exc:
-        raise ControllerFileError(f"design.{RECORD}: {exc}") from None
+    raw, laws = record_bands(rec, RECORD, "law", MAX_LAWS, "law-schedule"), rec["laws"]
     comps, sources, rules = [], [], []
     for i, law in enumerate(laws):
         what = f"design.{RECORD} law {i}"
@@ -200,7 +209,7 @@ def parse_law_schedule(rec: Any, main: Compensator) -> LawSchedule:
         comps.append(comp)
         sources.append(law["source"])
         rules.append(rule)
-    return LawSchedule(tuple((float(lo), float(hi)) for lo, hi in raw), tuple(comps), tuple(sources), tuple(rules))
+    return LawSchedule(tuple(raw), tuple(comps), tuple(sources), tuple(rules))
 
 
 def _check_neighbours(rows: Any, what: str) -> None:

@@ -55,8 +55,9 @@ from design.core.compensator import Compensator
 from design.core.errors import ControllerFileError, DesignInputError
 from design.core.verify import model_hash
 from design.files.certificate import check_certificate, is_legacy, recorded_models
+from design.files.law_schedule import record_bands
 from design.laws.estimate_schedule import RECORD as ESTIMATE_RECORD
-from design.laws.estimate_schedule import EstimateSchedule, check_bands, law_without_estimate
+from design.laws.estimate_schedule import EstimateSchedule, law_without_estimate
 
 #: Key of the record in an MPC file's ``design`` object.
 RECORD = "prediction_schedule"
@@ -133,21 +134,12 @@ def parse_prediction_schedule(rec: Any, dt: float, like: Model) -> PredictionSch
     if not isinstance(rec, Mapping) or sorted(rec) != sorted(REC_KEYS):
         got = sorted(rec) if isinstance(rec, Mapping) else type(rec).__name__
         raise ControllerFileError(f"design.{RECORD} must hold exactly {', '.join(REC_KEYS)}; got {got}")
-    bands, laws = rec["bands"], rec["laws"]
-    if not isinstance(bands, list) or not isinstance(laws, list) or len(bands) != len(laws) or not laws:
-        raise ControllerFileError(f"design.{RECORD}: bands and laws must be lists of the same length >= 1, got "
-                                  f"{type(bands).__name__} and {type(laws).__name__}")
-    if len(laws) > MAX_BANDS:
-        raise ControllerFileError(f"design.{RECORD}: {len(laws)} bands, at most {MAX_BANDS}")
+    raw, laws = record_bands(rec, RECORD, "band", MAX_BANDS, "prediction-schedule"), rec["laws"]
     if not isinstance(rec["left_out"], list) or len(rec["left_out"]) > MAX_NOTES:
         raise ControllerFileError(f"design.{RECORD}.left_out must be a list of at most {MAX_NOTES} entries")
-    raw = [(b[0], math.inf if b[1] is None else b[1]) if isinstance(b, list) and len(b) == 2 else b for b in bands]
-    try:
-        sorted_bands = check_bands(raw, "prediction-schedule")
-    except DesignInputError as exc:
-        raise ControllerFileError(f"design.{RECORD}: {exc}") from None
-    if [tuple(map(float, b)) for b in raw] != list(sorted_bands):
-        raise ControllerFileError(f"design.{RECORD}: bands must be listed from the slowest, got {bands!r}")
+    sorted_bands = tuple(sorted(raw))
+    if raw != list(sorted_bands):
+        raise ControllerFileError(f"design.{RECORD}: bands must be listed from the slowest, got {rec['bands']!r}")
     models, gains = [], []
     for i, law in enumerate(laws):
         what = f"design.{RECORD} band {i}"

@@ -34,14 +34,15 @@ from identification.model import Model
 from design.synthesis.auto_designs import auto_mpc, auto_robust, spec_names
 from design.synthesis.autotune import SearchOptions, scaled_weights
 from design.laws.disturbance import DisturbanceSpec
-from design.core.errors import DesignError, DesignInputError
+from design.core.errors import DesignError, DesignInputError, SpecificationError, VerificationError
 from design.synthesis.family import as_family
 from design.core.iostate import observable_past
 from design.core.noise import MEASUREMENT_NOISE
 from design.mpc.backends import SolverSettings
 from design.mpc.law import unconstrained_law
 from design.mpc.problem import MPCLimits, MPCWeights, mpc_problem
-from design.synthesis.mpc_design import (MPCDesign, MPCSpec, design_mpc, fallback_from_file, prediction_model,
+from design.synthesis.mpc_design import (PREDICTION_CHOICE, MPCDesign, MPCSpec, design_mpc, fallback_from_file,
+                                         prediction_alternatives, prediction_model,
                                          read_controller_file, with_prediction_schedule)
 from design.synthesis.robust import RobustResult, RobustSpec, design_robust, with_disturbance_estimate
 from design.synthesis.specs import Specifications, check_specs, latency_from_logs, latency_from_models
@@ -451,6 +452,13 @@ def design_mpc_controller(models: Sequence[Model], options: MPCOptions | None = 
     (``design mpc``); with :attr:`MPCOptions.prediction_schedule`, another model predicting in each
     design speed's band.
 
+    When the central model is the one of kind ``central`` (``central`` not given) and no law predicting with
+    it stabilises every model (at any scale of automatic weights, or at the explicit weights), each local
+    model of :func:`design.synthesis.mpc_design.prediction_alternatives` is tried as the prediction model,
+    certified on every model the central one included, and the best kept; the file's
+    ``design["prediction_choice"]`` records why, what was tried and what was kept. None giving a design: the
+    central model's error.
+
     Parameters
     ----------
     models
@@ -466,10 +474,28 @@ def design_mpc_controller(models: Sequence[Model], options: MPCOptions | None = 
         Called with one line per step of the automatic search.
     """
     o = options or MPCOptions()
+    named = central is not None
     central, others = _central(models, central)
     past = o.past
     if past is None:
         past = fallback_past(o.fallback) if o.fallback is not None else observable_past([central])
+    try:
+        res, checked = _mpc_on(central, others, past, o, validate_on, progress)
+    except (SpecificationError, VerificationError) as exc:
+        alternatives = [] if named else prediction_alternatives(others)
+        if not alternatives:
+            raise
+        res, checked = _alternative_prediction(central, others, alternatives, past, o, validate_on, progress, exc)
+    if o.prediction_schedule:
+        # certified in the file: not the validation models
+        res = with_prediction_schedule(res, [central, *others], noise=o.noise, disk_margin=o.search.disk_margin)
+    return MPCControllerResult(res, o, checked)
+
+
+def _mpc_on(central: Model, others: list[Model], past: int, o: MPCOptions, validate_on: Sequence[Model],
+            progress: Progress | None) -> tuple[MPCDesign, dict | None]:
+    """The MPC predicting with ``central`` (its design model when the window is too short for it), certified on
+    ``others`` too, and the specifications' check of explicit weights (None otherwise)."""
     predicting, truncation = prediction_model(central, past)
     if truncation is not None:                  # the window is too short for the central model as given:
         others = [central, *others]             # predict with its design model, certify on it as given too
@@ -497,10 +523,41 @@ def design_mpc_controller(models: Sequence[Model], options: MPCOptions | None = 
             res = _with_design(res, specifications_check=checked)
     if truncation is not None:
         res = _with_design(res, prediction_truncated=truncation)
-    if o.prediction_schedule:
-        # certified in the file: not the validation models
-        res = with_prediction_schedule(res, others, noise=o.noise, disk_margin=o.search.disk_margin)
-    return MPCControllerResult(res, o, checked)
+    return res, checked
+
+
+def _alternative_prediction(central: Model, others: list[Model], alternatives: Sequence[Model], past: int,
+                            o: MPCOptions, validate_on: Sequence[Model], progress: Progress | None,
+                            why: DesignError) -> tuple[MPCDesign, dict | None]:
+    """The MPC predicting with the best of ``alternatives`` (:func:`design.synthesis.mpc_design.prediction_alternatives`)
+    when the central model's failed with ``why``; every model, the central one too, still certifies. The best
+    is the one whose law meets the most specifications at the largest scale (explicit weights: the largest
+    disk margin on its worst model). Raises ``why`` when none gives a design."""
+    made, tried = [], []
+    for alt in alternatives:
+        name = str(alt.meta.get("name", "model"))
+        say = None if progress is None else (lambda line, name=name: progress(f"predicting with {name}: {line}"))
+        try:
+            res, checked = _mpc_on(alt, [central, *(m for m in others if m is not alt)], past, o, validate_on, say)
+        except (SpecificationError, VerificationError) as exc:
+            tried.append({"model": name, "error": str(exc)})
+            continue
+        auto = res.file.design.get("auto_weights")
+        row = {"model": name, "min_disk_margin": min(c.disk_margin for c in res.certificate.checks)}
+        if auto is not None:
+            row.update(chosen_scale=auto["chosen_scale"], relaxed=list(auto["relaxed"]))
+            rank = (len(auto["relaxed"]), -auto["chosen_scale"])
+        else:
+            rank = (0, -row["min_disk_margin"])
+        tried.append(row)
+        made.append((rank, len(made), res, checked, name))
+    if not made:
+        raise why
+    _, _, res, checked, name = min(made, key=lambda r: r[:2])
+    record = {"central": str(central.meta.get("name", "central")), "central_failed": str(why), "tried": tried,
+              "kept": name, "rule": "fewest relaxed specifications, then the largest scale (explicit weights: the "
+                                    "largest worst-model disk margin)"}
+    return _with_design(res, **{PREDICTION_CHOICE: record}), checked
 
 
 def fallback_past(path: str | Path) -> int:

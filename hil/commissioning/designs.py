@@ -16,10 +16,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
+from design.core.errors import DesignInputError
 from design.laws.disturbance import DisturbanceSpec
 from design.mpc.problem import MPCLimits
 from design.synthesis.recipes import (MPCOptions, RobustOptions, WeightSearch, design_mpc_controller, design_robust_controller,
-                            load_models)
+                            fallback_past, load_models)
 from design.core.noise import MEASUREMENT_NOISE
 from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands
 from design.synthesis.robust import RobustSpec, design_lqr
@@ -283,8 +284,14 @@ def _own_window(steps: Steps, mpc: dict, pair: WindowDesigners, work: Path) -> N
 
 def _design_mpc_alone(steps: Steps, designer: Designer, models_dir: Path, ctrl: Path, tries: Sequence[DesignTry],
                       order: int, robust_label: str) -> dict[str, dict]:
-    """The MPC on ``models_dir`` with the robust file already made as its fall-back (the same tries)."""
-    for attempt in tries:
+    """The MPC on ``models_dir`` with the robust file already made as its fall-back: the tries whose window is
+    automatic (the fall-back's) or the fall-back's own; a try of another window could only be refused (the MPC's
+    measured state must be its fall-back's)."""
+    try:
+        past = fallback_past(ctrl / "robust.json")
+    except DesignInputError:                # no window recorded: every try, each refused with the reason
+        past = None
+    for attempt in (a for a in tries if a.past is None or past is None or a.past == past):
         label = attempt.label
         r = steps.run(f"design mpc on order-{order} models ({label})",
                       f"design mpc on order-{order} models ({label}; the robust law: {robust_label})",

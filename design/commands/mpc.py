@@ -105,13 +105,28 @@ def render(result: dict) -> str:
              "unconstrained law closed around each model:",
              certificate_table(result["certificate"]),
              *spec_lines(result),
-             *schedule_lines(result.get("prediction_schedule")),
+             *choice_lines(result.get("prediction_choice")),
+             *schedule_lines(result.get("prediction_schedule"),
+                             result["prediction_model"] if result.get("prediction_choice") else "the central model"),
              f"wrote {result['out']}"]
     return "\n".join(lines)
 
 
-def schedule_lines(rec: dict | None) -> list[str]:
-    """The prediction schedule's lines of the summary (none without one)."""
+def choice_lines(rec: dict | None) -> list[str]:
+    """Why the MPC predicts with a local model in the central model's place (none when it does not)."""
+    if not rec:
+        return []
+    tried = "; ".join(f"{r['model']} " + ("failed" if "error" in r else
+                                          f"worst disk margin {r['min_disk_margin']:.2f}"
+                                          + (f", scale {r['chosen_scale']:.3g}" if "chosen_scale" in r else ""))
+                      for r in rec["tried"])
+    return [f"predicting with {rec['kept']}, not the {rec['central']} model, whose law failed: {rec['central_failed']}",
+            f"  tried, keeping by {rec['rule']}: {tried}"]
+
+
+def schedule_lines(rec: dict | None, own: str = "the central model") -> list[str]:
+    """The prediction schedule's lines of the summary (none without one); ``own`` names the model predicting
+    outside the bands."""
     if not rec or (not rec["bands"] and not rec["left_out"]):
         return []
     lines = ["prediction by speed band (each law certified on its band's models):"]
@@ -122,5 +137,5 @@ def schedule_lines(rec: dict | None) -> list[str]:
                      f"(spectral radius {b['max_spectral_radius']:.4f}, disk margin >= {b['min_disk_margin']:.2f}); "
                      f"on the other bands' models {'stable' if b['neighbours_stable'] else 'NOT stable'}"
                      + ("" if nb is None else f", disk margin >= {nb:.2f}"))
-    lines += [f"  {x['speed']:g} m/s left to the central model: {x['reason']}" for x in rec["left_out"]]
+    lines += [f"  {x['speed']:g} m/s left to {own}: {x['reason']}" for x in rec["left_out"]]
     return lines

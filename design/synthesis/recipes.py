@@ -432,7 +432,8 @@ class MPCControllerResult:
                 "unconstrained_gain": f.design["unconstrained_gain"], "certificate": dict(f.certificate),
                 "auto_weights": f.design.get("auto_weights"), "specifications_check": self.specifications_check,
                 "disturbance_estimate": f.design.get("disturbance_estimate"),
-                "prediction_schedule": self.design.prediction_schedule}
+                "prediction_schedule": self.design.prediction_schedule,
+                "prediction_choice": f.design.get(PREDICTION_CHOICE)}
 
 
 def _central(models: Sequence[Model], central: Model | None) -> tuple[Model, list[Model]]:
@@ -555,8 +556,8 @@ def _alternative_prediction(central: Model, others: list[Model], alternatives: S
         raise why
     _, _, res, checked, name = min(made, key=lambda r: r[:2])
     record = {"central": str(central.meta.get("name", "central")), "central_failed": str(why), "tried": tried,
-              "kept": name, "rule": "fewest relaxed specifications, then the largest scale (explicit weights: the "
-                                    "largest worst-model disk margin)"}
+              "kept": name, "rule": "fewest relaxed specifications, then the largest scale; with explicit weights, "
+                                    "the largest worst-model disk margin"}
     return _with_design(res, **{PREDICTION_CHOICE: record}), checked
 
 

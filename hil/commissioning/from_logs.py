@@ -294,12 +294,17 @@ def _controller_line(name: str, d: dict) -> str:
 def speed_bands_text(result: dict) -> str:
     """What a design's ``result`` runs by speed band, for a report line: the robust controller's laws per band and
     the MPC's prediction models (empty when it has neither)."""
-    return _bands_text(result.get("band_laws")) + _prediction_text(result.get("prediction_schedule"))
+    choice = result.get("prediction_choice")
+    if not choice:
+        return _bands_text(result.get("band_laws")) + _prediction_text(result.get("prediction_schedule"))
+    return (_bands_text(result.get("band_laws")) + f"; predicts with {choice['kept']}, the {choice['central']} "
+            "model's law not stabilising every model" + _prediction_text(result.get("prediction_schedule"),
+                                                                         choice["kept"]))
 
 
-def _prediction_text(rec: dict | None) -> str:
+def _prediction_text(rec: dict | None, own: str = "the central model") -> str:
     """``; predicts by speed band: 0-1.395 m/s with local_none_5th (certified on its band's models), ...`` (empty
-    without a prediction schedule)."""
+    without a prediction schedule); ``own`` names the model predicting outside the bands."""
     if not rec or not rec.get("bands"):
         return ""
     parts = []
@@ -308,7 +313,7 @@ def _prediction_text(rec: dict | None) -> str:
         parts.append(f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s with {b['model']}")
     left = rec.get("left_out") or []
     return ("; predicts by speed band, each law certified on its band's models: " + ", ".join(parts)
-            + (f" (left to the central model: {len(left)} band{'s' if len(left) > 1 else ''})" if left else ""))
+            + (f" (left to {own}: {len(left)} band{'s' if len(left) > 1 else ''})" if left else ""))
 
 
 def _short_why(why: str) -> str:

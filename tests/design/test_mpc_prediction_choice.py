@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from design.commands.mpc import render
 from design.core.errors import VerificationError
 from design.files.mpc import read_mpc_file
 from design.laws.disturbance import DisturbanceSpec
@@ -53,3 +54,6 @@ def test_the_mpc_predicts_with_the_none_model_whose_law_holds_every_model(models
     assert max(c.spectral_radius for c in cert.checks) < 1.0
     back = read_mpc_file(res.save(tmp_path / "mpc.json"))
     assert back.design[PREDICTION_CHOICE] == rec and back.model.meta["name"] == "local_none_9th"
+    text = render({**res.summary(), "out": "mpc.json"})
+    assert "predicting with local_none_9th, not the central model, whose law failed: " in text
+    assert "local_none_5th failed; local_none_9th worst disk margin" in text

@@ -8,6 +8,7 @@ import shutil
 from pathlib import Path
 
 from hil.commissioning.designs import Designer, DesignTry, _design_mpc_alone
+from hil.commissioning.from_logs import speed_bands_text
 from hil.commissioning.steps import Steps
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "random107_models"
@@ -28,4 +29,6 @@ def test_the_mpc_alone_skips_the_tries_of_another_window_than_its_fall_back_s(tm
                             4, "weights auto, past auto")
     assert [s["step"] for s in steps.record] == ["design mpc on order-4 models (weights default, past auto)"]
     assert steps.record[0]["ok"] and got["mpc"]["result"]["prediction_model"] == "local_none_9th"
+    assert speed_bands_text(got["mpc"]["result"]) == "; predicts with local_none_9th, the central model's law not " \
+                                                     "stabilising every model"          # no schedule asked for
     assert _design_mpc_alone(Steps(lines.append), designer, models, ctrl, [DesignTry(True, 6)], 4, "") == {}

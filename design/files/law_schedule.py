@@ -20,7 +20,11 @@ model"``):
 
 - ``"every model"``: its certificate lists every model of the file's certificate;
 - ``"band"``: its certificate lists exactly the models of the file's certificate whose design speed
-  (``model_speeds``) lies in its band, at least one.
+  (``model_speeds``) lies in its band, at least one;
+- ``"band and reach"``: as ``"band"``, and also the models of each neighbouring design speed (the nearest
+  below the band, the nearest at or above its upper end) that the band reaches more than
+  :data:`design.laws.estimate_schedule.REACH_FRACTION` of the way to (:func:`certified_speeds`). A speed
+  between two design speeds is then run by a law certified on the models of both, or by the file's own law.
 
 ``neighbours`` (band laws; recorded, not required) gives the law's spectral radius and disk margin on the
 models of the other bands, with the latency in the loop: how far from its band the law still holds.
@@ -36,10 +40,13 @@ disturbance), so the loop changes law at a band's edge without resetting anythin
 
 What is proven: at frozen speed, every identified condition is certified with the law that runs at its
 speed (a model whose design speed lies in a band with the band's law, every other model with the file's
-own law, which is certified on every model). What is not: a band law on the models of other speeds
-(``neighbours`` records it, and may show it unstable there), and switching between laws, which no common
-Lyapunov function covers. The loop switches only when the speed crosses a band's edge (half-way between
-two design speeds, :func:`design.laws.estimate_schedule.bands_for`), with the hysteresis and dwell time of
+own law, which is certified on every model); under ``"band and reach"``, every law that runs more than a
+quarter of the way from a design speed towards another is certified on the models of both. What is not: the
+dynamics between two design speeds themselves (no model of them is identified; the rule brackets them by
+the models on either side), a ``"band"`` law on the models of other speeds (``neighbours`` records it, and
+may show it unstable there), and switching between laws, which no common Lyapunov function covers. The
+loop switches only when the speed crosses a band's edge (at most half-way between two design speeds,
+:func:`design.laws.estimate_schedule.reach_band`), with the hysteresis and dwell time of
 :class:`design.core.speed_latch.SpeedLatch`, as it does for the estimate's schedule.
 """
 
@@ -55,7 +62,7 @@ from autosteer.checks import positive
 from design.core.compensator import Compensator, integrator_states
 from design.core.errors import ControllerFileError, DesignInputError
 from design.laws.estimate_schedule import RECORD as ESTIMATE_RECORD
-from design.laws.estimate_schedule import check_bands
+from design.laws.estimate_schedule import REACH_FRACTION, check_bands
 from design.core.limits import MAX_COEFFICIENT
 from design.files.certificate import check_certificate, check_estimate_schedule, is_legacy, recorded_models
 
@@ -69,8 +76,8 @@ LAW_KEYS = ("compensator", "certificate", "certificate_off", "source", "window_s
 #: Keys a law may carry beside :data:`LAW_KEYS` (files written before them have neither).
 OPTIONAL_LAW_KEYS = ("certified_on", "neighbours")
 #: The rules a law may be certified under (module docstring); the first is the rule of a law without one.
-EVERY_MODEL, BAND = "every model", "band"
-RULES = (EVERY_MODEL, BAND)
+EVERY_MODEL, BAND, REACH = "every model", "band", "band and reach"
+RULES = (EVERY_MODEL, BAND, REACH)
 #: Most models ``model_speeds`` and a law's ``neighbours`` may list.
 MAX_MODELS = 64
 
@@ -269,7 +276,7 @@ def check_law_schedule(design: Any, cert: Any, main: Compensator, dp_states: tup
     schedule = parse_law_schedule(rec, main)
     rows = recorded_models(cert) if isinstance(cert, dict) and not is_legacy(cert) else []
     main_models = {h for _, h, _ in rows}
-    speeds = model_speeds(rec, [n for n, _, _ in rows]) if BAND in schedule.rules else {}
+    speeds = model_speeds(rec, [n for n, _, _ in rows]) if set(schedule.rules) - {EVERY_MODEL} else {}
     est = design.get(ESTIMATE_RECORD)
     for i, (comp, law) in enumerate(zip(schedule.laws, rec["laws"])):
         what = f"design.{RECORD} law {i} ({law['source']})"
@@ -277,8 +284,8 @@ def check_law_schedule(design: Any, cert: Any, main: Compensator, dp_states: tup
             check_certificate(law["certificate"], comp, what, legacy)
         except ControllerFileError as exc:
             raise ControllerFileError(f"{what}: {exc}") from None
-        if schedule.rules[i] == BAND:
-            _check_band(law["certificate"], rows, speeds, schedule.bands[i], what)
+        if schedule.rules[i] != EVERY_MODEL:
+            _check_band(law["certificate"], rows, speeds, schedule.bands[i], what, schedule.rules[i] == REACH)
         elif not (legacy and is_legacy(law["certificate"])):
             have = {h for _, h, _ in recorded_models(law["certificate"])}
             if main_models - have:
@@ -302,14 +309,44 @@ def band_models(rows: Sequence[tuple[str, str, Any]], speeds: Mapping[str, float
     return {n: h for n, h, _ in rows if lo <= speeds[n] < hi}
 
 
+def certified_speeds(band: tuple[float, float], design_speeds: Sequence[float]) -> list[float]:
+    """The design speeds (of ``design_speeds``, m/s) whose models a law of ``band`` certified under ``"band and
+    reach"`` must list, ascending: those in the band, the nearest below the band when the band reaches more than
+    :data:`~design.laws.estimate_schedule.REACH_FRACTION` of the way down to it from its slowest, and the nearest
+    at or above the band's upper end when it reaches more than that fraction of the way up to it from its fastest.
+    Empty when no design speed lies in the band."""
+    lo, hi = band
+    ds = sorted(set(float(v) for v in design_speeds))
+    inside = [v for v in ds if lo <= v < hi]
+    if not inside:
+        return []
+    out = list(inside)
+    below = [v for v in ds if v < lo]
+    if below and inside[0] - lo > REACH_FRACTION * (inside[0] - below[-1]) + 1e-9:
+        out.insert(0, below[-1])
+    above = [v for v in ds if v >= hi]
+    if above and hi - inside[-1] > REACH_FRACTION * (above[0] - inside[-1]) + 1e-9:
+        out.append(above[0])
+    return out
+
+
 def _check_band(cert: Any, rows: Sequence[tuple[str, str, Any]], speeds: Mapping[str, float],
-                band: tuple[float, float], what: str) -> None:
-    """Refuse a band law's certificate unless it lists exactly the file's models of its band (one line)."""
-    want = band_models(rows, speeds, band)
+                band: tuple[float, float], what: str, reach: bool = False) -> None:
+    """Refuse a band law's certificate unless it lists exactly the file's models of its band (one line), and
+    with ``reach`` those of the design speeds its band reaches (:func:`certified_speeds`)."""
+    inside = band_models(rows, speeds, band)
     span = f"{band[0]:g}-{band[1]:g} m/s"
-    if not want:
+    if not inside:
         raise ControllerFileError(f"{what} is certified on its band's models, but no model of the file's "
                                   f"certificate has its design speed in {span}")
+    want = inside
+    if reach:
+        on = set(certified_speeds(band, speeds.values()))
+        want = {n: h for n, h, _ in rows if speeds[n] in on}
+        reached = sorted(on - {speeds[n] for n in inside})
+        if reached:
+            span += f" and the design speed{'s' if len(reached) > 1 else ''} it reaches " \
+                    f"({', '.join(f'{v:g}' for v in reached)} m/s)"
     if is_legacy(cert):
         raise ControllerFileError(f"{what}: a band law's certificate must record its models' matrices")
     have = {h: n for n, h, _ in recorded_models(cert)}
@@ -321,7 +358,8 @@ def _check_band(cert: Any, rows: Sequence[tuple[str, str, Any]], speeds: Mapping
             + (f"lacks {', '.join(missing)} of its band {span}" if missing else "")
             + ("; and " if missing and extra else "")
             + (f"lists {', '.join(extra)}, not of its band {span}" if extra else "")
-            + ": a band law must be certified on exactly the models whose design speed lies in its band")
+            + ": a band law must be certified on exactly the models whose design speed lies in its band"
+            + (" or is reached by it" if reach else ""))
 
 
 def law_entry(body: Mapping[str, Any], comp: Compensator, source: str) -> dict:

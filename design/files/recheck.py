@@ -25,7 +25,7 @@ from design.files.binding import check_bound
 from design.files.envelope import read_json
 from design.laws.estimate_schedule import RECORD, law_without_estimate
 from design.files.law_schedule import RECORD as LAW_RECORD
-from design.files.law_schedule import BAND, parse_law_schedule
+from design.files.law_schedule import EVERY_MODEL, parse_law_schedule
 from design.files.linear import estimate_states, uncertified_from_body
 from design.files.mpc import uncertified_mpc_from_body
 from design.files.nmpc import recheck_nmpc
@@ -108,7 +108,7 @@ def recheck(path: str | Path, models: Sequence[Model]) -> dict:
         else:
             for i, (law, rec_i) in enumerate(zip(schedule.laws, laws["laws"])):
                 what = f"law schedule law {i} ({schedule.sources[i]})"
-                on = models if schedule.rules[i] != BAND else _listed(models, rec_i.get("certificate"))
+                on = models if schedule.rules[i] == EVERY_MODEL else _listed(models, rec_i.get("certificate"))
                 problems += [f"{what}: {p}" for p in _compare(law, rec_i.get("certificate"), on)[0]]
                 if isinstance(rec, dict):
                     try:
@@ -134,7 +134,8 @@ def _binding_problems(body: dict) -> list[str]:
 
 def _listed(models: Sequence[Model], cert: Any) -> list[Model]:
     """The models among ``models`` that ``cert`` lists (by hash): a band law is certified on its band's models
-    only (:mod:`design.files.law_schedule`), and is not expected to be stable on the others."""
+    (and those of the design speeds its band reaches) only (:mod:`design.files.law_schedule`), and is not
+    expected to be stable on the others."""
     rows = cert.get("models") if isinstance(cert, dict) else None
     hashes = {r.get("hash") for r in rows if isinstance(r, dict)} if isinstance(rows, list) else set()
     return [m for m in models if model_hash(m) in hashes]

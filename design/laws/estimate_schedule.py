@@ -102,17 +102,12 @@ def bands_for(speeds: Sequence[float], off: Sequence[float]) -> EstimateSchedule
     A design speed's band reaches half-way to its neighbours (from 0 below the slowest, to no upper end
     above the fastest), so the loop switches between two speeds the passes were driven at.
     """
-    sp = sorted({float(v) for v in speeds})
-    if not sp or any(not (math.isfinite(v) and v > 0) for v in sp):
-        raise DesignInputError(f"design speeds must be finite and > 0 m/s, got {list(speeds)!r}")
+    sp = _design_speeds(speeds)
     bands = []
     for v in off:
         if not any(abs(v - s) < 1e-9 for s in sp):
             raise DesignInputError(f"estimate-off speed {v!r} m/s is not one of the design speeds {sp}")
-        i = min(range(len(sp)), key=lambda j: abs(sp[j] - v))
-        lo = 0.0 if i == 0 else 0.5 * (sp[i - 1] + sp[i])
-        hi = math.inf if i == len(sp) - 1 else 0.5 * (sp[i] + sp[i + 1])
-        bands.append((lo, hi))
+        bands.append(reach_band(sp, v))
     merged: list[tuple[float, float]] = []
     for lo, hi in sorted(bands):
         if merged and abs(merged[-1][1] - lo) < 1e-12:
@@ -120,6 +115,38 @@ def bands_for(speeds: Sequence[float], off: Sequence[float]) -> EstimateSchedule
         else:
             merged.append((lo, hi))
     return EstimateSchedule(tuple(merged))
+
+
+def _design_speeds(speeds: Sequence[float]) -> list[float]:
+    """The design speeds, sorted, once each; ``DesignInputError`` unless each is finite and > 0 m/s."""
+    sp = sorted({float(v) for v in speeds})
+    if not sp or any(not (math.isfinite(v) and v > 0) for v in sp):
+        raise DesignInputError(f"design speeds must be finite and > 0 m/s, got {list(speeds)!r}")
+    return sp
+
+
+#: How far towards a neighbouring design speed, as a fraction of the way, a band law runs when it is not
+#: certified on that speed's models (:func:`reach_band`); half-way when it is.
+REACH_FRACTION = 0.25
+
+
+def reach_band(speeds: Sequence[float], v: float, below: bool = True, above: bool = True) -> tuple[float, float]:
+    """The band, m/s, of design speed ``v`` (one of ``speeds``) whose law runs half-way to a neighbouring design
+    speed when ``below`` / ``above`` say it is certified on that speed's models as well, and only
+    :data:`REACH_FRACTION` of the way when not; from 0 below the slowest, to no upper end above the fastest.
+
+    Why: a law certified on the models of one design speed only is checked at that speed; at a speed between
+    two design speeds the tractor's dynamics lie between theirs, so a law that runs there should be stable on
+    the models of both. The speeds left between two bands are the file's own law's (certified on every model).
+    """
+    sp = _design_speeds(speeds)
+    i = min(range(len(sp)), key=lambda j: abs(sp[j] - v))
+    if abs(sp[i] - v) > 1e-9:
+        raise DesignInputError(f"speed {v!r} m/s is not one of the design speeds {sp}")
+    lo = 0.0 if i == 0 else 0.5 * (sp[i - 1] + sp[i]) if below else sp[i] - REACH_FRACTION * (sp[i] - sp[i - 1])
+    hi = math.inf if i == len(sp) - 1 else 0.5 * (sp[i] + sp[i + 1]) if above \
+        else sp[i] + REACH_FRACTION * (sp[i + 1] - sp[i])
+    return (lo, hi)
 
 
 def estimate_command_rows(comp: Compensator, dp_states: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:

@@ -14,8 +14,20 @@ base law's (or that relaxed more specifications) is left out: the base law runs 
 models met every specification at the search's top scale: they bound no bandwidth, and the law's scale is
 then the search range's (on random-3 the 2.91 m/s band's models met them at 50, and its laws at every scale
 from 2 to 50 steered the 2.91 m/s cells 1.01-1.19x worse than the one law of scale 1.10). The laws kept go
-into the file's law schedule (:mod:`design.files.law_schedule`), each certified on its band's models under
-the rule ``"band"``, with its spectral radius and disk margin on the other bands' models recorded.
+into the file's law schedule (:mod:`design.files.law_schedule`), with its spectral radius and disk margin on
+the other bands' models recorded.
+
+A band law is designed and judged at its design speed, but it runs up to half-way to the neighbouring design
+speeds, where no model was identified: on random-101 the 1.79 m/s band's law (scale 3.03, the base law's 1.97)
+is unstable on the 2.91 m/s model without an implement (spectral radius 1.002) and steered the ripper at
+2.24 m/s 1.57x the oracle, where the base law steers it 1.10x. So each kept law is also checked on the models
+of the neighbouring design speeds: it runs half-way to one on whose every model it is stable, and only a
+quarter of the way (:data:`design.laws.estimate_schedule.REACH_FRACTION`) to one on which it is not, the
+base law in between (:func:`design.laws.estimate_schedule.reach_band`). Its certificate lists exactly its
+band's models and those of the design speeds it reaches, under the rule ``"band and reach"``, which the
+reader re-checks (:func:`design.files.law_schedule.certified_speeds`). A speed between two design speeds
+is then run by a law stable on the models of both; the dynamics between them are bracketed by those models,
+not identified.
 
 With explicit weights (``--weights explicit``) every band's law is designed with the given weights on its
 band's models, and kept when certified there and past the noise check below.
@@ -46,10 +58,10 @@ from identification.model import Model
 from design.core.compensator import integrator_states
 from design.core.noise import MEASUREMENT_NOISE, disk_gain_floor, worst_noise_gain
 from design.core.errors import ControllerFileError, DesignError, DesignInputError
-from design.core.verify import model_hash
-from design.files.law_schedule import BAND, RECORD, law_entry, schedule_record
+from design.core.verify import Certificate, certify, compensator_hash, model_hash
+from design.files.law_schedule import REACH, RECORD, certified_speeds, law_entry, schedule_record
 from design.files.linear import from_body
-from design.laws.estimate_schedule import bands_for
+from design.laws.estimate_schedule import REACH_FRACTION, bands_for, law_without_estimate, reach_band
 from design.synthesis.family import model_names
 from design.synthesis.recipes import RobustControllerResult, RobustOptions, design_robust_controller
 from design.synthesis.specs import check_specs, resolve_latency
@@ -184,6 +196,9 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                               "noise": {"position_m": noise[0], "heading_rad": noise[1], "wheel_angle_rad": noise[2],
                                         "rate_limit_rad_s": rate, "gain_floor": floor,
                                         "base_gain": _finite(base_g[0]), "base_command_sigma_rad_s": _finite(base_g[1])},
+                              "reach": f"a band law runs half-way to a neighbouring design speed when it is also "
+                                       f"stable on that speed's models, else {REACH_FRACTION:g} of the way, the "
+                                       "base law in between",
                               "bands": []}
     if len(design_speeds) < 2:
         record["bands"] = []
@@ -195,7 +210,7 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
     band_opts = replace(opts, spec=spec, candidates=False,
                         search=replace(opts.search, latency=tuple(latency), latency_from_logs=()))
     layout = _layout(base)
-    kept_bands, entries = [], []
+    kept = []                   # (design speed's index, the band's design, its models' indices, its record row)
     for v in design_speeds:
         band = bands_for(design_speeds, [v]).off[0]
         span = f"{band[0]:g}-{band[1]:g} m/s"
@@ -237,19 +252,71 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
             else:
                 row["kept"] = True
             if row["kept"]:
-                others = [i for i in range(len(models)) if i not in inside]
-                # the law's records as its file holds them (not the file itself: only its law runs)
-                entry = law_entry({"design": r.file.design, "certificate": r.file.certificate}, r.file.compensator,
-                                  f"band {span}: {', '.join(row['models'])}")
-                entry["certified_on"] = BAND
-                entry["neighbours"] = _neighbours(r, [models[i] for i in others], [names[i] for i in others],
-                                                  [speeds[names[i]] for i in others], design_speeds, specs,
-                                                  latency)
-                kept_bands.append(band)
-                entries.append(entry)
+                kept.append((design_speeds.index(v), r, inside, row))
         row["seconds"] = round(time.process_time() - t1, 1)
         record["bands"].append(row)
+    est_off = bool((d0.get("estimate_schedule") or {}).get("off_speed_bands"))
+    kept_bands, entries = [], []
+    for k, r, inside, row in kept:
+        t1 = time.process_time()
+        band, entry = _reaching_law(r, k, inside, row, models, names, speeds, design_speeds, est_off)
+        others = [i for i in range(len(models)) if i not in inside]
+        entry["neighbours"] = _neighbours(r, [models[i] for i in others], [names[i] for i in others],
+                                          [speeds[names[i]] for i in others], design_speeds, specs, latency)
+        row["seconds"] = round(row["seconds"] + time.process_time() - t1, 1)
+        kept_bands.append(band)
+        entries.append(entry)
     return _finish(base, kept_bands, entries, speeds, models, record, t0)
+
+
+def _reaching_law(r: RobustControllerResult, k: int, inside: list[int], row: dict, models: Sequence[Model],
+                  names: Sequence[str], speeds: dict, design_speeds: list[float],
+                  est_off: bool) -> tuple[tuple[float, float], dict]:
+    """The band a kept band law runs in and its law schedule entry (certified under ``"band and reach"``).
+
+    The law of design speed ``design_speeds[k]`` (its band's models ``inside``) is checked on the models of the
+    neighbouring design speeds; it runs half-way to a neighbour on whose every model it is stable (and its law
+    without the estimate too, when the file's estimate schedule turns the estimate off somewhere), else only
+    :data:`~design.laws.estimate_schedule.REACH_FRACTION` of the way (:func:`~design.laws.estimate_schedule.reach_band`).
+    Its certificate lists exactly the models :func:`~design.files.law_schedule.certified_speeds` names for that
+    band, as the reader re-checks. ``row`` (the band's search record) gets the band, the design speeds certified
+    on and why a side stops short.
+    """
+    comp = r.file.compensator
+    near = [j for j in (k - 1, k + 1) if 0 <= j < len(design_speeds)]
+    on = list(inside) + [i for j in near for i, n in enumerate(names) if speeds[n] == design_speeds[j]]
+    checks = dict(zip(on, certify(comp, [models[i] for i in on], [names[i] for i in on]).checks))
+    est = r.file.design.get("disturbance_estimate")
+    dp = tuple(est.get("states", ())) if isinstance(est, dict) else ()
+    off = law_without_estimate(comp, dp) if dp else None
+    off_checks = dict(zip(on, certify(off, [models[i] for i in on], [names[i] for i in on]).checks)) \
+        if off is not None else {}
+    reach, short = {}, []
+    for j in near:
+        idx = [i for i in on if speeds[names[i]] == design_speeds[j]]
+        bad = [names[i] for i in idx if not checks[i].stable or (est_off and off is not None and not off_checks[i].stable)]
+        reach[j] = not bad
+        if bad:
+            short.append({"speed_mps": design_speeds[j], "unstable_on": bad})
+    v = design_speeds[k]
+    band = reach_band(design_speeds, v, reach.get(k - 1, True), reach.get(k + 1, True))
+    want = certified_speeds(band, design_speeds)
+    if want != sorted([v] + [design_speeds[j] for j in near if reach[j]]):     # a bug here, not a property of the models
+        raise DesignError(f"band {band} of the {v:g} m/s law: the reader would ask for the models of {want} m/s")
+    sel = [i for i in on if speeds[names[i]] in want]
+    cert = Certificate(tuple(checks[i] for i in sel), tuple(models[i] for i in sel), compensator_hash(comp))
+    span = f"{band[0]:g}-{band[1]:g} m/s"
+    # the law's records as its file holds them (not the file itself: only its law runs)
+    entry = law_entry({"design": r.file.design, "certificate": cert.to_dict()}, comp,
+                      f"band {span}: {', '.join(row['models'])}")
+    if entry["certificate_off"] is not None and off is not None:
+        entry["certificate_off"] = Certificate(tuple(off_checks[i] for i in sel), tuple(models[i] for i in sel),
+                                               compensator_hash(off)).to_dict()
+    entry["certified_on"] = REACH
+    row.update(band_mps=[band[0], None if math.isinf(band[1]) else band[1]], certified_speeds_mps=want)
+    if short:
+        row["short_of"] = short
+    return band, entry
 
 
 def _finite(x: float) -> float | None:

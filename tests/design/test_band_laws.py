@@ -1,7 +1,8 @@
-"""Robust laws per speed band, each certified on its own band's models (design/synthesis/band_laws.py,
-design/files/law_schedule.py): designed with no trial drive, read back with each band law's certificate
-recomputed on exactly its band's models, refused when a band law's certificate misses one of them or is of
-another band, left to the base law where it is not faster, switched by the loop at a band's edge."""
+"""Robust laws per speed band, each certified on its own band's models and on those of the design speeds its band
+reaches (design/synthesis/band_laws.py, design/files/law_schedule.py): designed with no trial drive, read back
+with each band law's certificate recomputed on exactly those models, refused when a band law's certificate misses
+one of them or is of another band, left to the base law where it is not faster, run only a quarter of the way
+towards a design speed on whose models it is not stable, switched by the loop at a band's edge."""
 
 from __future__ import annotations
 
@@ -14,11 +15,13 @@ import pytest
 from design.cli import main as design_main
 from design.core.errors import ControllerFileError, DesignInputError
 from design.files.envelope import seal
-from design.files.law_schedule import BAND, RECORD
+from design.core.compensator import closed_loop_matrix, spectral_radius
+from design.files.law_schedule import BAND, REACH, RECORD, certified_speeds
 from design.files.linear import read_controller_file
 from design.files.load import load_controller
 from design.laws.controller import Measurement
 from design.laws.disturbance import DisturbanceSpec
+from design.laws.estimate_schedule import REACH_FRACTION, reach_band
 from design.synthesis.autotune import SearchOptions
 from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands, design_speed
 from design.synthesis.recipes import RobustOptions, WeightSearch, design_robust_controller
@@ -32,14 +35,14 @@ SPEEDS = (1.0, 2.9)
 SEARCH = SearchOptions(low=0.05, high=50.0, scan=3, steps=1)
 
 
-def _models():
+def _models(tau: float = 0.3):
     """Two implements (authority 1 and 0.7) at two design speeds, each model recording its speed as an
-    identified local model does; the valve lags 0.3 s at 2.9 m/s and 0.1 s at 1.0 m/s, so the 2.9 m/s models
-    bind the one law and the 1.0 m/s band's law can be faster."""
+    identified local model does; the valve lags ``tau`` (s) at 2.9 m/s and 0.1 s at 1.0 m/s, so the 2.9 m/s
+    models bind the one law and the 1.0 m/s band's law can be faster."""
     out = []
     for v in SPEEDS:
         for a in (1.0, 0.7):
-            m = tractor_model(v, authority=a, tau=0.1 if v < 2 else 0.3)
+            m = tractor_model(v, authority=a, tau=0.1 if v < 2 else tau)
             out.append(type(m)(m.A, m.B, m.C, m.D, m.K, m.dt,
                                {**m.meta, "conditions": [{"implement": "none" if a == 1.0 else "ripper", "nominal_speed": v}]}))
     return out
@@ -72,12 +75,14 @@ def test_each_band_s_law_is_certified_on_its_band_s_models_and_read_back(designe
     assert [b["band_mps"] for b in kept] == [[0.0, 1.95]] and kept[0]["scale"] > rec["base_scale"]
     spec = read_controller_file(path)
     sched = spec.controller().law_schedule
-    assert sched.rules == (BAND,) * len(kept)
+    assert sched.rules == (REACH,) * len(kept)
     assert sched.bands == tuple((b["band_mps"][0], math.inf if b["band_mps"][1] is None else b["band_mps"][1])
                                 for b in kept)
     laws = spec.design[RECORD]["laws"]
     for law, b in zip(laws, kept):
-        assert [r["name"] for r in law["certificate"]["models"]] == b["models"]
+        # stable on the 2.9 m/s models, the 1.0 m/s law runs half-way to them and is certified on them too
+        assert b["certified_speeds_mps"] == [1.0, 2.9] and "short_of" not in b
+        assert [r["name"] for r in law["certificate"]["models"]] == b["models"] + ["v2.9_a1", "v2.9_a0.7"]
         assert {n["name"] for n in law["neighbours"]} == {m.meta["name"] for m in models} - set(b["models"])
     # the file's own law is the base law, certified on every model
     assert spec.certificate["compensator_hash"] == base.file.certificate["compensator_hash"]
@@ -103,25 +108,35 @@ def test_a_band_law_whose_certificate_misses_a_band_model_or_is_of_another_band_
     def fewer(body):
         del body["design"][RECORD]["laws"][0]["certificate"]["models"][0]
 
-    def other_band(body):        # the 1.0 m/s band's law and certificate run in the 2.9 m/s band
-        body["design"][RECORD]["bands"] = [[1.95, None]]
+    def other_band(body):        # the 1.0 m/s band's law runs only near 2.9 m/s: its 1.0 m/s models are not of it
+        body["design"][RECORD]["bands"] = [[2.5, None]]
 
-    def moved(body):             # a 2.9 m/s model said to be of the 1.0 m/s band
-        body["design"][RECORD]["model_speeds"]["v2.9_a1"] = 1.0
+    def unreached(body):         # the law, half-way to 2.9 m/s, without the 2.9 m/s models in its certificate
+        del body["design"][RECORD]["laws"][0]["certificate"]["models"][2:]
+
+    def moved(body):             # a 2.9 m/s model said to be of another design speed, one the band does not reach
+        body["design"][RECORD]["model_speeds"]["v2.9_a1"] = 5.0
 
     def unnamed(body):
         del body["design"][RECORD]["model_speeds"]["v1_a1"]
 
-    _refused(path, tmp_path, fewer, r"law 0 .* lacks v1_a1 of its band 0-1\.95 m/s")
-    _refused(path, tmp_path, other_band, r"law 0 .* lacks v2\.9_a0\.7, v2\.9_a1 of its band 1\.95-inf m/s; and lists "
-                                         r"v1_a0\.7, v1_a1, not of its band")
-    _refused(path, tmp_path, moved, r"lacks v2\.9_a1 of its band 0-1\.95 m/s")
+    def every(body):             # under the rule of every model, without the 2.9 m/s models
+        unreached(body)
+        body["design"][RECORD]["laws"][0].pop("certified_on")
+
+    _refused(path, tmp_path, fewer, r"law 0 .* lacks v1_a1 of its band 0-1\.95 m/s and the design speed it reaches "
+                                    r"\(2\.9 m/s\)")
+    _refused(path, tmp_path, other_band, r"law 0 .* lists v1_a0\.7, v1_a1, not of its band 2\.5-inf m/s")
+    _refused(path, tmp_path, unreached, r"lacks v2\.9_a0\.7, v2\.9_a1 of its band 0-1\.95 m/s and the design speed it "
+                                        r"reaches \(2\.9 m/s\): a band law must be certified on exactly the models")
+    _refused(path, tmp_path, moved, r"lists v2\.9_a1, not of its band 0-1\.95 m/s")
     _refused(path, tmp_path, unnamed, "model_speeds must name exactly the models of the file's certificate")
     _refused(path, tmp_path, lambda b: b["design"][RECORD]["laws"][0].__setitem__("certified_on", "some"),
              "certified_on must be one of")
-    # the same law under the rule of every model: it was not checked on the other band's models
-    _refused(path, tmp_path, lambda b: b["design"][RECORD]["laws"][0].pop("certified_on"),
-             "not checked on every model of the file's certificate")
+    # the same law under the rule of its band alone: its certificate lists models of another band
+    _refused(path, tmp_path, lambda b: b["design"][RECORD]["laws"][0].__setitem__("certified_on", BAND),
+             r"lists v2\.9_a0\.7, v2\.9_a1, not of its band 0-1\.95 m/s")
+    _refused(path, tmp_path, every, "not checked on every model of the file's certificate")
 
 
 def test_a_band_whose_law_is_not_faster_than_the_base_law_is_left_to_it(designed):
@@ -173,8 +188,8 @@ def test_with_explicit_weights_every_band_s_law_has_them_and_is_certified_on_its
     spec = read_controller_file(res.save(tmp_path / "explicit.json"))
     laws = spec.design[RECORD]["laws"]
     assert [[r["name"] for r in law["certificate"]["models"]] for law in laws] == \
-        [["v1_a1", "v1_a0.7"], ["v2.9_a1", "v2.9_a0.7"]]
-    assert spec.controller().law_schedule.rules == (BAND, BAND)
+        [["v1_a1", "v1_a0.7", "v2.9_a1", "v2.9_a0.7"], ["v2.9_a1", "v2.9_a0.7", "v1_a1", "v1_a0.7"]]
+    assert spec.controller().law_schedule.rules == (REACH, REACH)
 
 
 def test_the_loop_switches_to_the_band_s_law_past_its_edge(designed):
@@ -201,3 +216,52 @@ def test_a_band_whose_models_meet_every_specification_at_the_search_s_top_is_lef
     assert band["scale"] == pytest.approx(2.0) and not band["kept"]
     assert "up to the search's top scale 2" in band["why"]
     assert RECORD not in res.file.design
+
+
+def test_the_band_edges_and_the_speeds_a_band_law_must_be_certified_on():
+    speeds = (1.0, 1.79, 2.91)
+    assert reach_band(speeds, 1.79) == (1.395, 2.35)                   # half-way, as the estimate's bands
+    lo, hi = reach_band(speeds, 1.79, below=True, above=False)
+    assert lo == 1.395 and hi == pytest.approx(1.79 + REACH_FRACTION * 1.12)
+    assert reach_band(speeds, 1.0, above=False)[0] == 0.0 and reach_band(speeds, 2.91, below=False)[1] == math.inf
+    with pytest.raises(DesignInputError, match="not one of the design speeds"):
+        reach_band(speeds, 2.24)
+    assert certified_speeds((1.395, 2.35), speeds) == [1.0, 1.79, 2.91]
+    assert certified_speeds(reach_band(speeds, 1.79, True, False), speeds) == [1.0, 1.79]
+    assert certified_speeds(reach_band(speeds, 1.0, True, False), speeds) == [1.0]
+    assert certified_speeds((2.63, math.inf), speeds) == [2.91]
+    assert certified_speeds((2.0, 2.5), speeds) == []
+
+
+def test_a_band_law_unstable_on_the_next_design_speed_s_models_runs_a_quarter_of_the_way_there(tmp_path):
+    # the 2.9 m/s valve lags 0.6 s: the 1.0 m/s band's law is unstable on a 2.9 m/s model, so between a quarter
+    # of the way and half-way to 2.9 m/s the base law runs; the 2.9 m/s band's law holds the 1.0 m/s models and
+    # runs half-way down to them
+    models = _models(tau=0.6)
+    opts = RobustOptions(RobustSpec(integral=True, past=1), WeightSearch(latency=(0.1,), actuator_rate=0.35),
+                         DisturbanceSpec())
+    res = design_robust_bands(models, opts)
+    slow, fast = res.file.design[SEARCH_RECORD]["bands"]
+    assert slow["kept"] and fast["kept"]
+    edge = 1.0 + REACH_FRACTION * 1.9
+    assert slow["band_mps"] == [0.0, pytest.approx(edge)] and slow["certified_speeds_mps"] == [1.0]
+    assert slow["short_of"][0]["speed_mps"] == 2.9
+    assert fast["band_mps"] == [1.95, None] and fast["certified_speeds_mps"] == [1.0, 2.9]
+    spec = read_controller_file(res.save(tmp_path / "reach.json"))
+    laws = spec.controller().law_schedule.laws
+    by_name = {m.meta["name"]: m for m in models}
+    for name in slow["short_of"][0]["unstable_on"]:              # what the rule read: unstable there
+        m = by_name[name]
+        assert spectral_radius(closed_loop_matrix(m.A, m.B, m.C, m.D, laws[0])) >= 1.0
+    assert [[r["name"] for r in law["certificate"]["models"]] for law in spec.design[RECORD]["laws"]] == \
+        [["v1_a1", "v1_a0.7"], ["v2.9_a1", "v2.9_a0.7", "v1_a1", "v1_a0.7"]]
+    ctrl = spec.controller()
+    for v, law in ((1.0, laws[0]), (1.7, spec.compensator), (2.2, laws[1]), (2.9, laws[1])):
+        np.testing.assert_array_equal(ctrl.law_at(v).Dc, law.Dc)
+    path = res.save(tmp_path / "reach.json")
+
+    def wider(body):             # the 1.0 m/s law run half-way to 2.9 m/s, where it was not certified
+        body["design"][RECORD]["bands"][0][1] = 1.95
+
+    _refused(path, tmp_path, wider, r"law 0 .* lacks v2\.9_a0\.7, v2\.9_a1 of its band 0-1\.95 m/s and the design "
+                                    r"speed it reaches \(2\.9 m/s\)")

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from hil.commissioning.steps import Steps
-from hil.commissioning.designs import Designer, DesignTry
+from hil.commissioning.designs import Designer, window_designers
 from hil.commissioning.mpc_window import WINDOWS, auto_record, best_window, own_window
 
 MODELS = Path(__file__).resolve().parents[1] / "data" / "random19_models"
@@ -41,13 +41,9 @@ def test_a_file_without_automatic_weights_is_refused(tmp_path):
 
 
 def designers(models: Path, designer: Designer = RECIPE):
-    """The MPC's and the robust fall-back's designs on random-19's five models (automatic weights)."""
-    def mpc(fallback: Path | None, past: int, out: Path) -> dict:
-        return designer.mpc(models, DesignTry(True, past), out, fallback)
-
-    def robust(past: int, out: Path) -> dict:
-        return designer.robust(models, DesignTry(True, past), out)
-    return mpc, robust
+    """The MPC's and the robust fall-back's designs on random-19's five models (automatic weights), as the
+    pipeline makes them (:func:`hil.commissioning.designs.window_designers`: the fall-back is one law)."""
+    return window_designers(designer, models, True)
 
 
 @pytest.mark.slow

@@ -23,8 +23,10 @@ model"``):
   (``model_speeds``) lies in its band, at least one;
 - ``"band and reach"``: as ``"band"``, and also the models of each neighbouring design speed (the nearest
   below the band, the nearest at or above its upper end) that the band reaches more than
-  :data:`design.laws.estimate_schedule.REACH_FRACTION` of the way to (:func:`certified_speeds`). A speed
-  between two design speeds is then run by a law certified on the models of both, or by the file's own law.
+  :data:`design.laws.estimate_schedule.REACH_FRACTION` of the way to (:func:`certified_speeds`), on each of
+  which its ``neighbours`` record states a spectral radius below 1 with the latency in the loop (stated, as the
+  certificate's margins are; ``design verify`` recomputes the certificate). A speed between two design speeds
+  is then run by a law stable on the models of both, or by the file's own law.
 
 ``neighbours`` (band laws; recorded, not required) gives the law's spectral radius and disk margin on the
 models of the other bands, with the latency in the loop: how far from its band the law still holds.
@@ -285,7 +287,8 @@ def check_law_schedule(design: Any, cert: Any, main: Compensator, dp_states: tup
         except ControllerFileError as exc:
             raise ControllerFileError(f"{what}: {exc}") from None
         if schedule.rules[i] != EVERY_MODEL:
-            _check_band(law["certificate"], rows, speeds, schedule.bands[i], what, schedule.rules[i] == REACH)
+            _check_band(law["certificate"], rows, speeds, schedule.bands[i], what,
+                        law.get("neighbours", []) if schedule.rules[i] == REACH else None)
         elif not (legacy and is_legacy(law["certificate"])):
             have = {h for _, h, _ in recorded_models(law["certificate"])}
             if main_models - have:
@@ -331,9 +334,11 @@ def certified_speeds(band: tuple[float, float], design_speeds: Sequence[float]) 
 
 
 def _check_band(cert: Any, rows: Sequence[tuple[str, str, Any]], speeds: Mapping[str, float],
-                band: tuple[float, float], what: str, reach: bool = False) -> None:
-    """Refuse a band law's certificate unless it lists exactly the file's models of its band (one line), and
-    with ``reach`` those of the design speeds its band reaches (:func:`certified_speeds`)."""
+                band: tuple[float, float], what: str, neighbours: Sequence[Mapping[str, Any]] | None = None) -> None:
+    """Refuse a band law's certificate unless it lists exactly the file's models of its band (one line); with
+    ``neighbours`` (the law's record of them, rule ``"band and reach"``) also those of the design speeds its band
+    reaches (:func:`certified_speeds`), each recorded stable there with the latency in the loop."""
+    reach = neighbours is not None
     inside = band_models(rows, speeds, band)
     span = f"{band[0]:g}-{band[1]:g} m/s"
     if not inside:
@@ -360,6 +365,15 @@ def _check_band(cert: Any, rows: Sequence[tuple[str, str, Any]], speeds: Mapping
             + (f"lists {', '.join(extra)}, not of its band {span}" if extra else "")
             + ": a band law must be certified on exactly the models whose design speed lies in its band"
             + (" or is reached by it" if reach else ""))
+    if reach:
+        stated = {n["name"]: n["spectral_radius"] for n in neighbours}
+        bad = sorted(n for n in want if n not in inside
+                     and not (isinstance(stated.get(n), (int, float)) and stated[n] < 1.0))
+        if bad:
+            raise ControllerFileError(f"{what} reaches the design speed of {', '.join(bad)}, but its neighbours "
+                                      "record does not show it stable there with the latency in the loop "
+                                      "(spectral radius < 1): a band law runs past a quarter of the way to a design "
+                                      "speed only when stable on its models")
 
 
 def law_entry(body: Mapping[str, Any], comp: Compensator, source: str) -> dict:

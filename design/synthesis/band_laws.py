@@ -23,11 +23,13 @@ is unstable on the 2.91 m/s model without an implement (spectral radius 1.002) a
 2.24 m/s 1.57x the oracle, where the base law steers it 1.10x. So each kept law is also checked on the models
 of the neighbouring design speeds: it runs half-way to one on whose every model it is stable, and only a
 quarter of the way (:data:`design.laws.estimate_schedule.REACH_FRACTION`) to one on which it is not, the
-base law in between (:func:`design.laws.estimate_schedule.reach_band`). Its certificate lists exactly its
+base law in between (:func:`design.laws.estimate_schedule.reach_band`). Stable means as the specifications
+judge a loop: with the latency they assume in it (the recorded ``neighbours``); the identified models alone
+leave out the receivers' latency, and on them random-101's law is stable. Its certificate lists exactly its
 band's models and those of the design speeds it reaches, under the rule ``"band and reach"``, which the
-reader re-checks (:func:`design.files.law_schedule.certified_speeds`). A speed between two design speeds
-is then run by a law stable on the models of both; the dynamics between them are bracketed by those models,
-not identified.
+reader re-checks (:func:`design.files.law_schedule.certified_speeds`), with the recorded radius with the
+latency on each reached model. A speed between two design speeds is then run by a law stable on the models
+of both; the dynamics between them are bracketed by those models, not identified.
 
 With explicit weights (``--weights explicit``) every band's law is designed with the given weights on its
 band's models, and kept when certified there and past the noise check below.
@@ -58,7 +60,7 @@ from identification.model import Model
 from design.core.compensator import integrator_states
 from design.core.noise import MEASUREMENT_NOISE, disk_gain_floor, worst_noise_gain
 from design.core.errors import ControllerFileError, DesignError, DesignInputError
-from design.core.verify import Certificate, certify, compensator_hash, model_hash
+from design.core.verify import certify, model_hash
 from design.files.law_schedule import REACH, RECORD, certified_speeds, law_entry, schedule_record
 from design.files.linear import from_body
 from design.laws.estimate_schedule import REACH_FRACTION, bands_for, law_without_estimate, reach_band
@@ -197,8 +199,8 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                                         "rate_limit_rad_s": rate, "gain_floor": floor,
                                         "base_gain": _finite(base_g[0]), "base_command_sigma_rad_s": _finite(base_g[1])},
                               "reach": f"a band law runs half-way to a neighbouring design speed when it is also "
-                                       f"stable on that speed's models, else {REACH_FRACTION:g} of the way, the "
-                                       "base law in between",
+                                       f"stable on that speed's models with the latency in the loop, else "
+                                       f"{REACH_FRACTION:g} of the way, the base law in between",
                               "bands": []}
     if len(design_speeds) < 2:
         record["bands"] = []
@@ -259,10 +261,13 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
     kept_bands, entries = [], []
     for k, r, inside, row in kept:
         t1 = time.process_time()
-        band, entry = _reaching_law(r, k, inside, row, models, names, speeds, design_speeds, est_off)
         others = [i for i in range(len(models)) if i not in inside]
-        entry["neighbours"] = _neighbours(r, [models[i] for i in others], [names[i] for i in others],
-                                          [speeds[names[i]] for i in others], design_speeds, specs, latency)
+        near = _neighbours(r, [models[i] for i in others], [names[i] for i in others],
+                           [speeds[names[i]] for i in others], design_speeds, specs, latency)
+        band, entry = _reaching_law(r, k, inside, row, models, names, speeds, design_speeds,
+                                    {n["name"]: n["spectral_radius"] for n in near},
+                                    (specs, latency) if est_off else None)
+        entry["neighbours"] = near
         row["seconds"] = round(row["seconds"] + time.process_time() - t1, 1)
         kept_bands.append(band)
         entries.append(entry)
@@ -270,31 +275,35 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
 
 
 def _reaching_law(r: RobustControllerResult, k: int, inside: list[int], row: dict, models: Sequence[Model],
-                  names: Sequence[str], speeds: dict, design_speeds: list[float],
-                  est_off: bool) -> tuple[tuple[float, float], dict]:
+                  names: Sequence[str], speeds: dict, design_speeds: list[float], radius: dict,
+                  est_off: tuple | None) -> tuple[tuple[float, float], dict]:
     """The band a kept band law runs in and its law schedule entry (certified under ``"band and reach"``).
 
-    The law of design speed ``design_speeds[k]`` (its band's models ``inside``) is checked on the models of the
-    neighbouring design speeds; it runs half-way to a neighbour on whose every model it is stable (and its law
-    without the estimate too, when the file's estimate schedule turns the estimate off somewhere), else only
-    :data:`~design.laws.estimate_schedule.REACH_FRACTION` of the way (:func:`~design.laws.estimate_schedule.reach_band`).
-    Its certificate lists exactly the models :func:`~design.files.law_schedule.certified_speeds` names for that
-    band, as the reader re-checks. ``row`` (the band's search record) gets the band, the design speeds certified
-    on and why a side stops short.
+    The law of design speed ``design_speeds[k]`` (its band's models ``inside``) runs half-way to a neighbouring
+    design speed on whose every model it is stable with the latency in the loop (``radius``: its spectral radius
+    so, by model name; :func:`_neighbours`), and its law without the estimate too when the file's estimate
+    schedule turns the estimate off somewhere (``est_off``: the specifications and latency to check it with);
+    else only :data:`~design.laws.estimate_schedule.REACH_FRACTION` of the way
+    (:func:`~design.laws.estimate_schedule.reach_band`). Its certificate lists exactly the models
+    :func:`~design.files.law_schedule.certified_speeds` names for that band, as the reader re-checks. ``row``
+    (the band's search record) gets the band, the design speeds certified on and why a side stops short.
     """
     comp = r.file.compensator
     near = [j for j in (k - 1, k + 1) if 0 <= j < len(design_speeds)]
     on = list(inside) + [i for j in near for i, n in enumerate(names) if speeds[n] == design_speeds[j]]
-    checks = dict(zip(on, certify(comp, [models[i] for i in on], [names[i] for i in on]).checks))
     est = r.file.design.get("disturbance_estimate")
     dp = tuple(est.get("states", ())) if isinstance(est, dict) else ()
     off = law_without_estimate(comp, dp) if dp else None
-    off_checks = dict(zip(on, certify(off, [models[i] for i in on], [names[i] for i in on]).checks)) \
-        if off is not None else {}
+    off_radius = {}
+    if est_off is not None and off is not None:
+        nb = [i for i in on if i not in inside]
+        rep = check_specs(off, [models[i] for i in nb], est_off[0], est_off[1], [names[i] for i in nb])
+        off_radius = {c.name: c.spectral_radius for c in rep.checks}
     reach, short = {}, []
     for j in near:
         idx = [i for i in on if speeds[names[i]] == design_speeds[j]]
-        bad = [names[i] for i in idx if not checks[i].stable or (est_off and off is not None and not off_checks[i].stable)]
+        bad = [names[i] for i in idx if not (radius.get(names[i]) is not None and radius[names[i]] < 1.0)
+               or off_radius.get(names[i], 0.0) >= 1.0]
         reach[j] = not bad
         if bad:
             short.append({"speed_mps": design_speeds[j], "unstable_on": bad})
@@ -304,14 +313,13 @@ def _reaching_law(r: RobustControllerResult, k: int, inside: list[int], row: dic
     if want != sorted([v] + [design_speeds[j] for j in near if reach[j]]):     # a bug here, not a property of the models
         raise DesignError(f"band {band} of the {v:g} m/s law: the reader would ask for the models of {want} m/s")
     sel = [i for i in on if speeds[names[i]] in want]
-    cert = Certificate(tuple(checks[i] for i in sel), tuple(models[i] for i in sel), compensator_hash(comp))
+    cert = certify(comp, [models[i] for i in sel], [names[i] for i in sel])
     span = f"{band[0]:g}-{band[1]:g} m/s"
     # the law's records as its file holds them (not the file itself: only its law runs)
     entry = law_entry({"design": r.file.design, "certificate": cert.to_dict()}, comp,
                       f"band {span}: {', '.join(row['models'])}")
     if entry["certificate_off"] is not None and off is not None:
-        entry["certificate_off"] = Certificate(tuple(off_checks[i] for i in sel), tuple(models[i] for i in sel),
-                                               compensator_hash(off)).to_dict()
+        entry["certificate_off"] = certify(off, [models[i] for i in sel], [names[i] for i in sel]).to_dict()
     entry["certified_on"] = REACH
     row.update(band_mps=[band[0], None if math.isinf(band[1]) else band[1]], certified_speeds_mps=want)
     if short:

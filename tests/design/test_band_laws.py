@@ -16,6 +16,7 @@ from design.cli import main as design_main
 from design.core.errors import ControllerFileError, DesignInputError
 from design.files.envelope import seal
 from design.core.compensator import closed_loop_matrix, spectral_radius
+from design.core.verify import certify
 from design.files.law_schedule import BAND, REACH, RECORD, certified_speeds
 from design.files.linear import read_controller_file
 from design.files.load import load_controller
@@ -26,6 +27,7 @@ from design.synthesis.autotune import SearchOptions
 from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands, design_speed
 from design.synthesis.recipes import RobustOptions, WeightSearch, design_robust_controller
 from design.synthesis.robust import RobustSpec
+from design.synthesis.specs import delayed_model
 
 from design_family import tractor_model
 
@@ -33,6 +35,8 @@ SPEEDS = (1.0, 2.9)
 #: A short search (scales 0.05, 1.58 and 50, one bisection step): the tests are about the file and the rule,
 #: not the scale's resolution.
 SEARCH = SearchOptions(low=0.05, high=50.0, scan=3, steps=1)
+#: The latency the specifications put in the loop, s (``latency=(0.1,)``: the receiver's position and heading).
+LATENCY = (0.1, 0.1, 0.0)
 
 
 def _models(tau: float = 0.3):
@@ -120,6 +124,10 @@ def test_a_band_law_whose_certificate_misses_a_band_model_or_is_of_another_band_
     def unnamed(body):
         del body["design"][RECORD]["model_speeds"]["v1_a1"]
 
+    def unstable_near(body):     # the law recorded unstable on a 2.9 m/s model with the latency in the loop
+        law = body["design"][RECORD]["laws"][0]
+        next(n for n in law["neighbours"] if n["name"] == "v2.9_a1")["spectral_radius"] = 1.02
+
     def every(body):             # under the rule of every model, without the 2.9 m/s models
         unreached(body)
         body["design"][RECORD]["laws"][0].pop("certified_on")
@@ -131,6 +139,8 @@ def test_a_band_law_whose_certificate_misses_a_band_model_or_is_of_another_band_
                                         r"reaches \(2\.9 m/s\): a band law must be certified on exactly the models")
     _refused(path, tmp_path, moved, r"lists v2\.9_a1, not of its band 0-1\.95 m/s")
     _refused(path, tmp_path, unnamed, "model_speeds must name exactly the models of the file's certificate")
+    _refused(path, tmp_path, unstable_near, r"law 0 .* reaches the design speed of v2\.9_a1, but its neighbours record "
+                                            r"does not show it stable there with the latency in the loop")
     _refused(path, tmp_path, lambda b: b["design"][RECORD]["laws"][0].__setitem__("certified_on", "some"),
              "certified_on must be one of")
     # the same law under the rule of its band alone: its certificate lists models of another band
@@ -250,9 +260,13 @@ def test_a_band_law_unstable_on_the_next_design_speed_s_models_runs_a_quarter_of
     spec = read_controller_file(res.save(tmp_path / "reach.json"))
     laws = spec.controller().law_schedule.laws
     by_name = {m.meta["name"]: m for m in models}
-    for name in slow["short_of"][0]["unstable_on"]:              # what the rule read: unstable there
-        m = by_name[name]
+    assert slow["short_of"][0]["unstable_on"]
+    for name in slow["short_of"][0]["unstable_on"]:       # what the rule read: unstable with the latency
+        m = delayed_model(by_name[name], LATENCY)
         assert spectral_radius(closed_loop_matrix(m.A, m.B, m.C, m.D, laws[0])) >= 1.0
+    for m in models[:2]:                                   # and the 2.9 m/s law stable on the 1.0 m/s models
+        d = delayed_model(m, LATENCY)
+        assert spectral_radius(closed_loop_matrix(d.A, d.B, d.C, d.D, laws[1])) < 1.0
     assert [[r["name"] for r in law["certificate"]["models"]] for law in spec.design[RECORD]["laws"]] == \
         [["v1_a1", "v1_a0.7"], ["v2.9_a1", "v2.9_a0.7", "v1_a1", "v1_a0.7"]]
     ctrl = spec.controller()
@@ -263,5 +277,11 @@ def test_a_band_law_unstable_on_the_next_design_speed_s_models_runs_a_quarter_of
     def wider(body):             # the 1.0 m/s law run half-way to 2.9 m/s, where it was not certified
         body["design"][RECORD]["bands"][0][1] = 1.95
 
+    def unstable(body):          # widened, with its certificate on the 2.9 m/s models
+        wider(body)
+        body["design"][RECORD]["laws"][0]["certificate"]["models"] += \
+            certify(laws[0], models[2:], ["v2.9_a1", "v2.9_a0.7"]).to_dict()["models"]
+
     _refused(path, tmp_path, wider, r"law 0 .* lacks v2\.9_a0\.7, v2\.9_a1 of its band 0-1\.95 m/s and the design "
                                     r"speed it reaches \(2\.9 m/s\)")
+    _refused(path, tmp_path, unstable, r"law 0 .* is not stable on model 'v2\.9_a1'")

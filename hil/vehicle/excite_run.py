@@ -26,7 +26,49 @@ from hil.vehicle.excitation import ExcitationController, ExcitationSettings
 from hil.vehicle.isobus.link import controller_commissioning
 from hil.vehicle.procedure import Procedure, ProcedureError, status_text
 
-__all__ = ["drive_next_pass"]
+__all__ = ["drive_next_pass", "wheel_angle_between_reports"]
+
+
+def wheel_angle_between_reports(t: np.ndarray, channels: dict, meta: dict) -> tuple[dict, dict]:
+    """The pass's wheel angle drawn between the cycles at which a new steering report arrived.
+
+    An ISO 11783 steering controller reports its wheel angle every 0.1 s (Guidance Machine Info) and the loop
+    runs at 20 Hz, so the loop holds every report for two cycles or so: recorded as it is, the angle is a
+    staircase at the loop's rate whose steps identification fits with a pole near -1 (10 Hz, the grid's
+    Nyquist frequency). :func:`identification.modes.sampling_artefact` refuses every model that has one, so
+    the order was chosen among the few free of it, and on short passes those did not predict (3 s fits of
+    -40 to -290 %) and no robust controller stabilised them. Here each report's angle is placed at the cycle
+    that first received it (``bridge_received`` changed) and the angle is interpolated linearly between
+    reports, as the receivers' epochs are between theirs; before the first report and after the last it is
+    held. The loop's own values are kept as ``loop_wheel_angle``.
+
+    Parameters
+    ----------
+    t
+        The loop's cycle times, s.
+    channels
+        The run log's channels (``wheel_angle`` and ``bridge_received`` on ``t``); a log without
+        ``bridge_received`` is returned as it is.
+    meta
+        Its metadata (``extra_channels`` gains ``loop_wheel_angle``).
+
+    Returns
+    -------
+    tuple
+        The channels and the metadata.
+    """
+    if "bridge_received" not in channels or "loop_wheel_angle" in channels:
+        return channels, meta
+    held = np.asarray(channels["wheel_angle"], dtype=float)
+    received = np.asarray(channels["bridge_received"], dtype=float)
+    new = np.r_[received[:1] >= 0, (np.diff(received) != 0) & (received[1:] >= 0)]
+    if np.count_nonzero(new) < 2:
+        return channels, meta
+    out = {**channels, "wheel_angle": np.interp(t, t[new], held[new]), "loop_wheel_angle": held}
+    extra = {**(meta.get("extra_channels") or {}), "loop_wheel_angle": {"time": "t", "unit": "rad"}}
+    return out, {**meta, "extra_channels": extra,
+                 "wheel_angle_samples": "interpolated between the cycles at which each steering report arrived; "
+                                        "the loop's held value is loop_wheel_angle"}
 
 
 def drive_next_pass(folder: str | Path, cfg: DriveConfig, settings: ExcitationSettings | None = None,
@@ -96,8 +138,11 @@ def drive_next_pass(folder: str | Path, cfg: DriveConfig, settings: ExcitationSe
                 epochs=True, **drive_options)
     meta = {**log.meta, "pass_index": p.index, "excitation": dict(settings.__dict__), "excitation_seed": str(ss.entropy),
             "source": "hil.vehicle.excite_run (identification pass driven by the runtime)"}
+    channels = dict(log.channels)
+    if parse_bridge(cfg.bridge_port).kind == "isobus":
+        channels, meta = wheel_angle_between_reports(log.times["t"], channels, meta)
     proc.logs.mkdir(parents=True, exist_ok=True)
-    path = PassLog(times=dict(log.times), channels=dict(log.channels), meta=meta).save(proc.logs / p.file_name)
+    path = PassLog(times=dict(log.times), channels=channels, meta=meta).save(proc.logs / p.file_name)
     moved = proc.review()
     faults = next((m["faults"] for m in moved if Path(m["file"]).name.startswith(Path(p.file_name).stem)), [])
     status = proc.status()

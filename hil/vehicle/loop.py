@@ -193,7 +193,7 @@ class PathFollower(Protocol):
 
 _COLUMNS = ("t", "cross_track", "heading_error", "wheel_angle", "speed", "steer_rate_cmd", "engaged",
             "healthy", "gps_valid", "bridge_valid", "integrity", "fix_quality", "compute_time", "lateness",
-            "deadline_miss", "adc_counts", "plausible")
+            "deadline_miss", "adc_counts", "plausible", "bridge_received")
 
 
 class VehicleLoop:
@@ -409,7 +409,7 @@ class VehicleLoop:
         self._rows.append((now, xte, he, delta, speed, u, self.engaged, healthy, gps_valid, bridge_valid,
                            _INTEGRITY_BY_ID.get(id(integrity.state), 9.0), int(nav.fix), compute, late,
                            done - t_due > 1.0 / cfg.rate, rep.adc_counts if rep else -1.0,
-                           plausibility.fault is None))
+                           plausibility.fault is None, rep.received_at if rep else -1.0))
         self._estimates.append(tuple(self.controller.estimate()))
         if path is not None:
             self._path_rows.append((self._station, self._kappa, *part))
@@ -529,7 +529,10 @@ class VehicleLoop:
         attitude messages carry a time tag) are added when the front-end's configuration declares the receiver's
         latency (:attr:`gnss.frontend.FrontEndConfig.receiver_latency`): without it the front-end's time of
         validity is the arrival less the transport jitter, not a measured latency. The loop's own values per cycle are kept as
-        ``loop_cross_track``, ``loop_heading_error``, ``loop_speed`` and ``loop_fix_quality``.
+        ``loop_cross_track``, ``loop_heading_error``, ``loop_speed`` and ``loop_fix_quality``. ``bridge_received``
+        is the arrival of the bridge's report whose wheel angle the cycle used (loop clock, s; -1 before the
+        first), so a report slower than the loop (an ISO 11783 controller's, every 0.1 s) can be told from its
+        repeats.
         """
         table = np.array(self._rows, dtype=float).reshape(-1, len(_COLUMNS))
         r = {k: table[:, i].copy() for i, k in enumerate(_COLUMNS)}
@@ -539,7 +542,7 @@ class VehicleLoop:
         std = ("cross_track", "heading_error", "wheel_angle", "speed", "steer_rate_cmd")
         extra_units = {"engaged": "1", "healthy": "1", "gps_valid": "1", "bridge_valid": "1",
                        "integrity": "code", "fix_quality": "1", "compute_time": "s", "lateness": "s",
-                       "deadline_miss": "1", "adc_counts": "counts", "plausible": "1"}
+                       "deadline_miss": "1", "adc_counts": "counts", "plausible": "1", "bridge_received": "s"}
         chans = {k: r[k] for k in std}
         extra = {}
         for k, unit in extra_units.items():

@@ -16,6 +16,7 @@ import pytest
 from hil.cli import main as hil_main
 from hil.devices.emulate import EmulatedTractor
 from hil.vehicle.commissioning import load_commissioning
+from hil.vehicle.excite_run import wheel_angle_between_reports
 from hil.vehicle.isobus.link import controller_commissioning, isobus_loop_config
 from hil.vehicle.procedure import Procedure
 from identification.passlog import PassLog
@@ -34,6 +35,25 @@ def emulated(speed: float, seed: int, duration: float) -> EmulatedTractor:
     port = free_udp_port()
     return EmulatedTractor(implement="none", speed=speed, duration=duration, seed=seed, bridge="isobus",
                            can_bus=f"isobus:udp_multicast:239.74.163.{port % 200 + 20}:{port}", driver=True)
+
+
+def test_the_wheel_angle_of_reports_slower_than_the_loop_is_drawn_between_them():
+    """A 10 Hz report held by the 20 Hz loop (each report first seen at the cycle after it arrived, one cycle
+    held twice by jitter) becomes a line between the reports' cycles: no staircase for identification to fit
+    with a 10 Hz pole; the loop's held values are kept as ``loop_wheel_angle``."""
+    t = np.arange(12) * 0.05
+    received = np.array([-1.0, 0.04, 0.04, 0.14, 0.14, 0.24, 0.24, 0.24, 0.39, 0.39, 0.44, 0.44])
+    angle = np.array([0.0, 0.01, 0.01, 0.03, 0.03, 0.02, 0.02, 0.02, 0.05, 0.05, 0.06, 0.06])
+    chans, meta = wheel_angle_between_reports(t, {"wheel_angle": angle, "bridge_received": received},
+                                              {"extra_channels": {"bridge_received": {"time": "t", "unit": "s"}}})
+    new = [1, 3, 5, 8, 10]                        # the cycles at which a report arrived
+    assert np.allclose(chans["wheel_angle"][new], angle[new]) and np.array_equal(chans["loop_wheel_angle"], angle)
+    assert np.allclose(chans["wheel_angle"][[2, 4, 6, 7, 9]], [0.02, 0.025, 0.03, 0.04, 0.055])
+    assert chans["wheel_angle"][0] == 0.01 and chans["wheel_angle"][11] == 0.06    # held outside the reports
+    assert meta["extra_channels"]["loop_wheel_angle"] == {"time": "t", "unit": "rad"}
+    # a log without the reports' arrival (another bridge, an older log) is left as it is
+    same, m = wheel_angle_between_reports(t, {"wheel_angle": angle}, {})
+    assert same["wheel_angle"] is angle and m == {}
 
 
 def test_the_controllers_commissioning_sets_the_loop_as_the_bridge_does():
@@ -95,6 +115,9 @@ def test_a_shortened_field_procedure_through_the_steering_controller(tmp_path, c
         log = PassLog.load(f)
         assert log.meta["ports"]["bridge"].startswith("isobus:udp_multicast:")
         assert np.ptp(log.channels["wheel_angle"]) > 0.05 and np.mean(log.channels["steer_rate_cmd"] != 0) > 0.2
+        # the controller's 10 Hz angle is drawn between its reports, not held for the 20 Hz loop's cycles
+        held, drawn = log.channels["loop_wheel_angle"], log.channels["wheel_angle"]
+        assert np.mean(np.diff(held) == 0) > 0.4 and np.mean(np.diff(drawn) == 0) < 0.5 * np.mean(np.diff(held) == 0)
     design = tmp_path / "design"
     assert hil_main(["commission", "--logs", str(folder / "logs"), "--commissioning",
                      str(folder / "commissioning.json"), "--out", str(design), "--acceptance", "warn",

@@ -40,7 +40,8 @@ def cmd_mpc(args: argparse.Namespace) -> dict:
                          disturbance_of(args), weight_search_of(args), args.fallback,
                          require_stable=not args.allow_unstable,
                          prediction_schedule=args.prediction_schedule == "on",
-                         noise=tuple(args.measurement_noise))
+                         noise=tuple(args.measurement_noise),
+                         alternative_prediction=args.alternative_prediction == "on")
     res = design_mpc_controller(models, options, central, validate, progress_of(args))
     warn_relaxed(res.file.design.get("auto_weights"))
     res.save(args.out)
@@ -84,6 +85,10 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
                         "certified on the band's models, when --models hold local models of two or more speeds "
                         "(default on; off: the central model at every speed)")
     add_noise_argument(p, "--prediction-schedule's")
+    p.add_argument("--alternative-prediction", choices=("on", "off"), default="off",
+                   help="when no law predicting with the central model stabilises every model, predict with the "
+                        "local model of the implement none whose law does, certified on every model (default off: "
+                        "refuse; a central model identified again at order 4 is the first thing to try)")
     p.add_argument("--allow-unstable", action="store_true",
                    help="write it even if the unconstrained law is unstable on some model (recorded)")
     p.add_argument("--name", default=None, help="the controller's name in its file (default: mpc)")

@@ -12,7 +12,8 @@ per design speed of the local models, the MPC predicting with that speed's model
 the same weights, certified on the models of its band.
 
 :func:`prediction_alternatives` names the models that may predict in the central model's place when no
-law predicting with the central model stabilises every model (:func:`design.synthesis.recipes.design_mpc_controller`).
+law predicting with the central model stabilises every model (a last resort:
+:attr:`design.synthesis.recipes.MPCOptions.alternative_prediction`).
 """
 
 from __future__ import annotations
@@ -221,6 +222,10 @@ def prediction_alternatives(models: Sequence[Model], implement: str = "none") ->
     1.43 and 1.23) and within 1.00x the paper's method; with the 2.91 m/s model 1.51x (median 1.39): hence the
     larger scale is kept. A local model is what the prediction schedule's bands predict with already
     (:func:`with_prediction_schedule`); the law is still certified on every model, the central one too.
+
+    A last resort, asked for (:attr:`design.synthesis.recipes.MPCOptions.alternative_prediction`): on random-102,
+    whose central model's law failed too, the MPC on models identified again at order 4 (the central one
+    predicting) was within 1.36x the oracle in every cell, the local model's on the validated models 1.98x.
     """
     picked: dict[float, Model] = {}
     for m in models:

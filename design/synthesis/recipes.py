@@ -380,6 +380,11 @@ class MPCOptions:
         of two or more design speeds; False: the central model predicts at every speed.
     noise
         The sensors' 1-sigma of the bands' noise check: position (m), heading (rad), wheel angle (rad).
+    alternative_prediction
+        When no law predicting with the central model (of kind ``central``, not one given) stabilises every
+        model, predict with a local model of the implement none whose law does
+        (:func:`design.synthesis.mpc_design.prediction_alternatives`); False (default): refuse. A last
+        resort: where a central model identified again at order 4 gives an MPC, that MPC did better.
     """
 
     horizon: int = 50
@@ -396,6 +401,7 @@ class MPCOptions:
     require_stable: bool = True
     prediction_schedule: bool = True
     noise: tuple[float, float, float] = MEASUREMENT_NOISE
+    alternative_prediction: bool = False
 
     def __post_init__(self) -> None:
         if self.past is not None:
@@ -453,8 +459,9 @@ def design_mpc_controller(models: Sequence[Model], options: MPCOptions | None = 
     (``design mpc``); with :attr:`MPCOptions.prediction_schedule`, another model predicting in each
     design speed's band.
 
-    When the central model is the one of kind ``central`` (``central`` not given) and no law predicting with
-    it stabilises every model (at any scale of automatic weights, or at the explicit weights), each local
+    With :attr:`MPCOptions.alternative_prediction`, when the central model is the one of kind ``central``
+    (``central`` not given) and no law predicting with it stabilises every model (at any scale of automatic
+    weights, or at the explicit weights), each local
     model of :func:`design.synthesis.mpc_design.prediction_alternatives` is tried as the prediction model,
     certified on every model the central one included, and the best kept; the file's
     ``design["prediction_choice"]`` records why, what was tried and what was kept. None giving a design: the
@@ -483,7 +490,7 @@ def design_mpc_controller(models: Sequence[Model], options: MPCOptions | None = 
     try:
         res, checked = _mpc_on(central, others, past, o, validate_on, progress)
     except (SpecificationError, VerificationError) as exc:
-        alternatives = [] if named else prediction_alternatives(others)
+        alternatives = [] if named or not o.alternative_prediction else prediction_alternatives(others)
         if not alternatives:
             raise
         res, checked = _alternative_prediction(central, others, alternatives, past, o, validate_on, progress, exc)

@@ -4,6 +4,7 @@ identified models of a generated tractor (tests/data/random107_models/PROVENANCE
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -20,7 +21,7 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "random107_models"
 NAMES = ("central", "local_disker_13th", "local_none_5th", "local_none_9th", "local_none_13th")
 #: The tractor's valve rate (rad/s); the MPC's window is the robust fall-back's, one sample.
 OPTIONS = MPCOptions(limits=MPCLimits(rate=0.21285), past=1, disturbance=DisturbanceSpec(),
-                     prediction_schedule=False)
+                     prediction_schedule=False, alternative_prediction=True)
 
 
 @pytest.fixture(scope="module")
@@ -35,8 +36,10 @@ def test_the_alternatives_are_the_none_models_one_per_speed_slowest_first(models
     assert prediction_alternatives([models[0]]) == []                  # the central model has no design speed
 
 
-def test_a_named_central_model_whose_law_fails_is_refused(models):
+def test_a_central_model_whose_law_fails_is_refused_unless_alternatives_are_asked_for(models):
     with pytest.raises(VerificationError, match="local_disker_13th"):
+        design_mpc_controller(models, replace(OPTIONS, alternative_prediction=False))
+    with pytest.raises(VerificationError, match="local_disker_13th"):          # named: never replaced
         design_mpc_controller(models[1:], OPTIONS, central=models[0])
 
 
@@ -57,3 +60,14 @@ def test_the_mpc_predicts_with_the_none_model_whose_law_holds_every_model(models
     text = render({**res.summary(), "out": "mpc.json"})
     assert "predicting with local_none_9th, not the central model, whose law failed: " in text
     assert "local_none_5th failed; local_none_9th worst disk margin" in text
+
+
+def test_design_mpc_asks_for_the_alternative_with_a_flag(tmp_path, capsys):
+    from design.cli import main as design_main
+    common = ["mpc", "--models", *(str(DATA / f"{n}.npz") for n in NAMES), "--past", "1",
+              "--prediction-schedule", "off"]
+    assert design_main([*common, "--out", str(tmp_path / "off.json")]) != 0
+    assert "local_disker_13th" in capsys.readouterr().err and not (tmp_path / "off.json").exists()
+    assert design_main([*common, "--alternative-prediction", "on", "--out", str(tmp_path / "on.json")]) == 0
+    assert "predicting with local_none_9th, not the central model" in capsys.readouterr().out
+    assert read_mpc_file(tmp_path / "on.json").design["design_model"] == "local_none_9th"

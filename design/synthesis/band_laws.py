@@ -57,7 +57,7 @@ from typing import Any, Callable, Sequence
 
 from identification.model import Model
 
-from design.core.compensator import integrator_states
+from design.core.compensator import closed_loop_matrix, integrator_states, spectral_radius
 from design.core.noise import MEASUREMENT_NOISE, disk_gain_floor, worst_noise_gain
 from design.core.errors import ControllerFileError, DesignError, DesignInputError
 from design.core.verify import certify, model_hash
@@ -302,8 +302,11 @@ def _reaching_law(r: RobustControllerResult, k: int, inside: list[int], row: dic
     reach, short = {}, []
     for j in near:
         idx = [i for i in on if speeds[names[i]] == design_speeds[j]]
+        # stable with the latency (the specifications' loop) and on the model as identified (the certificate's)
         bad = [names[i] for i in idx if not (radius.get(names[i]) is not None and radius[names[i]] < 1.0)
-               or off_radius.get(names[i], 0.0) >= 1.0]
+               or off_radius.get(names[i], 0.0) >= 1.0
+               or any(spectral_radius(closed_loop_matrix(models[i].A, models[i].B, models[i].C, models[i].D, c)) >= 1.0
+                      for c in ((comp, off) if est_off is not None and off is not None else (comp,)))]
         reach[j] = not bad
         if bad:
             short.append({"speed_mps": design_speeds[j], "unstable_on": bad})

@@ -31,7 +31,7 @@ from identification.workflow import identify_logs
 from hil.commissioning.mpc_window import own_window
 from hil.commissioning.steps import Steps
 
-__all__ = ["DesignTry", "Designer", "settings_text", "attempts", "DesignHooks", "design_controllers",
+__all__ = ["DesignTry", "Designer", "settings_text", "weights_text", "attempts", "DesignHooks", "design_controllers",
            "design_with_fallback"]
 
 WEIGHTS = ("auto-if-available", "auto", "default")
@@ -172,8 +172,15 @@ class Designer:
 
 def settings_text(settings: dict) -> str:
     """One line of a design's settings for the report: ``design robust on models/local_*.npz: weights auto, ...``."""
-    rest = ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in settings.items() if k not in ("design", "models"))
+    rest = ", ".join(f"{k.replace('_', ' ')} {f'{v:.4g}' if isinstance(v, float) else v}"
+                     for k, v in settings.items() if k not in ("design", "models"))
     return f"design {settings.get('design')} on {settings.get('models')}: {rest}"
+
+
+def weights_text(label: str) -> str:
+    """A design's weights as the report says them: an attempt's label (``weights auto, past 6``, with what the
+    design added) as it is, a bare mode (``default``) as ``weights default``."""
+    return label if label.startswith("weights") else f"weights {label}"
 
 
 def attempts(weights: str, robust_past: Sequence[int]) -> list[DesignTry]:

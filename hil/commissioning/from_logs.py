@@ -32,7 +32,7 @@ from identification.outputs import atomic_write
 from identification.passlog import PassLog
 from identification.workflow import expand_logs, identify_logs
 
-from hil.commissioning.designs import WEIGHTS, Designer, attempts, design_with_fallback, settings_text
+from hil.commissioning.designs import WEIGHTS, Designer, attempts, design_with_fallback, settings_text, weights_text
 from hil.commissioning.html import file_sha256, provenance, write_page
 from hil.commissioning.steps import Steps
 from hil.vehicle.commissioning import Commissioning, load_commissioning
@@ -287,7 +287,7 @@ def _controller_line(name: str, d: dict) -> str:
     cert = d["result"]["certificate"]
     return (f"- `{name}` ({d['file']}): {'stable on every model' if cert.get('passed') else 'NOT STABLE'}"
             f", worst spectral radius {cert.get('max_spectral_radius', float('nan')):.4f} "
-            f"({cert.get('worst', '')}); weights {d.get('weights', '')}; {settings_text(d.get('settings', {}))}"
+            f"({cert.get('worst', '')}); {weights_text(d.get('weights', ''))}; {settings_text(d.get('settings', {}))}"
             + speed_bands_text(d["result"]))
 
 

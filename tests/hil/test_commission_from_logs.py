@@ -5,6 +5,7 @@ as a tractor's runtime would record them."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -51,6 +52,10 @@ def test_the_command_commissions_from_the_logs_and_states_the_minutes_of_driving
     assert res["designs"]["robust"]["settings"]["command_limit_rad_s"] <= valve_rate + 1e-9
     report = (out / "report.md").read_text()
     assert "## Controllers" in report and "2.7 min of driving" in report
+    robust_line = next(ln for ln in report.splitlines() if ln.startswith("- `robust`"))
+    assert "; weights auto, past " in robust_line and "weights weights" not in robust_line
+    limits = re.findall(r"command limit rad s ([0-9.]+)", report)
+    assert limits and all(len(v.replace(".", "").lstrip("0")) <= 4 for v in limits), limits   # 4 digits, not 17
 
 
 def test_commissioning_without_logs_or_with_a_bad_log_is_refused_in_one_line_before_writing(tmp_path, capsys):

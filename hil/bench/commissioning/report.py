@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hil.commissioning.designs import settings_text
+from hil.commissioning.designs import settings_text, weights_text
 from hil.commissioning.from_logs import speed_bands_text
 from hil.commissioning.html import provenance, write_page
 from hil.bench.commissioning.table import CONTROLLERS, hil_ratios
@@ -216,7 +216,7 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
                 lines += [f"No robust design was found on the identified models; the robust controller and the MPC "
                           f"below are designed on models identified again at order {orders} (`models_order*/`).", ""]
         for name, d in res["designs"].items():
-            lines.append(f"- `{name}` (weights: {d.get('weights', '')}): {settings_text(d.get('settings', {}))}"
+            lines.append(f"- `{name}` ({weights_text(d.get('weights', ''))}): {settings_text(d.get('settings', {}))}"
                          + speed_bands_text(d.get("result") or {}))
         search = (res["designs"].get("mpc") or {}).get("window_search")
         if search and len(search.get("tries", [])) > 1:

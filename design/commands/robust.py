@@ -253,7 +253,7 @@ def render(result: dict) -> str:
                                                     if est["scale"] > 0 else "off: no gain met the specifications")
         lines.append(f"disturbance estimate (tau {est['tau_d_s']:g} s, filter {est['tau_f_s']:g} s): gain "
                      f"{', '.join(f'{v:.4g}' for v in est['gain_Kd'][0])} ({kept}); H2 cost against the disturbance "
-                     f"{est['h2_cost']:.4g} (window law alone {est['h2_cost_without']:.4g})")
+                     f"{_cost_text(est['h2_cost'])} (window law alone {_cost_text(est['h2_cost_without'])})")
         back = est.get("window_backoff")
         if back and back["kept_scale"] != back["search_scale"]:
             lines.append(f"window weights backed off from scale {back['search_scale']:.4g} to {back['kept_scale']:.4g} "
@@ -278,4 +278,6 @@ def render(result: dict) -> str:
     return "\n".join(lines)
 
 
-
+def _cost_text(cost: float | None) -> str:
+    """An H2 cost of the summary; None (a loop unstable with the latency) as ``inf (unstable with the latency)``."""
+    return "inf (unstable with the latency)" if cost is None else f"{cost:.4g}"

@@ -281,15 +281,18 @@ def _with_estimate(res: RobustResult, models: Sequence[Model], validate: Sequenc
     accept = None
     if latency is not None:
         first = check_specs(res.file.compensator, family, specs, latency, names)
-        eff = specs
+        eff: Specifications | None = specs
         if not first.passed:          # hold the estimate to what the window law itself achieved
             wst = first.worst()
-            eff = replace(specs, disk_margin=min(specs.disk_margin, 0.999 * wst["disk_margin"]),
-                          delay_reserve=min(specs.delay_reserve, wst["delay_reserve_s"]),
-                          rate_limit=max(specs.rate_limit, 1.001 * float(wst["peak_rate"])))
+            if wst["disk_margin"] > 0:
+                eff = replace(specs, disk_margin=min(specs.disk_margin, 0.999 * wst["disk_margin"]),
+                              delay_reserve=min(specs.delay_reserve, wst["delay_reserve_s"]),
+                              rate_limit=max(specs.rate_limit, 1.001 * float(wst["peak_rate"])))
+            else:                     # the window law is not stable with the latency: nothing to hold an estimate to
+                eff = None
 
         def accept(comp) -> bool:
-            return check_specs(comp, family, eff, latency, names).passed
+            return eff is not None and check_specs(comp, family, eff, latency, names).passed
     out = with_disturbance_estimate(res, models, spec, dspec, accept, latency)
     auto = res.file.design.get("auto_weights")
     made = [out]

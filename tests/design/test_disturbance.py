@@ -172,3 +172,18 @@ def test_design_robust_writes_the_estimate_and_design_verify_rechecks_it(tmp_pat
     assert "disturbance_estimate" not in json.loads(plain.read_text())["design"]
     with pytest.raises(SystemExit):
         design_main(["robust", "--models", *paths, "--disturbance-estimate", "maybe", "--out", str(plain)])
+
+
+def test_a_window_law_unstable_with_the_latency_gets_no_estimate_and_its_file_is_written(tmp_path):
+    # with 0.6 s of latency the window law (explicit weights) is unstable on the fast models: there is no margin
+    # to hold an estimate to, so its gain is 0 and its H2 costs are recorded as unknown (JSON has no infinity)
+    from design.cli import main as design_main
+    paths = [str(m.save(tmp_path / f"local_{i}.npz")) for i, m in enumerate(family())]
+    out = tmp_path / "dob.json"
+    assert design_main(["robust", "--models", *paths, "--integral", "--latency", "0.6", "--disturbance-estimate", "on",
+                        "--out", str(out)]) == 0
+    body = json.loads(out.read_text())
+    rec = body["design"]["disturbance_estimate"]
+    assert rec["scale"] == 0.0 and rec["h2_cost_without"] is None and rec["h2_cost"] is None
+    assert not body["design"]["specifications_check"]["achieved"]["passed"]
+    assert design_main(["verify", str(out), "--models", *paths]) == 0          # certified without the latency

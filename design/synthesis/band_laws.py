@@ -313,7 +313,7 @@ def _reaching_law(r: RobustControllerResult, k: int, inside: list[int], row: dic
     v = design_speeds[k]
     band = reach_band(design_speeds, v, reach.get(k - 1, True), reach.get(k + 1, True))
     want = certified_speeds(band, design_speeds)
-    if want != sorted([v] + [design_speeds[j] for j in near if reach[j]]):     # a bug here, not a property of the models
+    if want != sorted([v] + [design_speeds[j] for j in near if reach[j]]):    # a bug, not a property of the models
         raise DesignError(f"band {band} of the {v:g} m/s law: the reader would ask for the models of {want} m/s")
     sel = [i for i in on if speeds[names[i]] in want]
     cert = certify(comp, [models[i] for i in sel], [names[i] for i in sel])

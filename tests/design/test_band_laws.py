@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from design.cli import main as design_main
-from design.core.errors import ControllerFileError, DesignInputError
-from design.files.envelope import seal
 from design.core.compensator import closed_loop_matrix, spectral_radius
+from design.core.errors import ControllerFileError, DesignInputError
 from design.core.verify import certify
+from design.files.envelope import seal
 from design.files.law_schedule import BAND, REACH, RECORD, certified_speeds
 from design.files.linear import read_controller_file
 from design.files.load import load_controller

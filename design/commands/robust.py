@@ -15,7 +15,8 @@ from design.core.errors import VerificationError
 from design.commands.specs import (add_disturbance_arguments, add_noise_argument, add_spec_arguments, disturbance_of,
                                     parse_past, progress_of, refuse_mixed, warn_relaxed, weight_search_of)
 from design.core.errors import DesignInputError
-from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands, no_bands_because
+from design.synthesis.band_laws import (SEARCH_RECORD, certified_text, design_robust_bands, gaps_between,
+                                        no_bands_because)
 from design.synthesis.recipes import RobustOptions, design_robust_controller, load_models
 from design.synthesis.robust import RobustSpec, design_lqr
 from design.core.weights import OutputWeights
@@ -265,8 +266,11 @@ def render(result: dict) -> str:
         scale = "" if b.get("scale") is None else f", scale {b['scale']:.4g}"
         noise = "" if b.get("noise_gain") is None else f"; the rate limit's gain under the sensors' noise {b['noise_gain']:.2f}"
         lines.append(f"band {span} ({', '.join(b['models'])}): "
-                     + (f"its own law{scale}, certified on its band's models{noise}" if b["kept"]
+                     + (f"its own law{scale}, {certified_text(b)}{noise}" if b["kept"]
                         else f"the one law ({b['why']})"))
+    for lo, hi in gaps_between((result.get("band_laws") or {}).get("bands", [])):
+        lines.append(f"between bands {lo:g}-{hi:g} m/s: the one law (a band law stops short of a design speed "
+                     "whose models it does not hold)")
     for c in result.get("implausible_models", []):
         lines.append(f"warning: {c['name']}: a left steering pulse gives outputs "
                      f"{', '.join(f'{v:+.3g}' for v in c['pulse_outputs'])} after 3 s (expected all > 0); "

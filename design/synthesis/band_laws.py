@@ -68,7 +68,8 @@ from design.synthesis.family import model_names
 from design.synthesis.recipes import RobustControllerResult, RobustOptions, design_robust_controller
 from design.synthesis.specs import check_specs, resolve_latency
 
-__all__ = ["design_speed", "design_robust_bands", "no_bands_because", "window_scale", "SEARCH_RECORD"]
+__all__ = ["design_speed", "design_robust_bands", "no_bands_because", "window_scale", "SEARCH_RECORD",
+           "certified_text", "gaps_between"]
 
 #: Key of the band search's record in the file's ``design`` object (what was tried, kept and why).
 SEARCH_RECORD = "band_laws"
@@ -108,6 +109,23 @@ def window_scale(design: dict) -> float:
     if isinstance(back, dict) and "kept_scale" in back:
         return float(back["kept_scale"])
     return float(design["auto_weights"]["chosen_scale"])
+
+
+def certified_text(band: dict) -> str:
+    """What a kept band law of a search record is certified on, for a summary: ``certified on its band's
+    models``, or with the speeds its band reaches ``certified on the models at 1 and 1.79 m/s``."""
+    speeds = band.get("certified_speeds_mps")
+    if not speeds or len(speeds) < 2:
+        return "certified on its band's models"
+    names = [format(v, "g") for v in speeds]
+    return f"certified on the models at {', '.join(names[:-1])} and {names[-1]} m/s"
+
+
+def gaps_between(bands: Sequence[dict]) -> list[tuple[float, float]]:
+    """The speeds, m/s, between the bands of a search record (``band_mps``) where the one law runs because a band
+    law stops short of a neighbouring design speed whose models it does not hold."""
+    spans = sorted((b["band_mps"][0], math.inf if b["band_mps"][1] is None else b["band_mps"][1]) for b in bands)
+    return [(hi, lo) for (_, hi), (lo, _) in zip(spans, spans[1:]) if lo > hi + 1e-9]
 
 
 def _layout(res: RobustControllerResult) -> tuple:

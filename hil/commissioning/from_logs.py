@@ -32,6 +32,8 @@ from identification.outputs import atomic_write
 from identification.passlog import PassLog
 from identification.workflow import expand_logs, identify_logs
 
+from design.synthesis.band_laws import certified_text, gaps_between
+
 from hil.commissioning.designs import WEIGHTS, Designer, attempts, design_with_fallback, settings_text, weights_text
 from hil.commissioning.html import file_sha256, provenance, write_page
 from hil.commissioning.steps import Steps
@@ -336,7 +338,8 @@ def _bands_text(rec: dict | None) -> str:
         lo, hi = b["band_mps"]
         span = f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s"
         scale = "" if b.get("scale") is None else f" scale {b['scale']:.3g}"
-        parts.append(f"{span}{scale} (certified on its band's models)" if b["kept"] else
-                     f"{span} the one law ({_short_why(b.get('why', ''))})")
+        parts.append((lo, f"{span}{scale} ({certified_text(b)})" if b["kept"] else
+                      f"{span} the one law ({_short_why(b.get('why', ''))})"))
+    parts += [(lo, f"{lo:g}-{hi:g} m/s the one law (between bands)") for lo, hi in gaps_between(rec["bands"])]
     base = "" if rec.get("base_scale") is None else f" (the one law's scale {rec['base_scale']:.3g})"
-    return f"; laws per speed band{base}: " + ", ".join(parts)
+    return f"; laws per speed band{base}: " + ", ".join(text for _, text in sorted(parts))

@@ -70,9 +70,13 @@ def test_the_noise_check_takes_the_measured_wheel_angle_noise():
 def test_the_report_line_names_each_band_s_law_and_prediction_model():
     robust = {"band_laws": {"base_scale": 0.77, "bands": [
         {"band_mps": [0.0, 1.395], "kept": False, "why": "the sensors' noise alone drives its command to 0.9 rad/s"},
-        {"band_mps": [2.35, None], "kept": True, "scale": 0.83}]}}
-    assert speed_bands_text(robust) == ("; laws per speed band (the one law's scale 0.77): 0-1.395 m/s the one law "
-                                        "(noise check), 2.35-inf m/s scale 0.83 (certified on its band's models)")
+        {"band_mps": [2.35, None], "kept": True, "scale": 0.83, "certified_speeds_mps": [2.91]},
+        {"band_mps": [1.395, 2.07], "kept": True, "scale": 1.5, "certified_speeds_mps": [1.0, 1.79]}]}}
+    # the 1.79 m/s law stops short of 2.91 m/s (a quarter of the way): the one law runs between 2.07 and 2.35 m/s
+    assert speed_bands_text(robust) == (
+        "; laws per speed band (the one law's scale 0.77): 0-1.395 m/s the one law (noise check), 1.395-2.07 m/s "
+        "scale 1.5 (certified on the models at 1 and 1.79 m/s), 2.07-2.35 m/s the one law (between bands), "
+        "2.35-inf m/s scale 0.83 (certified on its band's models)")
     mpc = {"prediction_schedule": {"bands": [{"band_mps": [0.0, 1.955], "model": "local_none_5th"}],
                                    "left_out": [{"speed": 2.91, "reason": "unstable"}]}}
     assert speed_bands_text(mpc) == ("; predicts by speed band, each law certified on its band's models: 0-1.955 m/s "

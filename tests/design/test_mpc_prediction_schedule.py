@@ -173,3 +173,32 @@ def test_a_band_whose_law_the_sensors_noise_would_hold_at_the_rate_limit_is_left
     assert 1.0 in [x["speed"] for x in left]
     reason = next(x["reason"] for x in left if x["speed"] == 1.0)
     assert reason.startswith("the sensors' noise alone drives its command to") and "below the disk margin" in reason
+
+
+def test_a_band_whose_law_is_much_noisier_than_the_central_law_on_its_models_is_left_to_it(monkeypatch):
+    """A slow valve at 1.00 m/s (0.5 s lag, both implements): the band's law, predicting with it, answers the
+    sensors' noise with a command 2.6 times the central law's on the band's models; the noise is small enough
+    for every law to pass the noise check's floor, so only the comparison with the central law leaves it out."""
+    import design.synthesis.mpc_design as mpc_design
+
+    models = [local(v, imp, a, tau=0.5 if v == 1.0 else 0.1) for v in SPEEDS for imp, a in (("none", 1.0),
+                                                                                             ("disker", 0.7))]
+    central = tractor_model(1.79, name="central").with_meta(kind="central")
+    base = design_mpc(central, models, SPEC)
+    quiet = (0.001, 1e-4, 5e-4)
+    res = with_prediction_schedule(base, models, noise=quiet)
+    rec = res.file.design[RECORD]
+    assert rec["bands"] == [[1.395, 2.35], [2.35, None]]
+    assert [x["speed"] for x in rec["left_out"]] == [1.0]
+    reason = rec["left_out"][0]["reason"]
+    assert "times the central law's" in reason and f"at most {mpc_design.NOISE_RATIO:g} times" in reason
+    ratio = float(reason.split(" times the central law's")[0].rsplit(" ", 1)[1])
+    assert ratio > mpc_design.NOISE_RATIO
+    assert all(b["noise_over_central"] <= mpc_design.NOISE_RATIO for b in res.prediction_schedule["bands"])
+    ctrl = res.file.controller(approach=False)
+    _step(ctrl, 0.0, 1.0)
+    assert ctrl.band is None                          # the central law runs at 1.00 m/s
+    monkeypatch.setattr(mpc_design, "NOISE_RATIO", float("inf"))      # without the comparison the band is kept
+    kept = with_prediction_schedule(base, models, noise=quiet)
+    assert kept.file.design[RECORD]["bands"][0] == [0.0, 1.395]
+    assert kept.prediction_schedule["bands"][0]["noise_over_central"] == pytest.approx(ratio, abs=0.01)

@@ -10,7 +10,13 @@ stays rich while the tractor stays near the line:
 - inside the **soft corridor** (``return_at``, default 0.6 m of the line) the direction carries
   the random part (``direction_noise``) and holds last ``hold_min``-``hold_max`` s;
 - beyond it, the rule **returns to the line**: no random part, holds cut to ``hold_min``, until the
-  tractor is back inside ``return_at / 2``;
+  tractor is back inside ``return_at / 2``. With ``predict`` (the runtime's passes) the corridor is
+  kept on the **stopping point**, not on where the tractor is: the cross-track at which its heading
+  would be back to zero if the wheel turned towards the line now, at the valve's rate
+  (:func:`stopping_offset`). At the top speed a heading of 0.2 rad carries the tractor 0.6 m in a second,
+  and turning it back takes the valve about as long: a return that starts at 0.6 m of the line
+  ends beyond 1.5 m. The return then slews the wheel towards the line up to ``soft_limit`` at once,
+  the turn the prediction assumed;
 - the **hard corridor** (``corridor``, default 1.5 m) is the loop's own limit
   (:attr:`hil.vehicle.loop.LoopConfig.max_cross_track`, set by :meth:`ExcitationSettings.loop_config`):
   beyond it the loop disengages, so the pass is spoiled and driven again
@@ -38,7 +44,7 @@ from design.laws.controller import Measurement
 
 from hil.vehicle.errors import VehicleConfigError
 
-__all__ = ["ExcitationSettings", "SlewRule", "ExcitationController"]
+__all__ = ["ExcitationSettings", "SlewRule", "ExcitationController", "stopping_offset"]
 
 
 @dataclass(frozen=True)
@@ -69,6 +75,14 @@ class ExcitationSettings:
         With the servo: it aims at a line offset by a random amount within +-``offset`` m, held for
         ``offset_hold_min``-``offset_hold_max`` s (uniform), so the passes also move slowly across the line
         (the low frequencies a servo alone would hold still); 0: the line itself.
+    predict
+        Keep the soft corridor on the stopping point (:func:`stopping_offset`) rather than on the measured
+        cross-track, and return by slewing the wheel towards the line; False: the paper's rule, on the
+        measured cross-track.
+    reaction
+        With ``predict``: the time before a return turns the wheel, s, over which the prediction lets the
+        wheel go on as commanded: the age of the fix the loop acts on (a 5 Hz position epoch and the
+        receivers' latency, about 0.3 s) and the valve's delay (about 0.1 s).
     """
 
     slew_min: float = 0.2
@@ -84,10 +98,18 @@ class ExcitationSettings:
     offset: float = 0.3
     offset_hold_min: float = 4.0
     offset_hold_max: float = 10.0
+    predict: bool = True
+    reaction: float = 0.4
 
     def __post_init__(self) -> None:
         for k, v in self.__dict__.items():
+            if k == "predict":
+                if not isinstance(v, bool):
+                    raise VehicleConfigError(f"excitation predict must be true or false, got {v!r}")
+                continue
             finite(v, k, lo=0.0, where="excitation", error=VehicleConfigError)
+        if self.predict and self.soft_limit <= 0:
+            raise VehicleConfigError("excitation: predict needs soft_limit > 0 (the wheel angle a return turns to)")
         if self.slew_min > self.slew_max or self.hold_min > self.hold_max or self.slew_max == 0:
             raise VehicleConfigError("excitation: need 0 < slew_min <= slew_max and hold_min <= hold_max")
         if not 0 < self.return_at < self.corridor:
@@ -103,6 +125,51 @@ class ExcitationSettings:
         an engage only inside the soft corridor (so a pass that left the corridor stays off until it is back)."""
         return replace(config, max_cross_track=min(config.max_cross_track, self.corridor),
                        engage_cross_track=min(config.engage_cross_track, self.return_at))
+
+
+def stopping_offset(heading, wheel, rate, speed, wheelbase: float, max_rate: float, wheel_limit: float,
+                    reaction: float) -> np.ndarray:
+    """Cross-track the tractor still gains before its heading is back to zero, m (+ = left), if the wheel turns
+    against the heading after ``reaction`` s.
+
+    Kinematic bicycle on a straight line (heading rate ``speed / wheelbase * wheel``, cross-track rate
+    ``speed * heading``): for ``reaction`` s the wheel goes on at the commanded ``rate``; then it slews at
+    ``max_rate`` towards ``wheel_limit`` on the side that turns the heading back (the side opposite to the
+    heading the tractor would end with if the wheel came back to the centre) and holds there, until the heading
+    is zero. Closed form, element-wise on numpy arrays.
+
+    Parameters
+    ----------
+    heading, wheel, rate
+        Heading from the line [rad], wheel angle [rad] and the wheel's commanded rate [rad/s], + = left.
+    speed
+        Ground speed, m/s (> 0).
+    wheelbase, max_rate, wheel_limit, reaction
+        Wheelbase [m], the valve's slew rate [rad/s], the wheel angle the turn goes to [rad] and the time
+        before it starts [s].
+    """
+    heading, wheel, rate = (np.asarray(v, dtype=float) for v in (heading, wheel, rate))
+    v = np.asarray(speed, dtype=float)
+    k = np.maximum(v / wheelbase, 1e-9)
+    r, a, tau = float(max_rate), float(wheel_limit), float(reaction)
+    # the reaction: the wheel goes on as commanded
+    d1 = wheel + rate * tau
+    p1 = heading + k * (wheel * tau + 0.5 * rate * tau ** 2)
+    y1 = v * (heading * tau + k * (0.5 * wheel * tau ** 2 + rate * tau ** 3 / 6.0))
+    # turned against the heading it would end with: flipped so that the turn is towards negative wheel angles
+    side = np.where(p1 + k * d1 * np.abs(d1) / (2.0 * r) >= 0.0, 1.0, -1.0)
+    p, d = side * p1, side * d1
+    # heading zero while the wheel still slews (the later root: the heading's last return to zero)
+    t_zero = (d + np.sqrt(np.maximum(d * d + 2.0 * r * p / k, 0.0))) / r
+    t_slew = np.maximum(d + a, 0.0) / r
+    in_slew = t_zero <= t_slew
+    t = np.where(in_slew, t_zero, t_slew)
+    y2 = v * (p * t + k * (0.5 * d * t ** 2 - r * t ** 3 / 6.0))
+    # otherwise the wheel holds at the limit (or where it was, if beyond it) and the heading falls linearly
+    held = np.maximum(p + k * (d * t - 0.5 * r * t ** 2), 0.0)
+    hold_at = np.maximum(-np.minimum(d, -a), 1e-9)
+    y3 = np.where(in_slew, 0.0, v * held ** 2 / (2.0 * k * hold_at))
+    return y1 + side * (y2 + y3)
 
 
 class SlewRule:
@@ -133,7 +200,8 @@ class SlewRule:
         self.n_dec = n_dec
         self.u_len = np.stack([r.random(n_dec) for r in rngs])
         self.u_dir = np.stack([r.standard_normal(n_dec) for r in rngs])
-        self.lookahead = np.maximum(4.0, 3.0 * np.asarray(nominal, dtype=float))
+        self.speed = np.asarray(nominal, dtype=float)
+        self.lookahead = np.maximum(4.0, 3.0 * self.speed)
         self.rows = np.arange(B)
         self.mode = np.zeros(B)
         # With the servo, it steers from the start (every hold_min s towards the line itself) and only the slews
@@ -144,6 +212,7 @@ class SlewRule:
         self.returning = np.zeros(B, dtype=bool)
         self.y_ref = np.zeros(B)
         self.servo_u = np.zeros(B)
+        self.last_rate = np.zeros(B)
         if s.servo > 0 and s.offset > 0:   # drawn after the slews' draws: those stay what they were
             n_off = int(duration / s.offset_hold_min) + 4
             self.off_val = np.stack([r.uniform(-s.offset, s.offset, n_off) for r in rngs])
@@ -160,6 +229,7 @@ class SlewRule:
         self.returning[:] = False
         self.y_ref[:] = 0.0
         self.servo_u[:] = 0.0
+        self.last_rate[:] = 0.0
         if hasattr(self, "off_end"):
             self.off_end[:] = now + self.settings.settle
 
@@ -168,9 +238,21 @@ class SlewRule:
         the control point's cross-track ``y_m`` [m, + left] and heading ``yaw`` [rad] from the line."""
         s, mode = self.settings, self.mode
         y_m = np.asarray(y_m, dtype=float)
-        # beyond the soft corridor: back to the line, no randomness, until well inside it again
-        self.returning = np.where(np.abs(y_m) > s.return_at, True,
-                                  np.where(np.abs(y_m) < 0.5 * s.return_at, False, self.returning))
+        delta_m = np.asarray(delta_m, dtype=float)
+        # beyond the soft corridor: back to the line, no randomness, until well inside it again; with predict,
+        # the corridor holds the point where the heading would be back to zero if the return began now
+        stop = y_m
+        if s.predict:
+            stop = y_m + stopping_offset(yaw, delta_m, self.last_rate, self.speed, self.wheelbase, self.max_rate,
+                                         s.soft_limit, s.reaction)
+        was = self.returning
+        self.returning = np.where(np.abs(stop) > s.return_at, True,
+                                  np.where(np.abs(stop) < 0.5 * s.return_at, False, self.returning))
+        back = -np.sign(stop)
+        if s.predict:   # a return begins at once, not when the stretch under way ends
+            begun = self.returning & ~was
+            mode = np.where(begun, 0.0, mode)
+            self.t_end = np.where(begun, now, self.t_end)
         # end a slew early at the soft limit; then choose the next stretch when one ends
         mode = np.where((mode > 0) & (delta_m >= s.soft_limit), 0.0, mode)
         mode = np.where((mode < 0) & (delta_m <= -s.soft_limit), 0.0, mode)
@@ -185,6 +267,8 @@ class SlewRule:
             else:
                 noise = np.where(self.returning, 0.0, s.direction_noise * ud)
                 direction = np.sign(want - delta_m + noise)
+            if s.predict:       # a return slews the wheel towards the line, up to the soft limit
+                direction = np.where(self.returning, np.where(back * delta_m < s.soft_limit, back, 0.0), direction)
             slew_len = s.slew_min + ul * (s.slew_max - s.slew_min)
             settling = now < self.settle_end
             hold_len = np.where(self.returning | settling, s.hold_min, s.hold_min + ul * (s.hold_max - s.hold_min))
@@ -195,7 +279,8 @@ class SlewRule:
             self.n_made = self.n_made + due
         self.mode = mode
         if s.servo <= 0:
-            return mode * self.max_rate
+            self.last_rate = mode * self.max_rate
+            return self.last_rate
         if s.offset > 0:
             moved = now >= self.off_end
             if np.any(moved):
@@ -211,8 +296,12 @@ class SlewRule:
             look = self.lookahead
             want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m - y_ref + look * yaw), -s.soft_limit,
                            s.soft_limit)
-            self.servo_u = np.where(due, s.servo * (want - delta_m), self.servo_u)
-        return np.clip(mode * self.max_rate + self.servo_u, -self.max_rate, self.max_rate)
+            u = s.servo * (want - delta_m)
+            if s.predict:   # returning: the return's slew turns the wheel, then the servo holds it at the limit
+                u = np.where(self.returning, np.where(mode != 0, 0.0, s.servo * (back * s.soft_limit - delta_m)), u)
+            self.servo_u = np.where(due, u, self.servo_u)
+        self.last_rate = np.clip(mode * self.max_rate + self.servo_u, -self.max_rate, self.max_rate)
+        return self.last_rate
 
 
 class ExcitationController:

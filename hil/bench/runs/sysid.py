@@ -75,6 +75,7 @@ class DriverExcitation(ExcitationSettings):
 
     servo: float = 0.0
     offset: float = 0.0
+    predict: bool = False
     return_at: float = OPEN_LOOP_CORRIDOR / 2
     corridor: float = OPEN_LOOP_CORRIDOR
 

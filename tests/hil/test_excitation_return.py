@@ -1,0 +1,110 @@
+"""The identification passes' return to the line (hil.vehicle.excitation): the soft corridor kept on the stopping
+point makes the return start in time at the top speed, where the heading carries the tractor across the corridor
+faster than the valve turns it back."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hil.vehicle.errors import VehicleConfigError
+from hil.vehicle.excitation import ExcitationSettings, SlewRule, stopping_offset
+
+SPEED, WHEELBASE, RATE, DT = 2.91, 3.0, 0.3, 0.05
+
+
+def _integrated_stop(heading, wheel, rate, speed, wheelbase, max_rate, limit, reaction, dt=1e-4):
+    """The stopping point by small Euler steps of the same turn: the wheel goes on at ``rate`` for ``reaction`` s,
+    then slews at ``max_rate`` to the limit against the heading it would end with, until the heading is back to
+    zero with the wheel turning it away."""
+    k, y, t = speed / wheelbase, 0.0, 0.0
+    while t < reaction - 1e-12:
+        heading += k * wheel * dt
+        y += speed * heading * dt
+        wheel += rate * dt
+        t += dt
+    side = 1.0 if heading + k * wheel * abs(wheel) / (2 * max_rate) >= 0 else -1.0
+    while not (side * heading <= 0 and side * wheel < 0):
+        if side * wheel > -limit:
+            wheel -= side * min(max_rate * dt, side * wheel + limit)
+        heading += k * wheel * dt
+        y += speed * heading * dt
+    return y
+
+
+def test_the_stopping_point_is_where_the_turn_back_brings_the_heading_to_zero():
+    rng = np.random.default_rng(3)
+    cases = [(0.2, 0.0, 0.0, 2.91, 0.4), (-0.05, 0.15, 0.3, 2.91, 0.4), (0.1, -0.25, -0.3, 1.0, 0.2),
+             (0.0, 0.3, 0.0, 1.79, 0.0)]
+    cases += [(rng.normal(0, 0.15), rng.uniform(-0.25, 0.25), rng.choice([-RATE, 0.0, RATE]), rng.uniform(0.5, 3.5),
+               rng.uniform(0, 0.5)) for _ in range(6)]
+    for heading, wheel, rate, speed, reaction in cases:
+        got = float(stopping_offset(heading, wheel, rate, speed, WHEELBASE, RATE, 0.2, reaction))
+        assert got == pytest.approx(_integrated_stop(heading, wheel, rate, speed, WHEELBASE, RATE, 0.2, reaction),
+                                    abs=2e-3)
+    # faster: further, for the same heading
+    far = stopping_offset(0.2, 0.0, 0.0, np.array([1.0, 1.79, 2.91]), WHEELBASE, RATE, 0.2, 0.4)
+    assert np.all(np.diff(far) > 0) and far[-1] > 0.6
+
+
+def _kinematic_pass(settings: ExcitationSettings, y0: float, heading0: float, seeds: int = 8, duration: float = 6.0,
+                    delay: float = 0.3):
+    """A kinematic tractor at 2.91 m/s whose measurements are ``delay`` s old, steered by the rule (slews on from
+    the start) from ``y0`` m off the line with ``heading0`` rad towards its outside: the farthest it went from the
+    line and when the rule first returned, per seed."""
+    rule = SlewRule(settings, [np.random.default_rng(i) for i in range(seeds)], np.full(seeds, SPEED), duration,
+                    WHEELBASE, RATE)
+    rule.restart(0.0)
+    rule.settle_end[:] = -1.0
+    lag = int(round(delay / DT))
+    y, heading, wheel = np.full(seeds, y0), np.full(seeds, heading0), np.zeros(seeds)
+    seen = [(y.copy(), heading.copy(), wheel.copy())] * (lag + 1)
+    farthest, first_return = np.abs(y), np.full(seeds, np.nan)
+    for k in range(int(duration / DT)):
+        ym, hm, wm = seen[-1 - lag]
+        u = rule.rate(k * DT, wm, ym, hm)
+        first_return = np.where(np.isnan(first_return) & rule.returning, k * DT, first_return)
+        wheel = wheel + np.clip(u, -RATE, RATE) * DT
+        heading = heading + SPEED / WHEELBASE * wheel * DT
+        y = y + SPEED * heading * DT
+        seen.append((y.copy(), heading.copy(), wheel.copy()))
+        farthest = np.maximum(farthest, np.abs(y))
+    return farthest, first_return
+
+
+def test_at_the_top_speed_the_return_starts_before_the_soft_corridor_and_stays_in_the_hard_one():
+    """0.5 m off the line, heading 0.22 rad away from it at 2.91 m/s: the paper's rule returns only at 0.6 m,
+    and turning the heading back then takes the tractor beyond the 1.5 m corridor; on the stopping point the
+    return starts at once and ends where the stopping point said."""
+    old, new = ExcitationSettings(predict=False), ExcitationSettings()
+    far_old, ret_old = _kinematic_pass(old, 0.5, 0.22)
+    far_new, ret_new = _kinematic_pass(new, 0.5, 0.22)
+    assert np.all(ret_new == 0.0)                            # at once, inside the soft corridor
+    assert np.all(ret_old > 0.0)                             # the paper's rule waited for 0.6 m
+    assert np.max(far_old) > new.corridor                    # and left the corridor
+    stop = 0.5 + float(stopping_offset(0.22, 0.0, 0.0, SPEED, WHEELBASE, RATE, new.soft_limit, new.reaction))
+    assert np.all(far_new <= stop + 0.02) and np.max(far_new) < new.corridor
+    assert np.median(far_new) < np.median(far_old) - 0.2
+
+
+def test_a_return_slews_at_the_full_rate_towards_the_line_and_inside_it_the_slews_go_on():
+    s = ExcitationSettings()
+    rule = SlewRule(s, [np.random.default_rng(0)], np.array([SPEED]), 10.0, WHEELBASE, RATE)
+    rule.restart(0.0)
+    rule.settle_end[:] = -1.0
+    # 0.2 m left of the line heading 0.2 rad further left: the stopping point is beyond the soft corridor
+    u = rule.rate(0.0, np.array([0.0]), np.array([0.2]), np.array([0.2]))
+    assert rule.returning[0] and u[0] == pytest.approx(-RATE)
+    # the wheel at the soft limit, still heading out: the return holds it there (no slew beyond it)
+    u = rule.rate(1.0, np.array([-s.soft_limit]), np.array([0.9]), np.array([0.12]))
+    assert rule.returning[0] and abs(u[0]) < 0.05 * RATE
+    # on the line heading along it: no return, the slews are random again
+    rule.rate(3.0, np.array([0.0]), np.array([0.0]), np.array([0.0]))
+    assert not rule.returning[0]
+
+
+def test_predict_is_checked():
+    with pytest.raises(VehicleConfigError, match="predict"):
+        ExcitationSettings(predict=1)
+    with pytest.raises(VehicleConfigError, match="reaction"):
+        ExcitationSettings(reaction=-0.1)

@@ -46,6 +46,16 @@ the 15 cells, seeds 0-2, worst cell over the oracle with its default weights): r
 valve's rate, gain 0.36 against the floor 0.54) diverged at 1.00 m/s (disker 90 cm, 41x the oracle) and
 random-1's (1.7 times, gain 0.45) took the disker at 1.00 m/s from 1.02 to 1.36. The check leaves exactly
 those two bands to the base law; the kept ones are at 0.3-1.3 times the rate (gain 0.55 or more).
+
+A band law refused by the noise check alone (with automatic weights; its scale above the base law's) is not the
+only law its band allows: a gentler one drives a smaller command from the same noise. So the band's search runs
+again with its top scale capped at :data:`CAP_STEP` times the law's, then that times again, down to the base
+law's scale (:func:`_noise_capped`; each law so found meets every specification on the band's models), and the
+first law that passes the check is the band's (recorded in the band's ``noise_cap``); none that does leaves the
+band to the base law as before. On random-102 the one law is held at the search's lowest scale 0.05 (the
+1.00 m/s ripper's order-8 model's disk margin) and its 2.91 m/s band law at scale 5.39 left the rate limit a gain
+of 0.53 (the wheel-angle sensor's noise drives nearly all of its 0.52 rad/s), so the one law steered the 2.91 m/s
+cells 1.75-2.30x the oracle; the capped law (scale 3.77, gain 0.58) steers them 1.23-1.35x (3 seeds).
 """
 
 from __future__ import annotations
@@ -211,7 +221,9 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
             "every band's law has the given weights and is kept when certified on its band's models")
     record: dict[str, Any] = {"rule": rule + f"; and when its command driven by the sensors' noise alone leaves the "
                                              f"rate limit a gain of at least {floor:.3f} (the disk margin "
-                                             f"{opts.search.disk_margin:g}'s floor) on its band's models",
+                                             f"{opts.search.disk_margin:g}'s floor) on its band's models"
+                                             + ("; a law refused by that check alone is searched again with a lower "
+                                                "top scale until one passes (noise_cap)" if auto else ""),
                               "base_scale": base_scale, "base_relaxed": base_relaxed,
                               "noise": {"position_m": noise[0], "heading_rad": noise[1], "wheel_angle_rad": noise[2],
                                         "rate_limit_rad_s": rate, "gain_floor": floor,
@@ -242,8 +254,8 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
         try:
             k = design_speeds.index(v)
             near = {design_speeds[j] for j in (k - 1, k + 1) if 0 <= j < len(design_speeds)} if neighbours else set()
-            r = design_robust_controller([models[i] for i in inside], band_opts, progress=say,
-                                         validate_on=[m for n, m in zip(names, models) if speeds[n] in near])
+            validate = [m for n, m in zip(names, models) if speeds[n] in near]
+            r = design_robust_controller([models[i] for i in inside], band_opts, progress=say, validate_on=validate)
         except DesignError as exc:
             row.update(kept=False, why=f"no design on the band's models: {exc}")
         else:
@@ -254,12 +266,31 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
             gain, sig, worst_model = noise_gain(r.file.compensator, inside)
             row.update(noise_gain=_finite(gain), noise_command_sigma_rad_s=_finite(sig))
             top = opts.search.search.high
+            if (auto and gain < floor and _layout(r) == layout and d["auto_weights"]["chosen_scale"] < top * (1 - 1e-9)
+                    and row["scale"] > base_scale and len(row["relaxed"]) <= base_relaxed):
+                # only the noise check refuses it: the fastest gentler law that passes, if one is above the base law
+                def capped_at(cap: float, inside=inside, validate=validate) -> RobustControllerResult:
+                    search = replace(band_opts.search, search=replace(band_opts.search.search, high=cap))
+                    return design_robust_controller([models[i] for i in inside], replace(band_opts, search=search),
+                                                    validate_on=validate)
+                capped = _noise_capped(capped_at, lambda res, inside=inside: noise_gain(res.file.compensator, inside),
+                                       row["scale"], gain, base_scale, base_relaxed, floor, layout, say)
+                row["noise_cap"] = capped[1]
+                if capped[0] is not None:
+                    r, d = capped[0], capped[0].file.design
+                    gain, sig, worst_model = noise_gain(r.file.compensator, inside)
+                    row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())),
+                               estimate_scale=(d.get("disturbance_estimate") or {}).get("scale"),
+                               noise_gain=_finite(gain), noise_command_sigma_rad_s=_finite(sig))
             if _layout(r) != layout:
                 row.update(kept=False, why=f"its states {_layout(r)} are not the base law's {layout}")
             elif gain < floor:
                 row.update(kept=False, why=f"the sensors' noise alone drives its command to {sig:.3g} rad/s (1-sigma) "
                                            f"on {worst_model}, which leaves the rate limit {rate:.3g} rad/s a gain "
-                                           f"of {gain:.2f}, below the disk margin's floor {floor:.2f}")
+                                           f"of {gain:.2f}, below the disk margin's floor {floor:.2f}"
+                                           + ("" if "noise_cap" not in row else
+                                              f"; no law of a capped search above the base law's scale "
+                                              f"{base_scale:.4g} passes"))
             elif not auto:
                 row["kept"] = True
             elif d["auto_weights"]["chosen_scale"] >= top * (1 - 1e-9):
@@ -290,6 +321,59 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
         kept_bands.append(band)
         entries.append(entry)
     return _finish(base, kept_bands, entries, speeds, models, record, t0)
+
+
+#: Each step of a band law's noise cap: the search's top scale times this (a law's noise-driven command grows with
+#: its scale; 0.7 takes about two steps per halving).
+CAP_STEP = 0.7
+#: The most steps of the noise cap (0.7^8 = 0.058: down to a seventeenth of the band's scale).
+CAP_STEPS = 8
+
+
+def _noise_capped(design_at: Callable[[float], RobustControllerResult],
+                  gain_of: Callable[[RobustControllerResult], tuple[float, float, str]], scale: float, gain: float,
+                  base_scale: float, base_relaxed: int, floor: float, layout: tuple,
+                  progress: Callable[[str], None] | None) -> tuple[RobustControllerResult | None, dict]:
+    """The band law of the largest capped scale that passes the noise check, or None, and the record of the caps.
+
+    A band law whose automatic weights met every specification at ``scale`` but whose noise-driven command leaves
+    the rate limit a gain (``gain``) below ``floor`` is searched again with the search's top scale capped at ``scale *
+    CAP_STEP**k`` (``design_at(cap)``: the band's design with that top; k = 1 ... :data:`CAP_STEPS`), so each law
+    tried meets every specification on the band's models as the uncapped one did. The first whose noise gain
+    (``gain_of``: gain, command sigma, worst model) is at least ``floor``, with the base law's states
+    (``layout``), no more specifications relaxed than the base law's (``base_relaxed``) and a scale above the base
+    law's (``base_scale``) is returned; the caps stop at the base law's scale, where the base law runs anyway.
+    """
+    tried: list[dict] = []
+    found = None
+    cap = scale
+    for _ in range(CAP_STEPS):
+        cap *= CAP_STEP
+        if cap <= base_scale * (1 + 1e-9):
+            break
+        try:
+            r = design_at(cap)
+        except DesignError as exc:
+            tried.append({"cap": cap, "error": str(exc)})
+            continue
+        g, s, worst = gain_of(r)
+        d = r.file.design
+        relaxed = len(d["auto_weights"].get("relaxed", ()))
+        sc = window_scale(d)
+        tried.append({"cap": cap, "scale": sc, "noise_gain": _finite(g), "noise_command_sigma_rad_s": _finite(s),
+                      "worst_model": worst, "relaxed": relaxed})
+        if progress is not None:
+            progress(f"noise cap {cap:.4g}: scale {sc:.4g}, noise gain {g:.3f} on {worst} (floor {floor:.3f})")
+        if sc <= base_scale or relaxed > base_relaxed or _layout(r) != layout:
+            break
+        if g >= floor:
+            found = r
+            break
+    return found, {"rule": f"the band's search again with its top scale capped at {CAP_STEP:g}^k times the band "
+                           f"law's scale {scale:.4g} (k = 1-{CAP_STEPS}, down to the base law's {base_scale:.4g}) "
+                           "until its law passes the noise check",
+                   "uncapped_scale": scale, "uncapped_gain": _finite(gain), "tried": tried,
+                   "kept_cap": None if found is None else tried[-1]["cap"]}
 
 
 def _reaching_law(r: RobustControllerResult, k: int, inside: list[int], row: dict, models: Sequence[Model],

@@ -15,16 +15,17 @@ import pytest
 from design.cli import main as design_main
 from design.core.compensator import closed_loop_matrix, spectral_radius
 from design.core.errors import ControllerFileError, DesignInputError
+from design.core.noise import MEASUREMENT_NOISE, worst_noise_gain
 from design.core.verify import certify
 from design.files.envelope import seal
-from design.files.law_schedule import BAND, REACH, RECORD, certified_speeds
+from design.files.law_schedule import BAND, REACH, RECORD, certified_speeds, compensator_from_record
 from design.files.linear import read_controller_file
 from design.files.load import load_controller
 from design.laws.controller import Measurement
 from design.laws.disturbance import DisturbanceSpec
 from design.laws.estimate_schedule import REACH_FRACTION, reach_band
 from design.synthesis.autotune import SearchOptions
-from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands, design_speed
+from design.synthesis.band_laws import CAP_STEP, SEARCH_RECORD, design_robust_bands, design_speed
 from design.synthesis.recipes import RobustOptions, WeightSearch, design_robust_controller
 from design.synthesis.robust import RobustSpec
 from design.synthesis.specs import delayed_model
@@ -185,6 +186,34 @@ def test_a_band_law_the_sensors_noise_would_hold_at_the_rate_limit_is_left_to_th
     assert not band["kept"] and band["noise_gain"] < floor
     assert band["why"].startswith("the sensors' noise alone drives its command to") and "below the disk margin" in band["why"]
     assert RECORD not in noisy
+    # every gentler law down to the base law's scale was tried, none passed
+    cap = band["noise_cap"]
+    assert cap["kept_cap"] is None and cap["tried"] and "no law of a capped search" in band["why"]
+    assert all(t["noise_gain"] < floor for t in cap["tried"])
+    assert cap["tried"][-1]["cap"] * CAP_STEP <= rec["base_scale"] < cap["tried"][-1]["cap"]
+
+
+def test_a_band_law_just_too_fast_for_the_sensors_is_replaced_by_the_fastest_gentler_one_that_passes(designed,
+                                                                                                   tmp_path):
+    base, res, _, models, _ = designed
+    rec = res.file.design[SEARCH_RECORD]
+    floor, fast = rec["noise"]["gain_floor"], rec["bands"][0]
+    # half as much noise again: the 1.0 m/s band's law leaves a gain below the floor, a gentler one does not
+    noisy = design_robust_bands(models, _options(), base, noise=tuple(1.5 * x for x in MEASUREMENT_NOISE))
+    band = noisy.file.design[SEARCH_RECORD]["bands"][0]
+    cap = band["noise_cap"]
+    assert cap["uncapped_scale"] == pytest.approx(fast["scale"]) and cap["uncapped_gain"] < floor
+    assert band["kept"] and band["noise_gain"] >= floor
+    assert rec["base_scale"] < band["scale"] <= cap["kept_cap"] < fast["scale"]
+    assert all(t["noise_gain"] < floor for t in cap["tried"][:-1])
+    # the capped law is the band's law in the file, read back with its certificate; its noise gain is the record's
+    spec = read_controller_file(noisy.save(tmp_path / "robust.json"))
+    assert spec.controller().law_schedule.bands == ((0.0, 1.95),)
+    law = spec.design[RECORD]["laws"][0]
+    assert [r["name"] for r in law["certificate"]["models"]] == band["models"] + ["v2.9_a1", "v2.9_a0.7"]
+    comp = compensator_from_record(law["compensator"], models[0].dt, 3)
+    gain, _, _ = worst_noise_gain(comp, models[:2], SPEEDS[:1] * 2, tuple(1.5 * x for x in MEASUREMENT_NOISE), 0.35)
+    assert gain == pytest.approx(band["noise_gain"])
 
 
 def test_with_explicit_weights_every_band_s_law_has_them_and_is_certified_on_its_band(designed, tmp_path):

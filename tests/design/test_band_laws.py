@@ -25,7 +25,7 @@ from design.laws.controller import Measurement
 from design.laws.disturbance import DisturbanceSpec
 from design.laws.estimate_schedule import REACH_FRACTION, reach_band
 from design.synthesis.autotune import SearchOptions
-from design.synthesis.band_laws import CAP_STEP, SEARCH_RECORD, design_robust_bands, design_speed
+from design.synthesis.band_laws import CAP_OVER_BASE, CAP_STEP, SEARCH_RECORD, design_robust_bands, design_speed
 from design.synthesis.recipes import RobustOptions, WeightSearch, design_robust_controller
 from design.synthesis.robust import RobustSpec
 from design.synthesis.specs import delayed_model
@@ -186,11 +186,11 @@ def test_a_band_law_the_sensors_noise_would_hold_at_the_rate_limit_is_left_to_th
     assert not band["kept"] and band["noise_gain"] < floor
     assert band["why"].startswith("the sensors' noise alone drives its command to") and "below the disk margin" in band["why"]
     assert RECORD not in noisy
-    # every gentler law down to the base law's scale was tried, none passed
+    # every gentler law down to twice the base law's scale was tried, none passed
     cap = band["noise_cap"]
     assert cap["kept_cap"] is None and cap["tried"] and "no law of a capped search" in band["why"]
     assert all(t["noise_gain"] < floor for t in cap["tried"])
-    assert cap["tried"][-1]["cap"] * CAP_STEP <= rec["base_scale"] < cap["tried"][-1]["cap"]
+    assert cap["tried"][-1]["cap"] * CAP_STEP <= CAP_OVER_BASE * rec["base_scale"] < cap["tried"][-1]["cap"]
 
 
 def test_a_band_law_just_too_fast_for_the_sensors_is_replaced_by_the_fastest_gentler_one_that_passes(designed,
@@ -204,7 +204,7 @@ def test_a_band_law_just_too_fast_for_the_sensors_is_replaced_by_the_fastest_gen
     cap = band["noise_cap"]
     assert cap["uncapped_scale"] == pytest.approx(fast["scale"]) and cap["uncapped_gain"] < floor
     assert band["kept"] and band["noise_gain"] >= floor
-    assert rec["base_scale"] < band["scale"] <= cap["kept_cap"] < fast["scale"]
+    assert CAP_OVER_BASE * rec["base_scale"] < band["scale"] <= cap["kept_cap"] < fast["scale"]
     assert all(t["noise_gain"] < floor for t in cap["tried"][:-1])
     # the capped law is the band's law in the file, read back with its certificate; its noise gain is the record's
     spec = read_controller_file(noisy.save(tmp_path / "robust.json"))

@@ -76,7 +76,7 @@ def test_at_the_top_speed_the_return_starts_before_the_soft_corridor_and_stays_i
     """0.5 m off the line, heading 0.22 rad away from it at 2.91 m/s: the paper's rule returns only at 0.6 m,
     and turning the heading back then takes the tractor beyond the 1.5 m corridor; on the stopping point the
     return starts at once and ends where the stopping point said."""
-    old, new = ExcitationSettings(predict=False), ExcitationSettings()
+    old, new = ExcitationSettings(), ExcitationSettings(predict=True)
     far_old, ret_old = _kinematic_pass(old, 0.5, 0.22)
     far_new, ret_new = _kinematic_pass(new, 0.5, 0.22)
     assert np.all(ret_new == 0.0)                            # at once, inside the soft corridor
@@ -88,7 +88,7 @@ def test_at_the_top_speed_the_return_starts_before_the_soft_corridor_and_stays_i
 
 
 def test_a_return_slews_at_the_full_rate_towards_the_line_and_inside_it_the_slews_go_on():
-    s = ExcitationSettings()
+    s = ExcitationSettings(predict=True)
     rule = SlewRule(s, [np.random.default_rng(0)], np.array([SPEED]), 10.0, WHEELBASE, RATE)
     rule.restart(0.0)
     rule.settle_end[:] = -1.0

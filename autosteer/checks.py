@@ -19,7 +19,7 @@ import math
 import numbers
 from collections.abc import Iterable
 
-__all__ = ["finite", "positive", "finite_tuple"]
+__all__ = ["finite", "positive", "finite_tuple", "finite_or_none"]
 
 
 def _label(name: str, where: str) -> str:
@@ -127,3 +127,10 @@ def finite_tuple(values: object, name: str, *, n: int | None = None, lo: float |
     wanted = _wanted(False, lo, hi, lo_open, False, unit).replace("a finite number", f"{count}finite numbers", 1)
     message = f"{_label(name, where)} must be {wanted}, got {values!r:.80}"
     raise error(message + (f"; {fix}" if fix else ""))
+
+
+def finite_or_none(value: float) -> float | None:
+    """``value`` as a float for a file's record, None where it is not finite (JSON has no NaN or infinity: an
+    unstable loop's cost or margin is recorded as unknown)."""
+    v = float(value)
+    return v if math.isfinite(v) else None

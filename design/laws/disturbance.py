@@ -42,7 +42,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.optimize import minimize
 
-from autosteer.checks import finite
+from autosteer.checks import finite, finite_or_none
 
 from design.core.compensator import Compensator, closed_loop_matrix, spectral_radius
 from design.core.errors import DesignInputError
@@ -172,13 +172,6 @@ def _delayed_plant(a_w: np.ndarray, b_w: np.ndarray, q: int, delays: Sequence[in
     return a, b, c
 
 
-def _finite(value: float) -> float | None:
-    """``value`` as a float for a file's record, None when it is not finite (a loop unstable with the latency has
-    no H2 cost; JSON has no infinity)."""
-    v = float(value)
-    return v if math.isfinite(v) else None
-
-
 def _cost(window_models, layout: IOStateLayout, comp: Compensator, qz: np.ndarray, r: np.ndarray,
           spec: DisturbanceSpec, delays: Sequence[int]) -> np.ndarray:
     """H2 cost ``E[z'Qz + u'Ru]`` of each closed loop driven by a unit-variance disturbance (inf if unstable);
@@ -288,7 +281,7 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
         ratio = each / each0
     ratio = ratio[np.isfinite(ratio)]
     record = {**spec.to_dict(), "gain_Kd": (scale * kd).tolist(), "optimal_Kd": kd.tolist(), "scale": scale,
-              "h2_cost_without": _finite(each0.sum()), "h2_cost": _finite(each.sum()),
+              "h2_cost_without": finite_or_none(each0.sum()), "h2_cost": finite_or_none(each.sum()),
               "h2_ratio_worst": float(np.max(ratio)) if ratio.size else None,
               "h2_ratio_mean": float(np.mean(ratio)) if ratio.size else None,
               "latency_samples": delays, "prediction": "mean of the design models' y[k+1] rows",

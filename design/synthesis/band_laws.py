@@ -68,6 +68,7 @@ import time
 from dataclasses import replace
 from typing import Any, Callable, Sequence
 
+from autosteer.checks import finite_or_none
 from identification.model import Model
 
 from design.core.compensator import closed_loop_matrix, integrator_states, spectral_radius
@@ -230,7 +231,8 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                               "base_scale": base_scale, "base_relaxed": base_relaxed,
                               "noise": {"position_m": noise[0], "heading_rad": noise[1], "wheel_angle_rad": noise[2],
                                         "rate_limit_rad_s": rate, "gain_floor": floor,
-                                        "base_gain": _finite(base_g[0]), "base_command_sigma_rad_s": _finite(base_g[1])},
+                                        "base_gain": finite_or_none(base_g[0]),
+                                        "base_command_sigma_rad_s": finite_or_none(base_g[1])},
                               "reach": f"a band law runs half-way to a neighbouring design speed when it is also "
                                        f"stable on that speed's models with the latency in the loop, else "
                                        f"{REACH_FRACTION:g} of the way, the base law in between",
@@ -267,7 +269,7 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                 row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())))
             row["estimate_scale"] = (d.get("disturbance_estimate") or {}).get("scale")
             gain, sig, worst_model = noise_gain(r.file.compensator, inside)
-            row.update(noise_gain=_finite(gain), noise_command_sigma_rad_s=_finite(sig))
+            row.update(noise_gain=finite_or_none(gain), noise_command_sigma_rad_s=finite_or_none(sig))
             top = opts.search.search.high
             if (auto and gain < floor and _layout(r) == layout and d["auto_weights"]["chosen_scale"] < top * (1 - 1e-9)
                     and row["scale"] > base_scale and len(row["relaxed"]) <= base_relaxed):
@@ -284,7 +286,7 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                     gain, sig, worst_model = noise_gain(r.file.compensator, inside)
                     row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())),
                                estimate_scale=(d.get("disturbance_estimate") or {}).get("scale"),
-                               noise_gain=_finite(gain), noise_command_sigma_rad_s=_finite(sig))
+                               noise_gain=finite_or_none(gain), noise_command_sigma_rad_s=finite_or_none(sig))
             if _layout(r) != layout:
                 row.update(kept=False, why=f"its states {_layout(r)} are not the base law's {layout}")
             elif gain < floor:
@@ -369,7 +371,8 @@ def _noise_capped(design_at: Callable[[float], RobustControllerResult],
         d = r.file.design
         relaxed = len(d["auto_weights"].get("relaxed", ()))
         sc = window_scale(d)
-        tried.append({"cap": cap, "scale": sc, "noise_gain": _finite(g), "noise_command_sigma_rad_s": _finite(s),
+        tried.append({"cap": cap, "scale": sc, "noise_gain": finite_or_none(g),
+                      "noise_command_sigma_rad_s": finite_or_none(s),
                       "worst_model": worst, "relaxed": relaxed})
         if progress is not None:
             progress(f"noise cap {cap:.4g}: scale {sc:.4g}, noise gain {g:.3f} on {worst} (floor {floor:.3f})")
@@ -381,7 +384,7 @@ def _noise_capped(design_at: Callable[[float], RobustControllerResult],
     return found, {"rule": f"the band's search again with its top scale capped at {CAP_STEP:g}^k times the band "
                            f"law's scale {scale:.4g} (k = 1-{CAP_STEPS}, down to {CAP_OVER_BASE:g} times the base "
                            f"law's {base_scale:.4g}) until its law passes the noise check",
-                   "uncapped_scale": scale, "uncapped_gain": _finite(gain), "tried": tried,
+                   "uncapped_scale": scale, "uncapped_gain": finite_or_none(gain), "tried": tried,
                    "kept_cap": None if found is None else tried[-1]["cap"]}
 
 
@@ -441,11 +444,6 @@ def _reaching_law(r: RobustControllerResult, k: int, inside: list[int], row: dic
     return band, entry
 
 
-def _finite(x: float) -> float | None:
-    """``x``, or None where a file cannot hold it (not finite)."""
-    return float(x) if math.isfinite(x) else None
-
-
 def _neighbours(res: RobustControllerResult, models: Sequence[Model], names: Sequence[str],
                 speeds: Sequence[float], design_speeds: Sequence[float], specs, latency) -> list[dict]:
     """A band law's spectral radius and disk margin on the models of the other bands, the latency in the loop."""
@@ -456,8 +454,8 @@ def _neighbours(res: RobustControllerResult, models: Sequence[Model], names: Seq
     for c, v in zip(rep.checks, speeds):
         lo, hi = bands_for(design_speeds, [v]).off[0]
         out.append({"name": c.name, "band_mps": [lo, None if math.isinf(hi) else hi],
-                    "spectral_radius": float(c.spectral_radius) if math.isfinite(c.spectral_radius) else None,
-                    "disk_margin": float(c.disk_margin) if math.isfinite(c.disk_margin) else None})
+                    "spectral_radius": finite_or_none(c.spectral_radius),
+                    "disk_margin": finite_or_none(c.disk_margin)})
     return out
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from autosteer.checks import finite, finite_tuple, positive
+from autosteer.checks import finite, finite_or_none, finite_tuple, positive
 from identification.errors import DataError
 
 
@@ -64,3 +64,8 @@ def test_tuples_of_finite_numbers():
         finite_tuple((), "scales", lo=0.0, lo_open=True)
     with pytest.raises(ValueError, match=r"^scales must be finite numbers > 0, got \(1.0, -1.0\)"):
         finite_tuple((1.0, -1.0), "scales", lo=0.0, lo_open=True)
+
+
+def test_a_recorded_number_that_is_not_finite_becomes_none():
+    assert finite_or_none(np.float64(0.25)) == 0.25 and type(finite_or_none(np.float64(0.25))) is float
+    assert finite_or_none(math.inf) is None and finite_or_none(-math.inf) is None and finite_or_none(math.nan) is None

@@ -39,8 +39,9 @@ from hil.commissioning.html import file_sha256, provenance, write_page
 from hil.commissioning.steps import Steps
 from hil.vehicle.commissioning import Commissioning, load_commissioning
 from hil.vehicle.errors import VehicleConfigError
+from hil.vehicle.procedure import Procedure
 
-__all__ = ["LogOptions", "CommissioningError", "commission_from_logs", "driving_seconds", "load_inputs",
+__all__ = ["LogOptions", "CommissioningError", "commission_from_logs", "driving_seconds", "procedure_of", "load_inputs",
            "speed_bands_text", "write_results", "report_text", "top_up_lines"]
 
 LATENCY_SOURCES = ("auto", "valid-time", "declared", "identified")
@@ -112,13 +113,29 @@ class LogOptions:
             raise CommissioningError(f"fallback_order must be None or an order >= 1, got {self.fallback_order!r}")
 
 
-def driving_seconds(logs: list[PassLog]) -> dict:
-    """Seconds of driving the logs hold: ``total`` and per implement (each log's first to last sample)."""
+def driving_seconds(logs: list[PassLog], folder: str | Path | None = None) -> dict:
+    """Seconds of driving behind the pass logs ``logs``: ``passes``, ``per_implement`` and ``total`` (each log's
+    first to last sample). When ``folder`` holds the field procedure these logs were recorded by (its
+    ``plan.json``, :class:`~hil.vehicle.procedure.Procedure`), the procedure's own count instead, step by step: its
+    valve test and the passes a fault spoiled and that were driven again count too."""
+    if folder is not None and (Path(folder) / "plan.json").is_file():
+        try:
+            return Procedure.open(folder).driven_s()
+        except VehicleConfigError as exc:
+            raise CommissioningError(f"the field procedure in {folder}: {exc}") from None
     per: dict[str, float] = {}
     for log in logs:
         imp = str(log.meta.get("implement", "unknown"))
         per[imp] = per.get(imp, 0.0) + float(log.duration)
     return {"passes": sum(per.values()), "per_implement": per, "total": sum(per.values())}
+
+
+def procedure_of(logs: Path) -> Path | None:
+    """The field procedure's folder whose ``logs/`` is ``logs`` (a ``plan.json`` beside it), or None."""
+    folder = Path(logs).parent
+    if Path(logs).name == "logs" and (folder / "plan.json").is_file():
+        return folder
+    return None
 
 
 def load_inputs(logs: Path, commissioning: Path, latency: str = "auto") -> tuple[Commissioning, list[Path],
@@ -183,7 +200,7 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
     steps = Steps(say)
     res: dict = {"tractor": com.tractor, "logs": [str(f) for f in files], "commissioning": str(commissioning),
                  "options": {**asdict(opts), "acceptance": acceptance}, "valve": com.valve.to_dict(),
-                 "driving_s": driving_seconds(passes), "log_sha256": {f.name: file_sha256(f) for f in files}}
+                 "driving_s": driving_seconds(passes, procedure_of(logs)), "log_sha256": {f.name: file_sha256(f) for f in files}}
     models_dir = out / "models"
 
     def identify() -> dict:
@@ -239,7 +256,9 @@ def report_text(res: dict) -> str:
     drv = res["driving_s"]
     lines = [f"# Commissioning of {res['tractor']} from its recorded passes", "",
              f"{len(res['logs'])} pass logs, {drv['total'] / 60:.1f} min of driving ("
-             + ", ".join(f"{imp} {s / 60:.1f} min" for imp, s in sorted(drv['per_implement'].items()))
+             + ", ".join([*(f"{label} {drv[step] / 60:.1f} min" for step, label in (
+                              ("valve test", "valve test"), ("spoiled", "spoiled passes driven again")) if drv.get(step)),
+                          *(f"{imp} {s / 60:.1f} min" for imp, s in sorted(drv['per_implement'].items()))])
              + f"); valve: full-scale rate {res['valve']['full_scale']:g} rad/s, deadband {res['valve']['deadband']:g} "
                "duty.", "", "## Steps", "", "| step | ok | seconds | error |", "|---|---|---:|---|"]
     for s in res["steps"]:

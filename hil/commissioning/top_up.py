@@ -28,12 +28,11 @@ from pathlib import Path
 from typing import Callable
 
 from autosteer.bounded import read_json
-from identification.errors import IdentificationError
-from identification.passlog import PassLog
 from identification.workflow import identify_logs
 
 from hil.commissioning.designs import Designer, attempts, design_with_fallback
-from hil.commissioning.from_logs import CommissioningError, LogOptions, load_inputs, write_results
+from hil.commissioning.from_logs import (CommissioningError, LogOptions, driving_seconds, load_inputs, procedure_of,
+                                         write_results)
 from hil.commissioning.html import file_sha256
 from hil.commissioning.steps import Steps
 
@@ -100,21 +99,6 @@ def _commissioned(res: dict) -> tuple[set[str], dict[str, str | None]]:
             logs[Path(str(f)).name] = sha.get(Path(str(f)).name)
     imps |= {str(t.get("implement")) for t in res.get("top_ups", [])}
     return imps, logs
-
-
-def _spoiled_s(logs: Path, implement: str) -> float:
-    """Seconds of the implement's spoiled passes beside ``logs`` (the procedure's ``spoiled/``; 0 without one):
-    driving a top-up spent too, though nothing is identified from them."""
-    total = 0.0
-    folder = logs.parent / "spoiled"
-    for f in sorted(folder.glob("*.npz")) if folder.is_dir() else []:
-        try:
-            log = PassLog.load(f)
-        except (IdentificationError, ValueError, OSError):
-            continue                     # a damaged log holds no time that can be counted
-        if log.meta.get("implement") == implement:
-            total += float(log.duration)
-    return total
 
 
 def top_up(logs: str | Path, commissioning: str | Path, out: str | Path, options: TopUpOptions,
@@ -203,7 +187,9 @@ def top_up(logs: str | Path, commissioning: str | Path, out: str | Path, options
                                  f"{models_dir}: drive more passes of it, remove {models_dir} and {ctrl} and top up "
                                  "again")
     recorded = sum(p.duration for p, f in zip(passes, files) if f in mine)
-    spoiled = _spoiled_s(logs, name)
+    procedure = procedure_of(logs)    # the spoiled passes of the implement: driving a top-up spent too
+    spoiled = 0.0 if procedure is None else max(
+        driving_seconds([], procedure)["per_implement"].get(name, 0.0) - recorded, 0.0)
     top = {"implement": name, "logs": [str(f) for f in mine], "log_sha256": {f.name: file_sha256(f) for f in mine},
            "commissioning": str(commissioning),
            "driving_s": {"passes": recorded, "spoiled": spoiled, "total": recorded + spoiled},

@@ -339,11 +339,18 @@ class Procedure:
         return [p for p in self.plan.planned() if p.key not in good]
 
     def driven_s(self) -> dict:
-        """Seconds of driving so far per step: ``valve test`` (once done), ``passes`` (every recorded pass,
-        spoiled ones too) and ``total``."""
+        """Seconds of driving so far per step: ``valve test`` (once done), ``passes`` (the good ones), ``spoiled``
+        (the passes a fault spoiled, driven again), ``total``, and ``per_implement`` (passes, spoiled ones too)."""
         valve = self.plan.seconds()["valve test"] if (Path(self.folder) / "commissioning.json").is_file() else 0.0
-        passes = sum(log.duration for _, log in self._read(self.logs) + self._read(self.spoiled))
-        return {"valve test": valve, "passes": passes, "total": valve + passes}
+        kept, spoiled = self._read(self.logs), self._read(self.spoiled)
+        per: dict[str, float] = {}
+        for _, log in kept + spoiled:
+            imp = str(log.meta.get("implement", "unknown"))
+            per[imp] = per.get(imp, 0.0) + float(log.duration)
+        passes = sum(float(log.duration) for _, log in kept)
+        again = sum(float(log.duration) for _, log in spoiled)
+        return {"valve test": valve, "passes": passes, "spoiled": again, "total": valve + passes + again,
+                "per_implement": per}
 
     def status(self) -> dict:
         """What is done and what is next: ``valve_test_done``, ``recorded`` and ``remaining`` passes (labels),
@@ -352,10 +359,8 @@ class Procedure:
         planned = self.plan.planned()
         good = {pass_key(log) for _, log in self._read(self.logs)}
         spoiled = self._read(self.spoiled)
-        driven = sum(log.duration for _, log in self._read(self.logs)) + sum(log.duration for _, log in spoiled)
+        driven = self.driven_s()["total"]
         valve_done = (Path(self.folder) / "commissioning.json").is_file()
-        if valve_done:
-            driven += self.plan.seconds()["valve test"]
         remaining = [p for p in planned if p.key not in good]
         if not valve_done and self.plan.valve_test is not None:
             nxt = (f"valve test at standstill (hil valve-test --bridge PORT --out {self.folder}): engine running, "

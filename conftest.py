@@ -1,4 +1,4 @@
-"""Shared test fixtures: executing a notebook of ``notebooks/`` the way a user would; long test files first.
+"""Shared test fixtures: executing a notebook of ``notebooks/`` the way a user would; the longest test files first.
 
 It lives at the repository root, not in ``tests/``: a conftest in ``tests/`` would put
 ``tests/`` on ``sys.path``, where ``tests/hil`` and friends would shadow the packages.
@@ -37,12 +37,18 @@ def run_notebook(tmp_path):
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Put the test files that hold a test marked ``long`` first, each file's order kept.
+    """Order the test files by how long they take: those with a test marked ``long`` first, then those with a
+    ``slow``, ``realtime`` or ``notebook`` test, then the rest; each file's tests and each group's files keep
+    their order.
 
     ``tasks.py test`` gives whole files to pytest-xdist's workers in this order (``--dist loadfile
     --no-loadscope-reorder``), so a worker starts on the longest file (minutes: a short commissioning campaign)
-    while the others take the rest, rather than starting it when the rest is nearly done.
+    while the others take the rest, and the last files handed out are the quick ones: a worker that finishes
+    early then waits on seconds of the other's work, not on a minute-long file given out at the end.
     """
-    long_files = {item.path for item in items if item.get_closest_marker("long")}
-    if long_files:
-        items.sort(key=lambda item: item.path not in long_files)     # stable: every other order is kept
+    rank: dict[Path, int] = {}
+    for item in items:
+        marks = {m.name for m in item.iter_markers()}
+        here = 0 if "long" in marks else 1 if marks & {"slow", "realtime", "notebook"} else 2
+        rank[item.path] = min(rank.get(item.path, 2), here)
+    items.sort(key=lambda item: rank[item.path])     # stable: every other order is kept

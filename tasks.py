@@ -152,7 +152,7 @@ _ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NU
 
 def _workers() -> list[str]:
     """pytest-xdist options: one worker per core, whole test files to a worker (so a module's fixtures are
-    built once), in the order of collection (the files with a ``long`` test first: conftest.py); none on a
+    built once), in the order of collection (the longest files first: conftest.py); none on a
     single core. ``-n 0`` after ``tasks.py test`` runs everything in one process."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     return ["-n", str(cores), "--dist", "loadfile", "--no-loadscope-reorder"] if cores > 1 else []

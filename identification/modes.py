@@ -19,22 +19,23 @@ identification asks it to, :mod:`identification.tractor`; a generic identificati
 since a plant may have real fast resonances). Over a campaign of 22 tractors 49 of 418
 models had one.
 
-A pole *pair* above a quarter of the sample rate is named too when it is resonant (damping
-ratio below :data:`RESONANCE_DAMPING`, ``1/sqrt(2)``: its gain peaks above its static gain),
-however fast it decays. Between a quarter of the rate and the Nyquist frequency an oscillation
-lasts 2 to 4 samples per period; the tractor has none there (the valve and the wheel are
-first-order lags under 2 Hz, the yaw modes slower): a sampled lag is a pole on the positive real
-axis, and a low-order fit of a fraction of a sample of latency puts a pole or zero on the
-negative one, never a pair. A fitted pair there is the noise of the fit; its gain peak
-at 5-10 Hz is a loop gain the controller must survive on that one model. On the held-out
-random-102 tractor ``local_ripper_5th`` at order 8 (score 80.8 against 75.8 at order 4) had
-a pair at ``-0.472+-0.479j``: 7.5 Hz, damping ratio 0.17, gone in 0.13 s (so under
-:data:`ARTEFACT_DECAY_S`); the one robust law every speed band falls back to could not be
-made faster than scale 0.05 without losing the disk margin on that model, and reached 2.6
-with the order-4 model in its place (and the laws of the speed bands under 1.4 m/s, 0.16 before,
-3.8). Real poles on the negative axis keep the decay bound alone: most models of order 5 carry
-one (``-0.01`` to ``-0.77`` over 21 commissioned tractors). Over those
-tractors 19 of 273 models had a resonant pair that the decay bound let in.
+A pole *pair* above a quarter of the sample rate is named too when it is a lightly damped
+resonance, however fast it decays: its gain peak is at least :data:`RESONANCE_PEAK` (twice) its
+static gain, a damping ratio below :data:`RESONANCE_DAMPING` (0.26). Between a quarter of the
+rate and the Nyquist frequency an oscillation lasts 2 to 4 samples per period; the tractor has
+none there (the valve and the wheel are first-order lags under 2 Hz, the yaw modes slower): a
+sampled lag is a pole on the positive real axis, and a low-order fit of a fraction of a sample
+of latency puts a pole or zero on the negative one, never a pair. A fitted pair there is the
+noise of the fit; its gain peak at 5-10 Hz is a loop gain the controller must survive on that
+one model. On the held-out random-102 tractor ``local_ripper_5th`` at order 8 (score 80.8
+against 75.8 at order 4) had a pair at ``-0.472+-0.479j``: 7.5 Hz, damping ratio 0.17, gone in
+0.13 s (so under :data:`ARTEFACT_DECAY_S`); the one robust law every speed band falls back to
+could not be made faster than scale 0.05 without losing the disk margin on that model, and
+reached 2.6 with the order-4 model in its place (the law of the speed band under 1.4 m/s: 0.16
+before, 3.8). A pair damped more has no peak to speak of (random-107's ``local_disker_13th``,
+0.39: 1.4 times) and is left to the decay bound, as are real poles on the negative axis: most
+models of order 5 carry one (``-0.01`` to ``-0.77`` over 21 commissioned tractors). Over those
+tractors 16 of 273 models (on 12 tractors) had a lightly damped pair that the decay bound let in.
 """
 
 from __future__ import annotations
@@ -48,9 +49,11 @@ ARTEFACT_HZ = 5.0
 #: A mode above :data:`ARTEFACT_HZ` that decays more slowly than this, s, is an artefact
 #: (with 5 Hz: a damping ratio below about 0.16).
 ARTEFACT_DECAY_S = 0.2
-#: A complex pole pair above :data:`ARTEFACT_HZ` with a damping ratio below this is an artefact
-#: however fast it decays: below ``1/sqrt(2)`` a second-order mode's gain peaks above its static gain.
-RESONANCE_DAMPING = 1.0 / math.sqrt(2.0)
+#: A complex pole pair above :data:`ARTEFACT_HZ` whose second-order gain peak ``1 / (2 z sqrt(1 - z^2))``
+#: (damping ratio ``z``) is at least this many times its static gain is an artefact however fast it decays.
+RESONANCE_PEAK = 2.0
+#: The damping ratio of that peak, about 0.26: a pair damped less is named.
+RESONANCE_DAMPING = math.sqrt((1.0 - math.sqrt(1.0 - 1.0 / RESONANCE_PEAK ** 2)) / 2.0)
 
 
 def damping_ratio(p: complex, dt: float) -> float:

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identification.modes import ARTEFACT_DECAY_S, ARTEFACT_HZ, RESONANCE_DAMPING, damping_ratio, sampling_artefact
+from identification.modes import (ARTEFACT_DECAY_S, ARTEFACT_HZ, RESONANCE_DAMPING, RESONANCE_PEAK, damping_ratio,
+                                  sampling_artefact)
 from identification.selection import fit_select
 from test_selection import random_system, simulated_record
 
@@ -42,9 +43,11 @@ def _pair(hz: float, zeta: float) -> np.ndarray:
 
 @pytest.mark.parametrize("hz, decay_s, named", [(ARTEFACT_HZ + 0.5, 2 * ARTEFACT_DECAY_S, True),
                                                  (ARTEFACT_HZ - 0.5, 2 * ARTEFACT_DECAY_S, False),
-                                                 (ARTEFACT_HZ + 0.5, 0.5 * ARTEFACT_DECAY_S, True)])
+                                                 (ARTEFACT_HZ + 0.5, 0.5 * ARTEFACT_DECAY_S, False),
+                                                 (ARTEFACT_HZ + 0.5, 0.15, True)])
 def test_the_band_and_the_decay_bound_the_rule(hz, decay_s, named):
-    # the third pair decays fast but is resonant (damping ratio 0.28): named for its resonance
+    # the third pair (damping ratio 0.28) is no lightly damped resonance; the fourth (0.15 s, 0.19) decays faster
+    # than the bound and is one
     a = _rotation(float(np.exp(-DT / decay_s)), hz)
     assert (sampling_artefact(a, DT) is not None) == named
 
@@ -74,11 +77,17 @@ def test_random_102s_fast_pair_is_named_though_it_dies_in_013_s():
 @pytest.mark.parametrize("hz, zeta, named", [(7.5, RESONANCE_DAMPING - 0.05, True),
                                              (7.5, RESONANCE_DAMPING + 0.05, False),
                                              (ARTEFACT_HZ - 0.5, 0.17, False),
-                                             (9.5, 0.3, True)])
+                                             (9.5, 0.2, True),
+                                             (9.5, 0.39, False)])
 def test_the_resonance_bound(hz, zeta, named):
     a = _pair(hz, zeta)
     assert damping_ratio(np.linalg.eigvals(a)[0], DT) == pytest.approx(zeta, abs=1e-9)
     assert (sampling_artefact(a, DT) is not None) == named
+
+
+def test_the_peak_bound_is_a_gain_peak_twice_the_static_gain():
+    z = RESONANCE_DAMPING
+    assert 1 / (2 * z * np.sqrt(1 - z ** 2)) == pytest.approx(RESONANCE_PEAK) and 0.25 < z < 0.26
 
 
 def test_damping_ratio_of_sampled_modes():

@@ -17,6 +17,13 @@ stays rich while the tractor stays near the line:
   and turning it back takes the valve about as long: a return that starts at 0.6 m of the line
   ends beyond 1.5 m. The return then slews the wheel towards the line up to ``soft_limit`` at once,
   the turn the prediction assumed;
+- the **guard** (``guard``, the default) keeps the paper's rule on the measured cross-track and adds a return
+  only where the stopping point would pass a guard line ``guard_margin`` inside the hard corridor: it slews
+  the wheel towards the line at once, as with ``predict``, until the stopping point is back inside the soft
+  corridor. Its stopping point turns from the **trim**, the wheel angle that drives the tractor straight,
+  estimated from the measured wheel angle and the heading's rate: a towed disker's pull takes up to half of
+  the return's turn. Elsewhere the passes are the paper's rule's, so only the few stretches that would
+  otherwise leave the corridor change;
 - the **hard corridor** (``corridor``, default 1.5 m) is the loop's own limit
   (:attr:`hil.vehicle.loop.LoopConfig.max_cross_track`, set by :meth:`ExcitationSettings.loop_config`):
   beyond it the loop disengages, so the pass is spoiled and driven again
@@ -78,14 +85,26 @@ class ExcitationSettings:
     predict
         Keep the soft corridor on the stopping point (:func:`stopping_offset`) rather than on the measured
         cross-track, and return by slewing the wheel towards the line; False (default): the paper's rule, on
-        the measured cross-track. On the stopping point no pass at 2.91 m/s left the corridor on the bench
-        (one to four per tractor did with the paper's rule), but those passes move less across the line and a
-        generated tractor's robust controller, designed on them, went from 0.84-0.87x to 1.02x the paper's
-        method at 1.00 m/s: not the default until the identification it gives is shown no worse.
+        the measured cross-track (and the guard, ``guard``). On the stopping point no pass at 2.91 m/s left the
+        corridor on the bench (one to four per tractor did with the paper's rule), but those passes move less
+        across the line and a generated tractor's robust controller, designed on them, went from 0.84-0.87x to
+        1.02x the paper's method at 1.00 m/s: not the default.
     reaction
-        With ``predict``: the time before a return turns the wheel, s, over which the prediction lets the
-        wheel go on as commanded: the age of the fix the loop acts on (a 5 Hz position epoch and the
+        With ``predict`` or ``guard``: the time before a return turns the wheel, s, over which the prediction
+        lets the wheel go on as commanded: the age of the fix the loop acts on (a 5 Hz position epoch and the
         receivers' latency, about 0.3 s) and the valve's delay (about 0.1 s).
+    guard, guard_margin
+        The **guard** (default on): besides the paper's rule, a return begins at once, slewing the wheel
+        towards the line up to ``soft_limit``, when the stopping point (:func:`stopping_offset`) lies beyond
+        ``corridor - guard_margin``, and it lasts until the stopping point is back inside the soft corridor.
+        The margin holds what the prediction neglects: the fix's age between two position epochs (0.2 s at
+        5 Hz, 0.12 m at 2.91 m/s with a heading of 0.2 rad) and its noise (3-sigma of an RTK fixed position
+        with its multipath, about 0.07 m). Inside the guard line the rule is the paper's as it is, so only the
+        stretches that would otherwise leave the corridor change.
+    pull_time
+        With the guard: the time constant, s, over which the rule estimates the wheel angle that drives the
+        tractor straight (the measured wheel angle less the one the measured heading's rate asks for), the trim
+        the guard's stopping point turns from: a towed disker's pull takes up to half the return's turn.
     """
 
     slew_min: float = 0.2
@@ -103,16 +122,25 @@ class ExcitationSettings:
     offset_hold_max: float = 10.0
     predict: bool = False
     reaction: float = 0.4
+    guard: bool = True
+    guard_margin: float = 0.2
+    pull_time: float = 5.0
 
     def __post_init__(self) -> None:
         for k, v in self.__dict__.items():
-            if k == "predict":
+            if k in ("predict", "guard"):
                 if not isinstance(v, bool):
-                    raise VehicleConfigError(f"excitation predict must be true or false, got {v!r}")
+                    raise VehicleConfigError(f"excitation {k} must be true or false, got {v!r}")
                 continue
             finite(v, k, lo=0.0, where="excitation", error=VehicleConfigError)
-        if self.predict and self.soft_limit <= 0:
-            raise VehicleConfigError("excitation: predict needs soft_limit > 0 (the wheel angle a return turns to)")
+        for k in ("predict", "guard"):
+            if getattr(self, k) and self.soft_limit <= 0:
+                raise VehicleConfigError(f"excitation: {k} needs soft_limit > 0 (the wheel angle a return turns to)")
+        if self.guard and self.pull_time <= 0:
+            raise VehicleConfigError("excitation: the guard needs pull_time > 0 (the trim's time constant)")
+        if self.guard and not self.return_at < self.corridor - self.guard_margin:
+            raise VehicleConfigError(f"excitation: the guard needs return_at ({self.return_at:g} m) < corridor - "
+                                     f"guard_margin ({self.corridor:g} - {self.guard_margin:g} m)")
         if self.slew_min > self.slew_max or self.hold_min > self.hold_max or self.slew_max == 0:
             raise VehicleConfigError("excitation: need 0 < slew_min <= slew_max and hold_min <= hold_max")
         if not 0 < self.return_at < self.corridor:
@@ -131,14 +159,14 @@ class ExcitationSettings:
 
 
 def stopping_offset(heading, wheel, rate, speed, wheelbase: float, max_rate: float, wheel_limit: float,
-                    reaction: float) -> np.ndarray:
+                    reaction: float, trim=0.0) -> np.ndarray:
     """Cross-track the tractor still gains before its heading is back to zero, m (+ = left), if the wheel turns
     against the heading after ``reaction`` s.
 
-    Kinematic bicycle on a straight line (heading rate ``speed / wheelbase * wheel``, cross-track rate
+    Kinematic bicycle on a straight line (heading rate ``speed / wheelbase * (wheel - trim)``, cross-track rate
     ``speed * heading``): for ``reaction`` s the wheel goes on at the commanded ``rate``; then it slews at
     ``max_rate`` towards ``wheel_limit`` on the side that turns the heading back (the side opposite to the
-    heading the tractor would end with if the wheel came back to the centre) and holds there, until the heading
+    heading the tractor would end with if the wheel came back to the trim) and holds there, until the heading
     is zero. Closed form, element-wise on numpy arrays.
 
     Parameters
@@ -150,11 +178,15 @@ def stopping_offset(heading, wheel, rate, speed, wheelbase: float, max_rate: flo
     wheelbase, max_rate, wheel_limit, reaction
         Wheelbase [m], the valve's slew rate [rad/s], the wheel angle the turn goes to [rad] and the time
         before it starts [s].
+    trim
+        The wheel angle at which the tractor drives straight, rad (+ = left; 0 without a pull): a towed
+        implement's pull takes that much of the turn towards one side.
     """
-    heading, wheel, rate = (np.asarray(v, dtype=float) for v in (heading, wheel, rate))
+    heading, wheel, rate, trim = (np.asarray(v, dtype=float) for v in (heading, wheel, rate, trim))
     v = np.asarray(speed, dtype=float)
     k = np.maximum(v / wheelbase, 1e-9)
-    r, a, tau = float(max_rate), float(wheel_limit), float(reaction)
+    r, tau = float(max_rate), float(reaction)
+    wheel = wheel - trim    # from here on the wheel angle beyond the trim, the one that turns the heading
     # the reaction: the wheel goes on as commanded
     d1 = wheel + rate * tau
     p1 = heading + k * (wheel * tau + 0.5 * rate * tau ** 2)
@@ -162,6 +194,9 @@ def stopping_offset(heading, wheel, rate, speed, wheelbase: float, max_rate: flo
     # turned against the heading it would end with: flipped so that the turn is towards negative wheel angles
     side = np.where(p1 + k * d1 * np.abs(d1) / (2.0 * r) >= 0.0, 1.0, -1.0)
     p, d = side * p1, side * d1
+    # the wheel turns to -side * wheel_limit: beyond the trim, that much (at least a little: a pull the limit
+    # does not hold is a very long way)
+    a = np.maximum(float(wheel_limit) + side * trim, 1e-3)
     # heading zero while the wheel still slews (the later root: the heading's last return to zero)
     t_zero = (d + np.sqrt(np.maximum(d * d + 2.0 * r * p / k, 0.0))) / r
     t_slew = np.maximum(d + a, 0.0) / r
@@ -213,6 +248,12 @@ class SlewRule:
         self.t_end = np.full(B, 0.0 if s.servo > 0 else s.settle)
         self.n_made = np.zeros(B, dtype=int)
         self.returning = np.zeros(B, dtype=bool)
+        self.recall = np.zeros(B, dtype=bool)       # the paper's return (on the stopping point with predict)
+        self.guarding = np.zeros(B, dtype=bool)     # the guard's return
+        self.prompt = np.zeros(B, dtype=bool)       # a return that slews towards the line at once
+        self.guard_count = np.zeros(B, dtype=int)   # returns the guard began
+        self.trim = np.zeros(B)                     # the wheel angle that drives straight, estimated
+        self.last_yaw, self.last_t = np.zeros(B), None
         self.y_ref = np.zeros(B)
         self.servo_u = np.zeros(B)
         self.last_rate = np.zeros(B)
@@ -230,6 +271,10 @@ class SlewRule:
         self.settle_end[:] = now + self.settings.settle
         self.t_end[:] = now if self.settings.servo > 0 else now + self.settings.settle
         self.returning[:] = False
+        self.recall[:] = False
+        self.guarding[:] = False
+        self.prompt[:] = False
+        self.last_t = None      # the trim goes on from where it was: a pull outlasts a disengagement
         self.y_ref[:] = 0.0
         self.servo_u[:] = 0.0
         self.last_rate[:] = 0.0
@@ -244,16 +289,33 @@ class SlewRule:
         delta_m = np.asarray(delta_m, dtype=float)
         # beyond the soft corridor: back to the line, no randomness, until well inside it again; with predict,
         # the corridor holds the point where the heading would be back to zero if the return began now
-        stop = y_m
+        ref = y_m
         if s.predict:
+            ref = y_m + stopping_offset(yaw, delta_m, self.last_rate, self.speed, self.wheelbase, self.max_rate,
+                                        s.soft_limit, s.reaction)
+        self.recall = np.where(np.abs(ref) > s.return_at, True,
+                               np.where(np.abs(ref) < 0.5 * s.return_at, False, self.recall))
+        stop = ref
+        if s.guard:     # the stopping point beyond the guard line: a return now, until it is back in the soft corridor
+            yaw = np.asarray(yaw, dtype=float)
+            if self.last_t is not None and now > self.last_t:
+                # the trim: the wheel angle less the one the heading's rate asks for, averaged over pull_time
+                a = min((now - self.last_t) / s.pull_time, 1.0)
+                self.trim = self.trim + a * (delta_m - self.trim) - (a / (now - self.last_t)) * (
+                    self.wheelbase / np.maximum(self.speed, 1e-9)) * (yaw - self.last_yaw)
+            self.last_yaw, self.last_t = yaw, now
             stop = y_m + stopping_offset(yaw, delta_m, self.last_rate, self.speed, self.wheelbase, self.max_rate,
-                                         s.soft_limit, s.reaction)
-        was = self.returning
-        self.returning = np.where(np.abs(stop) > s.return_at, True,
-                                  np.where(np.abs(stop) < 0.5 * s.return_at, False, self.returning))
-        back = -np.sign(stop)
-        if s.predict:   # a return begins at once, not when the stretch under way ends
-            begun = self.returning & ~was
+                                         s.soft_limit, s.reaction, self.trim)
+            self.guarding = np.where(np.abs(stop) > s.corridor - s.guard_margin, True,
+                                     np.where(np.abs(stop) < s.return_at, False, self.guarding))
+        # the returns that slew the wheel towards the line at once (the turn the stopping point assumes)
+        prompt = self.recall | self.guarding if s.predict else self.guarding
+        self.returning = self.recall | self.guarding
+        back = -np.sign(np.where(self.guarding, stop, ref))
+        begun = prompt & ~self.prompt   # such a return begins at once, not when the stretch under way ends
+        self.prompt = prompt
+        if np.any(begun):
+            self.guard_count = self.guard_count + (self.guarding & begun)
             mode = np.where(begun, 0.0, mode)
             self.t_end = np.where(begun, now, self.t_end)
         # end a slew early at the soft limit; then choose the next stretch when one ends
@@ -270,8 +332,8 @@ class SlewRule:
             else:
                 noise = np.where(self.returning, 0.0, s.direction_noise * ud)
                 direction = np.sign(want - delta_m + noise)
-            if s.predict:       # a return slews the wheel towards the line, up to the soft limit
-                direction = np.where(self.returning, np.where(back * delta_m < s.soft_limit, back, 0.0), direction)
+            # a prompt return slews the wheel towards the line, up to the soft limit
+            direction = np.where(self.prompt, np.where(back * delta_m < s.soft_limit, back, 0.0), direction)
             slew_len = s.slew_min + ul * (s.slew_max - s.slew_min)
             settling = now < self.settle_end
             hold_len = np.where(self.returning | settling, s.hold_min, s.hold_min + ul * (s.hold_max - s.hold_min))
@@ -300,8 +362,8 @@ class SlewRule:
             want = np.clip(-(2.0 * self.wheelbase / look ** 2) * (y_m - y_ref + look * yaw), -s.soft_limit,
                            s.soft_limit)
             u = s.servo * (want - delta_m)
-            if s.predict:   # returning: the return's slew turns the wheel, then the servo holds it at the limit
-                u = np.where(self.returning, np.where(mode != 0, 0.0, s.servo * (back * s.soft_limit - delta_m)), u)
+            # a prompt return: its slew turns the wheel, then the servo holds it at the limit
+            u = np.where(self.prompt, np.where(mode != 0, 0.0, s.servo * (back * s.soft_limit - delta_m)), u)
             self.servo_u = np.where(due, u, self.servo_u)
         self.last_rate = np.clip(mode * self.max_rate + self.servo_u, -self.max_rate, self.max_rate)
         return self.last_rate

@@ -13,21 +13,22 @@ from hil.vehicle.excitation import ExcitationSettings, SlewRule, stopping_offset
 SPEED, WHEELBASE, RATE, DT = 2.91, 3.0, 0.3, 0.05
 
 
-def _integrated_stop(heading, wheel, rate, speed, wheelbase, max_rate, limit, reaction, dt=1e-4):
+def _integrated_stop(heading, wheel, rate, speed, wheelbase, max_rate, limit, reaction, trim=0.0, dt=1e-4):
     """The stopping point by small Euler steps of the same turn: the wheel goes on at ``rate`` for ``reaction`` s,
     then slews at ``max_rate`` to the limit against the heading it would end with, until the heading is back to
-    zero with the wheel turning it away."""
+    zero with the wheel turning it away; the heading turns with the wheel's angle beyond ``trim``."""
     k, y, t = speed / wheelbase, 0.0, 0.0
     while t < reaction - 1e-12:
-        heading += k * wheel * dt
+        heading += k * (wheel - trim) * dt
         y += speed * heading * dt
         wheel += rate * dt
         t += dt
-    side = 1.0 if heading + k * wheel * abs(wheel) / (2 * max_rate) >= 0 else -1.0
-    while not (side * heading <= 0 and side * wheel < 0):
+    e = wheel - trim
+    side = 1.0 if heading + k * e * abs(e) / (2 * max_rate) >= 0 else -1.0
+    while not (side * heading <= 0 and side * (wheel - trim) < 0):
         if side * wheel > -limit:
             wheel -= side * min(max_rate * dt, side * wheel + limit)
-        heading += k * wheel * dt
+        heading += k * (wheel - trim) * dt
         y += speed * heading * dt
     return y
 
@@ -42,20 +43,31 @@ def test_the_stopping_point_is_where_the_turn_back_brings_the_heading_to_zero():
         got = float(stopping_offset(heading, wheel, rate, speed, WHEELBASE, RATE, 0.2, reaction))
         assert got == pytest.approx(_integrated_stop(heading, wheel, rate, speed, WHEELBASE, RATE, 0.2, reaction),
                                     abs=2e-3)
+    # a pull that takes part of the turn: the same closed form on the wheel angle beyond the trim, and further
+    for heading, wheel, rate, trim in ((0.15, 0.0, 0.0, -0.08), (0.1, 0.05, 0.3, -0.05), (-0.12, 0.0, -0.3, 0.06)):
+        got = float(stopping_offset(heading, wheel, rate, 2.91, WHEELBASE, RATE, 0.2, 0.4, trim))
+        assert got == pytest.approx(_integrated_stop(heading, wheel, rate, 2.91, WHEELBASE, RATE, 0.2, 0.4, trim),
+                                    abs=2e-3)
+    assert stopping_offset(0.15, 0.0, 0.0, 2.91, WHEELBASE, RATE, 0.2, 0.4, -0.08) > \
+        stopping_offset(0.15, 0.0, 0.0, 2.91, WHEELBASE, RATE, 0.2, 0.4) + 0.3
     # faster: further, for the same heading
     far = stopping_offset(0.2, 0.0, 0.0, np.array([1.0, 1.79, 2.91]), WHEELBASE, RATE, 0.2, 0.4)
     assert np.all(np.diff(far) > 0) and far[-1] > 0.6
 
 
 def _kinematic_pass(settings: ExcitationSettings, y0: float, heading0: float, seeds: int = 8, duration: float = 6.0,
-                    delay: float = 0.3):
-    """A kinematic tractor at 2.91 m/s whose measurements are ``delay`` s old, steered by the rule (slews on from
+                    delay: float = 0.3, speed: float = SPEED, commands: list | None = None, pull: float = 0.0,
+                    rules: list | None = None):
+    """A kinematic tractor at ``speed`` whose measurements are ``delay`` s old, steered by the rule (slews on from
     the start) from ``y0`` m off the line with ``heading0`` rad towards its outside: the farthest it went from the
-    line and when the rule first returned, per seed."""
-    rule = SlewRule(settings, [np.random.default_rng(i) for i in range(seeds)], np.full(seeds, SPEED), duration,
+    line and when the rule first returned, per seed (the rule's commands appended to ``commands``, the rule to
+    ``rules``); with ``pull`` the tractor drives straight at that wheel angle (a towed implement's pull)."""
+    rule = SlewRule(settings, [np.random.default_rng(i) for i in range(seeds)], np.full(seeds, speed), duration,
                     WHEELBASE, RATE)
     rule.restart(0.0)
     rule.settle_end[:] = -1.0
+    if rules is not None:
+        rules.append(rule)
     lag = int(round(delay / DT))
     y, heading, wheel = np.full(seeds, y0), np.full(seeds, heading0), np.zeros(seeds)
     seen = [(y.copy(), heading.copy(), wheel.copy())] * (lag + 1)
@@ -63,10 +75,12 @@ def _kinematic_pass(settings: ExcitationSettings, y0: float, heading0: float, se
     for k in range(int(duration / DT)):
         ym, hm, wm = seen[-1 - lag]
         u = rule.rate(k * DT, wm, ym, hm)
+        if commands is not None:
+            commands.append(u.copy())
         first_return = np.where(np.isnan(first_return) & rule.returning, k * DT, first_return)
         wheel = wheel + np.clip(u, -RATE, RATE) * DT
-        heading = heading + SPEED / WHEELBASE * wheel * DT
-        y = y + SPEED * heading * DT
+        heading = heading + speed / WHEELBASE * (wheel - pull) * DT
+        y = y + speed * heading * DT
         seen.append((y.copy(), heading.copy(), wheel.copy()))
         farthest = np.maximum(farthest, np.abs(y))
     return farthest, first_return
@@ -76,7 +90,7 @@ def test_at_the_top_speed_the_return_starts_before_the_soft_corridor_and_stays_i
     """0.5 m off the line, heading 0.22 rad away from it at 2.91 m/s: the paper's rule returns only at 0.6 m,
     and turning the heading back then takes the tractor beyond the 1.5 m corridor; on the stopping point the
     return starts at once and ends where the stopping point said."""
-    old, new = ExcitationSettings(), ExcitationSettings(predict=True)
+    old, new = ExcitationSettings(guard=False), ExcitationSettings(predict=True, guard=False)
     far_old, ret_old = _kinematic_pass(old, 0.5, 0.22)
     far_new, ret_new = _kinematic_pass(new, 0.5, 0.22)
     assert np.all(ret_new == 0.0)                            # at once, inside the soft corridor
@@ -85,6 +99,41 @@ def test_at_the_top_speed_the_return_starts_before_the_soft_corridor_and_stays_i
     stop = 0.5 + float(stopping_offset(0.22, 0.0, 0.0, SPEED, WHEELBASE, RATE, new.soft_limit, new.reaction))
     assert np.all(far_new <= stop + 0.02) and np.max(far_new) < new.corridor
     assert np.median(far_new) < np.median(far_old) - 0.2
+
+
+def test_the_guard_returns_before_the_hard_corridor_where_the_papers_rule_lets_the_tractor_out():
+    """The same start (0.5 m off, 0.22 rad outwards at 2.91 m/s) with the default rule: the paper's rule and the
+    guard, whose return begins at once because the stopping point is beyond the guard line, and ends inside the
+    hard corridor."""
+    guard = ExcitationSettings()
+    assert guard.guard and not guard.predict
+    stop = 0.5 + float(stopping_offset(0.22, 0.0, 0.0, SPEED, WHEELBASE, RATE, guard.soft_limit, guard.reaction))
+    assert stop > guard.corridor - guard.guard_margin
+    far_paper, _ = _kinematic_pass(ExcitationSettings(guard=False), 0.5, 0.22)
+    far_guard, ret_guard = _kinematic_pass(guard, 0.5, 0.22)
+    assert np.max(far_paper) > guard.corridor
+    assert np.all(ret_guard == 0.0) and np.all(far_guard <= stop + 0.02) and np.max(far_guard) < guard.corridor
+
+
+@pytest.mark.parametrize("speed, y0, heading0", [(2.91, 0.0, 0.0), (1.0, 0.5, 0.22), (2.91, 0.3, 0.05)])
+def test_well_inside_the_corridor_the_guard_changes_nothing(speed, y0, heading0):
+    """Where the stopping point stays short of the guard line the rule is the paper's, command for command."""
+    paper, guard = [], []
+    far_paper, _ = _kinematic_pass(ExcitationSettings(guard=False), y0, heading0, speed=speed, commands=paper)
+    far_guard, _ = _kinematic_pass(ExcitationSettings(), y0, heading0, speed=speed, commands=guard)
+    assert np.max(far_paper) < ExcitationSettings().corridor - ExcitationSettings().guard_margin
+    assert np.array_equal(np.array(paper), np.array(guard)) and np.array_equal(far_paper, far_guard)
+
+
+def test_the_guard_learns_the_wheel_angle_that_drives_straight_under_a_pull():
+    """A pull that needs 0.06 rad of wheel to drive straight: the rule's trim finds it from the wheel angle and
+    the heading's rate, and the guard turns from it."""
+    rules = []
+    _kinematic_pass(ExcitationSettings(), 0.0, 0.0, duration=25.0, pull=-0.06, rules=rules)
+    assert np.all(np.abs(rules[0].trim + 0.06) < 0.02), rules[0].trim
+    rules = []
+    _kinematic_pass(ExcitationSettings(), 0.0, 0.0, duration=25.0, rules=rules)
+    assert np.all(np.abs(rules[0].trim) < 0.02), rules[0].trim
 
 
 def test_a_return_slews_at_the_full_rate_towards_the_line_and_inside_it_the_slews_go_on():
@@ -103,8 +152,13 @@ def test_a_return_slews_at_the_full_rate_towards_the_line_and_inside_it_the_slew
     assert not rule.returning[0]
 
 
-def test_predict_is_checked():
+def test_predict_and_the_guard_are_checked():
     with pytest.raises(VehicleConfigError, match="predict"):
         ExcitationSettings(predict=1)
+    with pytest.raises(VehicleConfigError, match="guard"):
+        ExcitationSettings(guard="yes")
+    with pytest.raises(VehicleConfigError, match="guard"):
+        ExcitationSettings(return_at=0.6, corridor=1.5, guard_margin=0.9)
+    assert ExcitationSettings(return_at=0.6, corridor=1.5, guard_margin=0.9, guard=False).corridor == 1.5
     with pytest.raises(VehicleConfigError, match="reaction"):
         ExcitationSettings(reaction=-0.1)

@@ -30,6 +30,13 @@ def window_design():
     return models, spec, res, layout, list(zip(a_list, b_list)), data, k
 
 
+@pytest.fixture(scope="module")
+def estimated(window_design):
+    """The window law with the estimate of the default specification: one design for the tests that read it."""
+    models, spec, res, *_ = window_design
+    return with_disturbance_estimate(res, models, spec, DisturbanceSpec())
+
+
 def _run(comp, ys, u_applied=None):
     """Step a compensator on a sequence of outputs (engage from X0 y[0]); the commands."""
     xc = comp.X0 @ ys[0]
@@ -77,9 +84,9 @@ def test_the_estimate_finds_a_constant_pull_on_the_heading(window_design):
     assert abs(est[0]) < 0.02 * pull
 
 
-def test_the_estimate_lowers_the_h2_cost_and_is_certified(window_design):
+def test_the_estimate_lowers_the_h2_cost_and_is_certified(window_design, estimated):
     models, spec, res, layout, wm, data, k = window_design
-    out = with_disturbance_estimate(res, models, spec, DisturbanceSpec())
+    out = estimated
     rec = out.file.design["disturbance_estimate"]
     assert rec["scale"] == 1.0 and rec["h2_cost"] < 0.9 * rec["h2_cost_without"]
     assert np.any(np.abs(rec["gain_Kd"]) > 0)
@@ -130,9 +137,9 @@ def test_the_runtime_holds_the_estimate_at_the_rate_limit(window_design, tmp_pat
         assert [ctl.estimate()[i] for i in states] == [before[i] for i in states]
 
 
-def test_a_record_that_names_bad_states_is_refused(window_design):
+def test_a_record_that_names_bad_states_is_refused(window_design, estimated):
     models, spec, res, layout, wm, data, k = window_design
-    out = with_disturbance_estimate(res, models, spec, DisturbanceSpec())
+    out = estimated
     n = out.file.compensator.order
     for bad in ([n], [0, 0], ["1"], [True], "x"):
         d = {**out.file.design, "disturbance_estimate": {**out.file.design["disturbance_estimate"], "states": bad}}

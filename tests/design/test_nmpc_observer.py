@@ -31,6 +31,13 @@ def models():
     return [with_speed(tractor_model(v, a), v) for v in (1.0, 1.79, 2.91) for a in (1.0, 0.7)]
 
 
+@pytest.fixture(scope="module")
+def observed(models):
+    """The NMPC with the observer designed on ``models``: designed once, saved as a new file by each test that
+    reads or edits one."""
+    return design_nmpc(models, SETTINGS, "obs")
+
+
 def test_a_steering_offset_and_a_drift_are_estimated_and_moved_into_the_nmpcs_state():
     # the plant is the observer's own linear model with a constant offset and drift, and its command a
     # weak proportional law; after 60 s the estimates are the true values and the effective state is
@@ -51,10 +58,10 @@ def test_a_steering_offset_and_a_drift_are_estimated_and_moved_into_the_nmpcs_st
     assert eff[1] == pytest.approx(x[1] - 0.05 / V, abs=0.004)
 
 
-def test_the_certified_compensator_is_what_the_vehicle_runs(models, tmp_path):
+def test_the_certified_compensator_is_what_the_vehicle_runs(observed, tmp_path):
     # small errors on a straight line: the loaded NMPC (observer, solve, integral) and the certificate's
     # compensator on normalised outputs give the same commands, tick after tick
-    path = design_nmpc(models, SETTINGS, "obs").save(tmp_path / "obs.json")
+    path = observed.save(tmp_path / "obs.json")
     ctrl = load_controller(path)
     assert isinstance(ctrl, NonlinearMPC) and ctrl.observer is not None
     law = linearised_law(ctrl.settings, V)
@@ -107,8 +114,8 @@ def test_engage_and_headland_turns_start_the_disturbances_from_zero():
     assert ctrl.observer.disturbance == (0.0, 0.0)
 
 
-def test_the_file_keeps_the_observer_and_refuses_it_edited(models, tmp_path):
-    path = design_nmpc(models, SETTINGS, "obs").save(tmp_path / "obs.json")
+def test_the_file_keeps_the_observer_and_refuses_it_edited(observed, tmp_path):
+    path = observed.save(tmp_path / "obs.json")
     assert read_nmpc_file(path).settings.observer == ObserverSettings()
     rewrite(path, lambda b: b["settings"]["observer"].__setitem__("drift_rate", 0.5))
     with pytest.raises(ControllerFileError, match="certificate does not match the settings"):
@@ -116,7 +123,7 @@ def test_the_file_keeps_the_observer_and_refuses_it_edited(models, tmp_path):
     for edit, match in ((lambda b: b["settings"]["observer"].__setitem__("extra", 1), "observer settings must hold"),
                         (lambda b: b["settings"]["observer"].__setitem__("noise_y", -1.0), "noise_y"),
                         (lambda b: b["settings"].__setitem__("observer", [1]), "observer must be null")):
-        again = design_nmpc(models, SETTINGS, "obs").save(tmp_path / "again.json")
+        again = observed.save(tmp_path / "again.json")
         rewrite(again, edit)
         with pytest.raises(ControllerFileError, match=match):
             load_controller(again)

@@ -34,9 +34,16 @@ def models():
     return [with_speed(tractor_model(v, a), v) for v in (1.0, 1.79, 2.91) for a in (1.0, 0.7)]
 
 
+@pytest.fixture(scope="module")
+def designed(models):
+    """The NMPC on ``models``, designed once for the module."""
+    return design_nmpc(models, SETTINGS, "nmpc-test")
+
+
 @pytest.fixture()
-def saved(models, tmp_path):
-    return design_nmpc(models, SETTINGS, "nmpc-test").save(tmp_path / "nmpc.json")
+def saved(designed, tmp_path):
+    """A new file of the module's NMPC for each test (some edit theirs)."""
+    return designed.save(tmp_path / "nmpc.json")
 
 
 def test_round_trip_keeps_the_settings_and_loads_the_nmpc(models, saved):

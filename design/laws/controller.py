@@ -62,6 +62,12 @@ class Measurement:
 #: A controller without it gets an empty preview.
 PREVIEW_ATTRIBUTE = "preview_request"
 
+#: Name of the optional controller method ``use_clock(now)``: the loop hands the controller its clock (``now()``
+#: gives seconds), against which the controller holds the time its computation may take. In lockstep the loop's
+#: clock is virtual and a computation takes none of it, so a run does not depend on the host's load; on a tractor
+#: it is the real clock.
+CLOCK_METHOD = "use_clock"
+
 
 @runtime_checkable
 class Controller(Protocol):

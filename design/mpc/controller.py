@@ -5,7 +5,8 @@ controller files do (y/V, psi/V with the speed floored at ``speed_min``, each cl
 to ``output_clip``), forms the measured state ``z`` (present and past outputs, past
 applied commands, the integral of y/V; :mod:`design.mpc.problem`) and solves the QP.
 If the solver fails, hits its iteration cap, returns something non-finite or out of
-the rate limit, or takes longer than its time budget, the command is the fallback
+the rate limit, or takes longer than its time budget on the loop's clock (:meth:`MPCController.use_clock`: the
+real clock on a tractor, none of a lockstep run's virtual time), the command is the fallback
 law on the same ``z`` (the robust LMI gain when the design was given one, else the
 unconstrained LQR of the Riccati terminal), clipped to the rate limit; the event is
 recorded in :attr:`MPCController.events`. A non-finite measurement gives a zero
@@ -30,7 +31,7 @@ import math
 import time
 from collections import deque
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -193,6 +194,7 @@ class MPCController:
         self.fallbacks = 0
         self.events: list[FallbackEvent] = []
         self.solve_times: deque[float] = deque(maxlen=KEEP_TIMES)
+        self._budget_clock: Callable[[], float] = time.perf_counter
         self._z = np.zeros(nz)
         self._fresh = True
         self._integral = np.arange(nz)[problem.layout.integral_slot]
@@ -261,9 +263,9 @@ class MPCController:
             self.fallbacks += 1
             self.last = info
             return info
-        t0 = time.perf_counter()
+        t0, b0 = time.perf_counter(), self._budget_clock()
         raw = self.backend.solve(z0, rate_ref, wheel_ref)
-        dt = time.perf_counter() - t0
+        dt, spent = time.perf_counter() - t0, self._budget_clock() - b0
         u0 = float(raw.u[0]) if raw.ok else math.nan
         reason = ""
         if not raw.ok:
@@ -271,8 +273,8 @@ class MPCController:
         elif not (math.isfinite(u0) and abs(u0 + r0) <= lim * (1 + RATE_TOLERANCE)):
             reason = (f"first move {u0!r} rad/s (with the reference's {r0:.4g}) outside the rate limit {lim} rad/s "
                       "(beyond the solver's tolerance)")
-        elif dt > self.settings.time_budget:
-            reason = f"solve took {dt * 1e3:.2f} ms, over the {self.settings.time_budget * 1e3:.2f} ms budget"
+        elif spent > self.settings.time_budget:
+            reason = f"solve took {spent * 1e3:.2f} ms, over the {self.settings.time_budget * 1e3:.2f} ms budget"
         if reason:
             cmd = float(self.fallback_gain[0] @ z0)
             cmd = min(max(cmd, -lim - r0), lim - r0) if math.isfinite(cmd) else 0.0
@@ -308,6 +310,16 @@ class MPCController:
                 z[self._dist] = (0.0 if self.reference.headland       # over a turn: held at zero
                                  else self._dp + self._l * (self._sel @ (y - self._s)))
         return z
+
+    def use_clock(self, now: Callable[[], float]) -> None:
+        """Hold each solve's time budget against ``now()`` (the loop's clock, s;
+        :data:`design.laws.controller.CLOCK_METHOD`) instead of the wall clock. In lockstep the loop's clock is
+        virtual and a solve takes none of it, so the commands do not depend on the host's load (a loaded host
+        stalled solves past the budget and turned them into fall-back ticks); :attr:`solve_times` stay the
+        wall-clock times."""
+        if not callable(now):
+            raise DesignInputError(f"use_clock needs a callable giving seconds, got {type(now).__name__}")
+        self._budget_clock = now
 
     def reset(self) -> None:
         self._z = np.zeros(self.problem.nz)

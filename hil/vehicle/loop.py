@@ -51,7 +51,7 @@ from typing import Callable, Protocol, Sequence, runtime_checkable
 import numpy as np
 
 from autosteer.checks import finite
-from design.laws.controller import PREVIEW_ATTRIBUTE, Controller, Measurement
+from design.laws.controller import CLOCK_METHOD, PREVIEW_ATTRIBUTE, Controller, Measurement
 from design.laws.curvature import ROUTE_PART_METHOD
 from gnss.frontend import GnssFrontEnd
 from gnss.guidance import ABLine, TrackErrors
@@ -253,6 +253,9 @@ class VehicleLoop:
         self._kappa, self._tracked_at = 0.0, math.nan
         self.clock, self.driver, self.frontend, self.line = clock, driver, frontend, line
         self.controller, self.calibration = controller, calibration
+        use_clock = getattr(controller, CLOCK_METHOD, None)
+        if callable(use_clock):           # its computation's time budget on the loop's clock (virtual in lockstep)
+            use_clock(clock.now)
         self.config = config or LoopConfig()
         self._stop = self.config.wheel_stop - 0.02
         self.truth = truth

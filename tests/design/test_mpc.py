@@ -156,6 +156,11 @@ def test_time_budget_gives_the_fallback():
     assert info.fallback and "over the" in info.reason
     assert math.isfinite(info.u0)                            # it had solved, but too late
     assert info.command == pytest.approx(float(-ctrl.problem.lqr_gain[0] @ z))
+    ctrl.use_clock(lambda: 7.0)                              # the loop's clock, here one that stands still
+    info = ctrl.solve_qp(z)
+    assert not info.fallback and info.command == pytest.approx(info.u0)
+    with pytest.raises(DesignInputError, match="use_clock needs a callable"):
+        ctrl.use_clock(7.0)
 
 
 @pytest.mark.parametrize("backend", ["casadi", "osqp"])

@@ -1,4 +1,4 @@
-"""Certificates enforced where they matter (issue 18 item 4, issue 14 item 6).
+"""Certificates enforced where they matter.
 
 The loader, ``design export`` and ``design verify`` refuse a controller whose certificate is
 missing, failed or does not match its matrices (recomputed); the certificate states, per

@@ -1,4 +1,4 @@
-"""Curvature on the controllers' side (issue 16 item 2): the arc's steady state, the path's bend
+"""Curvature on the controllers' side: the arc's steady state, the path's bend
 ahead, and the baselines' look-ahead points on a curved path.
 
 On an arc of radius 30 m with the control point on it at its steady heading, the laws must ask for

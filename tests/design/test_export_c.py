@@ -1,4 +1,4 @@
-"""``design export --format c`` (issue 18 item 8): the C99 step function compiled with the system compiler
+"""``design export --format c``: the C99 step function compiled with the system compiler
 and checked against the Python controller on a recorded closed-loop run to 1e-12."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Stated limits (issue 18 item 3) and physical ranges (item 4): each refused at once with an error naming it."""
+"""Stated limits and physical ranges: each refused at once with an error naming it."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Window laws by speed in one linear controller file (design/files/law_schedule.py; issue 14): written from
+"""Window laws by speed in one linear controller file (design/files/law_schedule.py): written from
 certified files, checked on every read, re-checked by ``design verify``, run by the loop on one state."""
 
 from __future__ import annotations

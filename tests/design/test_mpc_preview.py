@@ -1,4 +1,4 @@
-"""The linear MPC's curvature preview inside its horizon (issue 16 item 3).
+"""The linear MPC's curvature preview inside its horizon.
 
 On a curve the MPC acts on deviations from the path's steady state (design.laws.curvature.Reference) and
 sends its command plus the reference's own steering rate. The reference over the horizon comes from

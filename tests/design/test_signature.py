@@ -1,4 +1,4 @@
-"""Ed25519 signatures of controller files (issue 18 item 4): keygen, signing, and the loader's requirement."""
+"""Ed25519 signatures of controller files: keygen, signing, and the loader's requirement."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
-"""Line acquisition without integral windup (issue 16 item 4).
+"""Line acquisition without integral windup.
 
 The robust controller used to integrate the whole approach from 0.3 m and leave about -1 cm of
-bias over a 60 s pass at 1 m/s (-1.00 to -1.07 cm in the main job's report), and from 1.9 m it
+bias over a 60 s pass at 1 m/s (-1.00 to -1.07 cm), and from 1.9 m it
 overshot the line by 0.4-1.1 m (measured on the old code with the committed reference file, seeds 0
 and 1: 100-110 cm at 1.00 m/s, 43-78 cm at 1.79, 51-68 cm at 2.91; from 0.3 m at 2.91 m/s 21-30 cm).
 Now it tracks a planned approach path with its integral held (:mod:`design.laws.curvature`,

@@ -14,7 +14,7 @@ fault: it forgot the pull at the re-engage and then held its integral while the 
 (2.74 m on 9bf72f9 and on 215a055; 2.52 m before 9bf72f9); keeping its integral over the re-engage: 1.09 m,
 within 20 cm 4.4 s after.
 
-Since session 11 the MPC follows the approach path on a fresh engage (its acquisition at 1.00 m/s), and a
+The MPC follows the approach path on a fresh engage (its acquisition at 1.00 m/s), and a
 re-engage with its integral kept takes the line as acquired (the QP recovers, as here before). The approach
 at the pass's start changes the MPC's trajectory before the fault, so the valve sticks at another moment of
 its motion (12.0 deg moved instead of 9.7) and the same case peaks at 2.25 m. Over 12 other stuck-valve

@@ -17,7 +17,7 @@ import numpy as np
 from identification.model import Model
 
 DATA = Path(__file__).parent / "data" / "worn_valve_models.npz"
-#: random-11's 15 local models (session 12, artefact-free orders 4-6; see PROVENANCE.txt)
+#: random-11's 15 local models (artefact-free orders 4-6; see PROVENANCE.txt)
 RANDOM11 = Path(__file__).parent / "data" / "random11_models.npz"
 
 
@@ -30,7 +30,7 @@ def worn_models() -> tuple[list[Model], Model, tuple[float, ...]]:
 
 
 def random11_models() -> tuple[list[Model], tuple[float, ...]]:
-    """``(local models, latency per output in s)`` of the generated tractor random-11 (session 12)."""
+    """``(local models, latency per output in s)`` of the generated tractor random-11."""
     return load_family(RANDOM11)
 
 

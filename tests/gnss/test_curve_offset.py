@@ -1,4 +1,4 @@
-"""ArcPath.offset / reversed / chain / sample: exact parallel paths, refusal of a cusp (issue 16 item 1)."""
+"""ArcPath.offset / reversed / chain / sample: exact parallel paths, refusal of a cusp."""
 
 from __future__ import annotations
 

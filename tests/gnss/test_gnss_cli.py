@@ -61,7 +61,7 @@ def test_bad_input_exit_nonzero_with_message(tmp_path, capsys):
 
 @pytest.mark.realtime
 def test_replay_of_300_kB_of_dollars_ends_at_once_with_one_line(tmp_path, capsys):
-    """Issue 18: this did not finish in 120 s (quadratic framing); now a refusal in well under a second
+    """Framing is linear (quadratic framing takes over 120 s on this): a refusal in well under a second
     (asserted: 20 s, for a stalled host), exit status 1, one line saying what was found."""
     import time
 

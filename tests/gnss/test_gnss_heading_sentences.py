@@ -1,4 +1,4 @@
-"""Heading from Hemisphere ``$PSAT,HPR`` and from HDT/THS with empty fields (issue 19 item 5).
+"""Heading from Hemisphere ``$PSAT,HPR`` and from HDT/THS with empty fields.
 
 The capture ``tests/data/gnss/hemisphere_psat_hpr_excerpt.nmea`` is a real Hemisphere receiver's output
 (NOAA PSL, R/V Ronald H. Brown, CLIVAR 2010; provenance in tests/data/gnss/PROVENANCE.txt): 10 Hz

@@ -1,4 +1,4 @@
-"""hil commission (issue 14 item 7): the recipe end to end on a bench tractor, every output under --out."""
+"""hil commission: the recipe end to end on a bench tractor, every output under --out."""
 
 from __future__ import annotations
 
@@ -118,7 +118,7 @@ def test_hil_run_takes_a_commissioning_file_and_hil_commission_refuses_an_unknow
 
 
 def test_the_trial_counts_each_implement_alike() -> None:
-    # random-19's robust file at 1.79 m/s (session 11): the estimate took 36 % and 31 % off without an
+    # random-19's robust file at 1.79 m/s: the estimate took 36 % and 31 % off without an
     # implement and with the ripper, and one disker figure was 32 % worse with it. The RMS over the
     # implements (the rule before) is decided by the disker's large 1-sigma and turned the estimate off;
     # the geometric mean of the ratios keeps it on (the HIL comparison: 1.22-1.42x the oracle off, within

@@ -56,7 +56,7 @@ def test_drive_refuses_a_missing_port(tmp_path, capsys):
 @pytest.mark.realtime
 @pytest.mark.timeout(60)
 def test_drive_reports_the_mpcs_solve_times_apart_from_the_loops(tmp_path, capsys):
-    # the tractor runtime gives the optimisation-based controller's solve times as `hil run` does (issue 16)
+    # the tractor runtime gives the optimisation-based controller's solve times as `hil run` does
     from design.cli import main as design_main
     models = Path(__file__).resolve().parents[1] / "data" / "random19_models"     # five identified models
     mpc = tmp_path / "mpc.json"

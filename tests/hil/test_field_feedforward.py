@@ -1,4 +1,4 @@
-"""Closed-loop harness for issue 16's controller tests: curvature feed-forward on a circle, acquisition.
+"""Closed-loop harness for the controllers' path-following tests: curvature feed-forward on a circle, acquisition.
 
 The simulator runs without its disturbances (no slope, soil force, speed variation, multipath,
 GPS outages or RTK float; the sensor noise stays), so what is left on a constant-radius circle

@@ -1,4 +1,4 @@
-"""Closed-loop runs on fields (issue 16): the loop follows a route of passes and headland turns.
+"""Closed-loop runs on fields: the loop follows a route of passes and headland turns.
 
 The fields here are small files written with :func:`gnss.field_io.field_to_dict` (a hairpin
 field: passes 3 m apart, so every headland turn is a bulb turn whose legs come back within a

@@ -1,4 +1,4 @@
-"""The oracle LQG (issue 8 item 2): linearisation, design, bench and input checks."""
+"""The oracle LQG: linearisation, design, bench and input checks."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A real-time run of the vehicle loop has no garbage-collector pause beyond a bound (issue 16: 0 misses)."""
+"""A real-time run of the vehicle loop has no garbage-collector pause beyond a bound."""
 
 from __future__ import annotations
 

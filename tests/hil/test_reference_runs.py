@@ -1,4 +1,4 @@
-"""Run logs stay the same in distribution (issue 17 item 5): the 22 reference cases before vs now.
+"""Run logs stay the same in distribution: the 22 reference cases before vs now.
 
 ``tests/data/hil_reference/reference_runs.json`` holds, for 22 closed-loop lockstep passes of 60 s
 (12 kinematic-LQR passes over 3 implements x 2 speeds x 2 seeds, the demo's robust and central-LQR

@@ -1,4 +1,4 @@
-"""`hil run` reports the optimisation-based controller's solve times apart from the loop's (issue 16)."""
+"""`hil run` reports the optimisation-based controller's solve times apart from the loop's."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Physics of the truth simulator: the behaviours DESIGN section 5 and issue 2 ask for."""
+"""Physics of the truth simulator: the behaviours DESIGN section 5 asks for."""
 
 from __future__ import annotations
 

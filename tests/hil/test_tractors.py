@@ -1,4 +1,4 @@
-"""Tractor files, the named family and the random generator (issue 14 item 1)."""
+"""Tractor files, the named family and the random generator."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Actuator commissioning (issue 14 item 2): the valve characterisation through the bridge, the
+"""Actuator commissioning: the valve characterisation through the bridge, the
 inverse map, the commissioning file and the loop thresholds taken from the measured valve."""
 
 from __future__ import annotations

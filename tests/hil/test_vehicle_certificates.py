@@ -1,5 +1,5 @@
 """The vehicle refuses a controller whose certificate is missing, failed or mismatched, and ``hil drive
---require-signature`` runs only files signed on the design machine (issue 18 item 4).
+--require-signature`` runs only files signed on the design machine.
 
 The check lives in the loader (:func:`design.files.load.load_controller`); the vehicle gets it by
 loading. The ports below do not exist: a controller that passes its checks gets as far as opening

@@ -75,7 +75,7 @@ def test_robust_and_mpc_through_the_module_within_1_15x_of_the_hc11_bridge_at_th
 
 
 def test_the_true_bias_differs_from_the_measured_one_by_the_gps_slow_error_through_either_bridge():
-    """Issue 15's -3.5 cm true against -0.6 cm measured: the loop zeros the *measured* cross-track, so the
+    """A bias of -3.5 cm true against -0.6 cm measured: the loop zeros the *measured* cross-track, so the
     truth carries minus the mean of the receiver's slow (multipath) error over the statistics window: 2.9 cm
     on seed 0, 0.2 cm on seed 1 (``gps.multipath`` 2 cm, 30 s). Nothing of the module: the gap is the same
     through the HC11 bridge (measured 2.87 cm both ways on seed 0, 0.31-0.32 on seed 1)."""
@@ -105,7 +105,7 @@ def test_the_setpoint_integral_does_not_wind_up_in_a_saturated_approach():
     """None at 2.91 m/s, seeds 0 and 1, the reference robust controller (designed on HC11-bridge models):
     without the integral's own limit (MAX_WINDUP) the setpoint ran 0.1 rad ahead of a wheel that could
     not follow and the approach oscillated for 15 s (seed 1: 10.0 cm true 1-sigma against 5.7 through the
-    HC11 bridge, issue 15's 1.44x); with it each seed within 1.15x of the HC11 bridge. Fails at 9923445;
+    HC11 bridge, 1.44x); with it each seed within 1.15x of the HC11 bridge. Fails at 9923445;
     since 9bf72f9 the controller file's own line acquisition (integrators held during the approach) also
     keeps this approach from saturating, so the test now guards both."""
     from hil.bench.runs.campaign import make_controller

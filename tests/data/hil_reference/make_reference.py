@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
-"""Record the 22 reference closed-loop cases' statistics (issue 17 item 5) as ``reference_runs.json``.
+"""Record the 22 reference closed-loop cases' statistics as ``reference_runs.json``.
 
-Run it from a worktree of the commit to record, with the project's environment::
+Run it from a worktree of the commit to record, with the project's environment (``$REPO`` the project's
+checkout, ``$REF`` a new folder)::
 
-    git -C /work/main worktree add /tmp/ref-hil <commit>
-    cd /tmp/ref-hil && PYTHONPATH=/tmp/ref-hil /work/main/.venv/bin/python \
-        /work/main/tests/data/hil_reference/make_reference.py --controllers DIR --out reference_runs.json
+    git -C "$REPO" worktree add "$REF" <commit>
+    cd "$REF" && PYTHONPATH="$REF" "$REPO"/.venv/bin/python \
+        "$REPO"/tests/data/hil_reference/make_reference.py --controllers DIR --out reference_runs.json
 
 ``DIR`` holds ``robust.json`` and ``central-lqr.json`` made by the demo's recipe (``tasks.py demo`` steps
 1-3: ``hil sysid --passes 3 --seed 1997``, ``identification okid``, ``design lqr`` and ``design robust

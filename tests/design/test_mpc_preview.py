@@ -5,7 +5,7 @@ sends its command plus the reference's own steering rate. The reference over the
 ``Measurement.preview`` (asked for with ``preview_request``: the horizon plus the latency): the QP's
 rate bound holds for ``u_j + r_j`` and its wheel-angle bound for ``delta_j + d_j`` (``d_j`` the reference
 wheel angle ``j`` ticks ahead, ``r_j`` its rate), so it plans the turn into a curve before the curve.
-Before (HEAD at 6f81e95) only the present tick's reference rate was added and clipped after the QP:
+With only the present tick's reference rate was added and clipped after the QP:
 entering a 15 m circle at 2.91 m/s the true cross-track reached 12.9 cm, now 3.8 cm (20 m: 3.8 -> 2.2
 cm; 12 m at 1.79 m/s: 2.4 -> 1.8 cm), on the calm simulator of tests/hil/test_field_feedforward.py.
 """

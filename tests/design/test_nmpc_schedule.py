@@ -98,7 +98,7 @@ def test_a_scheduled_file_round_trips(scheduled_file, tmp_path):
 
 def test_a_file_without_the_schedule_is_what_was_written_before_it():
     # settings without the schedule keep the keys and the hash of files written before it existed (the
-    # hash computed on 5f96010 for these settings), so those files load with their certificates
+    # hash those files carry for these settings), so those files load with their certificates
     assert sorted(settings_to_dict(SETTINGS)) == sorted(SETTING_KEYS)
     assert settings_hash(SETTINGS) == "sha256:79b16829e2c6ab59e528a92a5ac57ed412298eb18fcccd1dbfc6c6043eddaf5d"
     assert NMPCSettings().y_max_speed is None

@@ -57,7 +57,7 @@ def test_window_candidates_are_the_resolved_and_the_observable_window():
 
 @pytest.mark.slow
 def test_the_window_that_meets_the_specifications_is_kept_and_both_searches_are_recorded():
-    # before the choice (e820033 and earlier) the automatic design searched the one-sample window only and refused
+    # without the choice the automatic design searched the one-sample window only and refused
     # these models (no stabilising design at any scale); the observable window meets every specification
     models = _slow_family()
     specs = Specifications(disk_margin=0.5, delay_reserve=0.1, latency=LATENCY, rate_limit=1.0)

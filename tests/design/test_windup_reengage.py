@@ -1,17 +1,17 @@
-"""Re-engaging while turning away from the line, after a stuck valve (the fault-recovery regression of 9bf72f9).
+"""Re-engaging while turning away from the line, after a stuck valve (a fault-recovery regression).
 
 In the reference case ``mixed_faults_robust_disker_2.91_seed6`` (tests/data/hil_reference) the valve
 sticks at 25-26 s, the loop disengages, and re-engages about 0.5 s later with the wheels turned away
-(~0.3 rad) and the heading error at its clip. On 9bf72f9 the robust controller recovered the turn with
-no approach path, its integral frozen at zero (the disker's pull forgotten) and the cross-track at its
+(~0.3 rad) and the heading error at its clip. The robust controller once recovered the turn with no
+approach path, its integral frozen at zero (the disker's pull forgotten) and the cross-track at its
 clip (0.1 s x V = 0.29 m), so once it had turned back it crawled home at ~0.02 rad: 3.04 m off 2.9 s
 after the re-engage and still 2.6 m off 9 s later, when the GPS outage disengaged it. Now, once the turn
 is recovered (or whenever the tractor is far from its path), a new approach path is planned from where
 it is, and the integral keeps the pull it had learnt before the short disengage
 (:data:`design.laws.acquisition.INTEGRAL_MEMORY_S`): peak 1.54 m, within 20 cm 7.65 s after the re-engage
-(before 9bf72f9, with integral windup: 1.88 m). The linear MPC (the committed demo file) had the same
+(with integral windup: 1.88 m). The linear MPC (the committed demo file) had the same
 fault: it forgot the pull at the re-engage and then held its integral while the cross-track was clipped
-(2.74 m on 9bf72f9 and on 215a055; 2.52 m before 9bf72f9); keeping its integral over the re-engage: 1.09 m,
+(2.74 m; 2.52 m with integral windup); keeping its integral over the re-engage: 1.09 m,
 within 20 cm 4.4 s after.
 
 The MPC follows the approach path on a fresh engage (its acquisition at 1.00 m/s), and a

@@ -10,12 +10,12 @@ is the controller's own steady error. The controllers are the committed demo fil
 * the robust controller with integral action must acquire its line from 0.3 m and from 2 m off
   without winding up (the integral held during the approach) and so without overshoot;
 * and likewise the next pass after every headland turn (``design.laws.curvature.Reference.enter_part``:
-  the integral held over the turn, a new approach path at its exit). Before (8acdb67 and earlier)
-  the integral ran through the turns, learnt the turn's own slip (the turns alternate left and
+  the integral held over the turn, a new approach path at its exit). An integral that ran
+  through the turns learnt the turn's own slip (the turns alternate left and
   right) and carried it into the next pass: on 60 m passes at 2.91 m/s, 12 m apart, seed 2, the
   passes after the turns held a bias of +1.41 / -1.43 / +1.24 cm without an implement and +1.61 /
   -1.68 / +1.42 cm with the ripper, entered 4.4-6.2 cm off the line; now 0.04-0.10 cm and 0.02-0.08
-  cm, entered 1.0-2.3 cm off (c495917).
+  cm, entered 1.0-2.3 cm off.
 """
 
 from __future__ import annotations
@@ -140,8 +140,8 @@ BENCH_EXIT_OVERSHOOT = 0.10
 @pytest.mark.slow
 def test_turn_exits_with_the_raised_disker_are_bounded_on_the_bench():
     # gentle-curves at 2.91 m/s, seed 0: the raised disker swings straight after each bulb turn and yaws the
-    # tractor; with its integral applied over the turn (8acdb67) the robust file overshot the next pass by
-    # 24.7 cm, with it held but applied (e33a26d) 18.9 cm; set aside (zero) over the turn, 6.8 cm
+    # tractor; with its integral applied over the turn the robust file overshot the next pass by
+    # 24.7 cm, with it held but applied 18.9 cm; set aside (zero) over the turn, 6.8 cm
     p = SimParams().with_overrides({"gps.float_rate": 0.0, "gps.dropout_rate": 0.0})
     robust = make_controller(str(CONTROLLERS / "robust.json"), "disker", 2.91, p)
     log = simulated_run(RunSpec(implement="disker", speed=2.91, duration=route_duration("gentle-curves", p, 2.91),

@@ -105,8 +105,8 @@ def test_the_setpoint_integral_does_not_wind_up_in_a_saturated_approach():
     """None at 2.91 m/s, seeds 0 and 1, the reference robust controller (designed on HC11-bridge models):
     without the integral's own limit (MAX_WINDUP) the setpoint ran 0.1 rad ahead of a wheel that could
     not follow and the approach oscillated for 15 s (seed 1: 10.0 cm true 1-sigma against 5.7 through the
-    HC11 bridge, 1.44x); with it each seed within 1.15x of the HC11 bridge. Fails at 9923445;
-    since 9bf72f9 the controller file's own line acquisition (integrators held during the approach) also
+    HC11 bridge, 1.44x); with it each seed within 1.15x of the HC11 bridge. The controller file's own line
+    acquisition (integrators held during the approach) also
     keeps this approach from saturating, so the test now guards both."""
     from hil.bench.runs.campaign import make_controller
     for seed in (0, 1):

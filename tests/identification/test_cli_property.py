@@ -1,5 +1,5 @@
 """Property: the ``identification`` CLI, given random values of each option's type, exits 0, 1 or 2,
-with one line on stderr on error and never a traceback (issue #18).
+with one line on stderr on error and never a traceback.
 
 Runs in-process through ``main(argv)``; argv is drawn from the parser itself (every sub-command,
 every option, values of the option's type, valid or not), with file arguments drawn from real

@@ -80,10 +80,10 @@ def _auto_fit(name: str, first: int, m: int) -> np.ndarray:
     # benchmark: 21.01 (n=6, CVA, all refined; 8.93 with the 70 % folds); best peer 10.99 (nfoursid, n chosen
     # on validation). Fragile: with the fit half 10 or 1 sample(s) shorter or 1 or 10 longer the choice gives
     # 8.60, 9.83, 4.36, 1.97 % (best peer 11.93-9.74; bench_identification.py --shift); this floor holds at the
-    # benchmark's split only (docs/identification_inputs.md, session 8). It is knife-edge at that split too:
+    # benchmark's split only (docs/identification_inputs.md). It is knife-edge at that split too:
     # the validated order is 6 (mean 21.0) with two OpenBLAS threads and 5 (mean 10.0: 21.2, 21.0, -12.2 per
-    # output) with one, which the suite runs with (tasks.py; measured on session 10's host, where 15.0 failed
-    # in CI). 9.5 holds for both and still fails the method before 52bcbc9 (8.93)
+    # output) with one, which the suite runs with (tasks.py; measured on a CI host, where 15.0 failed).
+    # 9.5 holds for both and still fails the method without the fix it guards (8.93)
     ("dryer2", 1, 3, 9.5),
     ("heating_system", 1, 1, 84.5),      # benchmark: 85.98 (n=6, ERA, all refined; 83.76 before); best peer 83.64
     ("thermic_res_wall", 0, 2, 84.5),    # benchmark: 85.50 (n=2, CVA); best peer 85.28 (nfoursid)

@@ -74,7 +74,7 @@ def _collinear_case(q: int, n: int, seed: int):
 @pytest.mark.parametrize("q", [6, 8])
 @pytest.mark.parametrize("n", [4, 8, 12])
 def test_many_outputs_riccati_inputs_are_exactly_symmetric(q, n):
-    # issue #19 item 1: K0 R K0^T and the eigen-rebuilt R were symmetric only to round-off, beyond
+    # K0 R K0^T and the eigen-rebuilt R were symmetric only to round-off, beyond
     # the 100 ulp scipy's solve_discrete_are allows ("Matrix q should be symmetric/hermitian")
     for seed in range(5):
         a, c, sig, k0 = _collinear_case(q, n, seed)

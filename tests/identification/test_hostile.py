@@ -1,4 +1,4 @@
-"""Hostile and careless input to the identification CLI and library (issue #18 items 1, 5, 6).
+"""Hostile and careless input to the identification CLI and library.
 
 Every case goes through ``main(argv)`` in-process (or a real subprocess for
 Ctrl-C) and checks the exit status, that stderr is one line naming the
@@ -152,7 +152,7 @@ def test_ctrl_c_exits_130_with_one_line_and_no_partial_file(tmp_path):
             synthetic_pass(rng, imp, "9th", 1.79, duration=30.0).save(logs / f"{imp}{i}.npz")
     exe = Path(sys.executable).parent / "identification"
     # The run has 2-3 s of work left after its progress bar appears (measured on an idle host). A test worker
-    # stalled that long on a loaded host (it happened once in CI, session 17) sends its Ctrl-C to a process that
+    # stalled that long on a loaded host (it happened once in CI) sends its Ctrl-C to a process that
     # is already exiting, which ends with 0 and every file whole: that race lost is tried again; any other end fails.
     for attempt in range(3):
         out, err_path = tmp_path / f"models{attempt}", tmp_path / f"stderr{attempt}.txt"

@@ -19,7 +19,7 @@ def _rotation(r: float, hz: float) -> np.ndarray:
 
 
 def test_the_worn_valves_nyquist_pole_is_named():
-    # local_none_13th of the worn-valve tractor (session 11): the kinematics, the valve lag and a pole at -0.983
+    # local_none_13th of the worn-valve tractor: the kinematics, the valve lag and a pole at -0.983
     a = np.diag([0.482, 1.008, 0.997, 0.997, -0.983])
     why = sampling_artefact(a, DT)
     assert why is not None and "-0.983" in why and "10.0 Hz" in why

@@ -1,4 +1,4 @@
-"""Output-error refinement of all of A, B, C, D (issue #19 item 2) and the structure chosen by validation."""
+"""Output-error refinement of all of A, B, C, D and the structure chosen by validation."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Single-rate pass logs (issue #19 item 4): every channel on one time base ``t``, in .npz and CSV."""
+"""Single-rate pass logs: every channel on one time base ``t``, in .npz and CSV."""
 
 from __future__ import annotations
 

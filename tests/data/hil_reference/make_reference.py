@@ -127,7 +127,7 @@ def main() -> None:
               f"{results[-1]['summary'].get('measured_bias_m', float('nan')) * 100:6.2f} cm  sigma "
               f"{results[-1]['summary'].get('measured_sigma_m', float('nan')) * 100:5.2f} cm", flush=True)
     files = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(a.controllers.glob("*.json"))}
-    doc = {"what": "issue 17 item 5: statistics of the 22 reference closed-loop cases (lockstep, 60 s each)",
+    doc = {"what": "statistics of the 22 reference closed-loop cases (lockstep, 60 s each)",
            "made_by": "tests/data/hil_reference/make_reference.py (see its docstring)",
            "commit": commit, "python": platform.python_version(), "numpy": np.__version__,
            "controller_files_sha256": files, "total_wall_s": round(time.perf_counter() - t0, 1),

@@ -188,8 +188,7 @@ def top_up(logs: str | Path, commissioning: str | Path, out: str | Path, options
                                  "again")
     recorded = sum(p.duration for p, f in zip(passes, files) if f in mine)
     procedure = procedure_of(logs)    # the spoiled passes of the implement: driving a top-up spent too
-    spoiled = 0.0 if procedure is None else max(
-        driving_seconds([], procedure)["per_implement"].get(name, 0.0) - recorded, 0.0)
+    spoiled = 0.0 if procedure is None else driving_seconds([], procedure)["spoiled_per_implement"].get(name, 0.0)
     top = {"implement": name, "logs": [str(f) for f in mine], "log_sha256": {f.name: file_sha256(f) for f in mine},
            "commissioning": str(commissioning),
            "driving_s": {"passes": recorded, "spoiled": spoiled, "total": recorded + spoiled},

@@ -340,26 +340,32 @@ class Procedure:
 
     def driven_s(self) -> dict:
         """Seconds of driving so far per step: ``valve test`` (once done), ``passes`` (the good ones), ``spoiled``
-        (the passes a fault spoiled, driven again), ``total``, and ``per_implement`` (passes, spoiled ones too)."""
+        (the passes a fault spoiled, driven again), ``total``; ``per_implement`` (passes, spoiled ones too) and
+        ``spoiled_per_implement``."""
+        return self._driven(self._read(self.logs), self._read(self.spoiled))
+
+    def _driven(self, kept: list[tuple[Path, PassLog]], spoiled: list[tuple[Path, PassLog]]) -> dict:
         valve = self.plan.seconds()["valve test"] if (Path(self.folder) / "commissioning.json").is_file() else 0.0
-        kept, spoiled = self._read(self.logs), self._read(self.spoiled)
         per: dict[str, float] = {}
+        again: dict[str, float] = {}
         for _, log in kept + spoiled:
             imp = str(log.meta.get("implement", "unknown"))
             per[imp] = per.get(imp, 0.0) + float(log.duration)
+        for _, log in spoiled:
+            imp = str(log.meta.get("implement", "unknown"))
+            again[imp] = again.get(imp, 0.0) + float(log.duration)
         passes = sum(float(log.duration) for _, log in kept)
-        again = sum(float(log.duration) for _, log in spoiled)
-        return {"valve test": valve, "passes": passes, "spoiled": again, "total": valve + passes + again,
-                "per_implement": per}
+        return {"valve test": valve, "passes": passes, "spoiled": sum(again.values()),
+                "total": valve + passes + sum(again.values()), "per_implement": per, "spoiled_per_implement": again}
 
     def status(self) -> dict:
         """What is done and what is next: ``valve_test_done``, ``recorded`` and ``remaining`` passes (labels),
         ``spoiled`` (count), ``driven_s`` (every recorded pass, spoiled ones too, and the valve test once done),
         ``planned_s`` (the plan's total), and ``next`` (one line for the operator)."""
         planned = self.plan.planned()
-        good = {pass_key(log) for _, log in self._read(self.logs)}
-        spoiled = self._read(self.spoiled)
-        driven = self.driven_s()["total"]
+        kept, spoiled = self._read(self.logs), self._read(self.spoiled)
+        good = {pass_key(log) for _, log in kept}
+        driven = self._driven(kept, spoiled)["total"]
         valve_done = (Path(self.folder) / "commissioning.json").is_file()
         remaining = [p for p in planned if p.key not in good]
         if not valve_done and self.plan.valve_test is not None:

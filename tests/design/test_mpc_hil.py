@@ -51,11 +51,11 @@ def test_mpc_in_lockstep_hil_keeps_its_limits_and_is_repeatable():
 
 
 def test_in_lockstep_the_time_budget_is_held_against_the_virtual_clock():
-    """A budget no solve meets on the wall clock: in lockstep (the loop's virtual clock, on which a solve takes no
-    time) no tick falls back and the commands are those of a generous budget, so a loaded host cannot change a
-    lockstep run; the wall-clock solve times are still recorded."""
+    """A budget no solve meets on the wall clock (``test_mpc.py::test_time_budget_gives_the_fallback``): in
+    lockstep (the loop's virtual clock, on which a solve takes no time) no tick falls back and the commands are
+    those of a generous budget, so a loaded host cannot change a lockstep run."""
     lim = MPCLimits(rate=0.2, wheel_angle=0.05)
     ctrl, log, on = _run(lim, time_budget=1e-9)
     assert ctrl.ticks == on.sum() > 0 and ctrl.fallbacks == 0
-    assert len(ctrl.solve_times) == ctrl.ticks and min(ctrl.solve_times) > 1e-9
+    assert len(ctrl.solve_times) == ctrl.ticks              # one recorded solve per tick
     assert np.array_equal(log.channels["steer_rate_cmd"], _run(lim)[1].channels["steer_rate_cmd"])

@@ -40,6 +40,7 @@ def test_a_procedures_logs_count_its_valve_test_and_the_spoiled_passes(procedure
     assert d["passes"] == pytest.approx(kept[0].duration) and d["spoiled"] == pytest.approx(kept[0].duration, abs=0.2)
     assert d["total"] == pytest.approx(valve + d["passes"] + d["spoiled"])
     assert d["per_implement"] == {"none": pytest.approx(d["passes"] + d["spoiled"])}
+    assert d["spoiled_per_implement"] == {"none": pytest.approx(d["spoiled"])} and d["spoiled"] > 5.0
     res = {"tractor": "field tractor", "logs": ["a"], "driving_s": d, "valve": {"full_scale": 0.3, "deadband": 0.1},
            "steps": [], "designs": {}}
     first = report_text(res).splitlines()[2]

@@ -1,11 +1,18 @@
 """The field procedure end to end, shortened, in real time, through the commands a user types against the
 emulated tractor's serial ports (HC11 bridge and receivers on pseudo-terminals) and its AgOpenGPS module (UDP):
 the plan, the valve test, the identification passes driven by the runtime, commissioning from the recorded logs,
-and a driven pass on a field with the resulting files."""
+and a driven pass on a field with the resulting files.
+
+The valve test on the HC11 bridge's port (``hil valve-test``, hil.vehicle.valve_run) is the procedure's first
+step: it runs once, in real time, for this module (:func:`valve_tested`); its own test reads what it wrote and
+the procedure goes on from it."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
+import shutil
 import threading
 
 import numpy as np
@@ -13,6 +20,7 @@ import pytest
 
 from hil.cli import main as hil_main
 from hil.devices.emulate import EmulatedTractor
+from hil.vehicle.commissioning import load_commissioning
 from hil.vehicle.procedure import Procedure
 from identification.passlog import PassLog
 from port_drain import drain
@@ -20,29 +28,56 @@ from port_drain import drain
 SPEEDS = (1.34, 2.24)
 
 
-@pytest.mark.slow
-@pytest.mark.realtime
-@pytest.mark.timeout(600)
-def test_a_shortened_field_procedure_through_the_commands(tmp_path, capsys):
-    folder = tmp_path / "tractor"
-    # the plan: two conditions, two short passes each
-    assert hil_main(["procedure", str(folder), "--implements", "none", "--speeds", *map(str, SPEEDS),
-                     "--passes", "2", "--duration", "20"]) == 0
-    assert "passes recorded: 0 of 4" in capsys.readouterr().out
-    # the valve test at standstill on the HC11 bridge's port
-    with EmulatedTractor(implement="none", speed=0.0, duration=120.0, seed=3) as tractor:
+@pytest.fixture(scope="module")
+def valve_tested(tmp_path_factory) -> dict:
+    """The procedure's folder after its first two commands, as an operator types them: the plan (two conditions,
+    two short passes each), then the valve test at standstill through the emulated tractor's HC11 pseudo-terminal
+    in real time, as on a serial port. Returns the folder and each command's exit code and standard output."""
+    folder = tmp_path_factory.mktemp("procedure") / "tractor"
+    with contextlib.redirect_stdout(io.StringIO()) as out:
+        plan_rc = hil_main(["procedure", str(folder), "--implements", "none", "--speeds", *map(str, SPEEDS),
+                            "--passes", "2", "--duration", "20"])
+    plan_out = out.getvalue()
+    with EmulatedTractor(implement="none", speed=0.0, duration=150.0, seed=3, driver=False) as tractor:
         s = tractor.setup
         stop = threading.Event()
         threads = drain({s.position, s.attitude}, stop)
         cal = ",".join(repr(float(x)) for x in s.wheel_calibration)
         try:
-            assert hil_main(["valve-test", "--bridge", s.bridge, f"--wheel-calibration={cal}", "--duties",
-                             "0.2,0.5,1.0", "--no-linearity", "--tractor", "emulated", "--out", str(folder)]) == 0
+            with contextlib.redirect_stdout(io.StringIO()) as out:
+                rc = hil_main(["valve-test", "--bridge", s.bridge, f"--wheel-calibration={cal}", "--duties",
+                               "0.2,0.5,1.0", "--no-linearity", "--tractor", "emulated", "--out", str(folder),
+                               "--json"])
         finally:
             stop.set()
             for t in threads:
                 t.join()
-    capsys.readouterr()
+    return {"folder": folder, "plan": (plan_rc, plan_out), "valve": (rc, out.getvalue())}
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+@pytest.mark.timeout(180)
+def test_the_valve_test_on_the_bridge_port_writes_the_commissioning_file(valve_tested):
+    rc, out = valve_tested["valve"]
+    assert rc == 0
+    result = json.loads(out)
+    assert result["steps"] == 6 and result["seconds"] < 60
+    folder = valve_tested["folder"]
+    com = load_commissioning(folder / "commissioning.json")
+    assert com.tractor == "emulated" and 0.0 < com.valve.deadband < 0.2 and 0.0 < com.valve.lag < 0.5
+    assert len(json.loads((folder / "valve_steps.json").read_text())) == 6
+
+
+@pytest.mark.slow
+@pytest.mark.realtime
+@pytest.mark.timeout(600)
+def test_a_shortened_field_procedure_through_the_commands(valve_tested, tmp_path, capsys):
+    # the plan: two conditions, two short passes each; the valve test at standstill on the HC11 bridge's port
+    assert valve_tested["plan"][0] == 0 and "passes recorded: 0 of 4" in valve_tested["plan"][1]
+    assert valve_tested["valve"][0] == 0
+    folder = tmp_path / "tractor"
+    shutil.copytree(valve_tested["folder"], folder)
     # the passes, each driven by the runtime's excitation on the emulated tractor at the plan's speed
     for k in range(4):
         nxt = Procedure.open(folder).remaining()[0]

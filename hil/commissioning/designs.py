@@ -16,13 +16,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
-from design.core.errors import DesignInputError
+from design.core.errors import DesignInputError, SpecificationError, VerificationError
 from design.laws.disturbance import DisturbanceSpec
 from design.mpc.problem import MPCLimits
 from design.synthesis.recipes import (MPCOptions, RobustOptions, WeightSearch, design_mpc_controller, design_robust_controller,
                             fallback_past, load_models)
 from design.core.noise import MEASUREMENT_NOISE
 from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands
+from design.synthesis.mpc_design import mpc_estimate
 from design.synthesis.robust import RobustSpec, design_lqr
 from design.synthesis.specs import Specifications
 from identification.model import Model
@@ -68,7 +69,8 @@ class Designer:
     integral
         Integral action in the robust design.
     estimate
-        The disturbance estimate in the robust controller and the MPC.
+        The disturbance estimate in the robust controller and the MPC (the MPC's filter twice as fast as the
+        robust controller's: :func:`design.synthesis.mpc_design.mpc_estimate`).
     robust_bands
         With automatic weights, the robust controller's file also carries a law per speed band designed and
         certified on that band's local models and past its noise check
@@ -156,18 +158,41 @@ class Designer:
         """The MPC on the models of ``models_dir`` (the central one predicts, and with :attr:`prediction_schedule`
         each design speed's local model in its band), with the robust law of ``fallback`` as its fall-back
         (None: none, for a search of the weights alone); with ``alternative``, a local model predicts where no
-        law predicting with the central one stabilises every model (:attr:`MPCOptions.alternative_prediction`)."""
-        options = MPCOptions(limits=MPCLimits(rate=self.rate_limit), past=attempt.past,
-                             disturbance=DisturbanceSpec() if self.estimate else None, search=self.search(attempt),
-                             fallback=fallback, prediction_schedule=self.prediction_schedule, noise=self.noise,
-                             alternative_prediction=alternative)
-        res = design_mpc_controller(load_models([models_dir]), options, progress=progress)
+        law predicting with the central one stabilises every model (:attr:`MPCOptions.alternative_prediction`).
+
+        Its disturbance estimate's filter is twice as fast as the robust controller's
+        (:func:`design.synthesis.mpc_design.mpc_estimate`) unless, with automatic weights, those then relax a
+        specification or none are found: the MPC is then designed with the robust controller's filter, the
+        margins the specifications ask for being worth more than the faster filter's gain."""
+        def design(estimate: DisturbanceSpec | None):
+            options = MPCOptions(limits=MPCLimits(rate=self.rate_limit), past=attempt.past, disturbance=estimate,
+                                 search=self.search(attempt), fallback=fallback,
+                                 prediction_schedule=self.prediction_schedule, noise=self.noise,
+                                 alternative_prediction=alternative)
+            return design_mpc_controller(load_models([models_dir]), options, progress=progress)
+        filter_note = None
+        if not self.estimate:
+            res = design(None)
+        elif not attempt.auto:
+            res = design(mpc_estimate())
+        else:
+            fast = mpc_estimate()
+            try:
+                res = design(fast)
+                relaxed = (res.summary().get("auto_weights") or {}).get("relaxed") or []
+                why = f"relaxed {'; '.join(relaxed)}" if relaxed else None
+            except (SpecificationError, VerificationError) as exc:
+                why = f"failed: {exc}"
+            if why is not None:
+                filter_note = f"with the estimate's filter at {fast.tau_f:g} s the weights {why}"
+                res = design(DisturbanceSpec())
         res.save(out)
+        more = {} if filter_note is None else {"estimate_filter": filter_note}
         return {"file": str(out), "result": {"out": str(out), **res.summary()},
                 "settings": self._settings("mpc", f"{models_dir.name}/*.npz", attempt,
                                            fallback=None if fallback is None else str(fallback),
                                            disturbance_estimate=self.estimate,
-                                           prediction_schedule=self.prediction_schedule)}
+                                           prediction_schedule=self.prediction_schedule, **more)}
 
 
 def settings_text(settings: dict) -> str:

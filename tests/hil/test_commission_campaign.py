@@ -122,32 +122,6 @@ def test_the_command_refuses_no_tractor_bad_seeds_and_twice_the_same(tmp_path: P
     assert not (tmp_path / "c" / "random-1").exists()
 
 
-@pytest.mark.slow
-def test_a_campaign_survives_a_failing_tractor_and_resumes(tmp_path: Path) -> None:
-    out = tmp_path / "camp"
-    out.mkdir()
-    (out / "random-1").write_text("a file where the tractor's folder goes")   # this tractor cannot be made
-    lines: list[str] = []
-    tractors = [random_tractor(0), random_tractor(1)]
-    agg = commission_campaign(tractors, out, SHORT, say=lines.append)
-    rows = {r["tractor"]: r for r in agg["rows"]}
-    assert rows["random-1"]["status"] == "failed" and "random-1" in rows["random-1"]["reason"]
-    assert rows["random-0"]["status"] == "ok" and rows["random-0"]["cells"] == 2
-    assert agg["overall"]["failed"] == ["random-1"]
-    assert "random-1 | failed" in (out / "campaign.md").read_text()
-    assert (out / "campaign_ratios.png").stat().st_size > 1000
-    first = (out / "random-0" / "result.json").read_bytes()
-    (out / "random-1").unlink()
-    lines.clear()
-    agg = commission_campaign(tractors, out, SHORT, say=lines.append)
-    assert any(ln.startswith("[1/2 random-0] complete result.json: not redone") for ln in lines)
-    assert not any(ln.startswith("[1/2 random-0] [1]") for ln in lines)           # no step of random-0 ran
-    assert (out / "random-0" / "result.json").read_bytes() == first
-    assert any(ln.startswith("[2/2 random-1] [1] valve") for ln in lines)          # the failed one is redone
-    assert [r["status"] for r in agg["rows"]] == ["ok", "ok"]
-    assert all(len(r["commit"]) == 40 or r["commit"] == "unknown" for r in agg["rows"])
-
-
 #: The short campaign of the acceptance test: three generated tractors, the field procedure (the runtime's
 #: excitation in its corridor, designs from the logs, no trial drive) with two implements (none, disker) at two
 #: speeds (1.00 and 2.24 m/s), two 60 s passes each, and the comparison on those four cells, three 60 s passes per
@@ -161,10 +135,48 @@ ACCEPTANCE = CommissionOptions(speeds=(1.0, 2.24), implements=("none", "disker")
 
 @pytest.fixture(scope="module")
 def short_campaign(tmp_path_factory) -> dict:
+    """The acceptance campaign, made as a campaign that lost a tractor and was resumed: a first run with a file
+    where random-2's folder goes (that tractor cannot be made; random-0 and random-1 are commissioned), then the
+    file removed and the campaign run again (random-0 and random-1 taken from their result.json, random-2
+    commissioned). Every tractor is commissioned once and in the order of one uninterrupted run; the resume test
+    reads both runs' lines and files, the acceptance tests the second run's aggregate."""
     out = tmp_path_factory.mktemp("acceptance")
-    agg = commission_campaign([random_tractor(s) for s in (0, 1, 2)], out, ACCEPTANCE, say=lambda line: None)
+    (out / "random-2").write_text("a file where the tractor's folder goes")   # this tractor cannot be made
+    tractors = [random_tractor(s) for s in (0, 1, 2)]
+    first_lines: list[str] = []
+    first = commission_campaign(tractors, out, ACCEPTANCE, say=first_lines.append)
+    made = {name: (out / name / "result.json").read_bytes() for name in ("random-0", "random-1")}
+    report = (out / "campaign.md").read_text()
+    ratios = (out / "campaign_ratios.png").stat().st_size
+    (out / "random-2").unlink()
+    lines: list[str] = []
+    agg = commission_campaign(tractors, out, ACCEPTANCE, say=lines.append)
     return {**agg, "results": {r["tractor"]: json.loads((out / r["tractor"] / "result.json").read_text())
-                               for r in agg["rows"] if r["status"] == "ok"}}
+                               for r in agg["rows"] if r["status"] == "ok"},
+            "out": out, "first": first, "first_lines": first_lines, "first_report": report, "first_ratios": ratios,
+            "first_made": made, "lines": lines}
+
+
+@pytest.mark.slow
+@pytest.mark.long
+@pytest.mark.timeout(1800)
+def test_a_campaign_survives_a_failing_tractor_and_resumes(short_campaign) -> None:
+    rows = {r["tractor"]: r for r in short_campaign["first"]["rows"]}
+    assert rows["random-2"]["status"] == "failed" and "random-2" in rows["random-2"]["reason"]
+    assert rows["random-0"]["status"] == rows["random-1"]["status"] == "ok"
+    assert rows["random-0"]["cells"] == rows["random-1"]["cells"] == 4
+    assert short_campaign["first"]["overall"]["failed"] == ["random-2"]
+    assert "random-2 | failed" in short_campaign["first_report"]
+    assert short_campaign["first_ratios"] > 1000
+    lines, out = short_campaign["lines"], short_campaign["out"]
+    for k, name in ((1, "random-0"), (2, "random-1")):
+        assert any(ln.startswith(f"[{k}/3 {name}] complete result.json: not redone") for ln in lines)
+        assert not any(ln.startswith(f"[{k}/3 {name}] [1]") for ln in lines)            # no step of it ran
+        assert (out / name / "result.json").read_bytes() == short_campaign["first_made"][name]
+    assert any(ln.startswith("[3/3 random-2] [1] valve") for ln in lines)           # the failed one is redone
+    assert [r["status"] for r in short_campaign["rows"]] == ["ok"] * 3
+    assert short_campaign["overall"]["failed"] == []
+    assert all(len(r["commit"]) == 40 or r["commit"] == "unknown" for r in short_campaign["rows"])
 
 
 @pytest.mark.slow

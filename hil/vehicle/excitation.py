@@ -19,14 +19,11 @@ stays rich while the tractor stays near the line:
   the turn the prediction assumed;
 - the **guard** (``guard``, the default) keeps the paper's rule on the measured cross-track and adds a return
   only where the stopping point would pass a guard line ``guard_margin`` inside the hard corridor: it slews
-  the wheel towards the line at once, up to ``soft_limit`` beyond the trim, until the stopping point is back
-  inside the soft corridor. Its stopping point turns from the **trim**, the wheel angle that drives the
-  tractor straight, estimated from the measured wheel angle and the heading's rate: a towed disker's pull takes
-  up to half of the return's turn. It turns the heading as on the **effective wheelbase** learned from the
-  pass (a towed disker's drag makes the heading answer the wheel as on a wheelbase up to twice as long), and it
-  lets the pull take more of the turn by twice the trim's spread over the pass (the disker's pull varies with
-  the soil faster than the trim follows it). Elsewhere the passes are the paper's rule's, so only the few
-  stretches that would otherwise leave the corridor change;
+  the wheel towards the line at once, as with ``predict``, until the stopping point is back inside the soft
+  corridor. Its stopping point turns from the **trim**, the wheel angle that drives the tractor straight,
+  estimated from the measured wheel angle and the heading's rate: a towed disker's pull takes up to half of
+  the return's turn. Elsewhere the passes are the paper's rule's, so only the few stretches that would
+  otherwise leave the corridor change;
 - the **hard corridor** (``corridor``, default 1.5 m) is the loop's own limit
   (:attr:`hil.vehicle.loop.LoopConfig.max_cross_track`, set by :meth:`ExcitationSettings.loop_config`):
   beyond it the loop disengages, so the pass is spoiled and driven again
@@ -98,9 +95,8 @@ class ExcitationSettings:
         receivers' latency, about 0.3 s) and the valve's delay (about 0.1 s).
     guard, guard_margin
         The **guard** (default on): besides the paper's rule, a return begins at once, slewing the wheel
-        towards the line up to ``soft_limit`` beyond the trim (``pull_time``), when the stopping point
-        (:func:`stopping_offset`) lies beyond ``corridor - guard_margin``, and it lasts until the stopping point is
-        back inside the soft corridor.
+        towards the line up to ``soft_limit``, when the stopping point (:func:`stopping_offset`) lies beyond
+        ``corridor - guard_margin``, and it lasts until the stopping point is back inside the soft corridor.
         The margin holds what the prediction neglects: the fix's age between two position epochs (0.2 s at
         5 Hz, 0.12 m at 2.91 m/s with a heading of 0.2 rad) and its noise (3-sigma of an RTK fixed position
         with its multipath, about 0.07 m). Inside the guard line the rule is the paper's as it is, so only the
@@ -109,20 +105,6 @@ class ExcitationSettings:
         With the guard: the time constant, s, over which the rule estimates the wheel angle that drives the
         tractor straight (the measured wheel angle less the one the measured heading's rate asks for), the trim
         the guard's stopping point turns from: a towed disker's pull takes up to half the return's turn.
-    gain_time
-        With the guard: the time constant, s, over which the rule learns how fast the heading answers the wheel
-        (the slope of the measured heading's rate against the wheel angle, a weighted least-squares fit over the
-        pass so far), as an **effective wheelbase**, ``speed / slope``, at least the wheelbase: the guard's
-        stopping point and its trim turn the heading with it. A towed disker resists the tractor's turns (its
-        gangs and its draft along the tongue), so at 2.91 m/s the heading answers the wheel as if the wheelbase
-        were 1.3 to 2.3 times longer, and a stopping point on the wheelbase came too short by up to 0.4 m; 0: the
-        wheelbase (the kinematic stopping point), and no spread of the pull.
-    pull_spread
-        With the guard and ``gain_time``: the guard's stopping point lets the pull take this many standard
-        deviations of the trim (over ``gain_time`` s) more of the turn than the trim says, towards the side the
-        tractor is heading to (at most half of ``soft_limit``): a towed disker's pull varies with the soil faster
-        than the trim follows it, by up to 0.2 rad at 2.91 m/s, and then the heading goes on turning out while the
-        wheel already turns back.
     """
 
     slew_min: float = 0.2
@@ -143,8 +125,6 @@ class ExcitationSettings:
     guard: bool = True
     guard_margin: float = 0.2
     pull_time: float = 5.0
-    gain_time: float = 20.0
-    pull_spread: float = 2.0
 
     def __post_init__(self) -> None:
         for k, v in self.__dict__.items():
@@ -179,15 +159,15 @@ class ExcitationSettings:
 
 
 def stopping_offset(heading, wheel, rate, speed, wheelbase: float, max_rate: float, wheel_limit: float,
-                    reaction: float, trim=0.0, spread=0.0) -> np.ndarray:
+                    reaction: float, trim=0.0) -> np.ndarray:
     """Cross-track the tractor still gains before its heading is back to zero, m (+ = left), if the wheel turns
     against the heading after ``reaction`` s.
 
     Kinematic bicycle on a straight line (heading rate ``speed / wheelbase * (wheel - trim)``, cross-track rate
     ``speed * heading``): for ``reaction`` s the wheel goes on at the commanded ``rate``; then it slews at
-    ``max_rate`` to ``wheel_limit`` beyond the trim on the side that turns the heading back (the side opposite
-    to the heading the tractor would end with if the wheel came back to the trim) and holds there, until the
-    heading is zero. Closed form, element-wise on numpy arrays.
+    ``max_rate`` towards ``wheel_limit`` on the side that turns the heading back (the side opposite to the
+    heading the tractor would end with if the wheel came back to the trim) and holds there, until the heading
+    is zero. Closed form, element-wise on numpy arrays.
 
     Parameters
     ----------
@@ -196,17 +176,13 @@ def stopping_offset(heading, wheel, rate, speed, wheelbase: float, max_rate: flo
     speed
         Ground speed, m/s (> 0).
     wheelbase, max_rate, wheel_limit, reaction
-        Wheelbase [m] (or the effective one, which a towed implement lengthens), the valve's slew rate [rad/s],
-        the wheel angle the turn goes to beyond the trim [rad] and the time before it starts [s].
+        Wheelbase [m], the valve's slew rate [rad/s], the wheel angle the turn goes to [rad] and the time
+        before it starts [s].
     trim
         The wheel angle at which the tractor drives straight, rad (+ = left; 0 without a pull): a towed
         implement's pull takes that much of the turn towards one side.
-    spread
-        How much further the pull may take the turn than ``trim`` says, rad (>= 0): the trim that far towards
-        the side the tractor is heading to, from the start, and the turn back that much shorter.
     """
     heading, wheel, rate, trim = (np.asarray(v, dtype=float) for v in (heading, wheel, rate, trim))
-    spread = np.asarray(spread, dtype=float)
     v = np.asarray(speed, dtype=float)
     k = np.maximum(v / wheelbase, 1e-9)
     r, tau = float(max_rate), float(reaction)
@@ -218,13 +194,9 @@ def stopping_offset(heading, wheel, rate, speed, wheelbase: float, max_rate: flo
     # turned against the heading it would end with: flipped so that the turn is towards negative wheel angles
     side = np.where(p1 + k * d1 * np.abs(d1) / (2.0 * r) >= 0.0, 1.0, -1.0)
     p, d = side * p1, side * d1
-    if np.any(spread > 0):    # the pull's spread on that side: the reaction again, with the wheel that much further
-        wf, rf, hf = side * wheel + spread, side * rate, side * heading
-        d = wf + rf * tau
-        p = hf + k * (wf * tau + 0.5 * rf * tau ** 2)
-        y1 = side * v * (hf * tau + k * (0.5 * wf * tau ** 2 + rf * tau ** 3 / 6.0))
-    # the wheel turns to wheel_limit beyond the trim, on the side that turns the heading back
-    a = np.maximum(float(wheel_limit) - spread, 1e-3) + np.zeros_like(d)
+    # the wheel turns to -side * wheel_limit: beyond the trim, that much (at least a little: a pull the limit
+    # does not hold is a very long way)
+    a = np.maximum(float(wheel_limit) + side * trim, 1e-3)
     # heading zero while the wheel still slews (the later root: the heading's last return to zero)
     t_zero = (d + np.sqrt(np.maximum(d * d + 2.0 * r * p / k, 0.0))) / r
     t_slew = np.maximum(d + a, 0.0) / r
@@ -281,12 +253,6 @@ class SlewRule:
         self.prompt = np.zeros(B, dtype=bool)       # a return that slews towards the line at once
         self.guard_count = np.zeros(B, dtype=int)   # returns the guard began
         self.trim = np.zeros(B)                     # the wheel angle that drives straight, estimated
-        # how the heading answers the wheel: weighted means of the wheel angle w, the heading's rate r, w*w, w*r,
-        # and the weight they hold so far (0 to 1; the rest is the prior, the wheelbase)
-        self.moments = np.zeros((5, B))
-        self.effective_wheelbase = np.full(B, self.wheelbase)
-        self.trim_moments = np.zeros((3, B))        # weighted means of the trim, of its square, and their weight
-        self.spread = np.zeros(B)                   # the trim's standard deviation over the pass so far
         self.last_yaw, self.last_t = np.zeros(B), None
         self.y_ref = np.zeros(B)
         self.servo_u = np.zeros(B)
@@ -315,27 +281,6 @@ class SlewRule:
         if hasattr(self, "off_end"):
             self.off_end[:] = now + self.settings.settle
 
-    #: The prior's weight in the heading's answer to the wheel, rad^2: a wheel angle's variance of 0.03 rad squared
-    #: (the slews swing it by about 0.1 rad, so the pass's own fit outweighs the wheelbase after a few seconds).
-    GAIN_PRIOR = 0.03 ** 2
-    #: The effective wheelbase the guard learns lies between the wheelbase and this many times it.
-    GAIN_RANGE = 4.0
-
-    def _learn_gain(self, dt: float, wheel: np.ndarray, yaw_rate: np.ndarray) -> np.ndarray:
-        """The effective wheelbase, m: ``speed`` over the slope of the heading's rate against the wheel angle, a
-        least-squares fit with an intercept (the pull) weighted over ``gain_time`` s, drawn towards the
-        wheelbase by :attr:`GAIN_PRIOR` and kept within 1 to :attr:`GAIN_RANGE` times it."""
-        g = min(dt / self.settings.gain_time, 1.0)
-        m = self.moments
-        m += g * (np.stack([wheel, yaw_rate, wheel * wheel, wheel * yaw_rate, np.ones_like(wheel)]) - m)
-        n = np.maximum(m[4], 1e-12)     # the means so far: the moments are drawn from zero
-        var = m[2] / n - (m[0] / n) ** 2
-        cov = m[3] / n - (m[0] / n) * (m[1] / n)
-        kinematic = np.maximum(self.speed, 1e-9) / self.wheelbase
-        slope = (m[4] * cov + self.GAIN_PRIOR * kinematic) / (m[4] * var + self.GAIN_PRIOR)
-        slope = np.clip(slope, kinematic / self.GAIN_RANGE, kinematic)
-        return np.maximum(self.speed, 1e-9) / slope
-
     def rate(self, now: float, delta_m: np.ndarray, y_m: np.ndarray, yaw: np.ndarray) -> np.ndarray:
         """Steering-rate command now, rad/s, + = left, from the measured wheel angle ``delta_m`` [rad],
         the control point's cross-track ``y_m`` [m, + left] and heading ``yaw`` [rad] from the line."""
@@ -354,25 +299,13 @@ class SlewRule:
         if s.guard:     # the stopping point beyond the guard line: a return now, until it is back in the soft corridor
             yaw = np.asarray(yaw, dtype=float)
             if self.last_t is not None and now > self.last_t:
-                dt = now - self.last_t
-                yaw_rate = (yaw - self.last_yaw) / dt
-                if s.gain_time > 0:
-                    self.effective_wheelbase = self._learn_gain(dt, delta_m, yaw_rate)
                 # the trim: the wheel angle less the one the heading's rate asks for, averaged over pull_time
-                a = min(dt / s.pull_time, 1.0)
-                self.trim = self.trim + a * (delta_m - self.trim) - a * (
-                    self.effective_wheelbase / np.maximum(self.speed, 1e-9)) * yaw_rate
-                if s.gain_time > 0 and s.pull_spread > 0:
-                    tm = self.trim_moments
-                    tm += min(dt / s.gain_time, 1.0) * (
-                        np.stack([self.trim, self.trim ** 2, np.ones_like(self.trim)]) - tm)
-                    n = np.maximum(tm[2], 1e-12)
-                    self.spread = np.sqrt(np.maximum(tm[1] / n - (tm[0] / n) ** 2, 0.0))
+                a = min((now - self.last_t) / s.pull_time, 1.0)
+                self.trim = self.trim + a * (delta_m - self.trim) - (a / (now - self.last_t)) * (
+                    self.wheelbase / np.maximum(self.speed, 1e-9)) * (yaw - self.last_yaw)
             self.last_yaw, self.last_t = yaw, now
-            stop = y_m + stopping_offset(yaw, delta_m, self.last_rate, self.speed, self.effective_wheelbase,
-                                         self.max_rate, s.soft_limit, s.reaction,
-                                         np.clip(self.trim, -s.soft_limit, s.soft_limit),
-                                         np.minimum(s.pull_spread * self.spread, 0.5 * s.soft_limit))
+            stop = y_m + stopping_offset(yaw, delta_m, self.last_rate, self.speed, self.wheelbase, self.max_rate,
+                                         s.soft_limit, s.reaction, self.trim)
             self.guarding = np.where(np.abs(stop) > s.corridor - s.guard_margin, True,
                                      np.where(np.abs(stop) < s.return_at, False, self.guarding))
         # the returns that slew the wheel towards the line at once (the turn the stopping point assumes)
@@ -385,11 +318,9 @@ class SlewRule:
             self.guard_count = self.guard_count + (self.guarding & begun)
             mode = np.where(begun, 0.0, mode)
             self.t_end = np.where(begun, now, self.t_end)
-        # end a slew early at the soft limit (the guard's return: that much beyond the trim, the wheel angle that
-        # drives straight, so a pull cannot hold the tractor off the line); then choose the next stretch when one ends
-        centre = np.where(self.guarding, np.clip(self.trim, -s.soft_limit, s.soft_limit), 0.0)
-        mode = np.where((mode > 0) & (delta_m - centre >= s.soft_limit), 0.0, mode)
-        mode = np.where((mode < 0) & (delta_m - centre <= -s.soft_limit), 0.0, mode)
+        # end a slew early at the soft limit; then choose the next stretch when one ends
+        mode = np.where((mode > 0) & (delta_m >= s.soft_limit), 0.0, mode)
+        mode = np.where((mode < 0) & (delta_m <= -s.soft_limit), 0.0, mode)
         due = now >= self.t_end
         if np.any(due):
             idx = np.minimum(self.n_made, self.n_dec - 1)
@@ -402,8 +333,7 @@ class SlewRule:
                 noise = np.where(self.returning, 0.0, s.direction_noise * ud)
                 direction = np.sign(want - delta_m + noise)
             # a prompt return slews the wheel towards the line, up to the soft limit
-            direction = np.where(self.prompt, np.where(back * (delta_m - centre) < s.soft_limit, back, 0.0),
-                                 direction)
+            direction = np.where(self.prompt, np.where(back * delta_m < s.soft_limit, back, 0.0), direction)
             slew_len = s.slew_min + ul * (s.slew_max - s.slew_min)
             settling = now < self.settle_end
             hold_len = np.where(self.returning | settling, s.hold_min, s.hold_min + ul * (s.hold_max - s.hold_min))
@@ -433,7 +363,7 @@ class SlewRule:
                            s.soft_limit)
             u = s.servo * (want - delta_m)
             # a prompt return: its slew turns the wheel, then the servo holds it at the limit
-            u = np.where(self.prompt, np.where(mode != 0, 0.0, s.servo * (centre + back * s.soft_limit - delta_m)), u)
+            u = np.where(self.prompt, np.where(mode != 0, 0.0, s.servo * (back * s.soft_limit - delta_m)), u)
             self.servo_u = np.where(due, u, self.servo_u)
         self.last_rate = np.clip(mode * self.max_rate + self.servo_u, -self.max_rate, self.max_rate)
         return self.last_rate

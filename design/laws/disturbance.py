@@ -30,12 +30,19 @@ late as its latency, the window law and the filter; a signed log grid, then Neld
 scaled back until the stated specifications are
 met on every model with its latency (:func:`design.synthesis.specs.check_specs`); with ``K_d = 0`` the
 law is exactly the window law, so a scale of 0 always passes.
+
+The filter's time constant ``tau_f`` is either given or, with ``filter_choices`` (e.g.
+:data:`FILTER_CHOICES`), chosen by the design with ``K_d``: for each candidate the gain is optimised and
+scaled back as above, and the candidate whose kept law has the lowest worst-model H2 ratio is the law
+(ties: the slower filter, which passes less of the sensors' noise). The window law's own cost does not
+depend on the filter, so the ratios compare directly. Judged after the scale-back, a fast filter the
+specifications hold to a fraction of its gain does not displace a slower one that keeps its whole gain.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -62,16 +69,28 @@ class DisturbanceSpec:
     channels
         Output indices whose one-step prediction carries a disturbance (default: cross-track
         and heading, outputs 0 and 1).
+    filter_choices
+        Time constants of the filter, s, the design chooses ``tau_f`` among (with the gain, by the
+        H2 criterion after the specifications' scale-back: :func:`design_estimate`); empty: ``tau_f``
+        as given. The law's file records the one chosen as ``tau_f_s``.
     """
 
     tau_d: float = 2.0
     tau_f: float = 2.0
     channels: tuple[int, ...] = (0, 1)
+    filter_choices: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("tau_d", "tau_f"):
             finite(getattr(self, name), name, lo=0.0, hi=600.0, lo_open=True, unit="s", where="DisturbanceSpec",
                    error=DesignInputError)
+        choices = tuple(self.filter_choices)
+        for v in choices:
+            finite(v, "filter_choices", lo=0.0, hi=600.0, lo_open=True, unit="s", where="DisturbanceSpec",
+                   error=DesignInputError)
+        if len(set(choices)) != len(choices):
+            raise DesignInputError(f"filter_choices must be distinct, got {self.filter_choices!r}")
+        object.__setattr__(self, "filter_choices", tuple(sorted((float(v) for v in choices), reverse=True)))
         ch = tuple(self.channels)
         if not ch or len(set(ch)) != len(ch) or any(isinstance(j, bool) or not isinstance(j, (int, np.integer))
                                                     or j < 0 for j in ch):
@@ -79,8 +98,20 @@ class DisturbanceSpec:
         object.__setattr__(self, "channels", tuple(int(j) for j in ch))
 
     def to_dict(self) -> dict:
-        """JSON form."""
+        """JSON form (of the estimate as it runs: the choices are the design's, recorded by it)."""
         return {"tau_d_s": self.tau_d, "tau_f_s": self.tau_f, "channels": list(self.channels)}
+
+
+#: The filter time constants, s, a commissioning's robust law chooses among (:attr:`DisturbanceSpec.filter_choices`):
+#: from 0.5 s, a few of the 0.05 s control steps and below the soil's fastest processes (1-5 s) the disturbance
+#: model assumes, to the 2 s of its correlation time, on a ratio of about sqrt(2).
+FILTER_CHOICES = (2.0, 1.4, 1.0, 0.7, 0.5)
+
+
+def chosen_filter(tau_d: float = 2.0) -> DisturbanceSpec:
+    """The estimate with its filter chosen by the design among :data:`FILTER_CHOICES` (2 s when the estimate
+    does not act)."""
+    return DisturbanceSpec(tau_d=tau_d, tau_f=2.0, filter_choices=FILTER_CHOICES)
 
 
 def prediction_rows(window_models: Sequence[tuple[np.ndarray, np.ndarray]],
@@ -216,7 +247,8 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
                     spec: DisturbanceSpec,
                     accept: Callable[[Compensator], bool] | None = None,
                     latency: Sequence[float] | None = None) -> tuple[Compensator, dict]:
-    """The window law with the disturbance estimate: ``K_d`` by H2 over the models, scaled back until ``accept``.
+    """The window law with the disturbance estimate: ``K_d`` (and, with ``spec.filter_choices``, the filter's
+    time constant) by H2 over the models, scaled back until ``accept``.
 
     Parameters
     ----------
@@ -237,7 +269,9 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
     -------
     compensator, record
         The law (``K_d`` scaled by the largest accepted of 1, 0.7, 0.5, 0.35, 0.25, 0.15, 0; at 0 the
-        estimate does not act) and what was chosen (gain, scale, H2 costs with and without it).
+        estimate does not act) and what was chosen (gain, scale, H2 costs with and without it; with
+        ``spec.filter_choices``, the filter's time constant chosen and each candidate's gain, scale and
+        worst H2 ratio under ``filter_choice``).
     """
     f, g = prediction_rows(window_models, layout)
     nd = len(spec.channels)
@@ -246,11 +280,63 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
     if len(lat) != q or any(not math.isfinite(v) or v < 0 for v in lat):
         raise DesignInputError(f"latency needs {q} finite values >= 0 s, got {latency!r}")
     delays = [int(round(v / layout.dt)) for v in lat]
+    each0 = _cost(window_models, layout, estimate_compensator(k, np.zeros((1, nd)), base, layout, f, g, spec),
+                  qz, r, spec, delays)
+    if not spec.filter_choices:
+        comp, kd, scale, each = _one_filter(k, base, layout, window_models, qz, r, spec, accept, delays, f, g, each0)
+        chosen, choice = spec, None
+    else:
+        tried, best = [], None
+        for tau in spec.filter_choices:                 # slowest first: a tie keeps the slower filter
+            sp = replace(spec, tau_f=tau, filter_choices=())
+            comp_t, kd_t, scale_t, each_t = _one_filter(k, base, layout, window_models, qz, r, sp, accept, delays,
+                                                        f, g, each0)
+            worst = _worst_ratio(each_t, each0)
+            tried.append({"tau_f_s": tau, "optimal_Kd": kd_t.tolist(), "scale": scale_t,
+                          "h2_ratio_worst": worst})
+            if scale_t > 0 and worst is not None and (best is None or worst < best[0] * (1.0 - 1e-9)):
+                best = (worst, sp, comp_t, kd_t, scale_t, each_t)
+        if best is None:                                # no filter's estimate acts: the window law, the given tau_f
+            chosen = replace(spec, filter_choices=())
+            comp, kd, scale = estimate_compensator(k, np.zeros((1, nd)), base, layout, f, g, chosen), np.zeros((1, nd)), 0.0
+            each = _cost(window_models, layout, comp, qz, r, chosen, delays)
+        else:
+            _, chosen, comp, kd, scale, each = best
+        choice = {"rule": "for each filter time constant, the estimate's gain by the worst H2 ratio over the models "
+                          "and scaled back until the specifications hold; kept: the lowest worst ratio so achieved "
+                          "(ties: the slower filter; none acting: the given one)",
+                  "tried": tried}
+    with np.errstate(divide="ignore", invalid="ignore"):    # a model without a finite cost has no ratio
+        ratio = each / each0
+    ratio = ratio[np.isfinite(ratio)]
+    record = {**chosen.to_dict(), "gain_Kd": (scale * kd).tolist(), "optimal_Kd": kd.tolist(), "scale": scale,
+              "h2_cost_without": finite_or_none(each0.sum()), "h2_cost": finite_or_none(each.sum()),
+              "h2_ratio_worst": float(np.max(ratio)) if ratio.size else None,
+              "h2_ratio_mean": float(np.mean(ratio)) if ratio.size else None,
+              "latency_samples": delays, "prediction": "mean of the design models' y[k+1] rows",
+              "states": list(range(base.order + layout.n_outputs, base.order + layout.n_outputs + nd))}
+    if choice is not None:
+        record["filter_choice"] = choice
+    return comp, record
+
+
+def _worst_ratio(each: np.ndarray, each0: np.ndarray) -> float | None:
+    """The worst over the models of the H2 cost with the estimate over the window law's own (None: no model has
+    both finite)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = each / each0
+    ratio = ratio[np.isfinite(ratio)]
+    return float(np.max(ratio)) if ratio.size else None
+
+
+def _one_filter(k, base, layout, window_models, qz, r, spec: DisturbanceSpec, accept, delays, f, g,
+                each0: np.ndarray) -> tuple[Compensator, np.ndarray, float, np.ndarray]:
+    """With ``spec``'s filter: the compensator kept, the optimal gain (1 x nd), the scale kept and each model's
+    H2 cost (see :func:`design_estimate`)."""
+    nd = len(spec.channels)
 
     def comp_of(kd: np.ndarray) -> Compensator:
         return estimate_compensator(k, kd, base, layout, f, g, spec)
-
-    each0 = _cost(window_models, layout, comp_of(np.zeros((1, nd))), qz, r, spec, delays)
 
     def obj(x: np.ndarray) -> float:
         c = _cost(window_models, layout, comp_of(x.reshape(1, nd)), qz, r, spec, delays)
@@ -276,14 +362,4 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
         if obj(s * kd.ravel()) < 1e30 and (accept is None or accept(cand)):
             chosen, scale = cand, s
             break
-    each = _cost(window_models, layout, chosen, qz, r, spec, delays)
-    with np.errstate(divide="ignore", invalid="ignore"):    # a model without a finite cost has no ratio
-        ratio = each / each0
-    ratio = ratio[np.isfinite(ratio)]
-    record = {**spec.to_dict(), "gain_Kd": (scale * kd).tolist(), "optimal_Kd": kd.tolist(), "scale": scale,
-              "h2_cost_without": finite_or_none(each0.sum()), "h2_cost": finite_or_none(each.sum()),
-              "h2_ratio_worst": float(np.max(ratio)) if ratio.size else None,
-              "h2_ratio_mean": float(np.mean(ratio)) if ratio.size else None,
-              "latency_samples": delays, "prediction": "mean of the design models' y[k+1] rows",
-              "states": list(range(base.order + layout.n_outputs, base.order + layout.n_outputs + nd))}
-    return chosen, record
+    return chosen, kd, scale, _cost(window_models, layout, chosen, qz, r, spec, delays)

@@ -18,7 +18,7 @@ not see a step from zero to the present errors.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -112,19 +112,59 @@ def closed_loop_matrix(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarra
     sign is part of it). Raises :class:`DesignInputError` on a dimension mismatch or an
     ill-posed algebraic loop.
     """
-    n, m = b.shape
-    q = c.shape[0]
+    _check_dimensions(b, c, comp)
+    ux, uc = _command_gains(c, d, comp)
+    return np.vstack([_plant_rows(a, b, ux, uc), _compensator_rows(c, d, comp, ux, uc)])
+
+
+def input_gain_loop(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray,
+                    comp: Compensator) -> Callable[[float], np.ndarray]:
+    """The closed loop with a gain ``k > 0`` at the plant input, as a function of ``k``.
+
+    ``loop(k)`` is ``closed_loop_matrix(a, k b, c, k d, comp)`` to the last bit. For a strictly
+    proper plant (``d`` all zero) the algebraic loop is the identity and the compensator's rows do not
+    depend on ``k``: they are formed once, and each gain forms only the plant's rows (a gain-margin
+    bisection asks for a hundred gains of one loop).
+    """
+    _check_dimensions(b, c, comp)
+    if d.any():
+        return lambda k: closed_loop_matrix(a, b * k, c, d * k, comp)
+    ux, uc = _command_gains(c, d, comp)          # k d is d for k > 0: zeros of the same sign
+    bottom = _compensator_rows(c, d, comp, ux, uc)
+    return lambda k: np.vstack([_plant_rows(a, b * k, ux, uc), bottom])
+
+
+def _check_dimensions(b: np.ndarray, c: np.ndarray, comp: Compensator) -> None:
+    m, q = b.shape[1], c.shape[0]
     if (comp.n_measurements, comp.n_commands) != (q, m):
         raise DesignInputError(f"compensator reads {comp.n_measurements} outputs and writes {comp.n_commands} "
                                f"inputs; the model has q={q} outputs and m={m} inputs")
-    w = np.eye(m) - comp.Dc @ d
-    if np.linalg.cond(w) > 1e12:
-        raise DesignInputError("algebraic loop I - Dc D is singular: the closed loop is ill-posed")
-    mi = np.linalg.inv(w)
-    ux, uc = mi @ comp.Dc @ c, mi @ comp.Cc          # u = ux x + uc xc
-    top = np.hstack([a + b @ ux, b @ uc])
-    bot = np.hstack([comp.Bc @ (c + d @ ux), comp.Ac + comp.Bc @ d @ uc])
-    return np.vstack([top, bot])
+
+
+def _command_gains(c: np.ndarray, d: np.ndarray, comp: Compensator) -> tuple[np.ndarray, np.ndarray]:
+    """``(ux, uc)`` with ``u = ux x + uc xc``: the algebraic loop ``u = Cc xc + Dc (C x + D u)`` solved.
+
+    With ``d`` all zero ``I - Dc D`` is exactly the identity, whose inverse LAPACK returns exactly:
+    the identity is used as it is, without the condition number and the inverse.
+    """
+    m = d.shape[1]
+    if d.any():
+        w = np.eye(m) - comp.Dc @ d
+        if np.linalg.cond(w) > 1e12:
+            raise DesignInputError("algebraic loop I - Dc D is singular: the closed loop is ill-posed")
+        mi = np.linalg.inv(w)
+    else:
+        mi = np.eye(m)
+    return mi @ comp.Dc @ c, mi @ comp.Cc
+
+
+def _plant_rows(a: np.ndarray, b: np.ndarray, ux: np.ndarray, uc: np.ndarray) -> np.ndarray:
+    return np.hstack([a + b @ ux, b @ uc])
+
+
+def _compensator_rows(c: np.ndarray, d: np.ndarray, comp: Compensator, ux: np.ndarray,
+                      uc: np.ndarray) -> np.ndarray:
+    return np.hstack([comp.Bc @ (c + d @ ux), comp.Ac + comp.Bc @ d @ uc])
 
 
 def spectral_radius(a: np.ndarray) -> float:

@@ -22,7 +22,7 @@ import numpy as np
 
 from identification.model import Model
 
-from design.core.compensator import Compensator, closed_loop_matrix, spectral_radius
+from design.core.compensator import Compensator, closed_loop_matrix, input_gain_loop, spectral_radius
 from design.core.errors import VerificationError
 from design.core.limits import check_model_order
 
@@ -88,11 +88,6 @@ def _db(x: float) -> float:
     return 20 * math.log10(x) if x > 0 and math.isfinite(x) else math.inf
 
 
-def _scaled_radius(model: Model, comp: Compensator, gain: float) -> float:
-    # gain k at the plant input: u_plant = k u
-    return spectral_radius(closed_loop_matrix(model.A, model.B * gain, model.C, model.D * gain, comp))
-
-
 def gain_margins(model: Model, comp: Compensator, limit: float = 1e3) -> tuple[float, float]:
     """Exact gain margins at the plant input by bisection on the closed-loop spectral radius.
 
@@ -102,8 +97,10 @@ def gain_margins(model: Model, comp: Compensator, limit: float = 1e3) -> tuple[f
         Factors ``k > 1`` and ``k < 1`` at which the loop first loses stability
         (``inf`` / ``0`` if not within ``[1/limit, limit]``).
     """
+    loop = input_gain_loop(model.A, model.B, model.C, model.D, comp)   # gain k at the plant input: u_plant = k u
+
     def unstable(k: float) -> bool:
-        return _scaled_radius(model, comp, k) >= 1.0
+        return spectral_radius(loop(k)) >= 1.0
 
     def bisect(stable: float, bad: float) -> float:     # stable at one gain, unstable at the other (log scale)
         for _ in range(40):

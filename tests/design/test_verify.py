@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from design.core.compensator import Compensator
+from design.core.compensator import Compensator, closed_loop_matrix, input_gain_loop
 from design.core.errors import VerificationError
 from design.core.verify import certify, delay_margin_samples, gain_margins, phase_margin
 from identification.model import Model
@@ -61,3 +61,35 @@ def test_disk_margins_match_the_hand_computation_and_the_gain_margin_is_in_db_on
     assert row.disk_margin == pytest.approx(1.2, rel=1e-5)
     assert row.disk_gain_margin_db == pytest.approx(20 * math.log10(4.0), rel=1e-4)
     assert row.disk_phase_margin_deg == pytest.approx(math.degrees(math.acos(2 / 4.25)), rel=1e-4)
+
+
+def _random_loop(rng, n: int, nc: int, q: int, m: int, feedthrough: bool):
+    a, b = rng.normal(size=(n, n)) * 0.4, rng.normal(size=(n, m))
+    c, d = rng.normal(size=(q, n)), (rng.normal(size=(q, m)) * 0.1 if feedthrough else np.zeros((q, m)))
+    comp = Compensator(rng.normal(size=(nc, nc)) * 0.3, rng.normal(size=(nc, q)), rng.normal(size=(m, nc)),
+                       rng.normal(size=(m, q)), 0.05)
+    return a, b, c, d, comp
+
+
+@pytest.mark.parametrize("feedthrough", [False, True])
+@pytest.mark.parametrize("m", [1, 2])
+def test_the_loop_with_a_gain_at_the_plant_input_is_the_closed_loop_matrix_to_the_last_bit(m, feedthrough):
+    # the gain margins' bisection forms a hundred such loops; formed once in part, they must not differ in one bit
+    rng = np.random.default_rng(7 + m)
+    for n, nc in ((4, 3), (13, 10), (2, 0)):
+        a, b, c, d, comp = _random_loop(rng, n, nc, 3, m, feedthrough)
+        loop = input_gain_loop(a, b, c, d, comp)
+        for k in [*np.geomspace(1e-3, 1e3, 25), 1.0, 0.3721, 2.5e-3 * math.pi]:
+            assert loop(k).tobytes() == closed_loop_matrix(a, b * k, c, d * k, comp).tobytes(), (n, k)
+
+
+def test_a_strictly_proper_plant_closes_the_loop_as_the_algebraic_loop_s_inverse_does():
+    # with D = 0 the closed loop skips I - Dc D (exactly I) and its inverse: the same bits as through them
+    rng = np.random.default_rng(3)
+    for m in (1, 2, 3):
+        a, b, c, d, comp = _random_loop(rng, 6, 4, 3, m, False)
+        mi = np.linalg.inv(np.eye(m) - comp.Dc @ d)
+        ux, uc = mi @ comp.Dc @ c, mi @ comp.Cc
+        through = np.vstack([np.hstack([a + b @ ux, b @ uc]),
+                             np.hstack([comp.Bc @ (c + d @ ux), comp.Ac + comp.Bc @ d @ uc])])
+        assert closed_loop_matrix(a, b, c, d, comp).tobytes() == through.tobytes()

@@ -195,8 +195,24 @@ def phase_margin(model: Model, comp: Compensator, omega: np.ndarray,
     return best, w_best
 
 
+def _frequencies(model: Model) -> np.ndarray:
+    """The frequency grid of the phase and disk margins, rad/s (up to just below Nyquist)."""
+    return np.geomspace(1e-3, math.pi / model.dt * 0.999, 1500)
+
+
+def stability_margins(model: Model, comp: Compensator) -> tuple[float, float, float]:
+    """Closed-loop spectral radius, delay margin (whole samples) and balanced disk margin of ``comp`` around
+    ``model``: the values of :func:`check_model` that a specification check reads, to the last bit, without the
+    gain margins' bisection, the phase margin and the disturbance response (margins 0 for an unstable loop)."""
+    rho = spectral_radius(closed_loop_matrix(model.A, model.B, model.C, model.D, comp))
+    if not rho < 1.0:
+        return rho, 0.0, 0.0
+    dm, _, _ = disk_margins(_loop_response(model, comp, _frequencies(model)))
+    return rho, float(delay_margin_samples(model, comp)), dm
+
+
 def _margins(model: Model, comp: Compensator) -> tuple[float, float, float, float, float, float, float]:
-    omega = np.geomspace(1e-3, math.pi / model.dt * 0.999, 1500)
+    omega = _frequencies(model)
     up, low = gain_margins(model, comp)
     resp = _loop_response(model, comp, omega)
     pm, _ = phase_margin(model, comp, omega, resp)

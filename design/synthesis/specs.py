@@ -16,8 +16,8 @@ the models describe the tractor at the time of measurement, while the loop reads
 measurements that are that much late. :func:`delayed_model` puts the latency back, as
 fractional-delay taps on each output (``y_meas[k] = (1 - f) y[k - n] + f y[k - n - 1]``,
 ``latency = (n + f) dt``), and :func:`check_specs` closes the exported compensator around
-those delayed models and recomputes every margin with :func:`design.core.verify.check_model`
-(never taken from the synthesis).
+those delayed models and recomputes the margins it reads with
+:func:`design.core.verify.stability_margins` (the certificate's values; never taken from the synthesis).
 
 The latency comes from the models' metadata when they carry it (``meta["latency_s"]``:
 per output channel, s, not contained in the model; ``meta["latency_in_model"]`` true
@@ -27,7 +27,9 @@ from (:func:`latency_from_logs`), else from an explicit value.
 
 from __future__ import annotations
 
+import json
 import math
+from collections import OrderedDict
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -40,7 +42,7 @@ from identification.model import Model
 
 from design.core.compensator import Compensator, closed_loop_matrix
 from design.core.errors import DesignInputError
-from design.core.verify import check_model
+from design.core.verify import model_hash, stability_margins
 
 #: Pass-log channel of each model output, in the models' output order.
 OUTPUT_CHANNELS: tuple[str, ...] = ("cross_track", "heading_error", "wheel_angle")
@@ -324,24 +326,43 @@ def check_model_specs(model: Model, comp: Compensator, specs: Specifications, la
                       name: str | None = None) -> SpecCheck:
     """The exported compensator closed around ``model`` with ``latency`` in the loop, against ``specs``."""
     nm = name or str(model.meta.get("name", "model"))
-    dm = delayed_model(model, latency)
-    row = check_model(dm, comp, nm)
+    dm = _delayed(model, latency)
+    rho, delay_samples, disk = stability_margins(dm, comp)
     fails = []
-    if not row.stable:
+    if not rho < 1.0:
         fails.append(f"stability with the latency {', '.join(f'{v:g}' for v in latency)} s "
-                     f"(spectral radius {row.spectral_radius:.4f}, expected < 1)")
-        return SpecCheck(nm, row.spectral_radius, 0.0, 0.0, math.inf, tuple(fails))
-    reserve = row.delay_margin_samples * model.dt
+                     f"(spectral radius {rho:.4f}, expected < 1)")
+        return SpecCheck(nm, rho, 0.0, 0.0, math.inf, tuple(fails))
+    reserve = delay_samples * model.dt
     peak = peak_command(dm, comp, specs.initial_errors[:model.n_outputs])
-    if row.disk_margin < specs.disk_margin:
-        fails.append(f"disk margin >= {specs.disk_margin:g} (achieved {row.disk_margin:.3f})")
+    if disk < specs.disk_margin:
+        fails.append(f"disk margin >= {specs.disk_margin:g} (achieved {disk:.3f})")
     if reserve < specs.delay_reserve - 1e-9:
         fails.append(f"delay reserve >= {specs.delay_reserve:g} s beyond the latency (achieved {reserve:.3g} s, "
-                     f"{row.delay_margin_samples:g} samples)")
+                     f"{delay_samples:g} samples)")
     if peak > specs.rate_limit:
         fails.append(f"peak command <= the rate limit {specs.rate_limit:g} rad/s from the tracking-error set "
                      f"(achieved {peak:.3f} rad/s)")
-    return SpecCheck(nm, row.spectral_radius, row.disk_margin, reserve, peak, tuple(fails))
+    return SpecCheck(nm, rho, disk, reserve, peak, tuple(fails))
+
+
+#: Delayed models already made, by the model's arrays, metadata and latency (a weights search checks every
+#: candidate on the same few models: the predictor's Riccati equation is solved once per model, not per candidate).
+_DELAYED: OrderedDict[tuple, Model] = OrderedDict()
+_DELAYED_KEPT = 64
+
+
+def _delayed(model: Model, latency: Sequence[float]) -> Model:
+    """:func:`delayed_model`, made once for each model and latency (models are read-only)."""
+    key = (model_hash(model), json.dumps(dict(model.meta), sort_keys=True), tuple(float(v) for v in latency))
+    found = _DELAYED.get(key)
+    if found is None:
+        found = _DELAYED[key] = delayed_model(model, latency)
+        while len(_DELAYED) > _DELAYED_KEPT:
+            _DELAYED.popitem(last=False)
+    else:
+        _DELAYED.move_to_end(key)
+    return found
 
 
 @dataclass(frozen=True)

@@ -164,6 +164,23 @@ def test_delayed_model_reads_each_output_late_with_fractional_taps():
     np.testing.assert_allclose(yds[k, 2], ys[k, 2], atol=1e-12)
 
 
+def test_the_delayed_models_of_a_search_are_made_once_per_model_and_latency():
+    # every candidate of a weights search is checked on the same delayed models: their predictor's Riccati
+    # equation is solved once, and the model served again is the one delayed_model makes
+    from design.synthesis import specs
+    m = tractor_model(1.0)
+    first = specs._delayed(m, LATENCY)
+    assert specs._delayed(m, list(LATENCY)) is first
+    made = delayed_model(m, LATENCY)
+    for name in ("A", "B", "C", "D", "K"):
+        assert getattr(first, name).tobytes() == getattr(made, name).tobytes()
+    assert dict(first.meta) == dict(made.meta)
+    other = specs._delayed(m, (0.1, 0.1, 0.0))
+    assert other is not first and other.order == m.order + 4
+    renamed = type(m)(m.A, m.B, m.C, m.D, m.K, m.dt, {**m.meta, "name": "renamed"})
+    assert specs._delayed(renamed, LATENCY).meta["name"] == "renamed+latency"
+
+
 def test_latency_comes_from_the_model_metadata_and_a_model_holding_its_delay_adds_none():
     base = tractor_model(1.0)
     a = type(base)(base.A, base.B, base.C, base.D, base.K, base.dt, {**base.meta, "latency_s": 0.15})

@@ -9,7 +9,8 @@ import pytest
 
 from design.core.compensator import Compensator, closed_loop_matrix, input_gain_loop
 from design.core.errors import VerificationError
-from design.core.verify import certify, delay_margin_samples, gain_margins, phase_margin
+from design.core.verify import certify, check_model, delay_margin_samples, gain_margins, phase_margin, stability_margins
+from design.synthesis.specs import delayed_model
 from identification.model import Model
 
 # Plant P(z) = 1/(z - 1) (a discrete integrator), static compensator u = -0.5 y: closed-loop pole 0.5.
@@ -93,3 +94,16 @@ def test_a_strictly_proper_plant_closes_the_loop_as_the_algebraic_loop_s_inverse
         through = np.vstack([np.hstack([a + b @ ux, b @ uc]),
                              np.hstack([comp.Bc @ (c + d @ ux), comp.Ac + comp.Bc @ d @ uc])])
         assert closed_loop_matrix(a, b, c, d, comp).tobytes() == through.tobytes()
+
+
+def test_the_margins_a_specification_check_reads_are_the_certificate_s_to_the_last_bit():
+    lead = Compensator(np.array([[0.5]]), np.array([[1.0]]), np.array([[-0.1]]), np.array([[-0.4]]), 0.05)
+    reversed_plant = Model(PLANT.A, -PLANT.B, PLANT.C, PLANT.D, PLANT.K, 0.05, {"name": "reversed"})
+    stable = 0
+    for model in (PLANT, delayed_model(PLANT, [0.12]), reversed_plant):
+        for comp in (GAIN, lead):
+            row = check_model(model, comp)
+            got = stability_margins(model, comp)
+            assert got == (row.spectral_radius, row.delay_margin_samples, row.disk_margin), (model.meta["name"], got)
+            stable += row.stable
+    assert 2 <= stable < 6                               # stable loops with margins, and unstable ones with zeros

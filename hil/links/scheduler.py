@@ -110,12 +110,8 @@ class LockstepScheduler:
         if not math.isfinite(t_end):
             raise ClockError(f"cannot run until a non-finite time ({t_end!r} s)")
         self._running = True
-        clock = self.clock
-        advance_to = clock.advance_to
-        plant = self.plant
-        max_step = self.max_step
-        plant_steps = 0      # counted here, added to the attribute when the run ends (or fails)
         try:
+            clock = self.clock
             now = clock.now()
             same = 0   # passes at this instant that stepped a device (each pass either advances time or counts)
             while True:
@@ -130,18 +126,14 @@ class LockstepScheduler:
                 same = 0
                 if now >= t_end:
                     return
-                if t_next > t_end:                     # min(t_next, t_end, now + max_step), without the calls
-                    t_next = t_end
-                if plant is not None:
-                    limit = now + max_step
-                    if t_next > limit:
-                        t_next = limit
-                    plant.advance(t_next - now)
-                    plant_steps += 1
-                advance_to(t_next)
+                t_next = min(t_next, t_end)
+                if self.plant is not None:
+                    t_next = min(t_next, now + self.max_step)
+                    self.plant.advance(t_next - now)
+                    self.plant_steps += 1
+                clock.advance_to(t_next)
                 now = t_next
         finally:
-            self.plant_steps += plant_steps
             self._running = False
 
     def _pass(self, now: float) -> tuple[bool, float]:
@@ -153,21 +145,18 @@ class LockstepScheduler:
         """
         again = False
         t_next = math.inf
-        independent = self.independent
         for device in self.devices:
             wake = device.next_wakeup()
             if wake <= now:
-                device.step(now)
-                self.device_steps += 1
-                if not independent:
+                self._step(device, now)
+                if not self.independent:
                     again = True
                     continue
                 for _ in range(self.max_same_instant):   # only this device's wake-up can have changed
                     wake = device.next_wakeup()
                     if wake > now:
                         break
-                    device.step(now)
-                    self.device_steps += 1
+                    self._step(device, now)
                 else:
                     raise SchedulerStallError(
                         f"a device was stepped {self.max_same_instant + 1} times at t={now!r} s without time "
@@ -175,3 +164,7 @@ class LockstepScheduler:
             if wake < t_next:
                 t_next = wake
         return again, t_next
+
+    def _step(self, device: Device, now: float) -> None:
+        device.step(now)
+        self.device_steps += 1

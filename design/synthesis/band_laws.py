@@ -268,6 +268,7 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
             if auto:
                 row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())))
             row["estimate_scale"] = (d.get("disturbance_estimate") or {}).get("scale")
+            row["estimate_filter_s"] = (d.get("disturbance_estimate") or {}).get("tau_f_s")
             gain, sig, worst_model = noise_gain(r.file.compensator, inside)
             row.update(noise_gain=finite_or_none(gain), noise_command_sigma_rad_s=finite_or_none(sig))
             top = opts.search.search.high
@@ -286,6 +287,7 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                     gain, sig, worst_model = noise_gain(r.file.compensator, inside)
                     row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())),
                                estimate_scale=(d.get("disturbance_estimate") or {}).get("scale"),
+                               estimate_filter_s=(d.get("disturbance_estimate") or {}).get("tau_f_s"),
                                noise_gain=finite_or_none(gain), noise_command_sigma_rad_s=finite_or_none(sig))
             if _layout(r) != layout:
                 row.update(kept=False, why=f"its states {_layout(r)} are not the base law's {layout}")

@@ -125,3 +125,36 @@ def test_bad_filter_choices_are_refused():
     assert DisturbanceSpec(filter_choices=(0.5, 2, 1.0)).filter_choices == (2.0, 1.0, 0.5)
     # the file's record of the estimate as it runs holds no choices
     assert DisturbanceSpec(filter_choices=(0.5,)).to_dict() == DisturbanceSpec().to_dict()
+
+
+def test_each_band_law_chooses_its_own_filter_and_its_row_records_it(tmp_path):
+    # two design speeds; the band laws are designed with the same options, so each chooses among the filters
+    # on its own band's models, and the law schedule runs each band's law with the filter its row names
+    from design.files.law_schedule import RECORD, compensator_from_record
+    from design.synthesis.autotune import SearchOptions
+    from design.synthesis.band_laws import SEARCH_RECORD, design_robust_bands
+    from design.synthesis.recipes import RobustOptions, WeightSearch, design_robust_controller
+    from design_family import tractor_model
+
+    models = []
+    for v in (1.0, 2.9):
+        for a in (1.0, 0.7):
+            m = tractor_model(v, authority=a, tau=0.1 if v < 2 else 0.3)
+            models.append(type(m)(m.A, m.B, m.C, m.D, m.K, m.dt, {**m.meta, "conditions": [
+                {"implement": "none" if a == 1.0 else "ripper", "nominal_speed": v}]}))
+    opts = RobustOptions(RobustSpec(integral=True, past=1),
+                         WeightSearch(mode="auto", latency=(0.1,), actuator_rate=0.35,
+                                      search=SearchOptions(low=0.05, high=50.0, scan=3, steps=1)),
+                         chosen_filter())
+    base = design_robust_controller(models, opts)
+    res = design_robust_bands(models, opts, base)
+    assert base.file.design["disturbance_estimate"]["tau_f_s"] in FILTER_CHOICES
+    assert _filter_of(res.file.compensator) == pytest.approx(res.file.design["disturbance_estimate"]["tau_f_s"])
+    bands = res.file.design[SEARCH_RECORD]["bands"]
+    kept = [b for b in bands if b["kept"]]
+    assert kept and all(b["estimate_filter_s"] in FILTER_CHOICES for b in bands if b.get("estimate_scale"))
+    body = read_controller_file(res.save(tmp_path / "robust.json"))
+    laws = body.design[RECORD]["laws"]
+    for law, b in zip(laws, kept):
+        comp = compensator_from_record(law["compensator"], 0.05, 3)
+        assert _filter_of(comp) == pytest.approx(b["estimate_filter_s"])

@@ -298,7 +298,8 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
                 best = (worst, sp, comp_t, kd_t, scale_t, each_t)
         if best is None:                                # no filter's estimate acts: the window law, the given tau_f
             chosen = replace(spec, filter_choices=())
-            comp, kd, scale = estimate_compensator(k, np.zeros((1, nd)), base, layout, f, g, chosen), np.zeros((1, nd)), 0.0
+            kd, scale = np.zeros((1, nd)), 0.0
+            comp = estimate_compensator(k, kd, base, layout, f, g, chosen)
             each = _cost(window_models, layout, comp, qz, r, chosen, delays)
         else:
             _, chosen, comp, kd, scale, each = best

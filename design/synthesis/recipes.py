@@ -17,7 +17,8 @@ Each recipe returns a result holding the verified controller file (nothing is wr
 The robust recipe is :func:`design.synthesis.robust.design_robust` (or, with automatic weights,
 :func:`design.synthesis.auto_designs.auto_robust`), then, with the disturbance estimate, the estimate's gain
 scaled back until every specification the window law met still holds; when automatic weights left the
-estimate less than its full gain, gentler window laws (:data:`BACKOFF`) are tried beside it, and the
+estimate less than its full gain (with every filter tried, when the design chooses the estimate's filter:
+:func:`fitted_scale`), gentler window laws (:data:`BACKOFF`) are tried beside it, and the
 laws made but not kept are offered as :attr:`RobustControllerResult.candidates` (for a trial drive to
 choose among).
 """
@@ -48,7 +49,8 @@ from design.synthesis.robust import RobustResult, RobustSpec, design_robust, wit
 from design.synthesis.specs import Specifications, check_specs, latency_from_logs, latency_from_models
 
 __all__ = ["WeightSearch", "RobustOptions", "RobustControllerResult", "MPCOptions", "MPCControllerResult",
-           "BACKOFF", "load_models", "design_robust_controller", "design_mpc_controller", "fallback_past"]
+           "BACKOFF", "load_models", "design_robust_controller", "design_mpc_controller", "fallback_past",
+           "fitted_scale"]
 
 WEIGHT_MODES = ("explicit", "auto")
 #: Gentler window weights tried, as fractions of the automatic weights' scale, when the estimate does not
@@ -296,7 +298,7 @@ def _with_estimate(res: RobustResult, models: Sequence[Model], validate: Sequenc
     out = with_disturbance_estimate(res, models, spec, dspec, accept, latency)
     auto = res.file.design.get("auto_weights")
     made = [out]
-    if auto and latency is not None and out.file.design["disturbance_estimate"]["scale"] < 1.0:
+    if auto and latency is not None and fitted_scale(out.file.design["disturbance_estimate"]) < 1.0:
         out, made = _backed_off(out, res, models, spec, dspec, accept, latency, float(auto["chosen_scale"]))
 
     def finish(o: RobustResult) -> RobustResult:
@@ -311,15 +313,27 @@ def _with_estimate(res: RobustResult, models: Sequence[Model], validate: Sequenc
     return kept, [kept if o is out else finish(o) for o in made]
 
 
+def fitted_scale(record: dict) -> float:
+    """The largest scale of its gain the disturbance estimate kept beside a window law (its record
+    ``design["disturbance_estimate"]``): with the filter chosen by the design, over every filter tried (the one
+    chosen may keep less, its H2 ratio being lower all the same), else the one filter's. Below 1 the estimate
+    does not fit at its full gain beside that law, whatever its filter, and gentler window laws are tried."""
+    tried = (record.get("filter_choice") or {}).get("tried")
+    if tried:
+        return max(float(t["scale"]) for t in tried)
+    return float(record["scale"])
+
+
 def _backed_off(out: RobustResult, res: RobustResult, models: Sequence[Model], spec: RobustSpec,
                 dspec: DisturbanceSpec, accept, latency, chosen: float) -> tuple[RobustResult, list[RobustResult]]:
     """The first gentler window law (:data:`BACKOFF`) beside which the estimate keeps its full gain, else the
-    one with the largest estimate scale (``out`` if none is larger); recorded in the estimate's record.
+    one with the largest estimate scale (``out`` if none is larger; both with any filter tried:
+    :func:`fitted_scale`); recorded in the estimate's record.
 
     Returns the kept design and every design made (``out`` first, then the gentler ones in the order tried),
     each with the record naming its own window scale as ``kept_scale``."""
     d0 = res.file.design
-    best, best_scale, tried = out, out.file.design["disturbance_estimate"]["scale"], []
+    best, best_scale, tried = out, fitted_scale(out.file.design["disturbance_estimate"]), []
     made = [(chosen, out)]
     base = replace(spec, integral=bool(d0["integral"]), past=d0["past"],
                    reduce="always" if d0.get("design_models") is not None else spec.reduce)
@@ -330,7 +344,7 @@ def _backed_off(out: RobustResult, res: RobustResult, models: Sequence[Model], s
         except DesignError as exc:
             tried.append({"scale": chosen * f, "error": str(exc)})
             continue
-        s2 = o2.file.design["disturbance_estimate"]["scale"]
+        s2 = fitted_scale(o2.file.design["disturbance_estimate"])
         tried.append({"scale": chosen * f, "estimate_scale": s2})
         made.append((chosen * f, o2))
         if s2 > best_scale:
@@ -341,7 +355,8 @@ def _backed_off(out: RobustResult, res: RobustResult, models: Sequence[Model], s
     def recorded(scale: float, o: RobustResult) -> RobustResult:
         d = dict(o.file.design)
         d["disturbance_estimate"] = {**d["disturbance_estimate"], "window_backoff": {
-            "search_scale": chosen, "estimate_scale_at_search_weights": out.file.design["disturbance_estimate"]["scale"],
+            "search_scale": chosen,
+            "estimate_scale_at_search_weights": fitted_scale(out.file.design["disturbance_estimate"]),
             "tried": tried, "kept_scale": float(scale)}}
         d["auto_weights"] = d0["auto_weights"]
         return replace(o, file=replace(o.file, design=d))

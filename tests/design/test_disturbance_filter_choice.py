@@ -158,3 +158,15 @@ def test_each_band_law_chooses_its_own_filter_and_its_row_records_it(tmp_path):
     for law, b in zip(laws, kept):
         comp = compensator_from_record(law["compensator"], 0.05, 3)
         assert _filter_of(comp) == pytest.approx(b["estimate_filter_s"])
+
+
+def test_the_window_law_backs_off_only_when_no_filter_keeps_the_estimate_s_full_gain():
+    from design.synthesis.recipes import fitted_scale
+    one = {"scale": 0.5, "tau_f_s": 2.0}
+    assert fitted_scale(one) == 0.5                    # a given filter: its own scale
+    chosen = {"scale": 0.7, "tau_f_s": 0.5, "filter_choice": {"tried": [
+        {"tau_f_s": 2.0, "scale": 1.0}, {"tau_f_s": 1.0, "scale": 0.7}, {"tau_f_s": 0.5, "scale": 0.7}]}}
+    assert fitted_scale(chosen) == 1.0                 # the 0.5 s filter at 0.7 chosen, but the 2 s one fits whole
+    held = {"scale": 0.5, "tau_f_s": 1.0, "filter_choice": {"tried": [
+        {"tau_f_s": 2.0, "scale": 0.35}, {"tau_f_s": 1.0, "scale": 0.5}]}}
+    assert fitted_scale(held) == 0.5

@@ -8,8 +8,8 @@
 
 The prediction model is the model of kind ``central`` among ``--models`` (or ``--central``);
 the unconstrained law is checked closed around every other model given. With local models of two or
-more design speeds, each speed's band predicts with its model of the implement none
-(``--prediction-schedule off``: not).
+more design speeds, each speed's band predicts with the one of its models whose law holds the band's models
+closest (``design.synthesis.mpc_design.with_prediction_schedule``; ``--prediction-schedule off``: not).
 """
 
 from __future__ import annotations
@@ -81,9 +81,10 @@ def add_parser(sub: argparse._SubParsersAction, number) -> None:
     add_spec_arguments(p, number)
     add_disturbance_arguments(p, number, "carry it in the MPC's state and prediction")
     p.add_argument("--prediction-schedule", choices=("on", "off"), default="on",
-                   help="predict in each design speed's band with that speed's local model of the implement none, "
-                        "certified on the band's models, when --models hold local models of two or more speeds "
-                        "(default on; off: the central model at every speed)")
+                   help="predict in each design speed's band with the one of that speed's local models whose law holds "
+                        "the band's models closest (driven by their identified innovations; the central model where "
+                        "it does better), certified on the band's models, when --models hold local models of two or "
+                        "more speeds (default on; off: the central model at every speed)")
     add_noise_argument(p, "--prediction-schedule's")
     p.add_argument("--alternative-prediction", choices=("on", "off"), default="off",
                    help="when no law predicting with the central model stabilises every model, predict with the "

@@ -79,9 +79,9 @@ class Designer:
         The wheel-angle sensor's 1-sigma, rad, of the band laws' noise check (the valve test's measurement; None:
         :data:`design.core.noise.MEASUREMENT_NOISE`'s).
     prediction_schedule
-        The MPC predicts, in each design speed's band, with that speed's local model of the implement
-        ``none`` (:func:`design.synthesis.mpc_design.with_prediction_schedule`); False: the central model at
-        every speed.
+        The MPC predicts, in each design speed's band, with the one of that speed's local models whose law holds
+        the band's models closest, or the central model where it does better
+        (:func:`design.synthesis.mpc_design.with_prediction_schedule`); False: the central model at every speed.
     """
 
     rate_limit: float

@@ -37,6 +37,11 @@ scaled back as above, and the candidate whose kept law has the lowest worst-mode
 (ties: the slower filter, which passes less of the sensors' noise). The window law's own cost does not
 depend on the filter, so the ratios compare directly. Judged after the scale-back, a fast filter the
 specifications hold to a fraction of its gain does not displace a slower one that keeps its whole gain.
+The criterion does not see the sensors' noise, which a faster filter passes more of, and which the
+velocity-normalised outputs carry divided by the speed: the robust recipe
+(:func:`design.synthesis.recipes.design_robust_controller`) holds the choices to :func:`filter_floor` of its
+models' slowest design speed (:func:`held_to_speed`), so a law that also runs at 1.00 m/s keeps the 2 s filter
+and a law of the fast speeds' band chooses among them all.
 """
 
 from __future__ import annotations
@@ -106,6 +111,32 @@ class DisturbanceSpec:
 #: from 0.5 s, a few of the 0.05 s control steps and below the soil's fastest processes (1-5 s) the disturbance
 #: model assumes, to the 2 s of its correlation time, on a ratio of about sqrt(2).
 FILTER_CHOICES = (2.0, 1.4, 1.0, 0.7, 0.5)
+
+
+#: The slowest design speed's filter the choice is held to, ``(tau_f s, speed m/s)``: the velocity-normalised
+#: cross-track carries the receiver's noise divided by the speed and a filter of time constant ``tau_f`` passes a
+#: variance of it about proportional to ``dt / tau_f``, so a filter no faster than ``tau_f (v_ref / v)^2`` keeps the
+#: estimate's share of that noise at what the 2 s filter passes at 1.00 m/s. Measured on the default tractor,
+#: its 1.00 m/s band law with a 0.7 s filter drove the noise-driven command 1.33 times the 2 s filter's and steered
+#: the three 1.00 m/s cells 7-13 % worse (6 seeds); at 2.91 m/s the floor is 0.24 s and leaves every choice.
+NOISE_REFERENCE = (2.0, 1.0)
+
+
+def filter_floor(speed: float) -> float:
+    """The fastest filter, s, a law whose slowest design speed is ``speed`` (m/s) may choose: ``tau_ref (v_ref /
+    speed)^2`` (:data:`NOISE_REFERENCE`)."""
+    finite(speed, "speed", lo=0.0, lo_open=True, unit="m/s", where="filter_floor", error=DesignInputError)
+    tau, v = NOISE_REFERENCE
+    return tau * (v / speed) ** 2
+
+
+def held_to_speed(spec: DisturbanceSpec, speed: float | None) -> DisturbanceSpec:
+    """``spec`` with its filter choices held to :func:`filter_floor` of the slowest design speed ``speed`` (None:
+    not known, the choices as given); none left: its given ``tau_f``, not chosen."""
+    if not spec.filter_choices or speed is None:
+        return spec
+    floor = filter_floor(speed)
+    return replace(spec, filter_choices=tuple(t for t in spec.filter_choices if t >= floor * (1 - 1e-9)))
 
 
 def chosen_filter(tau_d: float = 2.0) -> DisturbanceSpec:

@@ -34,7 +34,7 @@ from identification.model import Model
 
 from design.synthesis.auto_designs import auto_mpc, auto_robust, spec_names
 from design.synthesis.autotune import SearchOptions, scaled_weights
-from design.laws.disturbance import DisturbanceSpec
+from design.laws.disturbance import DisturbanceSpec, filter_floor, held_to_speed
 from design.core.errors import DesignError, DesignInputError, SpecificationError, VerificationError
 from design.synthesis.family import as_family
 from design.core.iostate import observable_past
@@ -42,7 +42,8 @@ from design.core.noise import MEASUREMENT_NOISE
 from design.mpc.backends import SolverSettings
 from design.mpc.law import unconstrained_law
 from design.mpc.problem import MPCLimits, MPCWeights, mpc_problem
-from design.synthesis.mpc_design import (PREDICTION_CHOICE, MPCDesign, MPCSpec, design_mpc, fallback_from_file,
+from design.synthesis.mpc_design import (PREDICTION_CHOICE, MPCDesign, MPCSpec, design_mpc, design_speed,
+                                         fallback_from_file,
                                          prediction_alternatives, prediction_model,
                                          read_controller_file, with_prediction_schedule)
 from design.synthesis.robust import RobustResult, RobustSpec, design_robust, with_disturbance_estimate
@@ -295,6 +296,9 @@ def _with_estimate(res: RobustResult, models: Sequence[Model], validate: Sequenc
 
         def accept(comp) -> bool:
             return eff is not None and check_specs(comp, family, eff, latency, names).passed
+    speeds = [design_speed(m) for m in models]
+    slowest = None if not speeds or any(v is None for v in speeds) else min(speeds)
+    asked, dspec = dspec, held_to_speed(dspec, slowest)
     out = with_disturbance_estimate(res, models, spec, dspec, accept, latency)
     auto = res.file.design.get("auto_weights")
     made = [out]
@@ -303,6 +307,11 @@ def _with_estimate(res: RobustResult, models: Sequence[Model], validate: Sequenc
 
     def finish(o: RobustResult) -> RobustResult:
         d = dict(o.file.design)
+        if asked.filter_choices:
+            d["disturbance_estimate"] = {**d["disturbance_estimate"], "filter_floor": {
+                "slowest_design_speed_mps": slowest,
+                "fastest_filter_s": None if slowest is None else filter_floor(slowest),
+                "choices": list(dspec.filter_choices) if dspec.filter_choices else [dspec.tau_f]}}
         if latency is not None:
             after = check_specs(o.file.compensator, family, specs, latency, names).to_dict()
             d["disturbance_estimate"] = {**d["disturbance_estimate"], "specifications_achieved": after}

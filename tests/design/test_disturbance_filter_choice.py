@@ -148,11 +148,15 @@ def test_each_band_law_chooses_its_own_filter_and_its_row_records_it(tmp_path):
                          chosen_filter())
     base = design_robust_controller(models, opts)
     res = design_robust_bands(models, opts, base)
-    assert base.file.design["disturbance_estimate"]["tau_f_s"] in FILTER_CHOICES
-    assert _filter_of(res.file.compensator) == pytest.approx(res.file.design["disturbance_estimate"]["tau_f_s"])
+    # the law on every model runs at 1.0 m/s too: held to the 2 s filter by the sensors' noise there
+    rec = base.file.design["disturbance_estimate"]
+    assert rec["filter_floor"] == {"slowest_design_speed_mps": 1.0, "fastest_filter_s": 2.0, "choices": [2.0]}
+    assert rec["tau_f_s"] == 2.0 and _filter_of(res.file.compensator) == pytest.approx(2.0)
     bands = res.file.design[SEARCH_RECORD]["bands"]
     kept = [b for b in bands if b["kept"]]
     assert kept and all(b["estimate_filter_s"] in FILTER_CHOICES for b in bands if b.get("estimate_scale"))
+    slow = next(b for b in bands if b["band_mps"][0] == 0.0)
+    assert slow.get("estimate_filter_s") in (None, 2.0)
     body = read_controller_file(res.save(tmp_path / "robust.json"))
     laws = body.design[RECORD]["laws"]
     for law, b in zip(laws, kept):
@@ -170,3 +174,18 @@ def test_the_window_law_backs_off_only_when_no_filter_keeps_the_estimate_s_full_
     held = {"scale": 0.5, "tau_f_s": 1.0, "filter_choice": {"tried": [
         {"tau_f_s": 2.0, "scale": 0.35}, {"tau_f_s": 1.0, "scale": 0.5}]}}
     assert fitted_scale(held) == 0.5
+
+
+def test_the_filter_floor_keeps_the_sensors_noise_in_the_estimate_at_the_slow_speed_s():
+    from design.laws.disturbance import NOISE_REFERENCE, filter_floor, held_to_speed
+    tau, v = NOISE_REFERENCE
+    assert filter_floor(v) == tau and filter_floor(2 * v) == pytest.approx(tau / 4)
+    assert held_to_speed(chosen_filter(), 1.0).filter_choices == (2.0,)
+    assert held_to_speed(chosen_filter(), 1.79).filter_choices == (2.0, 1.4, 1.0, 0.7)
+    assert held_to_speed(chosen_filter(), 2.91).filter_choices == FILTER_CHOICES
+    assert held_to_speed(chosen_filter(), None) == chosen_filter()             # speed unknown: as given
+    assert held_to_speed(DisturbanceSpec(tau_f=1.5, filter_choices=(0.5,)), 1.0) == DisturbanceSpec(tau_f=1.5)
+    assert held_to_speed(DisturbanceSpec(tau_f=0.7), 1.0) == DisturbanceSpec(tau_f=0.7)   # a given filter stays
+    for bad in (0.0, -1.0, math.nan):
+        with pytest.raises(DesignInputError):
+            filter_floor(bad)

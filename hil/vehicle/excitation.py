@@ -22,8 +22,11 @@ stays rich while the tractor stays near the line:
   the wheel towards the line at once, as with ``predict``, until the stopping point is back inside the soft
   corridor. Its stopping point turns from the **trim**, the wheel angle that drives the tractor straight,
   estimated from the measured wheel angle and the heading's rate: a towed disker's pull takes up to half of
-  the return's turn. Elsewhere the passes are the paper's rule's, so only the few stretches that would
-  otherwise leave the corridor change;
+  the return's turn. Where the pass shows that the heading answers the wheel slower than the wheelbase says
+  (a towed disker at speed), the stopping point turns it as on the **effective wheelbase** learned from the
+  pass; a return against a pull turns the wheel ``soft_limit`` beyond the trim; a return whose stopping point
+  still lies beyond half the margin turns it on to ``press_limit``. Elsewhere the passes are the paper's
+  rule's, so only the few stretches that would otherwise leave the corridor change;
 - the **hard corridor** (``corridor``, default 1.5 m) is the loop's own limit
   (:attr:`hil.vehicle.loop.LoopConfig.max_cross_track`, set by :meth:`ExcitationSettings.loop_config`):
   beyond it the loop disengages, so the pass is spoiled and driven again
@@ -104,7 +107,29 @@ class ExcitationSettings:
     pull_time
         With the guard: the time constant, s, over which the rule estimates the wheel angle that drives the
         tractor straight (the measured wheel angle less the one the measured heading's rate asks for), the trim
-        the guard's stopping point turns from: a towed disker's pull takes up to half the return's turn.
+        the guard's stopping point turns from: a towed disker's pull takes up to half the return's turn. Where the
+        pull works against the guard's return (the trim lies on the side the return turns to), the return turns
+        the wheel ``soft_limit`` beyond the trim, not to ``soft_limit``: a pull of 0.2 rad would otherwise hold
+        the tractor off the line with the wheel at the limit. The stopping point still assumes the turn to
+        ``soft_limit``; the rest is held against the pull's changes, which the trim follows ``pull_time`` late.
+    press_limit
+        With the guard: the wheel angle (beyond the trim, where the pull works against the return) to which a
+        **failing** return turns, rad: where, during a guard's return, the stopping point of the turn to
+        ``soft_limit`` lies beyond ``corridor - guard_margin / 2`` (the turn no longer keeps half the margin:
+        the pull grew, or the heading answers slower than the stopping point assumed), the return turns the
+        wheel on to ``press_limit`` until it ends. ``soft_limit``: no such turn. A return that keeps the margin
+        is as before.
+    gain_time, gain_evidence
+        With the guard: the time constant, s, over which the rule learns how fast the heading answers the wheel
+        (the slope of the measured heading's rate against the wheel angle, a least-squares fit with an intercept,
+        the pull, weighted over the pass so far and drawn towards the wheelbase's slope by a prior), as an
+        **effective wheelbase**, ``speed / slope``. The guard's stopping point turns the heading on it only where
+        the pass shows it, where it is at least ``gain_evidence`` times the wheelbase: towing a disker, the heading
+        answers the wheel at 2.24-2.91 m/s as on a wheelbase 1.3 to 2.3 times longer (the disker's drag, and its
+        pull that varies with the soil while the wheel answers it), and the kinematic stopping point came up to
+        0.4 m short. Elsewhere the wheelbase, as before (without an implement the learned one stays mostly within
+        1.2 times the wheelbase, the fit's noise, early in a pass up to 1.4 times: it matters only where the
+        stopping point nears the guard line). ``gain_time`` 0: always the wheelbase.
     """
 
     slew_min: float = 0.2
@@ -125,6 +150,9 @@ class ExcitationSettings:
     guard: bool = True
     guard_margin: float = 0.2
     pull_time: float = 5.0
+    gain_time: float = 20.0
+    gain_evidence: float = 1.3
+    press_limit: float = 0.4
 
     def __post_init__(self) -> None:
         for k, v in self.__dict__.items():
@@ -136,6 +164,12 @@ class ExcitationSettings:
         for k in ("predict", "guard"):
             if getattr(self, k) and self.soft_limit <= 0:
                 raise VehicleConfigError(f"excitation: {k} needs soft_limit > 0 (the wheel angle a return turns to)")
+        if self.guard and self.gain_time > 0 and self.gain_evidence < 1:
+            raise VehicleConfigError(f"excitation: gain_evidence must be >= 1 (a multiple of the wheelbase), got "
+                                     f"{self.gain_evidence:g}")
+        if self.guard and self.press_limit < self.soft_limit:
+            raise VehicleConfigError(f"excitation: press_limit ({self.press_limit:g} rad) must be >= soft_limit "
+                                     f"({self.soft_limit:g} rad)")
         if self.guard and self.pull_time <= 0:
             raise VehicleConfigError("excitation: the guard needs pull_time > 0 (the trim's time constant)")
         if self.guard and not self.return_at < self.corridor - self.guard_margin:
@@ -253,6 +287,12 @@ class SlewRule:
         self.prompt = np.zeros(B, dtype=bool)       # a return that slews towards the line at once
         self.guard_count = np.zeros(B, dtype=int)   # returns the guard began
         self.trim = np.zeros(B)                     # the wheel angle that drives straight, estimated
+        # how the heading answers the wheel: weighted means of the wheel angle w, the heading's rate r, w*w, w*r,
+        # and the weight they hold so far (0 to 1; the rest is the prior, the wheelbase)
+        self.moments = np.zeros((5, B))
+        self.effective_wheelbase = np.full(B, self.wheelbase)
+        self.stop = np.zeros(B)                     # the guard's stopping point, m
+        self.pressing = np.zeros(B, dtype=bool)     # a guard's return that turns on to press_limit
         self.last_yaw, self.last_t = np.zeros(B), None
         self.y_ref = np.zeros(B)
         self.servo_u = np.zeros(B)
@@ -263,6 +303,15 @@ class SlewRule:
             self.off_len = np.stack([r.uniform(s.offset_hold_min, s.offset_hold_max, n_off) for r in rngs])
             self.off_idx = np.zeros(B, dtype=int)
             self.off_end = np.full(B, s.settle)
+
+    def _turning_wheelbase(self) -> np.ndarray:
+        """The wheelbase the guard turns the heading on: the effective one where the pass shows it (at least
+        ``gain_evidence`` times the wheelbase), else the wheelbase."""
+        s = self.settings
+        if s.gain_time <= 0:
+            return np.full_like(self.effective_wheelbase, self.wheelbase)
+        return np.where(self.effective_wheelbase >= s.gain_evidence * self.wheelbase, self.effective_wheelbase,
+                        self.wheelbase)
 
     def restart(self, now: float) -> None:
         """No slews for ``settle`` s from ``now`` (after an engage), aiming at the line itself until then (the
@@ -275,11 +324,33 @@ class SlewRule:
         self.guarding[:] = False
         self.prompt[:] = False
         self.last_t = None      # the trim goes on from where it was: a pull outlasts a disengagement
+        self.pressing[:] = False
         self.y_ref[:] = 0.0
         self.servo_u[:] = 0.0
         self.last_rate[:] = 0.0
         if hasattr(self, "off_end"):
             self.off_end[:] = now + self.settings.settle
+
+    #: The prior's weight in the heading's answer to the wheel, rad^2: a wheel angle's variance of 0.03 rad squared
+    #: (the slews swing it by about 0.1 rad, so the pass's own fit outweighs the wheelbase after a few seconds).
+    GAIN_PRIOR = 0.03 ** 2
+    #: The effective wheelbase the guard learns lies between the wheelbase and this many times it.
+    GAIN_RANGE = 4.0
+
+    def _learn_gain(self, dt: float, wheel: np.ndarray, yaw_rate: np.ndarray) -> np.ndarray:
+        """The effective wheelbase, m: ``speed`` over the slope of the heading's rate against the wheel angle, a
+        least-squares fit with an intercept (the pull) weighted over ``gain_time`` s, drawn towards the
+        wheelbase by :attr:`GAIN_PRIOR` and kept within 1 to :attr:`GAIN_RANGE` times it."""
+        g = min(dt / self.settings.gain_time, 1.0)
+        m = self.moments
+        m += g * (np.stack([wheel, yaw_rate, wheel * wheel, wheel * yaw_rate, np.ones_like(wheel)]) - m)
+        n = np.maximum(m[4], 1e-12)     # the means so far: the moments are drawn from zero
+        var = m[2] / n - (m[0] / n) ** 2
+        cov = m[3] / n - (m[0] / n) * (m[1] / n)
+        kinematic = np.maximum(self.speed, 1e-9) / self.wheelbase
+        slope = (m[4] * cov + self.GAIN_PRIOR * kinematic) / (m[4] * var + self.GAIN_PRIOR)
+        slope = np.clip(slope, kinematic / self.GAIN_RANGE, kinematic)
+        return np.maximum(self.speed, 1e-9) / slope
 
     def rate(self, now: float, delta_m: np.ndarray, y_m: np.ndarray, yaw: np.ndarray) -> np.ndarray:
         """Steering-rate command now, rad/s, + = left, from the measured wheel angle ``delta_m`` [rad],
@@ -299,15 +370,21 @@ class SlewRule:
         if s.guard:     # the stopping point beyond the guard line: a return now, until it is back in the soft corridor
             yaw = np.asarray(yaw, dtype=float)
             if self.last_t is not None and now > self.last_t:
+                dt = now - self.last_t
+                yaw_rate = (yaw - self.last_yaw) / dt
+                if s.gain_time > 0:
+                    self.effective_wheelbase = self._learn_gain(dt, delta_m, yaw_rate)
                 # the trim: the wheel angle less the one the heading's rate asks for, averaged over pull_time
-                a = min((now - self.last_t) / s.pull_time, 1.0)
-                self.trim = self.trim + a * (delta_m - self.trim) - (a / (now - self.last_t)) * (
+                a = min(dt / s.pull_time, 1.0)
+                self.trim = self.trim + a * (delta_m - self.trim) - (a / dt) * (
                     self.wheelbase / np.maximum(self.speed, 1e-9)) * (yaw - self.last_yaw)
             self.last_yaw, self.last_t = yaw, now
-            stop = y_m + stopping_offset(yaw, delta_m, self.last_rate, self.speed, self.wheelbase, self.max_rate,
-                                         s.soft_limit, s.reaction, self.trim)
+            stop = self.stop = y_m + stopping_offset(yaw, delta_m, self.last_rate, self.speed,
+                                                     self._turning_wheelbase(), self.max_rate, s.soft_limit,
+                                                     s.reaction, self.trim)
             self.guarding = np.where(np.abs(stop) > s.corridor - s.guard_margin, True,
                                      np.where(np.abs(stop) < s.return_at, False, self.guarding))
+            self.pressing = self.guarding & (self.pressing | (np.abs(stop) > s.corridor - 0.5 * s.guard_margin))
         # the returns that slew the wheel towards the line at once (the turn the stopping point assumes)
         prompt = self.recall | self.guarding if s.predict else self.guarding
         self.returning = self.recall | self.guarding
@@ -318,9 +395,13 @@ class SlewRule:
             self.guard_count = self.guard_count + (self.guarding & begun)
             mode = np.where(begun, 0.0, mode)
             self.t_end = np.where(begun, now, self.t_end)
-        # end a slew early at the soft limit; then choose the next stretch when one ends
-        mode = np.where((mode > 0) & (delta_m >= s.soft_limit), 0.0, mode)
-        mode = np.where((mode < 0) & (delta_m <= -s.soft_limit), 0.0, mode)
+        # end a slew early at the soft limit; the guard's return against a pull: that far beyond the trim (a pull
+        # on the side the return turns to takes that much of its turn); then choose the next stretch when one ends
+        trim = np.clip(self.trim, -s.soft_limit, s.soft_limit)
+        centre = np.where(self.guarding & (back * trim > 0), trim, 0.0)
+        limit = np.where(self.pressing, s.press_limit, s.soft_limit) if s.guard else s.soft_limit
+        mode = np.where((mode > 0) & (delta_m - centre >= limit), 0.0, mode)
+        mode = np.where((mode < 0) & (delta_m - centre <= -limit), 0.0, mode)
         due = now >= self.t_end
         if np.any(due):
             idx = np.minimum(self.n_made, self.n_dec - 1)
@@ -332,8 +413,8 @@ class SlewRule:
             else:
                 noise = np.where(self.returning, 0.0, s.direction_noise * ud)
                 direction = np.sign(want - delta_m + noise)
-            # a prompt return slews the wheel towards the line, up to the soft limit
-            direction = np.where(self.prompt, np.where(back * delta_m < s.soft_limit, back, 0.0), direction)
+            # a prompt return slews the wheel towards the line, up to the soft limit (the guard's: its limit)
+            direction = np.where(self.prompt, np.where(back * (delta_m - centre) < limit, back, 0.0), direction)
             slew_len = s.slew_min + ul * (s.slew_max - s.slew_min)
             settling = now < self.settle_end
             hold_len = np.where(self.returning | settling, s.hold_min, s.hold_min + ul * (s.hold_max - s.hold_min))
@@ -363,7 +444,7 @@ class SlewRule:
                            s.soft_limit)
             u = s.servo * (want - delta_m)
             # a prompt return: its slew turns the wheel, then the servo holds it at the limit
-            u = np.where(self.prompt, np.where(mode != 0, 0.0, s.servo * (back * s.soft_limit - delta_m)), u)
+            u = np.where(self.prompt, np.where(mode != 0, 0.0, s.servo * (centre + back * limit - delta_m)), u)
             self.servo_u = np.where(due, u, self.servo_u)
         self.last_rate = np.clip(mode * self.max_rate + self.servo_u, -self.max_rate, self.max_rate)
         return self.last_rate

@@ -1,0 +1,57 @@
+"""The identification passes' guard on a tractor towing the disker at the top speed (hil.vehicle.excitation): a
+pass of the field procedure on random-13 that the guard's kinematic stopping point and its return to the soft
+limit let out of the corridor stays inside with the effective wheelbase the pass shows (the heading answers the
+wheel slower with the disker) and the return that turns on where its stopping point no longer keeps the margin."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hil.bench.benches.valve import characterise_on_bench
+from hil.bench.commissioning.field_passes import _rng, data_sheet_latency
+from hil.bench.runs.run import RunSpec, simulated_run
+from hil.truth.tractors import resolve_tractor
+from hil.vehicle.commissioning import Commissioning
+from hil.vehicle.excitation import ExcitationController, ExcitationSettings
+from hil.vehicle.loop import LoopConfig
+from hil.vehicle.procedure import PlannedPass
+
+PARAMS = resolve_tractor("random-13").params()
+
+
+@pytest.fixture(scope="module")
+def com() -> Commissioning:
+    curve, _ = characterise_on_bench(PARAMS, seed=5)
+    return Commissioning("random-13", curve, None)
+
+
+def _procedure_pass(com: Commissioning, settings: ExcitationSettings):
+    """The procedure's first disker pass at 2.91 m/s as the bench drives it (its seed, 60 s, the commissioned loop
+    in the excitation's corridor): the farthest it went from the line while engaged, the loop's exits, the law."""
+    p = PlannedPass("disker", 2.91, 0, 60.0)
+    ss = _rng(1997, p, 0)
+    ctl = ExcitationController(settings, np.random.default_rng(ss), p.speed, p.duration, PARAMS.vehicle.wheelbase,
+                               com.valve.max_rate)
+    config = settings.loop_config(com.loop_config(LoopConfig(wheel_stop=PARAMS.steering.max_wheel_angle)))
+    spec = RunSpec(implement=p.implement, speed=p.speed, duration=p.duration,
+                   seed=int(ss.generate_state(1)[0] % 2**31), initial_cross_track=0.0)
+    log = simulated_run(spec, ctl, PARAMS, loop_config=config, commissioning=com, epochs=True,
+                        receiver_latency=data_sheet_latency(PARAMS))
+    engaged = log.channels["engaged"] > 0.5
+    exits = [e for e in log.meta["events"] if "beyond" in e["reason"]]
+    return float(np.max(np.abs(log.channels["truth_cross_track"][engaged]))), exits, ctl
+
+
+@pytest.mark.slow
+def test_a_disker_pass_at_the_top_speed_stays_in_its_corridor(com):
+    s = ExcitationSettings()
+    far, exits, ctl = _procedure_pass(com, s)
+    assert far < s.corridor and not exits, (far, exits)
+    # what the pass showed: the heading answers the wheel as on a longer wheelbase, and the guard turned on it
+    rule = ctl._rule
+    assert rule.effective_wheelbase[0] > s.gain_evidence * PARAMS.vehicle.wheelbase
+    assert rule._turning_wheelbase()[0] == rule.effective_wheelbase[0]
+    # the guard's kinematic stopping point, and its return only to the soft limit, let the same pass out
+    far, exits, _ = _procedure_pass(com, ExcitationSettings(gain_time=0.0, press_limit=s.soft_limit))
+    assert far > s.corridor and exits

@@ -1,6 +1,6 @@
 """``hil commission --prediction-schedule on|off`` and ``--robust-bands on|off``: the commissioning's MPC step
-predicts in each design speed's band with that speed's local model of the implement none, or with the central
-model at every speed; its robust step designs a law per speed band (on by default), whose noise check uses the
+predicts in each design speed's band with the one of that speed's local models whose law steers the band's models
+best under their identified noise, or with the central model at every speed; its robust step designs a law per speed band (on by default), whose noise check uses the
 valve test's measured wheel-angle noise; the report names what runs in each band."""
 
 from __future__ import annotations

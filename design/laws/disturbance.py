@@ -107,8 +107,8 @@ class DisturbanceSpec:
         return {"tau_d_s": self.tau_d, "tau_f_s": self.tau_f, "channels": list(self.channels)}
 
 
-#: The filter time constants, s, a commissioning's robust law chooses among (:attr:`DisturbanceSpec.filter_choices`):
-#: from 0.5 s, a few of the 0.05 s control steps and below the soil's fastest processes (1-5 s) the disturbance
+#: The filter time constants, s, a robust law designed with :func:`chosen_filter` chooses among
+#: (:attr:`DisturbanceSpec.filter_choices`): from 0.5 s, a few of the 0.05 s control steps and below the soil's fastest processes (1-5 s) the disturbance
 #: model assumes, to the 2 s of its correlation time, on a ratio of about sqrt(2).
 FILTER_CHOICES = (2.0, 1.4, 1.0, 0.7, 0.5)
 

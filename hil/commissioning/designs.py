@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from design.core.errors import DesignInputError, SpecificationError, VerificationError
-from design.laws.disturbance import DisturbanceSpec
+from design.laws.disturbance import DisturbanceSpec, chosen_filter
 from design.mpc.problem import MPCLimits
 from design.synthesis.recipes import (MPCOptions, RobustOptions, WeightSearch, design_mpc_controller, design_robust_controller,
                             fallback_past, load_models)
@@ -140,7 +140,7 @@ class Designer:
         keep = candidates_dir is not None and attempt.auto and self.estimate
         by_band = (self.robust_bands if bands is None else bands) and attempt.auto
         options = RobustOptions(RobustSpec(integral=self.integral, past=attempt.past, command_limit=self.rate_limit),
-                                self.search(attempt), DisturbanceSpec() if self.estimate else None, candidates=keep)
+                                self.search(attempt), chosen_filter() if self.estimate else None, candidates=keep)
         res = design_robust_controller(local, options, progress=progress)
         if by_band:
             res = design_robust_bands(local, options, res, progress, noise=self.noise)

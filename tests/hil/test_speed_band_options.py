@@ -1,11 +1,13 @@
 """``hil commission --prediction-schedule on|off`` and ``--robust-bands on|off``: the commissioning's MPC step
-predicts in each design speed's band with the one of that speed's local models whose law steers the band's models
-best under their identified noise, or with the central model at every speed; its robust step designs a law per speed band (on by default), whose noise check uses the
-valve test's measured wheel-angle noise; the report names what runs in each band."""
+predicts in each design speed's band with the one of that speed's local models whose law steers the band's
+models best under their identified noise, or with the central model at every speed; its robust step designs a
+law per speed band (on by default), whose noise check uses the valve test's measured wheel-angle noise, each
+law's estimate choosing its filter; the report names what runs in each band."""
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
@@ -53,6 +55,18 @@ def test_the_mpc_step_designs_with_the_schedule_or_without(tmp_path):
                                                                                            "local_none_2.91"]
         else:
             assert RECORD not in spec.design and rec["result"]["prediction_schedule"] is None
+
+
+def test_the_robust_step_s_estimate_chooses_its_filter_held_to_the_slowest_speed(tmp_path):
+    models = tmp_path / "models"
+    models.mkdir()
+    for v in (1.0, 2.91):
+        tractor_model(v, name=f"local_none_{v:g}").with_meta(
+            conditions=[{"implement": "none", "nominal_speed": v}]).save(models / f"local_none_{v:g}.npz")
+    Designer(rate_limit=0.3).robust(models, DesignTry(False), tmp_path / "robust.json")
+    est = json.loads((tmp_path / "robust.json").read_text())["design"]["disturbance_estimate"]
+    assert sorted(t["tau_f_s"] for t in est["filter_choice"]["tried"]) == [2.0]   # 1.00 m/s models: 2 s floor
+    assert est["tau_f_s"] == 2.0 and est["filter_floor"]["fastest_filter_s"] == 2.0, est["filter_floor"]
 
 
 def test_the_option_reaches_the_commissioning_on_by_default():

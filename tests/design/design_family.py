@@ -64,3 +64,18 @@ def tractor_model(speed: float, authority: float = 1.0, tau: float = 0.1, wheelb
 def family(speeds=(1.0, 1.79, 2.91), authorities=(1.0, 0.6)) -> list[Model]:
     """Models at every speed x authority."""
     return [tractor_model(v, a) for v in speeds for a in authorities]
+
+
+def family_window_design():
+    """The family's robust window law with integral action and the pieces its disturbance estimate is built from:
+    ``(models, spec, result, layout, window_models, data, gain_K)``."""
+    from dataclasses import replace
+
+    from design.synthesis.robust import RobustSpec, design_problem, design_robust
+
+    models = family()
+    spec = RobustSpec(integral=True)
+    res = design_robust(models, spec)
+    layout, a_list, b_list, data = design_problem(models, replace(spec, past=res.file.design["past"]))
+    k = np.asarray(res.file.design["gain_K"])
+    return models, spec, res, layout, list(zip(a_list, b_list)), data, k

@@ -14,20 +14,15 @@ from design.laws.disturbance import DisturbanceSpec, design_estimate, estimate_c
 from design.core.errors import ControllerFileError, DesignInputError
 from design.files.linear import estimate_states, read_controller_file
 from design.core.iostate import feedback_compensator
-from design.synthesis.robust import RobustSpec, design_problem, design_robust, with_disturbance_estimate
+from design.synthesis.robust import with_disturbance_estimate
 from design.core.verify import certify
 
-from design_family import family
+from design_family import family, family_window_design
 
 
 @pytest.fixture(scope="module")
 def window_design():
-    models = family()
-    spec = RobustSpec(integral=True)
-    res = design_robust(models, spec)
-    layout, a_list, b_list, data = design_problem(models, replace(spec, past=res.file.design["past"]))
-    k = np.asarray(res.file.design["gain_K"])
-    return models, spec, res, layout, list(zip(a_list, b_list)), data, k
+    return family_window_design()
 
 
 @pytest.fixture(scope="module")

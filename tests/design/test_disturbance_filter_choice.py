@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -14,21 +13,16 @@ from design.core.verify import certify
 from design.files.linear import read_controller_file
 from design.laws.disturbance import (FILTER_CHOICES, DisturbanceSpec, _cost, chosen_filter, design_estimate,
                                      estimate_compensator, prediction_rows)
-from design.synthesis.robust import RobustSpec, design_problem, design_robust, with_disturbance_estimate
+from design.synthesis.robust import RobustSpec, with_disturbance_estimate
 
-from design_family import family
+from design_family import family_window_design
 
 LATENCY = (0.1, 0.1, 0.0)
 
 
 @pytest.fixture(scope="module")
 def window_design():
-    models = family()
-    spec = RobustSpec(integral=True)
-    res = design_robust(models, spec)
-    layout, a_list, b_list, data = design_problem(models, replace(spec, past=res.file.design["past"]))
-    k = np.asarray(res.file.design["gain_K"])
-    return models, spec, res, layout, list(zip(a_list, b_list)), data, k
+    return family_window_design()
 
 
 def _worst(window_models, layout, comp, data, spec, delays, each0):

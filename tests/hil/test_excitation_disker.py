@@ -9,12 +9,10 @@ import numpy as np
 import pytest
 
 from hil.bench.benches.valve import characterise_on_bench
-from hil.bench.commissioning.field_passes import _rng, data_sheet_latency
-from hil.bench.runs.run import RunSpec, simulated_run
+from hil.bench.commissioning.field_passes import drive_pass
 from hil.truth.tractors import resolve_tractor
 from hil.vehicle.commissioning import Commissioning
-from hil.vehicle.excitation import ExcitationController, ExcitationSettings
-from hil.vehicle.loop import LoopConfig
+from hil.vehicle.excitation import ExcitationSettings
 from hil.vehicle.procedure import PlannedPass
 
 PARAMS = resolve_tractor("random-13").params()
@@ -29,15 +27,7 @@ def com() -> Commissioning:
 def _procedure_pass(com: Commissioning, settings: ExcitationSettings):
     """The procedure's first disker pass at 2.91 m/s as the bench drives it (its seed, 60 s, the commissioned loop
     in the excitation's corridor): the farthest it went from the line while engaged, the loop's exits, the law."""
-    p = PlannedPass("disker", 2.91, 0, 60.0)
-    ss = _rng(1997, p, 0)
-    ctl = ExcitationController(settings, np.random.default_rng(ss), p.speed, p.duration, PARAMS.vehicle.wheelbase,
-                               com.valve.max_rate)
-    config = settings.loop_config(com.loop_config(LoopConfig(wheel_stop=PARAMS.steering.max_wheel_angle)))
-    spec = RunSpec(implement=p.implement, speed=p.speed, duration=p.duration,
-                   seed=int(ss.generate_state(1)[0] % 2**31), initial_cross_track=0.0)
-    log = simulated_run(spec, ctl, PARAMS, loop_config=config, commissioning=com, epochs=True,
-                        receiver_latency=data_sheet_latency(PARAMS))
+    log, ctl = drive_pass(PlannedPass("disker", 2.91, 0, 60.0), 1, PARAMS, com, 1997, settings)
     engaged = log.channels["engaged"] > 0.5
     exits = [e for e in log.meta["events"] if "beyond" in e["reason"]]
     return float(np.max(np.abs(log.channels["truth_cross_track"][engaged]))), exits, ctl

@@ -47,6 +47,22 @@ def _rng(seed: int, p: PlannedPass, drive: int) -> np.random.SeedSequence:
     return np.random.SeedSequence(seed, spawn_key=(imp, round(p.speed * 1000), p.index, drive))
 
 
+def drive_pass(p: PlannedPass, drive: int, params: SimParams, com: Commissioning, seed: int,
+               settings: ExcitationSettings):
+    """Drive ``p``'s ``drive``-th attempt (1 = first) on the bench as the procedure does: the excitation with its
+    seed, the commissioned loop in the excitation's corridor, the receivers' data-sheet latency. Returns the run's
+    log and the excitation controller (what its guard did is on it)."""
+    ss = _rng(seed, p, drive - 1)
+    ctl = ExcitationController(settings, np.random.default_rng(ss), p.speed, p.duration,
+                               params.vehicle.wheelbase, com.valve.max_rate)
+    config = settings.loop_config(com.loop_config(LoopConfig(wheel_stop=params.steering.max_wheel_angle)))
+    spec = RunSpec(implement=p.implement, speed=p.speed, duration=p.duration,
+                   seed=int(ss.generate_state(1)[0] % 2**31), initial_cross_track=0.0)
+    log = simulated_run(spec, ctl, params, loop_config=config, commissioning=com, epochs=True,
+                        receiver_latency=data_sheet_latency(params))
+    return log, ctl
+
+
 def drive_procedure_passes(folder: str | Path, plan: FieldPlan, params: SimParams, com: Commissioning,
                            seed: int = 1997, settings: ExcitationSettings | None = None,
                            progress: Callable[[int, int], None] | None = None) -> dict:
@@ -91,14 +107,7 @@ def drive_procedure_passes(folder: str | Path, plan: FieldPlan, params: SimParam
             break
         p = todo[0]
         n = drives[p.key] = drives.get(p.key, 0) + 1
-        ss = _rng(seed, p, n - 1)
-        ctl = ExcitationController(settings, np.random.default_rng(ss), p.speed, p.duration,
-                                   params.vehicle.wheelbase, com.valve.max_rate)
-        config = settings.loop_config(com.loop_config(LoopConfig(wheel_stop=params.steering.max_wheel_angle)))
-        spec = RunSpec(implement=p.implement, speed=p.speed, duration=p.duration,
-                       seed=int(ss.generate_state(1)[0] % 2**31), initial_cross_track=0.0)
-        log = simulated_run(spec, ctl, params, loop_config=config, commissioning=com, epochs=True,
-                            receiver_latency=data_sheet_latency(params))
+        log, _ = drive_pass(p, n, params, com, seed, settings)
         engaged = log.channels["engaged"] > 0.5
         if np.any(engaged):
             worst = max(worst, float(np.max(np.abs(log.channels["truth_cross_track"][engaged]))))

@@ -149,11 +149,12 @@ def test_ctrl_c_exits_130_with_one_line_and_no_partial_file(tmp_path):
     logs = tmp_path / "logs"
     for imp in ("none", "disker", "ripper"):
         for i in range(2):
-            synthetic_pass(rng, imp, "9th", 1.79, duration=30.0).save(logs / f"{imp}{i}.npz")
+            synthetic_pass(rng, imp, "9th", 1.79, duration=300.0).save(logs / f"{imp}{i}.npz")
     exe = Path(sys.executable).parent / "identification"
-    # The run has 2-3 s of work left after its progress bar appears (measured on an idle host). A test worker
-    # stalled that long on a loaded host (it happened once in CI) sends its Ctrl-C to a process that
-    # is already exiting, which ends with 0 and every file whole: that race lost is tried again; any other end fails.
+    # The models take about 0.6 s after the progress bar appears (300 s passes, one BLAS thread, an idle host;
+    # with 30 s passes 0.2 s, a window a loaded CI host missed three times in a row). A test worker stalled
+    # longer than that sends its Ctrl-C to a process that is already exiting, which ends with 0 and every file
+    # whole: that race lost is tried again; any other end fails.
     for attempt in range(3):
         out, err_path = tmp_path / f"models{attempt}", tmp_path / f"stderr{attempt}.txt"
         with open(err_path, "wb") as err_file:

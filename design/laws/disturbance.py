@@ -108,8 +108,9 @@ class DisturbanceSpec:
 
 
 #: The filter time constants, s, a robust law designed with :func:`chosen_filter` chooses among
-#: (:attr:`DisturbanceSpec.filter_choices`): from 0.5 s, a few of the 0.05 s control steps and below the soil's fastest processes (1-5 s) the disturbance
-#: model assumes, to the 2 s of its correlation time, on a ratio of about sqrt(2).
+#: (:attr:`DisturbanceSpec.filter_choices`): from 0.5 s, a few of the 0.05 s control steps and below the soil's
+#: fastest processes (1-5 s) the disturbance model assumes, to the 2 s of its correlation time, on a ratio of
+#: about sqrt(2).
 FILTER_CHOICES = (2.0, 1.4, 1.0, 0.7, 0.5)
 
 
@@ -338,9 +339,7 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
                           "and scaled back until the specifications hold; kept: the lowest worst ratio so achieved "
                           "(ties: the slower filter; none acting: the given one)",
                   "tried": tried}
-    with np.errstate(divide="ignore", invalid="ignore"):    # a model without a finite cost has no ratio
-        ratio = each / each0
-    ratio = ratio[np.isfinite(ratio)]
+    ratio = _ratios(each, each0)
     record = {**chosen.to_dict(), "gain_Kd": (scale * kd).tolist(), "optimal_Kd": kd.tolist(), "scale": scale,
               "h2_cost_without": finite_or_none(each0.sum()), "h2_cost": finite_or_none(each.sum()),
               "h2_ratio_worst": float(np.max(ratio)) if ratio.size else None,
@@ -352,12 +351,17 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
     return comp, record
 
 
+def _ratios(each: np.ndarray, each0: np.ndarray) -> np.ndarray:
+    """Each model's H2 cost with the estimate over the window law's own, for the models where both are finite."""
+    with np.errstate(divide="ignore", invalid="ignore"):    # a model without a finite cost has no ratio
+        ratio = each / each0
+    return ratio[np.isfinite(ratio)]
+
+
 def _worst_ratio(each: np.ndarray, each0: np.ndarray) -> float | None:
     """The worst over the models of the H2 cost with the estimate over the window law's own (None: no model has
     both finite)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = each / each0
-    ratio = ratio[np.isfinite(ratio)]
+    ratio = _ratios(each, each0)
     return float(np.max(ratio)) if ratio.size else None
 
 

@@ -1,5 +1,5 @@
 """Shared test fixtures: executing a notebook of ``notebooks/`` the way a user would; the longest test files first;
-with ``--idle-worker``, a last pytest-xdist worker that runs quick files on the CPU the others leave idle.
+with ``--idle-worker``, a last pytest-xdist worker that runs test files on the CPU the others leave idle.
 
 It lives at the repository root, not in ``tests/``: a conftest in ``tests/`` would put
 ``tests/`` on ``sys.path``, where ``tests/hil`` and friends would shadow the packages.
@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import subprocess
 import tempfile
 from pathlib import Path
 
@@ -52,43 +53,51 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     early then waits on seconds of the other's work, not on a minute-long file given out at the end.
     """
     rank: dict[Path, int] = {}
-    timed: set[Path] = set()
+    kept: set[Path] = set()                          # files the idle worker never takes
     for item in items:
         marks = {m.name for m in item.iter_markers()}
         here = 0 if "long" in marks else 1 if marks & {"slow", "realtime", "notebook"} else 2
         rank[item.path] = min(rank.get(item.path, 2), here)
-        if "timeout" in marks:
-            timed.add(item.path)
+        if marks & _NOT_IDLE_MARKS or _starts_processes(item):
+            kept.add(item.path)
     items.sort(key=lambda item: rank[item.path])     # stable: every other order is kept
     idle = getattr(config, "workerinput", {}).get(_IDLE_KEY)
     if idle is not None:                             # tell the scheduler which files the idle worker may take
-        quick = sorted({item.nodeid.split("::", 1)[0] for item in items
-                        if rank[item.path] == 2 and item.path not in timed})
+        files = sorted({item.nodeid.split("::", 1)[0] for item in items if item.path not in kept})
         mine = Path(idle["folder"]) / f"{config.workerinput['workerid']}.json"
-        mine.with_suffix(".part").write_text(json.dumps(quick))
+        mine.with_suffix(".part").write_text(json.dumps(files))
         mine.with_suffix(".part").replace(mine)
 
 
 # --- the idle worker ------------------------------------------------------------------------------------------
-# Real-time tests wait on the clock most of their length (the shortened field procedure: about 100 s, some 15 s of
-# it on a core), so with one xdist worker per core a core stands idle while one runs. ``--idle-worker`` makes the last worker
-# one at a low CPU priority (IDLE_NICE above the others: it gets a core mostly when the others leave it idle)
-# that takes the quick files (no slow, realtime, notebook, long or timeout mark: their tests run on a virtual
-# clock or none) from the back of the queue while the others take the long ones from the front. The others'
-# tests, the real-time ones among them, keep their cores nearly as before; the quick files the idle worker does
-# are work the others no longer do.
+# Real-time tests wait on the clock most of their length (the shortened field procedure: about 100 s, some 15 s
+# of it on a core), so with one xdist worker per core a core stands idle while one runs. ``--idle-worker`` makes
+# the last worker one at a low CPU priority (IDLE_NICE above the others: it gets a core mostly when the others
+# leave it idle) that takes files from the back of the queue (the quick ones first, then slow ones) while the
+# others take the long ones from the front. It never takes a file with a realtime, notebook, long or timeout
+# mark, nor one that starts processes (subprocess): at its priority a test may take many times its CPU time, so
+# only tests that hold no deadline of the wall clock run there. The others' tests, the real-time ones among
+# them, keep their cores nearly as before; what the idle worker does is work the others no longer do.
 
 _IDLE_KEY = "idle_worker"
-#: The idle worker's niceness above the others': 10 gives it about a tenth of a core shared with a busy worker
-#: (19 would starve it to a fiftieth, and a quick test that starts a subprocess with a 60 s timeout could miss it).
+#: The idle worker's niceness above the others': 10 gives it about a tenth of a core shared with a busy worker, so
+#: it still moves when no core is idle (19 would leave it about a seventieth).
 IDLE_NICE = 10
+_NOT_IDLE_MARKS = {"realtime", "notebook", "long", "timeout"}
+
+
+def _starts_processes(item: pytest.Item) -> bool:
+    """Whether the test's module uses :mod:`subprocess` (its calls carry timeouts of the wall clock)."""
+    module = getattr(item, "module", None)
+    return module is not None and any(v is subprocess or getattr(v, "__module__", None) == "subprocess"
+                                      for v in vars(module).values())
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--idle-worker", action="store_true",
                      help="with -n N --dist loadfile: the last of the N workers runs at a low CPU priority and takes "
-                          "only quick files (no slow, realtime, notebook, long or timeout mark), from the back of "
-                          "the queue")
+                          "files from the back of the queue, none with a realtime, notebook, long or timeout mark "
+                          "or that uses subprocess")
 
 
 def _idle_on(config: pytest.Config) -> bool:
@@ -130,27 +139,27 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
     from xdist.scheduler import LoadFileScheduling
 
     class IdleWorkerScheduling(LoadFileScheduling):
-        """``--dist loadfile`` in collection order, but the idle worker takes the last quick file of the queue and
-        is shut down when the queue holds no more."""
+        """``--dist loadfile`` in collection order, but the idle worker takes the last file of the queue it may take
+        and is shut down when the queue holds no more."""
 
-        _quick: set[str] | None = None
+        _mine: set[str] | None = None
 
         def _is_idle(self, node) -> bool:
             return node.gateway.id == config._idle_id
 
-        def _quick_files(self) -> set[str]:
-            if self._quick is None:           # written by the workers before they sent their collection
+        def _idle_files(self) -> set[str]:
+            if self._mine is None:            # written by the workers before they sent their collection
                 first = next(iter(sorted(Path(config._idle_folder).glob("gw*.json"))), None)
-                self._quick = set(json.loads(first.read_text())) if first else set()
-            return self._quick
+                self._mine = set(json.loads(first.read_text())) if first else set()
+            return self._mine
 
-        def _last_quick(self) -> str | None:
-            quick = self._quick_files()
-            return next((scope for scope in reversed(self.workqueue) if scope in quick), None)
+        def _last_for_idle(self) -> str | None:
+            mine = self._idle_files()
+            return next((scope for scope in reversed(self.workqueue) if scope in mine), None)
 
         def _assign_work_unit(self, node) -> None:
             if self._is_idle(node):
-                scope = self._last_quick()
+                scope = self._last_for_idle()
                 if scope is None:
                     self.assigned_work.setdefault(node, {})
                     node.shutdown()
@@ -159,7 +168,7 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
             super()._assign_work_unit(node)
 
         def _reschedule(self, node) -> None:
-            if self._is_idle(node) and not node.shutting_down and self._last_quick() is None:
+            if self._is_idle(node) and not node.shutting_down and self._last_for_idle() is None:
                 node.shutdown()               # it finishes what it holds; nothing left is for it
                 return
             super()._reschedule(node)

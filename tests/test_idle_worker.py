@@ -1,5 +1,6 @@
 """The suite's idle xdist worker (``--idle-worker``, conftest.py): on a small tree of test files run with three
-workers, the last worker runs at a lower CPU priority and takes only quick files, from the back of the queue."""
+workers, the last worker runs at a lower CPU priority and takes files from the back of the queue, never one with
+a realtime or timeout mark or that uses subprocess."""
 
 from __future__ import annotations
 
@@ -20,17 +21,19 @@ def test_{name}():
     with open(os.environ["IDLE_PROBE_OUT"], "a") as f:
         f.write(json.dumps(row) + "\\n")
 '''
-#: Collection order (file names sort): two files the idle worker must not take, then six quick ones.
-FILES = {"a_slow": "import pytest\n@pytest.mark.slow", "b_timed": "import pytest\n@pytest.mark.timeout(60)",
-         **{f"q{k}": "" for k in range(1, 7)}}
+#: Three files the idle worker must not take and five it may; the queue's order (conftest.py: files with a slow or
+#: realtime test first): a_rt, q4, b_timed, c_sub, q1, q2, q3, q5.
+FILES = {"a_rt": "import pytest\n@pytest.mark.realtime", "b_timed": "import pytest\n@pytest.mark.timeout(60)",
+         "c_sub": "import subprocess", "q1": "", "q2": "", "q3": "", "q4": "import pytest\n@pytest.mark.slow",
+         "q5": ""}
 
 
 @pytest.mark.slow
 @pytest.mark.timeout(300)
-def test_the_idle_worker_runs_quick_files_from_the_back_at_a_lower_priority(tmp_path: Path) -> None:
+def test_the_idle_worker_takes_files_from_the_back_at_a_lower_priority(tmp_path: Path) -> None:
     tree = tmp_path / "tree"
     tree.mkdir()
-    (tree / "pytest.ini").write_text("[pytest]\nmarkers =\n    slow: long\n")
+    (tree / "pytest.ini").write_text("[pytest]\nmarkers =\n    slow: long\n    realtime: wall clock\n")
     for name, mark in FILES.items():
         (tree / f"test_{name}.py").write_text(PROBE.format(name=name, mark=mark))
     out = tmp_path / "probe.jsonl"
@@ -43,8 +46,8 @@ def test_the_idle_worker_runs_quick_files_from_the_back_at_a_lower_priority(tmp_
     assert sorted(r["file"] for r in ran) == sorted(FILES)
     idle = [r for r in ran if r["worker"] == "gw2"]
     others = [r for r in ran if r["worker"] != "gw2"]
-    # the idle worker is handed the last quick file first and one more before any test ends: q6 and q5 at least
-    assert {"q6", "q5"} <= {r["file"] for r in idle}, ran
-    assert not {"a_slow", "b_timed"} & {r["file"] for r in idle}, ran
+    # the idle worker is handed the last file first and one more before any test ends: q5 and q3 at least
+    assert {"q5", "q3"} <= {r["file"] for r in idle}, ran
+    assert not {"a_rt", "b_timed", "c_sub"} & {r["file"] for r in idle}, ran
     assert {r["nice"] for r in idle} == {min(19, others[0]["nice"] + 10)}, ran
     assert {r["nice"] for r in others} == {os.nice(0)}, ran

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hil.bench.docgen import isobus as docgen
@@ -146,6 +146,7 @@ NEAR_VALID = st.builds(_mutated, st.one_of(MACHINE_INFOS, COMMANDS), st.integers
 """A valid message's data bytes, one byte replaced in two draws of three (random bytes rarely decode)."""
 
 
+@settings(deadline=None)
 @given(pgn=st.sampled_from([PGN_COMMAND, PGN_MACHINE_INFO, 0xEE00, 0]),
        data=st.one_of(st.binary(min_size=0, max_size=12), NEAR_VALID))
 def test_the_decoder_raises_only_frame_errors_and_accepts_only_what_re_encodes(pgn, data):
@@ -157,6 +158,7 @@ def test_the_decoder_raises_only_frame_errors_and_accepts_only_what_re_encodes(p
     assert encode(message) == (pgn, data)      # nothing accepted that the strict encoder would not send
 
 
+@settings(deadline=None)
 @given(c=st.floats(CURVATURE_MIN, CURVATURE_MAX), s=st.sampled_from(CommandStatus))
 def test_any_curvature_in_range_round_trips_within_half_a_bit(c, s):
     back = decode(*encode(GuidanceSystemCommand(c, s)))

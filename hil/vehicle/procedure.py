@@ -87,8 +87,9 @@ class FieldPlan:
     """What the operator drives: the valve test, then ``passes`` passes of ``duration`` s per speed and implement.
 
     The default fits the budget with room for passes a fault spoils: three implements x three speeds x two
-    passes of 60 s (6 min per implement) and the valve test (at most 5.3 min at standstill): 23.3 min, which
-    leaves 6.7 min (six passes) to drive spoiled passes again.
+    passes of 60 s (6 min per implement) and the valve test with its linearity check (at most 4.0 min at
+    standstill, :meth:`ValveTestPlan.longest_duration`): 22.0 min, which leaves 8.0 min (eight passes) to drive
+    spoiled passes again.
 
     ``top_ups`` are the implements added after the plan was made (:meth:`add_implement`): each is a top-up of at
     most :data:`BUDGET_PER_IMPLEMENT_S` of driving, outside the total budget of the first commissioning.

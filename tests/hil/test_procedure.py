@@ -84,7 +84,7 @@ def test_the_operator_command_keeps_its_plan_and_refuses_another_or_one_over_bud
     folder = tmp_path / "tractor"
     assert hil_main(["procedure", str(folder)]) == 0
     out = capsys.readouterr().out
-    assert "passes recorded: 0 of 18" in out and "0.0 min of 23.3 min planned" in out and "hil valve-test" in out
+    assert "passes recorded: 0 of 18" in out and "0.0 min of 22.0 min planned" in out and "hil valve-test" in out
     assert (folder / "plan.json").is_file()
     assert hil_main(["procedure", str(folder), "--passes", "1"]) == 1
     assert "holds another plan" in capsys.readouterr().err

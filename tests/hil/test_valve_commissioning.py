@@ -14,14 +14,22 @@ import pytest
 from design.laws.controller import KinematicLQRController
 from hil.bench.runs.oracle import OracleOptions, oracle_for
 from hil.bench.runs.run import RunSpec, simulated_run
+from hil.bench.benches.bridge import LockstepBridge
 from hil.bench.benches.valve import characterise_on_bench, linearity_on_bench
+from hil.devices.firmware import config_for_tractor
+from hil.devices.plant import SimulatedTractor
+from hil.devices.wheel_calibration import two_point_calibration
+from hil.truth.conditions import condition_for
 from hil.truth.params import SimParams
 from hil.truth.tractors import resolve_tractor
 from hil.vehicle.commissioning import Commissioning, load_commissioning, loop_settings, save_commissioning
 from hil.vehicle.errors import VehicleConfigError
 from hil.vehicle.loop import LoopConfig
+from hil.vehicle.procedure import FieldPlan
 from hil.vehicle.summary import summarize
 from hil.vehicle.valve_map import RateStep, ValveCurve, fit_valve_curve
+from hil.vehicle.valve_steps import ValveTestPlan, characterise_valve, linearity_check
+from valve_plans import SIXTEEN_DUTIES
 
 #: Stated tolerances of the characterisation on the simulator (8-bit ADC, noisy potentiometer).
 DEADBAND_TOL = 0.02      # duty
@@ -71,6 +79,53 @@ def test_the_inverse_map_makes_the_rate_linear_in_the_command(measured, name: st
     raw = linearity_on_bench(identity, p)
     wanted, got = np.array(raw["wanted"]), np.array(raw["measured"])
     assert np.max(np.abs(got - wanted)) / curve.max_rate > 3 * LINEARITY_TOL
+
+
+@pytest.mark.parametrize("tractor", ["heavy-11t", "worn-valve"])
+def test_ten_duties_fit_the_curve_the_sixteen_did(tractor: str) -> None:
+    """What the passes and the loop take of the valve test (the inverse map, the weaker side's rate, the lag and
+    the report noise) moves by no more than a repeat of the sixteen-duty test does (on six seeds of six tractors:
+    at most 0.025 duty, 2.6 % and 0.045 s), with twelve steps fewer."""
+    params = resolve_tractor(tractor).params()
+    ten, _ = characterise_on_bench(params, seed=3)
+    sixteen, _ = characterise_on_bench(params, seed=3, plan=SIXTEEN_DUTIES)
+    assert len(ValveTestPlan().duties) == 10
+    grid = np.r_[np.linspace(-0.95, -0.02, 40), np.linspace(0.02, 0.95, 40)] * sixteen.max_rate
+    gap = max(abs(ten.command_for(float(r)) - sixteen.command_for(float(r))) for r in grid) / ten.full_scale
+    assert gap <= 0.04, (ten, sixteen)
+    assert ten.max_rate == pytest.approx(sixteen.max_rate, rel=0.04)
+    assert ten.lag == pytest.approx(sixteen.lag, abs=0.05)
+    assert ten.angle_noise == pytest.approx(sixteen.angle_noise, rel=0.1)
+
+
+@pytest.mark.parametrize("tractor", ["heavy-11t", "worn-valve", "random-78"])
+def test_the_whole_valve_test_takes_no_longer_than_the_plan_counts(tractor: str) -> None:
+    """The characterisation and the linearity check on the bench's clock, on the slowest valves (random-78's is the
+    slowest of random-0..99 at full duty, 0.19 rad/s to the right): within the minutes the field plan counts."""
+    plan = ValveTestPlan()
+    plant = SimulatedTractor(condition_for("none", 0.0), plan.longest_duration(), 5, resolve_tractor(tractor).params(),
+                             initial={"Y": 0.0})
+    cal = two_point_calibration(plant.params.sensor, plant.params.steering)
+    with LockstepBridge(plant, config_for_tractor(plant.params.steering), max_step=0.01) as bench:
+        t0 = bench.clock.now()
+        curve, steps = characterise_valve(bench.driver, bench.clock, cal, bench.firmware.config.max_rate, plan)
+        lin = linearity_check(bench.driver, bench.clock, cal, curve, plan=plan)
+        took = bench.clock.now() - t0
+    assert len(steps) == 2 * len(plan.duties) and len(lin["wanted"]) == 2 * len(plan.linearity)
+    assert lin["max_error_fraction"] <= LINEARITY_TOL, lin
+    assert 60.0 < took <= plan.longest_duration() == FieldPlan().seconds()["valve test"] <= 4.0 * 60, took
+
+
+def test_a_valve_test_plan_counts_every_step_and_refuses_nonsense() -> None:
+    plan = ValveTestPlan()
+    per_step = plan.position_time + plan.settle + plan.step_time + 4 * plan.period
+    assert plan.longest_duration(4) == pytest.approx(5.0 + 4 * per_step)
+    assert plan.longest_duration() == pytest.approx(10.0 + 2 * (len(plan.duties) + len(plan.linearity)) * per_step)
+    for bad, msg in [({"linearity": ()}, "linearity must be numbers in"), ({"linearity": (0.5, 1.2)}, "linearity"),
+                     ({"position_time": 0.0}, "position_time"), ({"duties": (0.0, 0.5)}, "duties must be numbers"),
+                     ({"transient": 3.0}, "must be shorter than step_time")]:
+        with pytest.raises(VehicleConfigError, match=msg):
+            ValveTestPlan(**bad)
 
 
 def test_the_curve_and_its_inverse() -> None:

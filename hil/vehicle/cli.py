@@ -215,8 +215,8 @@ def add_valve_test_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentP
     v.add_argument("--full-scale", type=parse_float, default=0.35, metavar="RAD_PER_S",
                    help="the bridge's steering rate at full duty, rad/s (its firmware setting; default 0.35)")
     v.add_argument("--duties", type=_duties, default=None, metavar="D,D,...",
-                   help="duties stepped each way, fractions of full duty (default: 16 from 0.03 to 1; at most "
-                        "5.3 min at standstill)")
+                   help="duties stepped each way, fractions of full duty (default: 10 from 0.04 to 1; the whole "
+                        "test, the linearity check included, at most 4.0 min at standstill)")
     v.add_argument("--no-linearity", action="store_true", help="skip the check of the inverse map (14 steps)")
     v.add_argument("--tractor", default="tractor", help="the tractor's name, for the commissioning file")
     v.add_argument("--bridge-baud", type=int, default=9600, help="line rate, bit/s (default 9600)")

@@ -33,7 +33,7 @@ every speed.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -118,7 +118,8 @@ class MPCFile:
         if schedule is not None:
             try:
                 band_problems = tuple(mpc_problem(m, self.horizon, self.weights, self.limits, self.past,
-                                                  self.disturbance) for m in schedule.models)
+                                                  self.band_estimate(schedule.filter_of(i)))
+                                      for i, m in enumerate(schedule.models))
             except DesignInputError as exc:
                 raise ControllerFileError(f"design.{PREDICTION_RECORD}: a band's MPC cannot be built: {exc}") from None
         object.__setattr__(self, "_schedule", schedule)
@@ -143,6 +144,20 @@ class MPCFile:
             return unconstrained_law(problem, checked_gain(problem, stored))
         except DesignInputError as exc:
             raise DesignInputError(f"design: {exc}") from None
+
+    def band_estimate(self, tau_f: float | None) -> DisturbanceSpec | None:
+        """The file's disturbance estimate with a band's filter time constant ``tau_f``, s (None: the file's own).
+
+        Raises
+        ------
+        DesignInputError
+            A band names a filter but the file carries no estimate, or the time constant is not valid.
+        """
+        if tau_f is None:
+            return self.disturbance
+        if self.disturbance is None:
+            raise DesignInputError("a band names its estimate's filter, but the file carries no disturbance estimate")
+        return replace(self.disturbance, tau_f=tau_f)
 
     @property
     def prediction_schedule(self) -> PredictionSchedule | None:

@@ -14,15 +14,17 @@ Layout: ``design["prediction_schedule"] = {"bands": [[low, high | null], ...], "
 :func:`design.laws.estimate_schedule.bands_for`) predicted with ``laws[i]["model"]``; at every other
 speed the file's own (central) model predicts. Each law is ``{"model": {A, B, C, D, K, name, hash},
 "unconstrained_gain": [[...]], "band_models": [{"name", "hash", "speed"}, ...], "certificate": {...},
-"certificate_off": {...} | null, "neighbours": [...]}``; ``left_out`` lists the design speeds whose band
-the design left to the central model, and why (a record only).
+"certificate_off": {...} | null, "neighbours": [...]}``, optionally with ``"estimate_filter_s"`` (the time
+constant, s, of the band's disturbance estimate's filter; absent: the file's estimate's); ``left_out`` lists
+the design speeds whose band the design left to the central model, and why (a record only).
 
 What the reader checks (:func:`check_prediction_schedule`, on every read): the bands (no overlap,
 within 0-20 m/s, at most :data:`MAX_BANDS`); each model's hash, sample time, inputs and outputs; its
 unconstrained gain re-derived from the file's horizon, weights, limits, window and estimate with that
 model (as the file's own: :func:`design.mpc.law.checked_gain`); its certificate certifies exactly that
-law (:func:`design.files.certificate.check_certificate`) on exactly the band's models, every one of
-which has its design speed inside the band and is among the models the file's own certificate lists;
+law, with the band's estimate filter (:func:`design.files.certificate.check_certificate`), on exactly the
+band's models, every one of which has its design speed inside the band and is among the models the file's
+own certificate lists;
 the prediction model is one of them. Where the file's estimate schedule turns the estimate off at a
 speed of the band, the band's law without the estimate is certified likewise (``certificate_off``).
 ``neighbours`` (each band law's margins on the other bands' models) is recorded, not required.
@@ -67,6 +69,8 @@ RECORD = "prediction_schedule"
 MAX_BANDS = 8
 REC_KEYS = ("bands", "laws", "left_out")
 LAW_KEYS = ("model", "unconstrained_gain", "band_models", "certificate", "certificate_off", "neighbours")
+#: Optional key of a law: the time constant, s, of the band's disturbance estimate's filter (absent: the file's).
+FILTER_KEY = "estimate_filter_s"
 MODEL_KEYS = ("A", "B", "C", "D", "K", "name", "hash")
 #: Most entries of ``left_out`` and ``neighbours`` (records only, bounded).
 MAX_NOTES = 64
@@ -84,11 +88,18 @@ class PredictionSchedule:
         The model each band predicts with.
     gains
         The unconstrained gain each band's file entry records (nested lists, as read).
+    filters
+        Each band's estimate filter time constant, s (None: the file's own estimate's); empty: None for every band.
     """
 
     bands: tuple[tuple[float, float], ...]
     models: tuple[Model, ...]
     gains: tuple[Any, ...]
+    filters: tuple[float | None, ...] = ()
+
+    def filter_of(self, i: int) -> float | None:
+        """Band ``i``'s estimate filter time constant, s (None: the file's own estimate's)."""
+        return self.filters[i] if i < len(self.filters) else None
 
     def index_at(self, speed: float) -> int | None:
         """The band holding ``speed`` (m/s), or None (the central model predicts there)."""
@@ -142,17 +153,22 @@ def parse_prediction_schedule(rec: Any, dt: float, like: Model) -> PredictionSch
     sorted_bands = tuple(sorted(raw))
     if raw != list(sorted_bands):
         raise ControllerFileError(f"design.{RECORD}: bands must be listed from the slowest, got {rec['bands']!r}")
-    models, gains = [], []
+    models, gains, filters = [], [], []
     for i, law in enumerate(laws):
         what = f"design.{RECORD} band {i}"
-        if not isinstance(law, Mapping) or sorted(law) != sorted(LAW_KEYS):
+        if not isinstance(law, Mapping) or sorted(set(law) - {FILTER_KEY}) != sorted(LAW_KEYS):
             got = sorted(law) if isinstance(law, Mapping) else type(law).__name__
-            raise ControllerFileError(f"{what} must hold exactly {', '.join(LAW_KEYS)}; got {got}")
+            raise ControllerFileError(f"{what} must hold exactly {', '.join(LAW_KEYS)} (and optionally {FILTER_KEY}); "
+                                      f"got {got}")
+        tf = law.get(FILTER_KEY)
+        if tf is not None and (isinstance(tf, bool) or not isinstance(tf, (int, float)) or not 0.0 < tf <= 600.0):
+            raise ControllerFileError(f"{what} {FILTER_KEY} must be a time constant in (0, 600] s, got {tf!r}")
+        filters.append(None if tf is None else float(tf))
         if not isinstance(law["neighbours"], list) or len(law["neighbours"]) > MAX_NOTES:
             raise ControllerFileError(f"{what} neighbours must be a list of at most {MAX_NOTES} entries")
         models.append(model_from_record(law["model"], dt, like, f"{what} model"))
         gains.append(law["unconstrained_gain"])
-    return PredictionSchedule(sorted_bands, tuple(models), tuple(gains))
+    return PredictionSchedule(sorted_bands, tuple(models), tuple(gains), tuple(filters))
 
 
 def _band_models(rows: Any, band: tuple[float, float], what: str) -> dict[str, float]:

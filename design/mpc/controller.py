@@ -17,12 +17,12 @@ the line is travelled (:class:`design.laws.curvature.Reference`, as the linear c
 
 With speed bands (a file's prediction schedule, :mod:`design.files.prediction_schedule`) the QP of the
 band holding the measured speed is solved: each band's problem differs only in its prediction model
-(the same weights, limits, horizon and window), and each is set up once, with its own solver, when the
-controller is made; a tick solves the one of the latched band
+(the same weights, limits, horizon and window) and the time constant of its disturbance estimate's filter,
+and each is set up once, with its own solver, when the controller is made; a tick solves the one of the latched band
 (:class:`design.core.speed_latch.SpeedLatch`: hysteresis and a dwell at the band's edge), so switching
 costs nothing at run time. The measured state (window, integral, estimate) means the same in every band
-and carries over; only the estimate's one-step prediction of the outputs follows the band's model, as
-the band's certified law does.
+and carries over; only the estimate's one-step prediction of the outputs follows the band's model, and its
+filter the band's time constant, as the band's certified law does.
 """
 
 from __future__ import annotations
@@ -127,7 +127,8 @@ class MPCController:
         straight line the command is the certified law on the measurement itself (the law's tests).
     bands, band_problems
         Speed bands ``(low, high)``, m/s (``low <= v < high``, not overlapping), and the problem solved
-        in each (the same layout, horizon and limits as ``problem``, another prediction model);
+        in each (the same layout, horizon and limits as ``problem``, another prediction model, and a disturbance
+        estimate differing at most in its filter's time constant);
         ``problem`` is solved at every other speed (module docstring).
 
     Attributes
@@ -163,6 +164,11 @@ class MPCController:
                                                                 problem.limits, problem.dt):
                 raise DesignInputError("a band's problem must have the state, horizon, limits and sample time of "
                                        "the central one")
+            if (p.disturbance is None) != (problem.disturbance is None) or (
+                    p.disturbance is not None and (p.disturbance.tau_d, p.disturbance.channels)
+                    != (problem.disturbance.tau_d, problem.disturbance.channels)):
+                raise DesignInputError("a band's disturbance estimate must model the central one's disturbance "
+                                       "(its correlation time and channels); only its filter may differ")
         self.problems = (problem, *band_problems)
         #: The band run (0: the central problem, i: band i - 1) and whether the estimate acts, switched with
         #: hysteresis and a dwell (:class:`design.core.speed_latch.SpeedLatch`).
@@ -210,7 +216,6 @@ class MPCController:
             self._sel = np.zeros((len(dis.channels), q))
             self._sel[np.arange(len(dis.channels)), list(dis.channels)] = 1.0
             self._a = math.exp(-self.dt / dis.tau_d)
-            self._l = 1.0 - math.exp(-self.dt / dis.tau_f)
         self._s = np.zeros(q)                    # prediction of the next outputs
         self._dp = np.zeros(self._dist.size)     # the estimate carried to the next tick
         self.reference = Reference(self.dt, problem.limits.rate, latency, approach=bool(approach))
@@ -230,9 +235,10 @@ class MPCController:
             self.backends[band].reset()
         self._band = band
         self.problem, self.backend = self.problems[band], self.backends[band]
-        if self.problem.disturbance is not None:        # the estimate's prediction: the band model's
+        if self.problem.disturbance is not None:        # the estimate's prediction and filter: the band's
             rows, nw = self.problem.layout.output_slot(0), self.problem.n_window_state
             self._f, self._g = self.problem.A[rows, :nw], self.problem.B[rows, 0]
+            self._l = 1.0 - math.exp(-self.dt / self.problem.disturbance.tau_f)
 
     @property
     def band(self) -> int | None:

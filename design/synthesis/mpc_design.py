@@ -9,7 +9,8 @@ The constrained closed loop is non-linear; the tests and the HIL bench check it.
 
 :func:`with_prediction_schedule` adds the prediction schedule (:mod:`design.files.prediction_schedule`):
 per design speed of the local models, the MPC predicting with the one of that speed's models whose law
-holds the band's models closest (:func:`innovation_sigma`), the same weights, certified on the models of its band.
+holds the band's models closest (:func:`innovation_sigma`), the same weights, its estimate's filter chosen
+within the speed's noise floor (:func:`band_filters`), certified on the models of its band.
 
 :func:`prediction_alternatives` names the models that may predict in the central model's place when no
 law predicting with the central model stabilises every model (a last resort:
@@ -33,7 +34,7 @@ from design.core.noise import MEASUREMENT_NOISE, disk_gain_floor, worst_noise_ga
 from design.laws.estimate_schedule import RECORD, bands_for, law_without_estimate, schedule_record, trailing_states
 from design.files.linear import read_controller_file
 from design.files.mpc import MPCFile, mpc_from_body
-from design.files.prediction_schedule import RECORD as PREDICTION_RECORD
+from design.files.prediction_schedule import FILTER_KEY, RECORD as PREDICTION_RECORD
 from design.files.prediction_schedule import model_record
 from design.files.prediction_schedule import schedule_record as prediction_record
 from design.core.iostate import window_to_state
@@ -44,7 +45,7 @@ from design.core.verify import Certificate, certify, model_hash, require_stable
 from design.mpc.backends import SolverSettings
 from design.mpc.controller import MPCController
 from design.mpc.law import unconstrained_gain, unconstrained_law
-from design.laws.disturbance import DisturbanceSpec
+from design.laws.disturbance import DisturbanceSpec, FILTER_CHOICES, held_to_speed
 from design.mpc.problem import MPCLimits, MPCProblem, MPCWeights, mpc_problem
 
 
@@ -84,7 +85,8 @@ def mpc_estimate(tau_d: float = DisturbanceSpec.tau_d) -> DisturbanceSpec:
 
     The faster filter costs margin on some tractors: the commissioning keeps it only where the automatic
     weights still meet every specification (:meth:`hil.commissioning.designs.Designer.mpc`). The weights are
-    searched, and the law certified, with the estimate as it runs.
+    searched, and the law certified, with the estimate as it runs. A speed band's law may run a faster filter
+    (:func:`band_filters`).
     """
     return DisturbanceSpec(tau_d, ESTIMATE_FILTER_RATIO * tau_d)
 
@@ -332,14 +334,34 @@ def _steering_index(law, inside: Sequence[tuple[float, Model]]) -> float:
     return max(innovation_sigma(law, m) for _, m in inside)
 
 
+def band_filters(estimate: DisturbanceSpec | None, slowest: float) -> tuple[float | None, ...]:
+    """The time constants, s, of the estimate's filter a band law whose slowest design speed is ``slowest`` (m/s)
+    may run: the file's own (None), then each of :data:`design.laws.disturbance.FILTER_CHOICES` faster than it
+    but no faster than the robust law's noise floor for that speed
+    (:func:`design.laws.disturbance.filter_floor`), slowest first. Without an estimate: the file's (None) only.
+
+    Why: the MPC's law takes the estimate for the soil's pull itself, so the filter's lag is lag in its answer
+    to the pull; at 2.91 m/s, where the commissioned MPC had its worst cells, a faster filter for every speed
+    steered closer (random-14, 6 seeds: 2 s 1.08/1.19/1.15x the oracle, none/disker/ripper; 0.5 s
+    0.97/1.04/1.04x) but the 1.00 m/s cells looser (0.85/0.85x -> 0.90/0.89x, none/disker). The faster filter
+    passes more of the receiver's noise, which the velocity-normalised cross-track carries divided by the
+    speed: the floor (2 s at 1.00 m/s, falling with the square of the speed) is the robust law's, so a band of
+    the slow speeds keeps the file's filter and the 1.79 and 2.91 m/s bands may run 0.7 and 0.5 s.
+    """
+    if estimate is None:
+        return (None,)
+    held = held_to_speed(DisturbanceSpec(estimate.tau_d, estimate.tau_f, estimate.channels, FILTER_CHOICES), slowest)
+    return (None, *(t for t in held.filter_choices if t < estimate.tau_f))
+
+
 def _band_law(f: MPCFile, pred: Model, inside: Sequence[tuple[float, Model]], names: Sequence[str], nd: int,
-              noise: Sequence[float], disk_margin: float, central_law) -> dict | str:
-    """The band law predicting with ``pred``, with its certificates, noise check and steering index; or why it
-    cannot run in the band."""
+              noise: Sequence[float], disk_margin: float, central_law, tau_f: float | None = None) -> dict | str:
+    """The band law predicting with ``pred``, its estimate's filter ``tau_f`` s (None: the file's), with its
+    certificates, noise check and steering index; or why it cannot run in the band."""
     name = str(pred.meta.get("name", "model"))
     models, speeds = [m for _, m in inside], [s for s, _ in inside]
     try:
-        problem = mpc_problem(pred, f.horizon, f.weights, f.limits, f.past, f.disturbance)
+        problem = mpc_problem(pred, f.horizon, f.weights, f.limits, f.past, f.band_estimate(tau_f))
     except DesignInputError as exc:
         return f"{name}: {exc}"
     k = unconstrained_gain(problem)
@@ -363,7 +385,33 @@ def _band_law(f: MPCFile, pred: Model, inside: Sequence[tuple[float, Model]], na
                 f"(at most {NOISE_RATIO:g} times)")
     index = _steering_index(law, inside) if _steering_index_known(inside) else math.nan
     return {"name": name, "model": pred, "k": k, "law": law, "cert": cert, "cert_off": cert_off, "noise_gain": gain,
-            "noise_over_central": sig / central_sig if central_sig > 0 else None, "index": index}
+            "noise_over_central": sig / central_sig if central_sig > 0 else None, "index": index, "tau_f": tau_f}
+
+
+#: Key of a band's ``prediction_choice`` record listing the estimate filters its law was tried with
+#: (:func:`band_filters`).
+FILTER_CHOICE = "filter_choice"
+
+
+def _band_filter(f: MPCFile, best: dict, inside: Sequence[tuple[float, Model]], names: Sequence[str], nd: int,
+                 noise: Sequence[float], disk_margin: float, central_law) -> tuple[dict, list[dict]]:
+    """The band law ``best`` (with the file's filter) with the estimate filter of :func:`band_filters` whose law
+    leaves the smallest steering index on the band's models (ties: the slower), among those that pass the band
+    law's checks; and the record of every filter tried."""
+    kept, rows = [best], [{**_filter_row(f, None), "index": best["index"]}]
+    for tau in band_filters(f.disturbance, min(s for s, _ in inside))[1:]:
+        made = _band_law(f, best["model"], inside, names, nd, noise, disk_margin, central_law, tau)
+        if isinstance(made, str):
+            rows.append({**_filter_row(f, tau), "refused": made})
+        else:
+            kept.append(made)
+            rows.append({**_filter_row(f, tau), "index": made["index"]})
+    return min(kept, key=lambda c: c["index"]), rows       # ties: the slower filter, listed first
+
+
+def _filter_row(f: MPCFile, tau_f: float | None) -> dict:
+    """``{"estimate_filter_s": s}`` of a band law's estimate (the file's when ``tau_f`` is None); {} without one."""
+    return {} if f.disturbance is None else {FILTER_KEY: f.disturbance.tau_f if tau_f is None else tau_f}
 
 
 def with_prediction_schedule(res: MPCDesign, models: Sequence[Model], implement: str = "none",
@@ -395,6 +443,14 @@ def with_prediction_schedule(res: MPCDesign, models: Sequence[Model], implement:
     1.01x, the central law 1.09x and 1.10x. The record (``prediction_choice`` of each band or left-out
     speed) lists every candidate's index or why it could not run. Without the innovations only
     ``implement``'s model is tried; a band without a model of ``implement`` is left to the central law.
+
+    The estimate's filter: with the band's model chosen, its law is tried with each filter of
+    :func:`band_filters` (the file's, and the faster ones the noise floor of the band's slowest design speed
+    allows), and the band runs the one whose law leaves the smallest steering index and passes the band law's
+    checks (ties: the slower); the file records it per band (``estimate_filter_s``) and the choice under the
+    band's ``prediction_choice`` (``filter_choice``). A band of the slow speeds keeps the file's filter. On the
+    recorded tractors the index fell with the filter's time constant in every band, so a band runs the fastest
+    filter the floor allows and its checks pass: the floor, not the index, sets it.
 
     Each kept law's margins on the other bands' models are recorded (``neighbours``); every speed left to the
     central law is listed in ``left_out``. Fewer than two design speeds, or no band kept: ``res`` as it is
@@ -452,6 +508,7 @@ def with_prediction_schedule(res: MPCDesign, models: Sequence[Model], implement:
                                                        f"{'the worst' if len(inside) > 1 else 'its'} model, driven "
                                                        f"by the models' innovations", PREDICTION_CHOICE: choice})
                 continue
+            best, choice[FILTER_CHOICE] = _band_filter(f, best, inside, names, nd, noise, disk_margin, central_law)
         else:
             best = kept[0]
         pred, k, law, cert, cert_off = best["model"], best["k"], best["law"], best["cert"], best["cert_off"]
@@ -459,13 +516,14 @@ def with_prediction_schedule(res: MPCDesign, models: Sequence[Model], implement:
         neighbours = _neighbour_rows(law, [m for _, m in outside], [s for s, _ in outside])
         bands.append(band)
         entries.append({"model": model_record(pred), "unconstrained_gain": k.tolist(),
+                        **({} if best["tau_f"] is None else {FILTER_KEY: best["tau_f"]}),
                         "band_models": [{"name": n, "hash": model_hash(m), "speed": s}
                                         for n, (s, m) in zip(names, inside)],
                         "certificate": cert.to_dict(),
                         "certificate_off": None if cert_off is None else cert_off.to_dict(),
                         "neighbours": neighbours})
         row = {"band_mps": [band[0], None if math.isinf(band[1]) else band[1]],
-               "model": best["name"], "models": names,
+               "model": best["name"], "models": names, **_filter_row(f, best["tau_f"]),
                "worst": cert.worst.name, "max_spectral_radius": cert.worst.spectral_radius,
                "min_disk_margin": min(c.disk_margin for c in cert.checks),
                "noise_gain": best["noise_gain"],

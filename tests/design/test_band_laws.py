@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.linalg as sla
 
 from design.cli import main as design_main
 from design.core.compensator import closed_loop_matrix, spectral_radius
@@ -27,6 +28,7 @@ from design.laws.estimate_schedule import REACH_FRACTION, reach_band
 from design.synthesis.autotune import SearchOptions
 from design.synthesis.band_laws import CAP_OVER_BASE, CAP_STEP, SEARCH_RECORD, design_robust_bands, design_speed
 from design.synthesis.recipes import RobustOptions, WeightSearch, design_robust_controller
+from design.synthesis.mpc_design import INNOVATIONS, innovation_sigma
 from design.synthesis.robust import RobustSpec
 from design.synthesis.specs import delayed_model
 
@@ -314,3 +316,44 @@ def test_a_band_law_unstable_on_the_next_design_speed_s_models_runs_a_quarter_of
     _refused(path, tmp_path, wider, r"law 0 .* lacks v2\.9_a0\.7, v2\.9_a1 of its band 0-1\.95 m/s and the design "
                                     r"speed it reaches \(2\.9 m/s\)")
     _refused(path, tmp_path, unstable, r"law 0 .* is not stable on model 'v2\.9_a1'")
+
+
+def _with_innovations(m, process: float, sensor: tuple[float, float, float]):
+    """``m`` as identification would give it from passes with white process noise of variance ``process`` on every
+    state and sensor noise of the variances ``sensor`` (per output): its predictor gain and the covariance of its
+    innovations (:data:`design.synthesis.mpc_design.INNOVATIONS`)."""
+    n = m.A.shape[0]
+    v = np.diag(sensor)
+    p = sla.solve_discrete_are(m.A.T, m.C.T, process * np.eye(n), v)
+    s = m.C @ p @ m.C.T + v
+    k = m.A @ p @ m.C.T @ np.linalg.inv(s)
+    return type(m)(m.A, m.B, m.C, m.D, k, m.dt, {**m.meta, INNOVATIONS: s.tolist()})
+
+
+def _steering(comp, models) -> float:
+    return max(innovation_sigma(comp, m) for m in models)
+
+
+def test_a_band_law_is_kept_on_how_it_steers_its_band_s_models_under_their_innovations_not_on_its_scale():
+    # the 1.0 m/s band's law is faster than the base law (its scale above); where the passes' innovations are the
+    # soil's and the ground's (process noise), it holds the band's models closer and is kept; where they are the
+    # receiver's position noise alone, the faster law only passes more of it into the cross-track: the base law
+    # runs there
+    opts = _options()
+    for process, sensor, kept in ((1e-4, (1e-4, 1e-4, 1e-4), True), (1e-12, (1e-4, 1e-10, 1e-10), False)):
+        models = [_with_innovations(m, process, sensor) for m in _models()]
+        base = design_robust_controller(models, opts)
+        res = design_robust_bands(models, opts, base)
+        rec = res.file.design[SEARCH_RECORD]
+        band = rec["bands"][0]
+        assert band["scale"] > rec["base_scale"]                      # the scale rule would keep it in both
+        slow = [m for m in models if design_speed(m) == 1.0]
+        assert band["steering"]["base_law"] == pytest.approx(_steering(base.file.compensator, slow), rel=1e-9)
+        assert (band["steering"]["band_law"] < band["steering"]["base_law"]) is kept
+        assert band["kept"] is kept
+        if kept:
+            law = compensator_from_record(res.file.design[RECORD]["laws"][0]["compensator"], 0.05, 3)
+            assert band["steering"]["band_law"] == pytest.approx(_steering(law, slow), rel=1e-9)
+        else:
+            assert "holds the band's models no closer than the base law" in band["why"]
+            assert RECORD not in res.file.design or all(b[0] > 1.0 for b in res.file.design[RECORD]["bands"])

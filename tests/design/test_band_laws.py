@@ -1,8 +1,8 @@
 """Robust laws per speed band, each certified on its own band's models and on those of the design speeds its band
 reaches (design/synthesis/band_laws.py, design/files/law_schedule.py): designed with no trial drive, read back
 with each band law's certificate recomputed on exactly those models, refused when a band law's certificate misses
-one of them or is of another band, left to the base law where it does not steer its band's models closer under
-their innovations (where they record none: where it is not faster), run only a quarter of the way
+one of them or is of another band, left to the base law where it is not faster or does not steer its band's
+models closer under their innovations, run only a quarter of the way
 towards a design speed on whose models it is not stable, switched by the loop at a band's edge."""
 
 from __future__ import annotations

@@ -151,14 +151,11 @@ _ONE_BLAS_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NU
 
 
 def _workers() -> list[str]:
-    """pytest-xdist options: one worker per core and an idle worker, whole test files to a worker (so a module's
-    fixtures are built once), in the order of collection (the longest files first: conftest.py); none on a
-    single core. The idle worker (``--idle-worker``, conftest.py) runs at a low CPU priority and takes files
-    without a wall-clock deadline from the back of the queue: it works on the core a real-time test leaves idle
-    while it waits on the clock. ``-n 0`` after ``tasks.py test`` runs everything in one process."""
+    """pytest-xdist options: one worker per core, whole test files to a worker (so a module's fixtures are
+    built once), in the order of collection (the longest files first: conftest.py); none on a
+    single core. ``-n 0`` after ``tasks.py test`` runs everything in one process."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return (["-n", str(cores + 1), "--dist", "loadfile", "--no-loadscope-reorder", "--idle-worker"]
-            if cores > 1 else [])
+    return ["-n", str(cores), "--dist", "loadfile", "--no-loadscope-reorder"] if cores > 1 else []
 
 
 def test(args: list[str]) -> None:

@@ -14,7 +14,6 @@ import pytest
 from design.core.errors import ControllerFileError
 from design.files.mpc import read_mpc_file
 from design.files.prediction_schedule import FILTER_KEY, RECORD
-from design.laws.controller import Measurement
 from design.laws.disturbance import DisturbanceSpec
 from design.mpc import MPCLimits, SolverSettings
 from design.mpc.law import unconstrained_gain, unconstrained_law
@@ -23,6 +22,7 @@ from design.synthesis.mpc_design import (FILTER_CHOICE, PREDICTION_CHOICE, MPCSp
                                          innovation_sigma, mpc_estimate, with_prediction_schedule)
 
 from design_family import rewrite, tractor_model
+from mpc_law_check import assert_runs_law
 from test_mpc_band_prediction_choice import AUTHORITY, local
 
 SPEEDS = (1.0, 1.79, 2.91)
@@ -83,18 +83,7 @@ def test_the_file_certifies_and_the_controller_runs_each_band_law_with_its_filte
     np.testing.assert_array_equal(law.Ac, unconstrained_law(p, unconstrained_gain(p)).Ac)
     # at 2.91 m/s the vehicle's MPC (its estimator, its QP) gives the band law's commands, step for step
     ctrl = spec.controller(approach=False)
-    rng = np.random.default_rng(3)
-    xc = None
-    for j in range(120):
-        m = Measurement(j * 0.05, 0.004 * np.sin(j / 7) + rng.normal(0, 5e-4), 0.002 * np.cos(j / 5), 0.0, 2.91)
-        u_mpc = ctrl.step(m)
-        y = ctrl.outputs(m)
-        if xc is None:
-            xc = law.X0 @ y
-        u = float(law.Cc[0] @ xc + law.Dc[0] @ y)
-        xc = law.Ac @ xc + law.Bc @ y
-        assert abs(u) < 0.3 and ctrl.band == 2                # no limit binds; band 2's QP
-        assert u_mpc == pytest.approx(u, abs=1e-6)
+    assert_runs_law(ctrl, law, 2.91, seed=3, band=2)   # band 2's QP
     assert ctrl.fallbacks == 0
 
 

@@ -18,6 +18,7 @@ from design.synthesis.mpc_design import MPCSpec, design_mpc, fallback_from_file
 from design.synthesis.robust import RobustSpec, design_robust
 
 from design_family import family, rewrite, tractor_model
+from mpc_law_check import assert_runs_law
 
 CENTRAL = tractor_model(1.79, name="central").with_meta(kind="central")
 LOCAL = family(speeds=(1.0, 2.91), authorities=(1.0, 0.7))
@@ -42,18 +43,7 @@ def test_the_controller_runs_exactly_its_certified_law_when_no_limit_binds(desig
     # the vehicle's MPC (its estimator, its QP) and the certificate's compensator give the same commands
     ctrl = designed.file.controller(approach=False)          # the bare law: no approach path on engage
     comp = unconstrained_law(designed.problem, designed.unconstrained_gain)
-    rng = np.random.default_rng(5)
-    xc = None
-    for j in range(120):
-        m = Measurement(j * 0.05, 0.004 * np.sin(j / 7) + rng.normal(0, 5e-4), 0.002 * np.cos(j / 5), 0.0, 1.79)
-        u_mpc = ctrl.step(m)
-        y = ctrl.outputs(m)
-        if xc is None:
-            xc = comp.X0 @ y
-        u = float(comp.Cc[0] @ xc + comp.Dc[0] @ y)
-        xc = comp.Ac @ xc + comp.Bc @ y
-        assert abs(u) < 0.3                                   # no limit binds
-        assert u_mpc == pytest.approx(u, abs=1e-6)
+    assert_runs_law(ctrl, comp, 1.79, seed=5)
     assert ctrl.fallbacks == 0
 
 

@@ -19,6 +19,7 @@ import argparse
 from autosteer.cli import add_option
 from identification.model import Model
 
+from design.files.prediction_schedule import FILTER_KEY
 from design.commands.robust import add_bryson_arguments, bryson_weights, certificate_table, spec_lines
 from design.commands.specs import (add_disturbance_arguments, add_noise_argument, add_spec_arguments, disturbance_of,
                                     parse_past, progress_of, refuse_mixed, warn_relaxed, weight_search_of)
@@ -142,6 +143,7 @@ def schedule_lines(rec: dict | None, own: str = "the central model") -> list[str
         lines.append(f"  {lo:g}-{'' if hi is None else f'{hi:g}'} m/s: {b['model']}, worst {b['worst']} "
                      f"(spectral radius {b['max_spectral_radius']:.4f}, disk margin >= {b['min_disk_margin']:.2f}); "
                      f"on the other bands' models {'stable' if b['neighbours_stable'] else 'NOT stable'}"
-                     + ("" if nb is None else f", disk margin >= {nb:.2f}"))
+                     + ("" if nb is None else f", disk margin >= {nb:.2f}")
+                     + ("" if b.get(FILTER_KEY) is None else f"; estimate filter {b[FILTER_KEY]:g} s"))
     lines += [f"  {x['speed']:g} m/s left to {own}: {x['reason']}" for x in rec["left_out"]]
     return lines

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from design.core.errors import ControllerFileError
+from design.commands.mpc import schedule_lines
 from design.files.mpc import read_mpc_file
 from design.files.prediction_schedule import FILTER_KEY, RECORD
 from design.laws.disturbance import DisturbanceSpec
@@ -106,3 +107,9 @@ def test_a_band_s_filter_edited_or_without_an_estimate_is_refused(saved):
     def unknown(b):
         b["design"][RECORD]["laws"][1]["estimate_filter"] = 0.7
     refused(unknown, "must hold exactly")
+
+
+def test_the_design_summary_says_each_band_s_filter(scheduled):
+    lines = schedule_lines(scheduled[0].prediction_schedule)
+    bands = [line for line in lines if line.startswith("  ") and " m/s: " in line]
+    assert [b.rsplit("; estimate filter ", 1)[1] for b in bands] == ["1 s", "0.7 s", "0.5 s"]

@@ -70,6 +70,11 @@ class ValveTestPlan:
         Command period, s (shorter than the bridge's watchdog).
     linearity
         Rates the linearity check (:func:`linearity_check`) asks each way, fractions of the curve's ``max_rate``.
+    watchdog_retries
+        Steps driven again, per run of steps, after the bridge's watchdog cut the valve (the host's commands came
+        late: a stall of the computer, not of the tractor); the bridge is engaged again and the step repeated from
+        its start, the wheel being at standstill and free. A manual override, another fault or one trip more
+        stops the test.
     """
 
     duties: tuple[float, ...] = _DUTIES
@@ -81,6 +86,7 @@ class ValveTestPlan:
     position_time: float = 3.0
     period: float = 0.05
     linearity: tuple[float, ...] = _LINEARITY
+    watchdog_retries: int = 2
 
     def __post_init__(self) -> None:
         if not self.duties or not all(isinstance(d, (int, float)) and 0 < d <= 1 for d in self.duties):
@@ -92,6 +98,10 @@ class ValveTestPlan:
         if self.transient >= self.step_time:
             raise VehicleConfigError(f"ValveTestPlan: transient ({self.transient} s) must be shorter than "
                                      f"step_time ({self.step_time} s)")
+        if not (isinstance(self.watchdog_retries, int) and not isinstance(self.watchdog_retries, bool)
+                and 0 <= self.watchdog_retries <= 10):
+            raise VehicleConfigError(f"ValveTestPlan.watchdog_retries must be an integer in 0-10, "
+                                     f"got {self.watchdog_retries!r}")
         if self.position_duty > 1:
             raise VehicleConfigError(f"ValveTestPlan.position_duty must be in (0, 1], got {self.position_duty!r}")
 
@@ -106,6 +116,10 @@ class ValveTestPlan:
         if steps is not None:
             return _ENGAGE_S + steps * per_step
         return 2 * _ENGAGE_S + 2 * (len(self.duties) + len(self.linearity)) * per_step
+
+
+class _WatchdogTrip(VehicleConfigError):
+    """The bridge's watchdog cut the valve: the host's commands came late (see ``ValveTestPlan.watchdog_retries``)."""
 
 
 @dataclass
@@ -130,9 +144,11 @@ class _Session:
         for rep in self.driver.poll():
             self.confirmed = self.confirmed or rep.engaged
             if rep.manual_override or (self.confirmed and not rep.engaged):
-                why = "manual override" if rep.manual_override else "watchdog or fault"
-                raise VehicleConfigError(f"valve characterisation stopped: the bridge disengaged ({why}) at "
-                                         f"t = {rep.received_at:.2f} s; release the wheel and run it again")
+                why = ("manual override" if rep.manual_override else "watchdog: the host's commands came late"
+                       if rep.watchdog_tripped else "watchdog or fault")
+                error = _WatchdogTrip if why.startswith("watchdog:") else VehicleConfigError
+                raise error(f"valve characterisation stopped: the bridge disengaged ({why}) at "
+                            f"t = {rep.received_at:.2f} s; release the wheel and run it again")
             self.t.append(rep.received_at)
             self.angle.append(float(self.calibration.to_angle(rep.adc_counts)))
         if not self.driver.is_alive() and (self.t or self.clock.now() - self.started > 1.0):
@@ -162,23 +178,39 @@ def run_steps(driver: BridgeDriver, clock: Clock, calibration: WheelAngleCalibra
     out: list[RateStep] = []
     try:
         s.hold(0.0, 0.3)
+        retries = plan.watchdog_retries
         for i, cmd in enumerate(commands):
-            direction = 1.0 if cmd > 0 else -1.0
-            start = -direction * plan.start_angle
-            s.hold(-direction * plan.position_duty * full_scale, plan.position_time,
-                   stop=lambda a: direction * (a - start) <= 0.0)
-            s.hold(0.0, plan.settle)
-            n0 = len(s.t)
-            t0 = clock.now()
-            s.hold(cmd, plan.step_time, stop=lambda a: direction * (a + start) >= 0.0)
-            out.append(_ramp(np.array(s.t[n0:]), np.array(s.angle[n0:]), t0, cmd, np.array(s.angle[max(0, n0 - 5):n0]),
-                             plan.transient))
+            while True:
+                try:
+                    out.append(_step(s, cmd, full_scale, plan))
+                    break
+                except _WatchdogTrip:
+                    if retries == 0:
+                        raise
+                    retries -= 1                         # engage again and drive the whole step again
+                    driver.engage()
+                    s.confirmed = False
+                    s.hold(0.0, 0.3)
             if progress is not None:
                 progress(i + 1, len(commands))
     finally:
         driver.send_rate(0.0)
         driver.disengage()
     return out
+
+
+def _step(s: _Session, cmd: float, full_scale: float, plan: ValveTestPlan) -> RateStep:
+    """One step: the wheel to the start of its travel, held still, then ``cmd`` held; its fitted ramp."""
+    direction = 1.0 if cmd > 0 else -1.0
+    start = -direction * plan.start_angle
+    s.hold(-direction * plan.position_duty * full_scale, plan.position_time,
+           stop=lambda a: direction * (a - start) <= 0.0)
+    s.hold(0.0, plan.settle)
+    n0 = len(s.t)
+    t0 = s.clock.now()
+    s.hold(cmd, plan.step_time, stop=lambda a: direction * (a + start) >= 0.0)
+    return _ramp(np.array(s.t[n0:]), np.array(s.angle[n0:]), t0, cmd, np.array(s.angle[max(0, n0 - 5):n0]),
+                 plan.transient)
 
 
 def _ramp(t: np.ndarray, a: np.ndarray, t0: float, cmd: float, before: np.ndarray, transient: float) -> RateStep:

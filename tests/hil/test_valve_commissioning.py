@@ -249,3 +249,48 @@ def test_identification_passes_through_the_inverse_map_slew_equally_both_ways() 
     raw_left, raw_right, raw = slew_rates(None)
     assert raw_right / raw_left == pytest.approx(p.steering.right_gain, abs=0.05)   # the raw valve's asymmetry
     assert "valve_map" not in raw.meta
+
+
+class _StallingHost:
+    """The bridge driver of a host that stalls once: no command goes out for ``gap`` s from ``at`` s of the bench's
+    clock (the bridge's watchdog then cuts the valve); everything else is the real driver's."""
+
+    def __init__(self, driver, clock, at: float, gap: float) -> None:
+        self._driver, self._clock, self._at, self._gap = driver, clock, at, gap
+        self.dropped = 0
+
+    def __getattr__(self, name):
+        return getattr(self._driver, name)
+
+    def send_rate(self, rate: float) -> None:
+        if self._at <= self._clock.now() < self._at + self._gap:
+            self.dropped += 1
+            return
+        self._driver.send_rate(rate)
+
+
+def _stalled_characterisation(plan: ValveTestPlan, at: float | None):
+    plant = SimulatedTractor(condition_for("none", 0.0), 120.0, 5, SimParams(), initial={"Y": 0.0})
+    cal = two_point_calibration(plant.params.sensor, plant.params.steering)
+    with LockstepBridge(plant, config_for_tractor(plant.params.steering), max_step=0.01) as bench:
+        driver = bench.driver if at is None else _StallingHost(bench.driver, bench.clock, at, 0.4)
+        curve, steps = characterise_valve(driver, bench.clock, cal, bench.firmware.config.max_rate, plan)
+    return curve, steps, driver
+
+
+def test_a_host_stall_that_trips_the_watchdog_drives_the_step_again_and_without_retries_stops_the_test() -> None:
+    """The host late with its commands (0.4 s, the watchdog's 0.25 s): the bridge cuts the valve, the test engages
+    again and drives the interrupted step from its start; the curve is the one of a run without the stall. With no
+    retries left the test stops with the watchdog named."""
+    plan = ValveTestPlan(duties=(0.2, 0.5, 1.0))
+    clean, clean_steps, _ = _stalled_characterisation(plan, None)
+    curve, steps, host = _stalled_characterisation(plan, 9.0)
+    assert host.dropped >= 7 and len(steps) == len(clean_steps) == 6
+    assert [s.command for s in steps] == [s.command for s in clean_steps]
+    for a, b in zip(steps, clean_steps):
+        assert a.rate == pytest.approx(b.rate, rel=0.1, abs=0.005)
+    assert curve.max_rate == pytest.approx(clean.max_rate, rel=0.05)
+    with pytest.raises(VehicleConfigError, match=r"watchdog: the host's commands came late"):
+        _stalled_characterisation(dataclasses.replace(plan, watchdog_retries=0), 9.0)
+    with pytest.raises(VehicleConfigError, match="watchdog_retries"):
+        ValveTestPlan(watchdog_retries=-1)

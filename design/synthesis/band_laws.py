@@ -79,8 +79,6 @@ import time
 from dataclasses import replace
 from typing import Any, Callable, Sequence
 
-import numpy as np
-
 from autosteer.checks import finite_or_none
 from identification.model import Model
 
@@ -92,7 +90,7 @@ from design.files.law_schedule import REACH, RECORD, certified_speeds, law_entry
 from design.files.linear import from_body
 from design.laws.estimate_schedule import REACH_FRACTION, bands_for, law_without_estimate, reach_band
 from design.synthesis.family import model_names
-from design.synthesis.mpc_design import INNOVATIONS, innovation_sigma
+from design.synthesis.mpc_design import innovation_sigma, innovations_known
 from design.synthesis.recipes import RobustControllerResult, RobustOptions, design_robust_controller
 from design.synthesis.specs import check_specs, resolve_latency
 
@@ -233,10 +231,6 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
         g, s, i = worst_noise_gain(comp, [models[j] for j in idx], [speeds[names[j]] for j in idx], noise, rate)
         return (g, s, names[idx[i]] if i >= 0 else "")
 
-    def steering_known(idx) -> bool:
-        """Every model of ``idx`` records its identified innovations."""
-        return all(np.shape(models[j].meta.get(INNOVATIONS, ())) == (models[j].C.shape[0],) * 2 for j in idx)
-
     def steering(comp, idx) -> tuple[float, str]:
         """The largest cross-track 1-sigma (s) ``comp`` leaves on the models ``idx``, each driven by its own
         innovations (:func:`design.synthesis.mpc_design.innovation_sigma`), and the model it is on."""
@@ -337,7 +331,7 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
             elif not row["scale"] > base_scale:
                 row.update(kept=False, why=f"scale {row['scale']:.4g} (relaxed {len(row['relaxed'])}) is not above the "
                                            f"base law's {base_scale:.4g} (relaxed {base_relaxed})")
-            elif steering_known(inside):
+            elif innovations_known(models[j] for j in inside):
                 band_i, base_i = steering(r.file.compensator, inside), steering(base.file.compensator, inside)
                 row["steering"] = {"rule": "the largest cross-track 1-sigma (s, of y/V) a law leaves on the band's "
                                            "models, each closed with it and driven by its identified innovations",

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 from scipy.linalg import solve_discrete_lyapunov
@@ -324,9 +324,14 @@ def innovation_sigma(law, model: Model) -> float:
     return float(math.sqrt(max(float(var[0, 0]), 0.0)))
 
 
+def innovations_known(models: Iterable[Model]) -> bool:
+    """Every model records its innovations' covariance (:func:`innovation_sigma` can be had on each)."""
+    return all(np.shape(m.meta.get(INNOVATIONS, ())) == (m.C.shape[0],) * 2 for m in models)
+
+
 def _steering_index_known(inside: Sequence[tuple[float, Model]]) -> bool:
-    """Every model of the band records its innovations (:func:`innovation_sigma` can be had on each)."""
-    return all(np.shape(m.meta.get(INNOVATIONS, ())) == (m.C.shape[0],) * 2 for _, m in inside)
+    """Every model of the band records its innovations."""
+    return innovations_known(m for _, m in inside)
 
 
 def _steering_index(law, inside: Sequence[tuple[float, Model]]) -> float:

@@ -110,7 +110,8 @@ class ValveTestPlan:
 
         ``steps`` steps after engaging (5 s), each brought to its start (at most ``position_time``), held still,
         stepped and refreshed. By default the whole test: every duty both ways, then the linearity check's rates
-        both ways, each run engaging once.
+        both ways, each run engaging once. A step driven again after a watchdog trip (``watchdog_retries``, only
+        when the host stalls) adds up to one step and 0.3 s to this.
         """
         per_step = self.position_time + self.settle + self.step_time + 4 * self.period
         if steps is not None:

@@ -12,6 +12,7 @@ window from observability (``past=None``) or a given one.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
@@ -29,6 +30,7 @@ from design.synthesis.specs import Specifications
 from identification.model import Model
 from identification.workflow import identify_logs
 
+from hil.commissioning.model_choice import MARGIN, orders_of, steering_score
 from hil.commissioning.mpc_window import own_window
 from hil.commissioning.steps import Steps
 
@@ -344,7 +346,8 @@ def design_with_fallback(steps: Steps, designer: Designer, logs: Path | Sequence
                          candidates: bool = False, hooks: DesignHooks = DesignHooks(),
                          progress: Callable[[int, int], None] | None = None, *, ctrl: Path | None = None,
                          fallback_dir: Path | None = None,
-                         with_lqr: bool = True) -> tuple[dict[str, dict], dict | None]:
+                         with_lqr: bool = True,
+                         alternative_order: int | None = None) -> tuple[dict[str, dict], dict | None]:
     """:func:`design_controllers` on the identified models, then, when the robust controller or the MPC is
     missing and ``fallback_order`` is given, identification again at that order (``out/models_order<N>/``,
     acceptance ``warn``) and the missing designs on those models.
@@ -365,6 +368,12 @@ def design_with_fallback(steps: Steps, designer: Designer, logs: Path | Sequence
     local model's on the validated models 1.98 x; on random-107, whose order-4 central model gave no MPC
     either, it gave 1.38 x.
 
+    With ``alternative_order``, the robust controller is also designed on models identified at that order
+    (``out/models_order<N>/``, the fall-back's folder when it is the same order) and the one whose laws hold
+    their own models closer is kept (:mod:`hil.commissioning.model_choice`); the other is kept in
+    ``ctrl/alternatives/``, the record in the robust design's ``model_choice``. The MPC keeps the fall-back
+    law it was designed with (the MPC file holds it).
+
     Returns
     -------
     tuple
@@ -372,14 +381,12 @@ def design_with_fallback(steps: Steps, designer: Designer, logs: Path | Sequence
         it did not run; with ``"for": "mpc"`` when it was for the MPC alone).
     """
     ctrl = out / "controllers" if ctrl is None else ctrl
+    sources = [str(logs)] if isinstance(logs, (str, Path)) else [str(f) for f in logs]
     designs = design_controllers(steps, designer, models_dir, ctrl, tries, with_lqr, candidates, hooks)
     missing = "robust" if "robust" not in designs else ("mpc" if "mpc" not in designs else None)
-    if missing is None:
-        return designs, None
     again, robust_dir = None, models_dir
-    if fallback_order is not None:
+    if missing is not None and fallback_order is not None:
         fallback_dir = out / f"models_order{fallback_order}" if fallback_dir is None else fallback_dir
-        sources = [str(logs)] if isinstance(logs, (str, Path)) else [str(f) for f in logs]
 
         def identify_again() -> dict:
             r = identify_logs(sources, fallback_dir, order=fallback_order, markov=markov, latency="auto",
@@ -398,4 +405,50 @@ def design_with_fallback(steps: Steps, designer: Designer, logs: Path | Sequence
     if "robust" in designs and "mpc" not in designs:        # the last resort: a local model predicting
         designs.update(_design_mpc_alone(steps, designer, robust_dir, ctrl, tries, None,
                                          designs["robust"]["weights"]))
+    if alternative_order is not None and "robust" in designs and robust_dir == models_dir:
+        made = fallback_dir if again is not None and fallback_order == alternative_order else None
+        _choose_robust_models(steps, designer, designs, models_dir, out, ctrl, tries, alternative_order, made,
+                              lambda d: identify_logs(sources, d, order=alternative_order, markov=markov,
+                                                      latency="auto", acceptance="warn", progress=progress))
     return designs, again
+
+
+def _choose_robust_models(steps: Steps, designer: Designer, designs: dict[str, dict], models_dir: Path, out: Path,
+                          ctrl: Path, tries: Sequence[DesignTry], order: int, made: Path | None,
+                          identify: Callable[[Path], dict]) -> None:
+    """The robust controller designed again on models of ``order`` (``made``: their folder when identified
+    already, else identified into ``out/models_order<order>/`` by ``identify``) and kept in ``ctrl/robust.json``
+    when its laws hold their models closer (:mod:`hil.commissioning.model_choice`); updates ``designs``."""
+    if orders_of(models_dir) == {order}:
+        designs["robust"]["model_choice"] = {"kept": "identified", "why": f"the local models are of order {order}"}
+        return
+    alt_dir = made if made is not None else out / f"models_order{order}"
+    if made is None and steps.run(f"identification (order {order})", f"identification at order {order}, for the "
+                                  f"robust controller's choice of models", lambda: identify(alt_dir)) is None:
+        return
+    alt = ctrl / "alternatives"
+    for attempt in tries:
+        r = steps.run(f"design robust on order-{order} models ({attempt.label})",
+                      f"design robust on order-{order} models ({attempt.label})",
+                      lambda a=attempt: designer.robust(alt_dir, a, alt / f"robust-order{order}.json"))
+        if r is not None:
+            break
+    else:
+        return
+    chosen, mine = steering_score(designs["robust"]["file"], models_dir), steering_score(r["file"], alt_dir)
+    keep_alt = mine < MARGIN * chosen     # False with a nan: the identified models' law stays
+    record = {"rule": f"the order-{order} models' law is kept when the geometric mean of the cross-track 1-sigma "
+                      f"(s) its laws leave on their own local models, each driven by its identified innovations, is "
+                      f"below {MARGIN:g} x the identified models' (hil.commissioning.model_choice)",
+              "identified": chosen if math.isfinite(chosen) else None, f"order_{order}": mine if math.isfinite(mine)
+              else None, "kept": f"order-{order} models" if keep_alt else "identified"}
+    if keep_alt:
+        old = Path(designs["robust"]["file"])
+        moved = alt / "robust-identified.json"
+        old.replace(moved)
+        Path(r["file"]).replace(old)
+        if "mpc" in designs and designs["mpc"]["settings"].get("fallback") == str(old):
+            designs["mpc"]["settings"]["fallback"] = str(moved)    # the law its file holds
+        designs["robust"] = {**r, "file": str(old), "result": {**r["result"], "out": str(old)},
+                             "weights": f"{attempt.label}, order-{order} models"}
+    designs["robust"]["model_choice"] = record

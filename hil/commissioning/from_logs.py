@@ -85,6 +85,10 @@ class LogOptions:
     fallback_order
         When no robust design (or no MPC) is found on the identified models, identify again at this order
         and design on those (None: do not).
+    alternative_order
+        The robust controller is also designed on models identified at this order, and the one whose laws hold
+        their own models closer is kept (:mod:`hil.commissioning.model_choice`; None: on the identified models
+        only).
     """
 
     order: int | str = "validate"
@@ -98,6 +102,7 @@ class LogOptions:
     robust_bands: bool = True
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
+    alternative_order: int | None = 4
 
     def __post_init__(self) -> None:
         if self.acceptance not in ("refuse", "warn", None):
@@ -111,6 +116,10 @@ class LogOptions:
         if self.fallback_order is not None and (isinstance(self.fallback_order, bool)
                                                 or not isinstance(self.fallback_order, int) or self.fallback_order < 1):
             raise CommissioningError(f"fallback_order must be None or an order >= 1, got {self.fallback_order!r}")
+        if self.alternative_order is not None and (isinstance(self.alternative_order, bool) or not isinstance(
+                self.alternative_order, int) or self.alternative_order < 1):
+            raise CommissioningError(f"alternative_order must be None or an order >= 1, got "
+                                     f"{self.alternative_order!r}")
 
 
 def driving_seconds(logs: list[PassLog], folder: str | Path | None = None) -> dict:
@@ -217,7 +226,8 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
                             angle_noise=com.valve.angle_noise)
         designs, again = design_with_fallback(steps, designer, logs, models_dir, out,
                                               attempts(opts.weights, opts.robust_past), opts.fallback_order,
-                                              opts.markov, progress=lambda d, n: tick("identification", d, n))
+                                              opts.markov, progress=lambda d, n: tick("identification", d, n),
+                                              alternative_order=opts.alternative_order)
         if again is not None:
             res["identification_fallback"] = again
     res["designs"] = designs

@@ -124,6 +124,10 @@ class CommissionOptions:
         When no robust design is found on the identified models, identify again at this order
         (``models_order4/``, acceptance ``warn``) and design the robust controller and the MPC on
         those (``None``: do not).
+    alternative_order
+        The robust controller is also designed on models identified at this order and the one whose laws hold
+        their own models closer is kept (:mod:`hil.commissioning.model_choice`). Default: 4 with the field
+        procedure (as ``hil commission --logs``), 0 with the slews (0: the identified models only).
     disturbance_estimate
         The robust controller and the MPC with the disturbance estimate (``design robust/mpc
         --disturbance-estimate on``, :mod:`design.laws.disturbance`; docs/disturbance_estimate.md).
@@ -162,6 +166,7 @@ class CommissionOptions:
     integral: bool = True
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
+    alternative_order: int | None = None
     disturbance_estimate: bool = True
     prediction_schedule: bool = True
     robust_bands: bool = True
@@ -179,10 +184,15 @@ class CommissionOptions:
                             ("passes", plan.passes if field else 3),
                             ("pass_duration", plan.duration if field else 120.0),
                             ("more_passes", 0 if field else 2), ("estimate_trial", not field),
-                            ("acceptance", "warn" if field else "refuse")):
+                            ("acceptance", "warn" if field else "refuse"),
+                            ("alternative_order", 4 if field else 0)):
             if getattr(self, name) is None:     # the procedure's default
                 object.__setattr__(self, name, value)
         object.__setattr__(self, "speeds", tuple(self.speeds))
+        if isinstance(self.alternative_order, bool) or not isinstance(self.alternative_order, int) \
+                or self.alternative_order < 0:
+            raise SimulatorConfigError(f"alternative_order must be an order >= 1, or 0 for none, got "
+                                       f"{self.alternative_order!r}")
         if field and self.more_passes:
             raise SimulatorConfigError("more_passes: the field procedure re-drives spoiled passes itself and "
                                        "has no rounds of more passes; use procedure 'slews' for those")
@@ -357,7 +367,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             steps, designer, out / "logs", models_dir, out, attempts(opts.weights, opts.robust_past),
             opts.fallback_order, opts.markov, candidates=opts.disturbance_estimate and opts.estimate_trial,
             hooks=DesignHooks(after_robust=window_trial, after_mpc=mpc_window_trial_hook),
-            progress=lambda d, n: tick("identification", d, n))
+            progress=lambda d, n: tick("identification", d, n), alternative_order=opts.alternative_order or None)
         if again is not None:
             res["identification_fallback"] = again
     res["designs"] = designs

@@ -438,8 +438,10 @@ def _choose_robust_models(steps: Steps, designer: Designer, designs: dict[str, d
     chosen, mine = steering_score(designs["robust"]["file"], models_dir), steering_score(r["file"], alt_dir)
     keep_alt = mine < MARGIN * chosen     # False with a nan: the identified models' law stays
     record = {"rule": f"the order-{order} models' law is kept when the geometric mean of the cross-track 1-sigma "
-                      f"(s) its laws leave on their own local models, each driven by its identified innovations, is "
-                      f"below {MARGIN:g} x the identified models' (hil.commissioning.model_choice)",
+                      f"(s) its laws leave on their own local models (at speeds evenly spaced over the design speeds, "
+                      f"the law of each speed on the models of the nearest design speed, each driven by its "
+                      f"identified innovations) is below {MARGIN:g} x the identified models' "
+                      f"(hil.commissioning.model_choice)",
               "identified": chosen if math.isfinite(chosen) else None, f"order_{order}": mine if math.isfinite(mine)
               else None, "kept": f"order-{order} models" if keep_alt else "identified"}
     if keep_alt:

@@ -36,6 +36,7 @@ from design.synthesis.band_laws import certified_text, gaps_between
 
 from hil.commissioning.designs import WEIGHTS, Designer, attempts, design_with_fallback, settings_text, weights_text
 from hil.commissioning.html import file_sha256, provenance, write_page
+from hil.commissioning.model_choice import choice_text
 from hil.commissioning.steps import Steps
 from hil.vehicle.commissioning import Commissioning, load_commissioning
 from hil.vehicle.errors import VehicleConfigError
@@ -319,7 +320,7 @@ def _controller_line(name: str, d: dict) -> str:
     return (f"- `{name}` ({d['file']}): {'stable on every model' if cert.get('passed') else 'NOT STABLE'}"
             f", worst spectral radius {cert.get('max_spectral_radius', float('nan')):.4f} "
             f"({cert.get('worst', '')}); {weights_text(d.get('weights', ''))}; {settings_text(d.get('settings', {}))}"
-            + speed_bands_text(d["result"]))
+            + choice_text(d) + speed_bands_text(d["result"]))
 
 
 def speed_bands_text(result: dict) -> str:

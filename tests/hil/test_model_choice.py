@@ -11,7 +11,7 @@ from hil.bench.benches.valve import characterise_on_bench
 from hil.bench.runs.sysid import SysidPlan, make_passes
 from hil.commissioning import designs as designs_module
 from hil.commissioning.designs import Designer, attempts, design_with_fallback
-from hil.commissioning.model_choice import orders_of, steering_score
+from hil.commissioning.model_choice import choice_text, orders_of, steering_score
 from hil.commissioning.steps import Steps
 from hil.truth.tractors import resolve_tractor
 from identification.workflow import identify_logs
@@ -57,6 +57,7 @@ def test_the_other_orders_law_replaces_the_identified_one_when_it_holds_its_mode
     if "mpc" in designs:    # designed with the identified models' law as its fall-back: its record names that file
         assert designs["mpc"]["settings"]["fallback"] == str(moved)
     assert not (ctrl / "alternatives" / "robust-order5.json").exists()
+    assert choice_text(designs["robust"]).startswith(f"; models kept: order-5 (score {rec['order_5']:.4g} s against")
 
 
 @pytest.mark.slow
@@ -67,6 +68,7 @@ def test_the_identified_law_stays_on_a_tie_and_without_another_order(identified,
     assert rec["kept"] == "identified" and designs["robust"]["file"] == str(tmp_path / "a" / "controllers" / "robust.json")
     assert designs["robust"]["settings"]["models"] == "models/local_*.npz"
     assert (tmp_path / "a" / "controllers" / "alternatives" / "robust-order5.json").is_file()
+    assert choice_text(designs["robust"]).startswith(f"; models kept: the identified (score {rec['identified']:.4g} s;")
     # models already of that order: nothing designed again
     designs = _designs(identified, tmp_path / "b", 4)
     assert designs["robust"]["model_choice"] == {"kept": "identified", "why": "the local models are of order 4"}

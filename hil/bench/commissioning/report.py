@@ -15,6 +15,7 @@ import numpy as np
 from hil.commissioning.designs import settings_text, weights_text
 from hil.commissioning.from_logs import speed_bands_text
 from hil.commissioning.html import provenance, write_page
+from hil.commissioning.model_choice import choice_text
 from hil.bench.commissioning.table import CONTROLLERS, hil_ratios
 from hil.vehicle.valve_map import ValveCurve
 
@@ -209,15 +210,16 @@ def write_commission_report(res: dict, out: Path) -> list[str]:
         if res.get("identification_fallback"):
             orders = sorted({m["order"] for m in res["identification_fallback"]["models"]})
             if res["identification_fallback"].get("for") == "mpc":
+                kept = ((res["designs"].get("robust") or {}).get("model_choice") or {}).get("kept", "identified")
                 lines += [f"No MPC was found on the identified models; the MPC below is designed on models identified "
-                          f"again at order {orders} (`models_order*/`), the robust controller on the identified "
-                          "models.", ""]
+                          f"again at order {orders} (`models_order*/`), the robust controller on the "
+                          + ("identified models." if kept == "identified" else f"{kept} its choice kept (below)."), ""]
             else:
                 lines += [f"No robust design was found on the identified models; the robust controller and the MPC "
                           f"below are designed on models identified again at order {orders} (`models_order*/`).", ""]
         for name, d in res["designs"].items():
             lines.append(f"- `{name}` ({weights_text(d.get('weights', ''))}): {settings_text(d.get('settings', {}))}"
-                         + speed_bands_text(d.get("result") or {}))
+                         + choice_text(d) + speed_bands_text(d.get("result") or {}))
         search = (res["designs"].get("mpc") or {}).get("window_search")
         if search and len(search.get("tries", [])) > 1:
             lines += ["", "The MPC's automatic weights relaxed a specification on the robust controller's window, so "

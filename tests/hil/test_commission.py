@@ -80,6 +80,10 @@ def test_the_command_refuses_bad_options(capsys) -> None:
     assert args.hil_conditions == (condition_for("disker", 1.79),) and args.order == "validate"
     with pytest.raises(ValueError, match="weights must be one of"):
         CommissionOptions(weights="tuned")
+    # the robust controller's choice of models: order 4 besides the identified with the field procedure only
+    assert CommissionOptions().alternative_order == 4 and CommissionOptions(procedure="slews").alternative_order == 0
+    with pytest.raises(ValueError, match="alternative_order must be"):
+        CommissionOptions(alternative_order=-1)
     with pytest.raises(ValueError, match="hil_seeds"):
         CommissionOptions(hil_seeds=())
     with pytest.raises(ValueError, match="must differ from hil_seeds"):

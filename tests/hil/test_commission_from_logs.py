@@ -42,6 +42,8 @@ def test_the_command_commissions_from_the_logs_and_states_the_minutes_of_driving
     assert "driving in the logs: 2.7 min" in printed                 # 4 passes of 40 s
     res = json.loads((out / "result.json").read_text())
     assert res["driving_s"]["total"] == pytest.approx(160.0, abs=1.0)
+    # the robust controller chose between the identified and the order-4 models (hil.commissioning.model_choice)
+    assert res["options"]["alternative_order"] == 4 and res["designs"]["robust"]["model_choice"]["kept"]
     assert set(res["designs"]) == {"central-lqr", "robust", "mpc"}, res["steps"]
     for name in ("central-lqr", "robust", "mpc"):
         assert (out / "controllers" / f"{name}.json").is_file()

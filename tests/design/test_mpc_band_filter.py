@@ -1,7 +1,8 @@
 """The estimate's filter of an MPC speed band (design/synthesis/mpc_design.py: band_filters; the file's record,
 design/files/prediction_schedule.py; the controller, design/mpc/controller.py): a band of the fast speeds runs a
-faster filter than the file's where the robust law's noise floor allows it, a band of the slow speeds the file's;
-the file records it, the reader certifies the band's law with it and the controller runs it in that band."""
+faster filter than the file's where the robust law's noise floor and the MPC's own 1 s filter allow it, a band of
+the slow speeds the file's; the file records it, the reader certifies the band's law with it and the controller
+runs it in that band."""
 
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from test_mpc_band_prediction_choice import AUTHORITY, local
 
 SPEEDS = (1.0, 1.79, 2.91)
 SPEC = MPCSpec(horizon=20, limits=MPCLimits(0.3, 0.1), settings=SolverSettings(time_budget=1.0),
-               disturbance=mpc_estimate())
+               disturbance=DisturbanceSpec())          # the 2 s filter the commissioning's MPC falls back to
 
 
 @pytest.fixture(scope="module")
@@ -43,14 +44,17 @@ def saved(scheduled, tmp_path):
     return scheduled[0].file.save(tmp_path / "mpc.json")
 
 
-def test_a_band_may_run_a_faster_filter_only_as_far_as_the_noise_floor_of_its_slowest_speed():
+def test_a_band_may_run_a_faster_filter_only_as_far_as_the_noise_floor_and_the_mpc_s_own_filter():
     est = mpc_estimate()                                   # the commissioning's MPC: 1 s
     assert est.tau_f == 1.0
-    assert band_filters(est, 1.0) == (None,)               # floor 2 s: the file's filter
-    assert band_filters(est, 1.34) == (None,)              # floor 1.11 s: nothing faster than 1 s allowed
-    assert band_filters(est, 1.79) == (None, 0.7)          # floor 0.62 s
-    assert band_filters(est, 2.91) == (None, 0.7, 0.5)     # floor 0.24 s: every choice faster than 1 s
-    assert band_filters(DisturbanceSpec(), 2.91) == (None, 1.4, 1.0, 0.7, 0.5)
+    for v in (1.0, 1.34, 1.79, 2.91):                      # already the MPC's own: no band runs faster
+        assert band_filters(est, v) == (None,)
+    slow = DisturbanceSpec()                               # where its weights fell back to 2 s
+    assert band_filters(slow, 1.0) == (None,)              # floor 2 s: the file's filter
+    assert band_filters(slow, 1.34) == (None, 1.4)         # floor 1.11 s
+    assert band_filters(slow, 1.79) == (None, 1.4, 1.0)    # floor 0.62 s, held to 1 s
+    assert band_filters(slow, 2.91) == (None, 1.4, 1.0)    # floor 0.24 s, held to 1 s
+    assert band_filters(DisturbanceSpec(tau_d=4.0, tau_f=4.0), 2.91) == (None, 2.0)   # half of 4 s
     assert band_filters(None, 2.91) == (None,)
 
 
@@ -58,11 +62,11 @@ def test_each_band_runs_the_filter_whose_law_holds_its_models_closest_within_the
     res, models = scheduled
     rows = {b["band_mps"][0]: b for b in res.prediction_schedule["bands"]}
     laws = res.file.design[RECORD]["laws"]
-    assert [b[FILTER_KEY] for b in res.prediction_schedule["bands"]] == [1.0, 0.7, 0.5]
-    assert FILTER_KEY not in laws[0] and [law[FILTER_KEY] for law in laws[1:]] == [0.7, 0.5]
+    assert [b[FILTER_KEY] for b in res.prediction_schedule["bands"]] == [2.0, 1.0, 1.0]
+    assert FILTER_KEY not in laws[0] and [law[FILTER_KEY] for law in laws[1:]] == [1.0, 1.0]
     for (lo, row), v in zip(sorted(rows.items()), SPEEDS):
         tried = row[PREDICTION_CHOICE][FILTER_CHOICE]
-        assert [t[FILTER_KEY] for t in tried] == [1.0, *(t for t in (0.7, 0.5) if t >= 2.0 / v ** 2)]
+        assert [t[FILTER_KEY] for t in tried] == [2.0, *(t for t in (1.4, 1.0) if t >= 2.0 / v ** 2)]
         # each index is the band's model's law with that filter, its worst cross-track 1-sigma on the band's models
         pred = next(m for m in models if m.meta["name"] == row["model"])
         inside = [m for m in models if m.meta["conditions"][0]["nominal_speed"] == v]
@@ -77,10 +81,10 @@ def test_each_band_runs_the_filter_whose_law_holds_its_models_closest_within_the
 def test_the_file_certifies_and_the_controller_runs_each_band_law_with_its_filter(scheduled, saved):
     spec = read_mpc_file(saved)                            # every band's certificate checked with its filter
     assert spec.to_dict() == json.loads(saved.read_text())
-    assert spec.prediction_schedule.filters == (None, 0.7, 0.5)
+    assert spec.prediction_schedule.filters == (None, 1.0, 1.0)
     law = spec.band_laws()[2]
     p = mpc_problem(spec.prediction_schedule.models[2], spec.horizon, spec.weights, spec.limits, spec.past,
-                    replace(spec.disturbance, tau_f=0.5))
+                    replace(spec.disturbance, tau_f=1.0))
     np.testing.assert_array_equal(law.Ac, unconstrained_law(p, unconstrained_gain(p)).Ac)
     # at 2.91 m/s the vehicle's MPC (its estimator, its QP) gives the band law's commands, step for step
     ctrl = spec.controller(approach=False)
@@ -96,8 +100,8 @@ def test_a_band_s_filter_edited_or_without_an_estimate_is_refused(saved):
         with pytest.raises(ControllerFileError, match=match):
             read_mpc_file(path)
 
-    def slower(b):                                         # the certified law had the 0.5 s filter
-        b["design"][RECORD]["laws"][2][FILTER_KEY] = 1.0
+    def slower(b):                                         # the certified law had the 1 s filter
+        b["design"][RECORD]["laws"][2][FILTER_KEY] = 1.4
     refused(slower, r"band 2 \(2.35-inf m/s\)")
 
     def negative(b):
@@ -112,4 +116,4 @@ def test_a_band_s_filter_edited_or_without_an_estimate_is_refused(saved):
 def test_the_design_summary_says_each_band_s_filter(scheduled):
     lines = schedule_lines(scheduled[0].prediction_schedule)
     bands = [line for line in lines if line.startswith("  ") and " m/s: " in line]
-    assert [b.rsplit("; estimate filter ", 1)[1] for b in bands] == ["1 s", "0.7 s", "0.5 s"]
+    assert [b.rsplit("; estimate filter ", 1)[1] for b in bands] == ["2 s", "1 s", "1 s"]

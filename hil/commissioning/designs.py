@@ -347,7 +347,8 @@ def design_with_fallback(steps: Steps, designer: Designer, logs: Path | Sequence
                          progress: Callable[[int, int], None] | None = None, *, ctrl: Path | None = None,
                          fallback_dir: Path | None = None,
                          with_lqr: bool = True,
-                         alternative_order: int | None = None) -> tuple[dict[str, dict], dict | None]:
+                         alternative_order: int | None = None,
+                         alternative_dir: Path | None = None) -> tuple[dict[str, dict], dict | None]:
     """:func:`design_controllers` on the identified models, then, when the robust controller or the MPC is
     missing and ``fallback_order`` is given, identification again at that order (``out/models_order<N>/``,
     acceptance ``warn``) and the missing designs on those models.
@@ -355,7 +356,8 @@ def design_with_fallback(steps: Steps, designer: Designer, logs: Path | Sequence
     ``logs`` is the folder of pass logs or the log files the models came from; ``ctrl`` the controllers' folder
     (default ``out/controllers``), ``fallback_dir`` the fall-back identification's (default
     ``out/models_order<N>``), ``with_lqr`` whether the paper's LQR is designed too (an implement added later
-    gets the robust controller and the MPC only).
+    gets the robust controller and the MPC only), ``alternative_dir`` the folder of the models of
+    ``alternative_order`` (default ``out/models_order<N>``).
 
     The robust LMIs over models of mixed orders (chosen by validation) were infeasible on a heavy and a worn
     tractor, feasible over order-4 models; when only the MPC is missing (its central model of the validated
@@ -369,7 +371,7 @@ def design_with_fallback(steps: Steps, designer: Designer, logs: Path | Sequence
     either, it gave 1.38 x.
 
     With ``alternative_order``, the robust controller is also designed on models identified at that order
-    (``out/models_order<N>/``, the fall-back's folder when it is the same order) and the one whose laws hold
+    (``alternative_dir``, the fall-back's folder when it is the same order) and the one whose laws hold
     their own models closer is kept (:mod:`hil.commissioning.model_choice`); the other is kept in
     ``ctrl/alternatives/``, the record in the robust design's ``model_choice``. The MPC keeps the fall-back
     law it was designed with (the MPC file holds it).
@@ -407,22 +409,23 @@ def design_with_fallback(steps: Steps, designer: Designer, logs: Path | Sequence
                                          designs["robust"]["weights"]))
     if alternative_order is not None and "robust" in designs and robust_dir == models_dir:
         made = fallback_dir if again is not None and fallback_order == alternative_order else None
-        _choose_robust_models(steps, designer, designs, models_dir, out, ctrl, tries, alternative_order, made,
+        alt_dir = out / f"models_order{alternative_order}" if alternative_dir is None else alternative_dir
+        _choose_robust_models(steps, designer, designs, models_dir, alt_dir, ctrl, tries, alternative_order, made,
                               lambda d: identify_logs(sources, d, order=alternative_order, markov=markov,
                                                       latency="auto", acceptance="warn", progress=progress))
     return designs, again
 
 
-def _choose_robust_models(steps: Steps, designer: Designer, designs: dict[str, dict], models_dir: Path, out: Path,
-                          ctrl: Path, tries: Sequence[DesignTry], order: int, made: Path | None,
+def _choose_robust_models(steps: Steps, designer: Designer, designs: dict[str, dict], models_dir: Path,
+                          alt_dir: Path, ctrl: Path, tries: Sequence[DesignTry], order: int, made: Path | None,
                           identify: Callable[[Path], dict]) -> None:
     """The robust controller designed again on models of ``order`` (``made``: their folder when identified
-    already, else identified into ``out/models_order<order>/`` by ``identify``) and kept in ``ctrl/robust.json``
+    already, else identified into ``alt_dir`` by ``identify``) and kept in ``ctrl/robust.json``
     when its laws hold their models closer (:mod:`hil.commissioning.model_choice`); updates ``designs``."""
     if orders_of(models_dir) == {order}:
         designs["robust"]["model_choice"] = {"kept": "identified", "why": f"the local models are of order {order}"}
         return
-    alt_dir = made if made is not None else out / f"models_order{order}"
+    alt_dir = made if made is not None else alt_dir
     if made is None and steps.run(f"identification (order {order})", f"identification at order {order}, for the "
                                   f"robust controller's choice of models", lambda: identify(alt_dir)) is None:
         return

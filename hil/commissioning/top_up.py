@@ -8,7 +8,9 @@ new implement's passes alone are identified (``models/NAME/``: local models per 
 held-out passes as in the commissioning), and the robust controller certified on those models and the MPC
 for it are designed with the commissioning's own settings, read back from its ``result.json`` (identification's
 order, Markov parameters, acceptance and latency; the weights, windows, integral action and disturbance
-estimate; the valve's measured rate as the command limit), into ``controllers/NAME/robust.json`` and
+estimate; the robust controller's choice of models, :mod:`hil.commissioning.model_choice`, with the models of
+that order in ``models/NAME/order<N>/`` and the law not kept in ``controllers/NAME/alternatives/``; the
+valve's measured rate as the command limit), into ``controllers/NAME/robust.json`` and
 ``controllers/NAME/mpc.json`` (its fall-back law inside it). With that implement hitched the tractor drives
 with those files; nothing else of the commissioning is written but ``result.json`` (a ``top_ups`` record:
 implement, logs, files, the top-up's seconds of driving and of compute), ``report.md`` and ``index.html`` (a
@@ -82,6 +84,7 @@ def _options(res: dict, where: Path) -> LogOptions:
     given = {k: v for k, v in res["options"].items() if k in names}
     if isinstance(given.get("robust_past"), list):
         given["robust_past"] = tuple(given["robust_past"])
+    given.setdefault("alternative_order", None)     # a commissioning made before the robust model choice
     try:
         return LogOptions(**given)
     except (TypeError, ValueError) as exc:
@@ -180,7 +183,9 @@ def top_up(logs: str | Path, commissioning: str | Path, out: str | Path, options
     designs, again = design_with_fallback(
         steps, designer, mine, models_dir, out, attempts(opts.weights, opts.robust_past), order, opts.markov,
         progress=lambda d, n: tick("identification", d, n), ctrl=ctrl,
-        fallback_dir=None if order is None else models_dir / f"order{order}", with_lqr=False)
+        fallback_dir=None if order is None else models_dir / f"order{order}", with_lqr=False,
+        alternative_order=opts.alternative_order,
+        alternative_dir=None if opts.alternative_order is None else models_dir / f"order{opts.alternative_order}")
     if "robust" not in designs:
         errors = "; ".join(f"{s['step']}: {s['error']}" for s in steps.record if not s["ok"])
         raise CommissioningError(f"no robust controller for the {name} ({errors[:300]}); its models are in "

@@ -30,11 +30,11 @@ def identified(tmp_path_factory) -> tuple[Path, Path]:
     return root / "logs", root / "models"
 
 
-def _designs(identified, out: Path, order: int | None) -> dict:
+def _designs(identified, out: Path, order: int | None, alternative_dir: Path | None = None) -> dict:
     logs, models = identified
     steps = Steps(lambda line: None)
     designs, _ = design_with_fallback(steps, Designer(rate_limit=0.3), logs, models, out, attempts("default", ()),
-                                      None, alternative_order=order, with_lqr=False)
+                                      None, alternative_order=order, with_lqr=False, alternative_dir=alternative_dir)
     assert "robust" in designs, steps.record
     return designs
 
@@ -63,7 +63,9 @@ def test_the_other_orders_law_replaces_the_identified_one_when_it_holds_its_mode
 @pytest.mark.slow
 def test_the_identified_law_stays_on_a_tie_and_without_another_order(identified, tmp_path, monkeypatch):
     monkeypatch.setattr(designs_module, "MARGIN", 0.0)        # no score is below 0: the identified law stays
-    designs = _designs(identified, tmp_path / "a", 5)
+    alt = tmp_path / "a" / "models" / "ripper" / "order5"    # where a top-up keeps an implement's other models
+    designs = _designs(identified, tmp_path / "a", 5, alt)
+    assert orders_of(alt) == {5} and not (tmp_path / "a" / "models_order5").exists()
     rec = designs["robust"]["model_choice"]
     assert rec["kept"] == "identified" and designs["robust"]["file"] == str(tmp_path / "a" / "controllers" / "robust.json")
     assert designs["robust"]["settings"]["models"] == "models/local_*.npz"

@@ -17,6 +17,7 @@ from hil.bench.cli import main as hil_main
 from hil.bench.runs.sysid import SysidPlan, make_passes
 from hil.commissioning.from_logs import CommissioningError, LogOptions, driving_seconds
 from hil.commissioning.html import file_sha256
+from hil.commissioning.model_choice import orders_of
 from hil.commissioning.top_up import TopUpOptions, top_up
 from hil.truth.tractors import resolve_tractor
 from hil.vehicle.commissioning import Commissioning, load_commissioning, save_commissioning
@@ -78,6 +79,12 @@ def test_a_top_up_with_a_new_implement_keeps_the_existing_implements_laws_bit_fo
     (top,) = res["top_ups"]
     assert top["implement"] == "ripper" and top["driving_s"]["total"] == pytest.approx(160.0, abs=1.0)
     assert top["driving_s"]["total"] <= 600.0 and 0 < top["compute_s"] <= 180.0
+    choice = top["designs"]["robust"]["model_choice"]          # the commissioning's choice of models, made again
+    if orders_of(out / "models" / "ripper") == {4}:
+        assert choice == {"kept": "identified", "why": "the local models are of order 4"}
+    else:                                                        # its order-4 models beside the ripper's own
+        assert orders_of(out / "models" / "ripper" / "order4") == {4} and choice["kept"] in ("identified",
+                                                                                             "order-4 models")
     assert sorted(str(Path(f).relative_to(out)) for f in top["files"]) == new
     for name in ("robust", "mpc"):
         file = out / "controllers" / "ripper" / f"{name}.json"

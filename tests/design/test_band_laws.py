@@ -159,6 +159,7 @@ def test_a_band_whose_law_is_not_faster_than_the_base_law_is_left_to_it(designed
     band = res.file.design[SEARCH_RECORD]["bands"][1]
     assert not band["kept"] and band["scale"] == pytest.approx(res.file.design[SEARCH_RECORD]["base_scale"])
     assert band["why"].startswith("scale") and "is not above the base law's" in band["why"]
+    assert band["why"].endswith("its models record no innovations to tell it closer")
     ctrl = read_controller_file(path).controller()
     np.testing.assert_array_equal(ctrl.law_at(2.9).Cc, base.file.compensator.Cc)
 
@@ -358,3 +359,10 @@ def test_a_band_law_is_kept_on_how_it_steers_its_band_s_models_under_their_innov
         else:
             assert "holds the band's models no closer than the base law" in band["why"]
             assert RECORD not in res.file.design or all(b[0] > 1.0 for b in res.file.design[RECORD]["bands"])
+        # the 2.9 m/s models bind the one law: their band's law reaches the same scale, and with the innovations
+        # recorded it is judged on the same test (without them it is left to the base law: test above)
+        top = rec["bands"][1]
+        assert top["scale"] == pytest.approx(rec["base_scale"], rel=1e-9)
+        fast = [m for m in models if design_speed(m) == 2.9]
+        assert top["steering"]["base_law"] == pytest.approx(_steering(base.file.compensator, fast), rel=1e-9)
+        assert top["kept"] is (top["steering"]["band_law"] < top["steering"]["base_law"])

@@ -22,11 +22,11 @@ criterion ranks a little ahead: random-8's 1.79 m/s band law (scale 0.89, the on
 2.02) steered the 1.79-2.24 m/s cells 1.12-1.31x, the one law 1.07-1.20x (random-13's, scale 3.0 against 5.0
 and 1.58 against 1.72, 1.09-1.23x against 1.16-1.27x). A law at the base law's own scale (the band's models
 bind both) is kept on the same test, where its models record their innovations: designed on its band's models
-alone, with the estimate chosen for them, it can still steer them closer. random-7's 2.91 m/s band law, at the base law's scale 5.0 with a 1 s estimate filter
-against the base law's 2 s, steered the ripper at 2.91 m/s 1.25x the oracle where the base law steered it 1.54x
-(random-17's, likewise at its base law's scale, 1.10-1.19x against 1.05-1.16x). A band law that relaxed more
-specifications than the
-base law is left out too: the base law runs there. So is one whose models met every specification at the
+alone, with the estimate chosen for them, it can still steer them closer. random-7's 2.91 m/s band law, at the
+base law's scale 5.0 with a 1 s estimate filter against the base law's 2 s, steered the ripper at 2.91 m/s
+1.25x the oracle where the base law steered it 1.54x (random-17's, likewise at its base law's scale, 1.10-1.19x
+against 1.05-1.16x). A band law that relaxed more specifications than the base law is left out too: the base
+law runs there. So is one whose models met every specification at the
 search's top scale: they bound no bandwidth, and the law's scale is
 then the search range's (on random-3 the 2.91 m/s band's models met them at 50, and its laws at every scale
 from 2 to 50 steered the 2.91 m/s cells 1.01-1.19x worse than the one law of scale 1.10). The laws kept go

@@ -334,13 +334,13 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
             elif len(row["relaxed"]) > base_relaxed:
                 row.update(kept=False, why=f"it relaxed {len(row['relaxed'])} specifications, the base law "
                                            f"{base_relaxed}")
-            elif not row["scale"] > base_scale and (row["scale"] < base_scale * (1 - 1e-9)
-                                                    or not innovations_known(models[j] for j in inside)):
+            elif (below := row["scale"] < base_scale * (1 - 1e-9)) or (
+                    not row["scale"] > base_scale and not innovations_known(models[j] for j in inside)):
                 # at the base law's own scale only the steering index can tell it closer
                 row.update(kept=False, why=f"scale {row['scale']:.4g} (relaxed {len(row['relaxed'])}) is not above the "
                                            f"base law's {base_scale:.4g} (relaxed {base_relaxed})"
-                                           + ("" if row["scale"] < base_scale * (1 - 1e-9) else
-                                              ", and its models record no innovations to tell it closer"))
+                                           + ("" if below else ", and its models record no innovations to tell it "
+                                                               "closer"))
             elif innovations_known(models[j] for j in inside):
                 band_i, base_i = steering(r.file.compensator, inside), steering(base.file.compensator, inside)
                 row["steering"] = {"rule": "the largest cross-track 1-sigma (s, of y/V) a law leaves on the band's "

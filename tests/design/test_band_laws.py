@@ -27,7 +27,8 @@ from design.laws.controller import Measurement
 from design.laws.disturbance import DisturbanceSpec
 from design.laws.estimate_schedule import REACH_FRACTION, reach_band
 from design.synthesis.autotune import SearchOptions
-from design.synthesis.band_laws import CAP_OVER_BASE, CAP_STEP, SEARCH_RECORD, design_robust_bands, design_speed
+from design.synthesis.band_laws import (CAP_OVER_BASE, CAP_STEP, SEARCH_RECORD, design_robust_bands, design_speed,
+                                        judged_by)
 from design.synthesis.recipes import RobustOptions, WeightSearch, design_robust_controller
 from design.synthesis.mpc_design import INNOVATIONS, innovation_sigma
 from design.synthesis.robust import RobustSpec
@@ -366,3 +367,13 @@ def test_a_band_law_is_kept_on_how_it_steers_its_band_s_models_under_their_innov
         fast = [m for m in models if design_speed(m) == 2.9]
         assert top["steering"]["base_law"] == pytest.approx(_steering(base.file.compensator, fast), rel=1e-9)
         assert top["kept"] is (top["steering"]["band_law"] < top["steering"]["base_law"])
+
+
+
+def test_a_band_law_gentler_than_the_base_law_is_judged_by_the_steering_index_where_its_models_record_innovations():
+    # random-14's 2.91 m/s band law (scale 3.26, the base law's 4.04) held its models closer by the index and, run
+    # there, steered the three 2.91 m/s cells 1.11-1.27x the oracle where the base law steered them 1.20-1.39x
+    for scale in (0.5, 1.0, 2.0):
+        assert judged_by(scale, 1.0, True) == "steering"
+    assert judged_by(2.0, 1.0, False) == "scale"
+    assert judged_by(1.0, 1.0, False) == judged_by(0.5, 1.0, False) == "refused"

@@ -369,7 +369,6 @@ def test_a_band_law_is_kept_on_how_it_steers_its_band_s_models_under_their_innov
         assert top["kept"] is (top["steering"]["band_law"] < top["steering"]["base_law"])
 
 
-
 def test_a_band_law_gentler_than_the_base_law_is_judged_by_the_steering_index_where_its_models_record_innovations():
     # random-14's 2.91 m/s band law (scale 3.26, the base law's 4.04) held its models closer by the index and, run
     # there, steered the three 2.91 m/s cells 1.11-1.27x the oracle where the base law steered them 1.20-1.39x

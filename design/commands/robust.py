@@ -268,7 +268,15 @@ def render(result: dict) -> str:
         lines.append(f"band {span} ({', '.join(b['models'])}): "
                      + (f"its own law{scale}, {certified_text(b)}{noise}" if b["kept"]
                         else f"the one law ({b['why']})"))
-    for lo, hi in gaps_between((result.get("band_laws") or {}).get("bands", [])):
+    for b in (result.get("band_laws") or {}).get("between", []):
+        lo, hi = b["band_mps"]
+        a, c = b["between_mps"]
+        scale = "" if b.get("scale") is None else f", scale {b['scale']:.4g}"
+        lines.append(f"between {a:g} and {c:g} m/s ({lo:g}-{hi:g} m/s): "
+                     + (f"a law designed on both speeds' models{scale}, {certified_text(b)}" if b["kept"]
+                        else f"the one law ({b['why']})"))
+    rows = (result.get("band_laws") or {}).get("bands", []) + (result.get("band_laws") or {}).get("between", [])
+    for lo, hi in gaps_between(rows):
         lines.append(f"between bands {lo:g}-{hi:g} m/s: the one law (a band law stops short of a design speed "
                      "whose models it does not hold)")
     for c in result.get("implausible_models", []):

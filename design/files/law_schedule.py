@@ -7,7 +7,8 @@ per speed band, each certified on the models of its own band, lifts that. The wi
 (:mod:`hil.bench.commissioning.window_trial`) fills the schedule with laws certified on every model (the
 estimate's back-off: on random-1 the law of scale 1.48 was 0.93x the paper's method at 2.91 m/s where the
 law chosen for every speed, 1.05, was 1.04x); :func:`design.synthesis.band_laws.design_robust_bands` fills it
-with laws designed and certified on their band's models.
+with laws designed and certified on their band's models, and between two design speeds with laws designed and
+certified on the models of both.
 
 Layout: ``design["law_schedule"] = {"bands": [[low, high | null], ...], "laws": [law, ...],
 "model_speeds": {name: m/s}}``, band ``i`` (m/s, ``low <= v < high``) run by ``laws[i]``; at every other
@@ -27,6 +28,9 @@ model"``):
   which its ``neighbours`` record states a spectral radius below 1 with the latency in the loop (stated, as the
   certificate's margins are; ``design verify`` recomputes the certificate). A speed between two design speeds
   is then run by a law stable on the models of both, or by the file's own law.
+- ``"between"``: a law for the speeds between two design speeds (its band holds no design speed): its
+  certificate lists exactly the models of the file's certificate of the nearest design speed below its band and
+  of the nearest at or above its upper end (:func:`between_speeds`), both of which it was designed on.
 
 ``neighbours`` (band laws; recorded, not required) gives the law's spectral radius and disk margin on the
 models of the other bands, with the latency in the loop: how far from its band the law still holds.
@@ -43,11 +47,12 @@ disturbance), so the loop changes law at a band's edge without resetting anythin
 What is proven: at frozen speed, every identified condition is certified with the law that runs at its
 speed (a model whose design speed lies in a band with the band's law, every other model with the file's
 own law, which is certified on every model); under ``"band and reach"``, every law that runs more than a
-quarter of the way from a design speed towards another is certified on the models of both. What is not: the
+quarter of the way from a design speed towards another is certified on the models of both, and under
+``"between"`` a law that runs between two design speeds is certified on the models of both. What is not: the
 dynamics between two design speeds themselves (no model of them is identified; the rule brackets them by
 the models on either side), a ``"band"`` law on the models of other speeds (``neighbours`` records it, and
 may show it unstable there), and switching between laws, which no common Lyapunov function covers. The
-loop switches only when the speed crosses a band's edge (at most half-way between two design speeds,
+loop switches only when the speed crosses a band's edge (between two design speeds,
 :func:`design.laws.estimate_schedule.reach_band`), with the hysteresis and dwell time of
 :class:`design.core.speed_latch.SpeedLatch`, as it does for the estimate's schedule.
 """
@@ -78,8 +83,8 @@ LAW_KEYS = ("compensator", "certificate", "certificate_off", "source", "window_s
 #: Keys a law may carry beside :data:`LAW_KEYS` (files written before them have neither).
 OPTIONAL_LAW_KEYS = ("certified_on", "neighbours")
 #: The rules a law may be certified under (module docstring); the first is the rule of a law without one.
-EVERY_MODEL, BAND, REACH = "every model", "band", "band and reach"
-RULES = (EVERY_MODEL, BAND, REACH)
+EVERY_MODEL, BAND, REACH, BETWEEN = "every model", "band", "band and reach", "between"
+RULES = (EVERY_MODEL, BAND, REACH, BETWEEN)
 #: Most models ``model_speeds`` and a law's ``neighbours`` may list.
 MAX_MODELS = 64
 
@@ -286,7 +291,9 @@ def check_law_schedule(design: Any, cert: Any, main: Compensator, dp_states: tup
             check_certificate(law["certificate"], comp, what, legacy)
         except ControllerFileError as exc:
             raise ControllerFileError(f"{what}: {exc}") from None
-        if schedule.rules[i] != EVERY_MODEL:
+        if schedule.rules[i] == BETWEEN:
+            _check_between(law["certificate"], rows, speeds, schedule.bands[i], what)
+        elif schedule.rules[i] != EVERY_MODEL:
             _check_band(law["certificate"], rows, speeds, schedule.bands[i], what,
                         law.get("neighbours", []) if schedule.rules[i] == REACH else None)
         elif not (legacy and is_legacy(law["certificate"])):
@@ -331,6 +338,43 @@ def certified_speeds(band: tuple[float, float], design_speeds: Sequence[float]) 
     if above and hi - inside[-1] > REACH_FRACTION * (above[0] - inside[-1]) + 1e-9:
         out.append(above[0])
     return out
+
+
+def between_speeds(band: tuple[float, float], design_speeds: Sequence[float]) -> list[float]:
+    """The two design speeds (of ``design_speeds``, m/s) whose models a law of ``band`` certified under
+    ``"between"`` must list: the nearest below the band and the nearest at or above its upper end. Empty when a
+    design speed lies in the band or the band has no design speed on one side."""
+    lo, hi = band
+    ds = sorted(set(float(v) for v in design_speeds))
+    below, above = [v for v in ds if v < lo], [v for v in ds if v >= hi]
+    if any(lo <= v < hi for v in ds) or not below or not above:
+        return []
+    return [below[-1], above[0]]
+
+
+def _check_between(cert: Any, rows: Sequence[tuple[str, str, Any]], speeds: Mapping[str, float],
+                   band: tuple[float, float], what: str) -> None:
+    """Refuse a law certified under ``"between"`` unless its band lies between two design speeds and its
+    certificate lists exactly the file's models of those two speeds (:func:`between_speeds`; one line)."""
+    span = f"{band[0]:g}-{band[1]:g} m/s"
+    on = between_speeds(band, speeds.values())
+    if not on:
+        raise ControllerFileError(f"{what} is certified on the models of the design speeds either side of its band "
+                                  f"{span}, but a design speed lies in it or none on one side")
+    if is_legacy(cert):
+        raise ControllerFileError(f"{what}: a law between design speeds must record its models' matrices")
+    want = {h: n for n, h, _ in rows if speeds[n] in on}
+    have = {h: n for n, h, _ in recorded_models(cert)}
+    missing, extra = sorted(n for h, n in want.items() if h not in have), sorted(n for h, n in have.items()
+                                                                                 if h not in want)
+    if missing or extra:
+        both = f"{on[0]:g} and {on[1]:g} m/s"
+        raise ControllerFileError(
+            f"{what} runs between {both}, but its certificate "
+            + (f"lacks {', '.join(missing)}" if missing else "")
+            + ("; and " if missing and extra else "")
+            + (f"lists {', '.join(extra)}, not of {both}" if extra else "")
+            + f": a law between two design speeds must be certified on exactly the models of both")
 
 
 def _check_band(cert: Any, rows: Sequence[tuple[str, str, Any]], speeds: Mapping[str, float],

@@ -5,8 +5,7 @@ every local model; its automatic weights stop at the model whose margin binds fi
 m/s model at scale 1.10, where a law on the 2.91 m/s models alone reaches 4.03), so at the speeds whose models would
 allow a faster loop it is slower than it need be. :func:`design_robust_bands` keeps that law as the file's own (the
 law at every speed no band holds, and the certificate on every model), then designs, for each design speed, a law on
-the local models of that speed's band (:func:`design.laws.estimate_schedule.bands_for`: half-way to the neighbouring
-design speeds, every implement) with the same specifications, its automatic weights' scale chosen on the band's
+the local models of that speed (every implement identified there) with the same specifications, its automatic weights' scale chosen on the band's
 models, and on the base law's state layout (its measured window, the integral, the disturbance estimate): the loop
 holds the states by index, so every law must carry the same ones. A band law is kept when it holds its band's models
 closer than the base law: the largest cross-track 1-sigma it leaves on them, each model closed with the law and
@@ -37,19 +36,26 @@ and its laws at every scale from 2 to 50 steered the 2.91 m/s cells 1.01-1.19x w
 1.10). The laws kept go into the file's law schedule (:mod:`design.files.law_schedule`), with its spectral radius
 and disk margin on the other bands' models recorded.
 
-A band law is designed and judged at its design speed, but it runs up to half-way to the neighbouring design
-speeds, where no model was identified: on random-101 the 1.79 m/s band's law (scale 3.03, the base law's 1.97)
-is unstable on the 2.91 m/s model without an implement (spectral radius 1.002) and steered the ripper at
-2.24 m/s 1.57x the oracle, where the base law steers it 1.10x. So each kept law is also checked on the models
-of the neighbouring design speeds: it runs half-way to one on whose every model it is stable, and only a
-quarter of the way (:data:`design.laws.estimate_schedule.REACH_FRACTION`) to one on which it is not, the
-base law in between (:func:`design.laws.estimate_schedule.reach_band`). Stable means as the specifications
-judge a loop: with the latency they assume in it (the recorded ``neighbours``); the identified models alone
-leave out the receivers' latency, and on them random-101's law is stable. Its certificate lists exactly its
-band's models and those of the design speeds it reaches, under the rule ``"band and reach"``, which the
-reader re-checks (:func:`design.files.law_schedule.certified_speeds`), with the recorded radius with the
-latency on each reached model. A speed between two design speeds is then run by a law stable on the models
-of both; the dynamics between them are bracketed by those models, not identified.
+A band law is designed and judged at its design speed, and runs only a quarter of the way to a neighbouring
+design speed (:data:`design.laws.estimate_schedule.REACH_FRACTION`, :func:`design.laws.estimate_schedule.reach_band`).
+Between two design speeds, where no pass identified a model, runs a law designed on the models of both speeds
+(every implement) with the band laws' specifications, state layout and checks (the noise check on those models,
+a specification binding below the search's top, no more specifications relaxed than the base law's), kept when
+it holds those models closer than the base law by the same steering index; else the base law runs there (with
+two design speeds the base law is the law designed on both). Its certificate lists exactly the models of the two
+speeds, under the rule ``"between"``, which the reader re-checks
+(:func:`design.files.law_schedule.between_speeds`). The search records these laws under ``between``. Why: a
+speed between two design speeds is bracketed by their models, and a law for it should be judged on both. A band
+law run half-way to a neighbour is judged on its own speed's models only: on random-101 the 1.79 m/s band's law
+(scale 3.03, the base law's 1.97), unstable on the 2.91 m/s model without an implement with the latency in the
+loop, steered the ripper at 2.24 m/s 1.57x the oracle where the base law steers it 1.10x; and where it is stable
+there it can still steer the speeds between worse than the base law (random-18's 1.79 m/s law, scale 7.2 against
+3.3, the disker at 2.24 m/s 1.37x; worn-valve's 1.33-1.37x at 2.24 m/s), while the base law, certified on every
+speed's models, can be too gentle between two speeds whose own laws are faster (random-1, scale 1.58 against band
+laws of 2.44 and 2.81: its 1.34 m/s cells 1.34-1.45x). Re-designed from the family's field procedures (22
+tractors, each cell seeds 0-2 against the campaign's oracle), the 1.34 and 2.24 m/s cells, 132, went from a
+median of 1.025 and 1.095 (band laws half-way where stable, the worst cell 1.37) to 0.975 and 1.080 (worst
+1.25); every cell at a design speed is unchanged.
 
 With explicit weights (``--weights explicit``) every band's law is designed with the given weights on its
 band's models, and kept when certified there and past the noise check below.
@@ -91,11 +97,11 @@ from typing import Any, Callable, Sequence
 from autosteer.checks import finite_or_none
 from identification.model import Model
 
-from design.core.compensator import closed_loop_matrix, integrator_states, spectral_radius
+from design.core.compensator import integrator_states
 from design.core.noise import MEASUREMENT_NOISE, disk_gain_floor, worst_noise_gain
 from design.core.errors import ControllerFileError, DesignError, DesignInputError
 from design.core.verify import certify, model_hash
-from design.files.law_schedule import REACH, RECORD, certified_speeds, law_entry, schedule_record
+from design.files.law_schedule import BAND, BETWEEN, RECORD, law_entry, schedule_record
 from design.files.linear import from_body
 from design.laws.estimate_schedule import REACH_FRACTION, bands_for, law_without_estimate, reach_band
 from design.synthesis.family import model_names
@@ -147,8 +153,9 @@ def window_scale(design: dict) -> float:
 
 
 def certified_text(band: dict) -> str:
-    """What a kept band law of a search record is certified on, for a summary: ``certified on its band's
-    models``, or with the speeds its band reaches ``certified on the models at 1 and 1.79 m/s``."""
+    """What a kept law of a search record (a band's, or one between two design speeds) is certified on, for a
+    summary: ``certified on its band's models``, or with more design speeds ``certified on the models at 1 and
+    1.79 m/s``."""
     speeds = band.get("certified_speeds_mps")
     if not speeds or len(speeds) < 2:
         return "certified on its band's models"
@@ -157,8 +164,9 @@ def certified_text(band: dict) -> str:
 
 
 def gaps_between(bands: Sequence[dict]) -> list[tuple[float, float]]:
-    """The speeds, m/s, between the bands of a search record (``band_mps``) where the one law runs because a band
-    law stops short of a neighbouring design speed whose models it does not hold."""
+    """The speeds, m/s, between the rows of a search record (``band_mps``: the bands' and those between design
+    speeds) that no row covers, where the one law runs (in a record written before the laws between design
+    speeds: where a band law stopped short of a neighbouring design speed whose models it did not hold)."""
     spans = sorted((b["band_mps"][0], math.inf if b["band_mps"][1] is None else b["band_mps"][1]) for b in bands)
     return [(hi, lo) for (_, hi), (lo, _) in zip(spans, spans[1:]) if lo > hi + 1e-9]
 
@@ -212,8 +220,9 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
     -------
     RobustControllerResult
         ``base`` with its file's ``design["law_schedule"]`` (when a band law was kept) and
-        ``design["band_laws"]`` (each band: its models, its scale or why it was left to the base law,
-        seconds), read back with every check of the vehicle.
+        ``design["band_laws"]`` (each band, and under ``between`` each span between two design speeds: its
+        models, its scale or why it was left to the base law, seconds), read back with every check of the
+        vehicle.
 
     Raises
     ------
@@ -274,10 +283,10 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                                         "rate_limit_rad_s": rate, "gain_floor": floor,
                                         "base_gain": finite_or_none(base_g[0]),
                                         "base_command_sigma_rad_s": finite_or_none(base_g[1])},
-                              "reach": f"a band law runs half-way to a neighbouring design speed when it is also "
-                                       f"stable on that speed's models with the latency in the loop, else "
-                                       f"{REACH_FRACTION:g} of the way, the base law in between",
-                              "bands": []}
+                              "reach": f"a band law runs {REACH_FRACTION:g} of the way to a neighbouring design "
+                                       "speed; between, a law designed on both speeds' models, kept on the same "
+                                       "rule on their models, or else the base law",
+                              "bands": [], "between": []}
     if len(design_speeds) < 2:
         record["bands"] = []
         record["why"] = f"one design speed ({design_speeds[0]:g} m/s): the base law is every band's"
@@ -288,17 +297,73 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
     band_opts = replace(opts, spec=spec, candidates=False,
                         search=replace(opts.search, latency=tuple(latency), latency_from_logs=()))
     layout = _layout(base)
+    top = opts.search.search.high
+
+    def verdict(r: RobustControllerResult, idx: list[int], row: dict, gain: float, sig: float, worst_model: str,
+                capped: bool) -> None:
+        """Keep or refuse the law ``r`` designed on the models ``idx`` (its record ``row``) against the base law:
+        its states, the noise check (``gain``, ``sig``, ``worst_model``), the search's top, the specifications
+        it relaxed and how it steers the models ``idx`` (:func:`judged_by`)."""
+        d = r.file.design
+        if _layout(r) != layout:
+            row.update(kept=False, why=f"its states {_layout(r)} are not the base law's {layout}")
+        elif gain < floor:
+            row.update(kept=False, why=f"the sensors' noise alone drives its command to {sig:.3g} rad/s (1-sigma) "
+                                       f"on {worst_model}, which leaves the rate limit {rate:.3g} rad/s a gain "
+                                       f"of {gain:.2f}, below the disk margin's floor {floor:.2f}"
+                                       + ("" if not capped else
+                                          f"; no law of a capped search above {CAP_OVER_BASE:g} times "
+                                          f"the base law's scale {base_scale:.4g} passes"))
+        elif not auto:
+            row["kept"] = True
+        elif d["auto_weights"]["chosen_scale"] >= top * (1 - 1e-9):
+            row.update(kept=False, why=f"its models meet every specification up to the search's top scale "
+                                       f"{top:g}: they bound no bandwidth, so that scale is the range's, not "
+                                       "the specifications'")
+        elif len(row["relaxed"]) > base_relaxed:
+            row.update(kept=False, why=f"it relaxed {len(row['relaxed'])} specifications, the base law "
+                                       f"{base_relaxed}")
+        elif (how := judged_by(row["scale"], base_scale,
+                               innovations_known(models[j] for j in idx))) == "refused":
+            row.update(kept=False, why=f"scale {row['scale']:.4g} (relaxed {len(row['relaxed'])}) is not above the "
+                                       f"base law's {base_scale:.4g} (relaxed {base_relaxed}), and its models "
+                                       "record no innovations to tell it closer")
+        elif how == "steering":
+            own_i, base_i = steering(r.file.compensator, idx), steering(base.file.compensator, idx)
+            row["steering"] = {"rule": "the largest cross-track 1-sigma (s, of y/V) a law leaves on the models "
+                                       "it was designed on, each closed with it and driven by its identified "
+                                       "innovations",
+                               "band_law": finite_or_none(own_i[0]), "band_law_worst_model": own_i[1],
+                               "base_law": finite_or_none(base_i[0]), "base_law_worst_model": base_i[1]}
+            if own_i[0] < base_i[0]:
+                row["kept"] = True
+            else:
+                row.update(kept=False, why=f"it holds its models no closer than the base law: cross-track "
+                                           f"1-sigma {own_i[0]:.4g} s on {own_i[1]} against {base_i[0]:.4g} s "
+                                           f"on {base_i[1]}, each model driven by its identified innovations")
+        else:
+            row["kept"] = True
+
+    def designed(r: RobustControllerResult, row: dict) -> None:
+        """Record a design's scale, the specifications it relaxed and its estimate in its row."""
+        d = r.file.design
+        if auto:
+            row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())))
+        row["estimate_scale"] = (d.get("disturbance_estimate") or {}).get("scale")
+        row["estimate_filter_s"] = (d.get("disturbance_estimate") or {}).get("tau_f_s")
+
     kept = []                   # (design speed's index, the band's design, its models' indices, its record row)
     for v in design_speeds:
+        k = design_speeds.index(v)
         band = bands_for(design_speeds, [v]).off[0]
         span = f"{band[0]:g}-{band[1]:g} m/s"
         inside = [i for i, n in enumerate(names) if band[0] <= speeds[n] < band[1]]
-        row: dict[str, Any] = {"band_mps": [band[0], None if math.isinf(band[1]) else band[1]],
+        runs = reach_band(design_speeds, v, below=False, above=False)
+        row: dict[str, Any] = {"band_mps": [runs[0], None if math.isinf(runs[1]) else runs[1]],
                                "models": [names[i] for i in inside]}
         t1 = time.process_time()
         say = None if progress is None else (lambda line, span=span: progress(f"band {span}: {line}"))
         try:
-            k = design_speeds.index(v)
             near = {design_speeds[j] for j in (k - 1, k + 1) if 0 <= j < len(design_speeds)} if neighbours else set()
             validate = [m for n, m in zip(names, models) if speeds[n] in near]
             r = design_robust_controller([models[i] for i in inside], band_opts, progress=say, validate_on=validate)
@@ -306,13 +371,9 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
             row.update(kept=False, why=f"no design on the band's models: {exc}")
         else:
             d = r.file.design
-            if auto:
-                row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())))
-            row["estimate_scale"] = (d.get("disturbance_estimate") or {}).get("scale")
-            row["estimate_filter_s"] = (d.get("disturbance_estimate") or {}).get("tau_f_s")
+            designed(r, row)
             gain, sig, worst_model = noise_gain(r.file.compensator, inside)
             row.update(noise_gain=finite_or_none(gain), noise_command_sigma_rad_s=finite_or_none(sig))
-            top = opts.search.search.high
             if (auto and gain < floor and _layout(r) == layout and d["auto_weights"]["chosen_scale"] < top * (1 - 1e-9)
                     and row["scale"] > base_scale and len(row["relaxed"]) <= base_relaxed):
                 # only the noise check refuses it: the fastest gentler law that passes, if one is above the base law
@@ -324,51 +385,13 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                                        row["scale"], gain, base_scale, base_relaxed, floor, layout, say)
                 row["noise_cap"] = capped[1]
                 if capped[0] is not None:
-                    r, d = capped[0], capped[0].file.design
+                    r = capped[0]
+                    designed(r, row)
                     gain, sig, worst_model = noise_gain(r.file.compensator, inside)
-                    row.update(scale=window_scale(d), relaxed=list(d["auto_weights"].get("relaxed", ())),
-                               estimate_scale=(d.get("disturbance_estimate") or {}).get("scale"),
-                               estimate_filter_s=(d.get("disturbance_estimate") or {}).get("tau_f_s"),
-                               noise_gain=finite_or_none(gain), noise_command_sigma_rad_s=finite_or_none(sig))
-            if _layout(r) != layout:
-                row.update(kept=False, why=f"its states {_layout(r)} are not the base law's {layout}")
-            elif gain < floor:
-                row.update(kept=False, why=f"the sensors' noise alone drives its command to {sig:.3g} rad/s (1-sigma) "
-                                           f"on {worst_model}, which leaves the rate limit {rate:.3g} rad/s a gain "
-                                           f"of {gain:.2f}, below the disk margin's floor {floor:.2f}"
-                                           + ("" if "noise_cap" not in row else
-                                              f"; no law of a capped search above {CAP_OVER_BASE:g} times "
-                                              f"the base law's scale {base_scale:.4g} passes"))
-            elif not auto:
-                row["kept"] = True
-            elif d["auto_weights"]["chosen_scale"] >= top * (1 - 1e-9):
-                row.update(kept=False, why=f"its models meet every specification up to the search's top scale "
-                                           f"{top:g}: they bound no bandwidth, so that scale is the range's, not "
-                                           "the specifications'")
-            elif len(row["relaxed"]) > base_relaxed:
-                row.update(kept=False, why=f"it relaxed {len(row['relaxed'])} specifications, the base law "
-                                           f"{base_relaxed}")
-            elif (how := judged_by(row["scale"], base_scale,
-                                   innovations_known(models[j] for j in inside))) == "refused":
-                row.update(kept=False, why=f"scale {row['scale']:.4g} (relaxed {len(row['relaxed'])}) is not above the "
-                                           f"base law's {base_scale:.4g} (relaxed {base_relaxed}), and its models "
-                                           "record no innovations to tell it closer")
-            elif how == "steering":
-                band_i, base_i = steering(r.file.compensator, inside), steering(base.file.compensator, inside)
-                row["steering"] = {"rule": "the largest cross-track 1-sigma (s, of y/V) a law leaves on the band's "
-                                           "models, each closed with it and driven by its identified innovations",
-                                   "band_law": finite_or_none(band_i[0]), "band_law_worst_model": band_i[1],
-                                   "base_law": finite_or_none(base_i[0]), "base_law_worst_model": base_i[1]}
-                if band_i[0] < base_i[0]:
-                    row["kept"] = True
-                else:
-                    row.update(kept=False, why=f"it holds the band's models no closer than the base law: cross-track "
-                                               f"1-sigma {band_i[0]:.4g} s on {band_i[1]} against {base_i[0]:.4g} s "
-                                               f"on {base_i[1]}, each model driven by its identified innovations")
-            else:
-                row["kept"] = True
+                    row.update(noise_gain=finite_or_none(gain), noise_command_sigma_rad_s=finite_or_none(sig))
+            verdict(r, inside, row, gain, sig, worst_model, "noise_cap" in row)
             if row["kept"]:
-                kept.append((design_speeds.index(v), r, inside, row))
+                kept.append((k, r, inside, row))
         row["seconds"] = round(time.process_time() - t1, 1)
         record["bands"].append(row)
     est_off = bool((d0.get("estimate_schedule") or {}).get("off_speed_bands"))
@@ -378,14 +401,46 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
         others = [i for i in range(len(models)) if i not in inside]
         near = _neighbours(r, [models[i] for i in others], [names[i] for i in others],
                            [speeds[names[i]] for i in others], design_speeds, specs, latency)
-        band, entry = _reaching_law(r, k, inside, row, models, names, speeds, design_speeds,
-                                    {n["name"]: n["spectral_radius"] for n in near},
-                                    (specs, latency) if est_off else None)
+        lo, hi = row["band_mps"]
+        band, entry = _band_law(r, inside, row, models, names, BAND,
+                                f"band {lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s: {', '.join(row['models'])}",
+                                est_off)
         entry["neighbours"] = near
         row["seconds"] = round(row["seconds"] + time.process_time() - t1, 1)
         kept_bands.append(band)
         entries.append(entry)
-    return _finish(base, kept_bands, entries, speeds, models, record, t0)
+    for a, b in zip(design_speeds, design_speeds[1:]):
+        # between two design speeds: a law designed on the models of both, where it steers them closer
+        lo, hi = reach_band(design_speeds, a, above=False)[1], reach_band(design_speeds, b, below=False)[0]
+        idx = [i for i, n in enumerate(names) if speeds[n] in (a, b)]
+        row = {"band_mps": [lo, hi], "between_mps": [a, b], "models": [names[i] for i in idx]}
+        t1 = time.process_time()
+        say = None if progress is None else (lambda line, a=a, b=b: progress(f"between {a:g} and {b:g} m/s: {line}"))
+        if len(idx) == len(models):
+            row.update(kept=False, why="its models are every model: the base law is the law designed on them")
+        else:
+            try:
+                r = design_robust_controller([models[i] for i in idx], band_opts, progress=say)
+            except DesignError as exc:
+                row.update(kept=False, why=f"no design on the models of both: {exc}")
+            else:
+                designed(r, row)
+                gain, sig, worst_model = noise_gain(r.file.compensator, idx)
+                row.update(noise_gain=finite_or_none(gain), noise_command_sigma_rad_s=finite_or_none(sig))
+                verdict(r, idx, row, gain, sig, worst_model, False)
+                if row["kept"]:
+                    others = [i for i in range(len(models)) if i not in idx]
+                    band, entry = _band_law(r, idx, row, models, names, BETWEEN,
+                                            f"between {a:g} and {b:g} m/s: {', '.join(row['models'])}", est_off)
+                    entry["neighbours"] = _neighbours(r, [models[i] for i in others], [names[i] for i in others],
+                                                      [speeds[names[i]] for i in others], design_speeds, specs,
+                                                      latency)
+                    kept_bands.append(band)
+                    entries.append(entry)
+        row["seconds"] = round(time.process_time() - t1, 1)
+        record["between"].append(row)
+    order = sorted(range(len(kept_bands)), key=lambda i: kept_bands[i][0])
+    return _finish(base, [kept_bands[i] for i in order], [entries[i] for i in order], speeds, models, record, t0)
 
 
 #: Each step of a band law's noise cap: the search's top scale times this (a law's noise-driven command grows with
@@ -448,59 +503,26 @@ def _noise_capped(design_at: Callable[[float], RobustControllerResult],
                    "kept_cap": None if found is None else tried[-1]["cap"]}
 
 
-def _reaching_law(r: RobustControllerResult, k: int, inside: list[int], row: dict, models: Sequence[Model],
-                  names: Sequence[str], speeds: dict, design_speeds: list[float], radius: dict,
-                  est_off: tuple | None) -> tuple[tuple[float, float], dict]:
-    """The band a kept band law runs in and its law schedule entry (certified under ``"band and reach"``).
-
-    The law of design speed ``design_speeds[k]`` (its band's models ``inside``) runs half-way to a neighbouring
-    design speed on whose every model it is stable with the latency in the loop (``radius``: its spectral radius
-    so, by model name; :func:`_neighbours`), and its law without the estimate too when the file's estimate
-    schedule turns the estimate off somewhere (``est_off``: the specifications and latency to check it with);
-    else only :data:`~design.laws.estimate_schedule.REACH_FRACTION` of the way
-    (:func:`~design.laws.estimate_schedule.reach_band`). Its certificate lists exactly the models
-    :func:`~design.files.law_schedule.certified_speeds` names for that band, as the reader re-checks. ``row``
-    (the band's search record) gets the band, the design speeds certified on and why a side stops short.
-    """
+def _band_law(r: RobustControllerResult, idx: list[int], row: dict, models: Sequence[Model], names: Sequence[str],
+              rule: str, source: str, est_off: bool) -> tuple[tuple[float, float], dict]:
+    """The band a kept law runs in (its row's ``band_mps``) and its law schedule entry, certified under ``rule``
+    on exactly the models ``idx`` it was designed on (a band law's: its design speed's, ``"band"``; a law between
+    two design speeds: both speeds', ``"between"``), and its law without the estimate likewise when the file's
+    estimate schedule turns the estimate off somewhere (``est_off``). ``source`` names it in the file; the row
+    gets the design speeds it is certified on."""
     comp = r.file.compensator
-    near = [j for j in (k - 1, k + 1) if 0 <= j < len(design_speeds)]
-    on = list(inside) + [i for j in near for i, n in enumerate(names) if speeds[n] == design_speeds[j]]
+    lo, hi = row["band_mps"]
+    band = (float(lo), math.inf if hi is None else float(hi))
+    sel = [models[i] for i in idx]
+    cert = certify(comp, sel, [names[i] for i in idx])
+    # the law's records as its file holds them (not the file itself: only its law runs)
+    entry = law_entry({"design": r.file.design, "certificate": cert.to_dict()}, comp, source)
     est = r.file.design.get("disturbance_estimate")
     dp = tuple(est.get("states", ())) if isinstance(est, dict) else ()
-    off = law_without_estimate(comp, dp) if dp else None
-    off_radius = {}
-    if est_off is not None and off is not None:
-        nb = [i for i in on if i not in inside]
-        rep = check_specs(off, [models[i] for i in nb], est_off[0], est_off[1], [names[i] for i in nb])
-        off_radius = {c.name: c.spectral_radius for c in rep.checks}
-    reach, short = {}, []
-    for j in near:
-        idx = [i for i in on if speeds[names[i]] == design_speeds[j]]
-        # stable with the latency (the specifications' loop) and on the model as identified (the certificate's)
-        bad = [names[i] for i in idx if not (radius.get(names[i]) is not None and radius[names[i]] < 1.0)
-               or off_radius.get(names[i], 0.0) >= 1.0
-               or any(spectral_radius(closed_loop_matrix(models[i].A, models[i].B, models[i].C, models[i].D, c)) >= 1.0
-                      for c in ((comp, off) if est_off is not None and off is not None else (comp,)))]
-        reach[j] = not bad
-        if bad:
-            short.append({"speed_mps": design_speeds[j], "unstable_on": bad})
-    v = design_speeds[k]
-    band = reach_band(design_speeds, v, reach.get(k - 1, True), reach.get(k + 1, True))
-    want = certified_speeds(band, design_speeds)
-    if want != sorted([v] + [design_speeds[j] for j in near if reach[j]]):    # a bug, not a property of the models
-        raise DesignError(f"band {band} of the {v:g} m/s law: the reader would ask for the models of {want} m/s")
-    sel = [i for i in on if speeds[names[i]] in want]
-    cert = certify(comp, [models[i] for i in sel], [names[i] for i in sel])
-    span = f"{band[0]:g}-{band[1]:g} m/s"
-    # the law's records as its file holds them (not the file itself: only its law runs)
-    entry = law_entry({"design": r.file.design, "certificate": cert.to_dict()}, comp,
-                      f"band {span}: {', '.join(row['models'])}")
-    if entry["certificate_off"] is not None and off is not None:
-        entry["certificate_off"] = certify(off, [models[i] for i in sel], [names[i] for i in sel]).to_dict()
-    entry["certified_on"] = REACH
-    row.update(band_mps=[band[0], None if math.isinf(band[1]) else band[1]], certified_speeds_mps=want)
-    if short:
-        row["short_of"] = short
+    if est_off and dp and entry["certificate_off"] is not None:
+        entry["certificate_off"] = certify(law_without_estimate(comp, dp), sel, [names[i] for i in idx]).to_dict()
+    entry["certified_on"] = rule
+    row["certified_speeds_mps"] = sorted({float(design_speed(m)) for m in sel})   # type: ignore[arg-type]
     return band, entry
 
 

@@ -356,6 +356,10 @@ def _short_why(why: str) -> str:
         return "not faster"
     if "search's top scale" in why:
         return "bound by no specification"
+    if "no closer than the base law" in why:
+        return "not closer"
+    if "the base law is the law designed on them" in why:
+        return "designed on the same models"
     return "no band law"
 
 
@@ -364,12 +368,13 @@ def _bands_text(rec: dict | None) -> str:
     if not rec or not rec.get("bands"):
         return ""
     parts = []
-    for b in rec["bands"]:
+    rows = list(rec["bands"]) + list(rec.get("between", []))      # a law per design speed, and between two
+    for b in rows:
         lo, hi = b["band_mps"]
         span = f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s"
         scale = "" if b.get("scale") is None else f" scale {b['scale']:.3g}"
         parts.append((lo, f"{span}{scale} ({certified_text(b)})" if b["kept"] else
                       f"{span} the one law ({_short_why(b.get('why', ''))})"))
-    parts += [(lo, f"{lo:g}-{hi:g} m/s the one law (between bands)") for lo, hi in gaps_between(rec["bands"])]
+    parts += [(lo, f"{lo:g}-{hi:g} m/s the one law (between bands)") for lo, hi in gaps_between(rows)]
     base = "" if rec.get("base_scale") is None else f" (the one law's scale {rec['base_scale']:.3g})"
     return f"; laws per speed band{base}: " + ", ".join(text for _, text in sorted(parts))

@@ -91,6 +91,20 @@ def test_the_report_line_names_each_band_s_law_and_prediction_model():
         "; laws per speed band (the one law's scale 0.77): 0-1.395 m/s the one law (noise check), 1.395-2.07 m/s "
         "scale 1.5 (certified on the models at 1 and 1.79 m/s), 2.07-2.35 m/s the one law (between bands), "
         "2.35-inf m/s scale 0.83 (certified on its band's models)")
+    # a law per design speed a quarter of the way to the next, and between two design speeds one designed on both
+    robust = {"band_laws": {"base_scale": 1.6, "bands": [
+        {"band_mps": [0.0, 1.1975], "kept": True, "scale": 4.3, "certified_speeds_mps": [1.0]},
+        {"band_mps": [1.5925, 2.07], "kept": False, "why": "it holds its models no closer than the base law: ..."},
+        {"band_mps": [2.63, None], "kept": True, "scale": 1.8, "certified_speeds_mps": [2.91]}], "between": [
+        {"band_mps": [1.1975, 1.5925], "between_mps": [1.0, 1.79], "kept": True, "scale": 2.6,
+         "certified_speeds_mps": [1.0, 1.79]},
+        {"band_mps": [2.07, 2.63], "between_mps": [1.79, 2.91], "kept": False,
+         "why": "it holds its models no closer than the base law: cross-track 1-sigma ..."}]}}
+    assert speed_bands_text(robust) == (
+        "; laws per speed band (the one law's scale 1.6): 0-1.1975 m/s scale 4.3 (certified on its band's models), "
+        "1.1975-1.5925 m/s scale 2.6 (certified on the models at 1 and 1.79 m/s), 1.5925-2.07 m/s the one law "
+        "(not closer), 2.07-2.63 m/s the one law (not closer), 2.63-inf m/s scale 1.8 (certified on its band's "
+        "models)")
     mpc = {"prediction_schedule": {"bands": [{"band_mps": [0.0, 1.955], "model": "local_none_5th"}],
                                    "left_out": [{"speed": 2.91, "reason": "unstable"}]}}
     assert speed_bands_text(mpc) == ("; predicts by speed band, each law certified on its band's models: 0-1.955 m/s "

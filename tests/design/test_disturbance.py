@@ -11,6 +11,7 @@ import pytest
 
 from design.laws.controller import Measurement
 from design.laws.disturbance import DisturbanceSpec, design_estimate, estimate_compensator, prediction_rows
+from design.laws.linear import rate_share
 from design.core.errors import ControllerFileError, DesignInputError
 from design.files.linear import estimate_states, read_controller_file
 from design.core.iostate import feedback_compensator
@@ -112,7 +113,8 @@ def test_bad_specifications_are_refused():
             DisturbanceSpec(**bad)
 
 
-def test_the_runtime_holds_the_estimate_at_the_rate_limit(window_design, tmp_path):
+def test_at_the_rate_limit_the_runtime_s_estimate_moves_by_the_share_of_the_command_the_limit_lets_through(
+        window_design, tmp_path):
     models, spec, res, layout, wm, data, k = window_design
     out = with_disturbance_estimate(res, models, spec, DisturbanceSpec(tau_f=0.5))
     path = out.file.save(tmp_path / "dob.json")
@@ -125,11 +127,19 @@ def test_the_runtime_holds_the_estimate_at_the_rate_limit(window_design, tmp_pat
         ctl.step(Measurement(j * 0.05, 0.002 * math.sin(j / 3), 0.001, 0.0, 1.79))
     before = ctl.estimate()
     assert any(abs(before[i]) > 0 for i in states)
-    # a heading error that saturates the command: the estimate is held while at the limit
+    # a heading error that saturates the command: the estimate moves by lim / |u| of its unsaturated update
     for j in range(40, 45):
-        u = ctl.step(Measurement(j * 0.05, 0.0, 0.06, 0.0, 1.79))
-        assert abs(u) == pytest.approx(ctl.rate_limit)
-        assert [ctl.estimate()[i] for i in states] == [before[i] for i in states]
+        m = Measurement(j * 0.05, 0.0, 0.06, 0.0, 1.79)
+        x, y, law = np.array(ctl.estimate()), ctl.outputs(m), ctl.law_at(1.79)
+        want = float(law.Cc[0] @ x + law.Dc[0] @ y)
+        free = law.Ac @ x + law.Bc @ y + law.Ec[:, 0] * (math.copysign(ctl.rate_limit, want) - want)
+        share = rate_share(want, ctl.rate_limit)
+        u = ctl.step(m)
+        assert abs(u) == pytest.approx(ctl.rate_limit) and 0.0 < share < 0.5
+        now = np.array(ctl.estimate())
+        np.testing.assert_allclose(now[states], x[states] + share * (free[states] - x[states]), rtol=1e-12, atol=1e-15)
+        assert np.all(np.abs(now[states] - x[states]) < np.abs(free[states] - x[states]))
+    assert rate_share(0.2, 0.35) == 1.0 and rate_share(-0.7, 0.35) == 0.5
 
 
 def test_a_record_that_names_bad_states_is_refused(window_design, estimated):

@@ -56,9 +56,8 @@ class LinearController:
     moving by the share 0.94x with 2 cells over 1.3x (heavy-11t's ripper at 2.91 m/s 1.22 -> 1.30x, random-4's
     disker there 1.34 -> 1.33x; random-3's, -19's and worn-valve's cells all within 1.3x); never held, 0.91x, but
     the ripper at 2.24-2.91 m/s on heavy-11t grew a 0.3 Hz oscillation into the limit (1.44x and 1.74x). Unlike
-    the integral it
-    runs during the rest of the approach (holding it there cost 5 % on the disker at 1.79 m/s), and it starts at
-    zero on every engage.
+    the integral it runs during the rest of the approach (holding it there cost 5 % on the disker at 1.79 m/s),
+    and it starts at zero on every engage.
     Where the file's estimate schedule (:mod:`design.laws.estimate_schedule`) turns it off at the measured
     speed, the step runs the certified law without it (the estimate's filter still runs); where its law
     schedule (:mod:`design.files.law_schedule`) names another window law for the measured speed, that

@@ -5,9 +5,9 @@ every local model; its automatic weights stop at the model whose margin binds fi
 m/s model at scale 1.10, where a law on the 2.91 m/s models alone reaches 4.03), so at the speeds whose models would
 allow a faster loop it is slower than it need be. :func:`design_robust_bands` keeps that law as the file's own (the
 law at every speed no band holds, and the certificate on every model), then designs, for each design speed, a law on
-the local models of that speed (every implement identified there) with the same specifications, its automatic weights' scale chosen on the band's
-models, and on the base law's state layout (its measured window, the integral, the disturbance estimate): the loop
-holds the states by index, so every law must carry the same ones. A band law is kept when it holds its band's models
+the local models of that speed (every implement identified there) with the same specifications, its automatic
+weights' scale chosen on the band's models, and on the base law's state layout (its measured window, the
+integral, the disturbance estimate): the loop holds the states by index, so every law must carry the same ones. A band law is kept when it holds its band's models
 closer than the base law: the largest cross-track 1-sigma it leaves on them, each model closed with the law and
 driven by its own identified innovations (:func:`design.synthesis.mpc_design.innovation_sigma`: the soil's pull, the
 ground and the sensors' noise as the passes saw them, the disturbance estimate in the loop), below the base law's
@@ -37,7 +37,8 @@ and its laws at every scale from 2 to 50 steered the 2.91 m/s cells 1.01-1.19x w
 and disk margin on the other bands' models recorded.
 
 A band law is designed and judged at its design speed, and runs only a quarter of the way to a neighbouring
-design speed (:data:`design.laws.estimate_schedule.REACH_FRACTION`, :func:`design.laws.estimate_schedule.reach_band`).
+design speed (:data:`design.laws.estimate_schedule.REACH_FRACTION`,
+:func:`design.laws.estimate_schedule.reach_band`).
 Between two design speeds, where no pass identified a model, runs a law designed on the models of both speeds
 (every implement) with the band laws' specifications, state layout and checks (the noise check on those models,
 a specification binding below the search's top, no more specifications relaxed than the base law's), kept when
@@ -100,10 +101,10 @@ from identification.model import Model
 from design.core.compensator import integrator_states
 from design.core.noise import MEASUREMENT_NOISE, disk_gain_floor, worst_noise_gain
 from design.core.errors import ControllerFileError, DesignError, DesignInputError
-from design.core.verify import certify, model_hash
+from design.core.verify import model_hash
 from design.files.law_schedule import BAND, BETWEEN, RECORD, law_entry, schedule_record
 from design.files.linear import from_body
-from design.laws.estimate_schedule import REACH_FRACTION, bands_for, law_without_estimate, reach_band
+from design.laws.estimate_schedule import REACH_FRACTION, bands_for, reach_band
 from design.synthesis.family import model_names
 from design.synthesis.mpc_design import innovation_sigma, innovations_known
 from design.synthesis.recipes import RobustControllerResult, RobustOptions, design_robust_controller
@@ -394,7 +395,6 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                 kept.append((k, r, inside, row))
         row["seconds"] = round(time.process_time() - t1, 1)
         record["bands"].append(row)
-    est_off = bool((d0.get("estimate_schedule") or {}).get("off_speed_bands"))
     kept_bands, entries = [], []
     for k, r, inside, row in kept:
         t1 = time.process_time()
@@ -402,9 +402,8 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
         near = _neighbours(r, [models[i] for i in others], [names[i] for i in others],
                            [speeds[names[i]] for i in others], design_speeds, specs, latency)
         lo, hi = row["band_mps"]
-        band, entry = _band_law(r, inside, row, models, names, BAND,
-                                f"band {lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s: {', '.join(row['models'])}",
-                                est_off)
+        span = f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s"
+        band, entry = _band_law(r, inside, row, models, BAND, f"band {span}: {', '.join(row['models'])}")
         entry["neighbours"] = near
         row["seconds"] = round(row["seconds"] + time.process_time() - t1, 1)
         kept_bands.append(band)
@@ -430,8 +429,8 @@ def design_robust_bands(models: Sequence[Model], options: RobustOptions | None =
                 verdict(r, idx, row, gain, sig, worst_model, False)
                 if row["kept"]:
                     others = [i for i in range(len(models)) if i not in idx]
-                    band, entry = _band_law(r, idx, row, models, names, BETWEEN,
-                                            f"between {a:g} and {b:g} m/s: {', '.join(row['models'])}", est_off)
+                    band, entry = _band_law(r, idx, row, models, BETWEEN,
+                                            f"between {a:g} and {b:g} m/s: {', '.join(row['models'])}")
                     entry["neighbours"] = _neighbours(r, [models[i] for i in others], [names[i] for i in others],
                                                       [speeds[names[i]] for i in others], design_speeds, specs,
                                                       latency)
@@ -503,26 +502,19 @@ def _noise_capped(design_at: Callable[[float], RobustControllerResult],
                    "kept_cap": None if found is None else tried[-1]["cap"]}
 
 
-def _band_law(r: RobustControllerResult, idx: list[int], row: dict, models: Sequence[Model], names: Sequence[str],
-              rule: str, source: str, est_off: bool) -> tuple[tuple[float, float], dict]:
-    """The band a kept law runs in (its row's ``band_mps``) and its law schedule entry, certified under ``rule``
-    on exactly the models ``idx`` it was designed on (a band law's: its design speed's, ``"band"``; a law between
-    two design speeds: both speeds', ``"between"``), and its law without the estimate likewise when the file's
-    estimate schedule turns the estimate off somewhere (``est_off``). ``source`` names it in the file; the row
-    gets the design speeds it is certified on."""
-    comp = r.file.compensator
+def _band_law(r: RobustControllerResult, idx: list[int], row: dict, models: Sequence[Model], rule: str,
+              source: str) -> tuple[tuple[float, float], dict]:
+    """The band a kept law runs in (its row's ``band_mps``) and its law schedule entry under ``rule`` (a band
+    law's: ``"band"``; a law between two design speeds: ``"between"``): the certificates its design made on the
+    models ``idx`` it was designed on, its law's and, where the estimate's schedule turns the estimate off, its
+    law's without the estimate (the reader checks they are exactly the models the rule names). ``source`` names it
+    in the file; the row gets the design speeds it is certified on."""
     lo, hi = row["band_mps"]
     band = (float(lo), math.inf if hi is None else float(hi))
-    sel = [models[i] for i in idx]
-    cert = certify(comp, sel, [names[i] for i in idx])
     # the law's records as its file holds them (not the file itself: only its law runs)
-    entry = law_entry({"design": r.file.design, "certificate": cert.to_dict()}, comp, source)
-    est = r.file.design.get("disturbance_estimate")
-    dp = tuple(est.get("states", ())) if isinstance(est, dict) else ()
-    if est_off and dp and entry["certificate_off"] is not None:
-        entry["certificate_off"] = certify(law_without_estimate(comp, dp), sel, [names[i] for i in idx]).to_dict()
+    entry = law_entry({"design": r.file.design, "certificate": r.file.certificate}, r.file.compensator, source)
     entry["certified_on"] = rule
-    row["certified_speeds_mps"] = sorted({float(design_speed(m)) for m in sel})   # type: ignore[arg-type]
+    row["certified_speeds_mps"] = sorted({float(design_speed(models[i])) for i in idx})   # type: ignore[arg-type]
     return band, entry
 
 

@@ -33,11 +33,15 @@ __all__ = ["MARGIN", "SPEEDS", "steering_score", "orders_of", "choice_text"]
 SPEEDS = 41
 
 #: The order-4 models' robust law replaces the validated models' only when its :func:`steering_score` is below
-#: this fraction of theirs. On random-18 the order-4 law's score was 1.001 times the validated law's, and the
-#: validated law steered its worst cell 1.37x the oracle, the order-4 law 1.48x; on random-4 (0.964), -16
-#: (0.894), -8 (0.899), -3 (0.772) and -19 (0.712) the order-4 law was better in the worst cell (1.34 against
-#: 1.51, 1.20 / 1.49, 1.19 / 1.38, 1.31 / 1.56, 1.47 / 1.73).
-MARGIN = 0.98
+#: this fraction of theirs. Measured on the family campaign's commissionings (each tractor's two laws driven in
+#: its 15 cells, seeds 0-2): where the order-4 law scored lower, it steered the worst cell no worse than the
+#: validated law (random-15 at 0.987: 1.17 against 1.57x the oracle; random-18 at 0.987: 1.23 against 1.23x),
+#: and where it scored higher, worse (random-12 at 1.008: median cell 0.95 against 0.90x; random-1 at 1.024:
+#: worst cell 1.26 against 1.19x). Before the laws between design speeds, random-18's order-4 law scored 1.001
+#: and steered its worst cell 1.48x against 1.37x; on random-4 (0.964), -16 (0.894), -8 (0.899), -3 (0.772)
+#: and -19 (0.712) the order-4 law was better in the worst cell (1.34 against 1.51, 1.20 / 1.49, 1.19 / 1.38,
+#: 1.31 / 1.56, 1.47 / 1.73). The lower score wins.
+MARGIN = 1.0
 
 
 def steering_score(file: str | Path, models_dir: str | Path) -> float:

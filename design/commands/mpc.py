@@ -25,6 +25,7 @@ from design.commands.specs import (add_disturbance_arguments, add_noise_argument
                                     parse_past, progress_of, refuse_mixed, warn_relaxed, weight_search_of)
 from design.mpc.backends import BACKENDS, CASADI_SOLVERS, SolverSettings
 from design.mpc.problem import TERMINALS, MPCLimits, MPCWeights
+from design.synthesis.mpc_design import REACH_DOWN
 from design.synthesis.recipes import MPCOptions, design_mpc_controller, load_models
 
 
@@ -131,6 +132,16 @@ def choice_lines(rec: dict | None) -> list[str]:
             f"  tried, keeping by {rec['rule']}: {tried}"]
 
 
+def _reach_text(reach: dict | None) -> str:
+    """A band's reach into the gap below it (its record ``reach_down``), for its summary line."""
+    if not reach:
+        return ""
+    if "low_mps" in reach:
+        return (f"; down to {reach['low_mps']:g} m/s, certified on the {reach['speed']:g} m/s models too "
+                f"(disk margin >= {reach['min_disk_margin']:.2f})")
+    return f"; half-way to {reach['speed']:g} m/s: {reach['refused']}"
+
+
 def schedule_lines(rec: dict | None, own: str = "the central model") -> list[str]:
     """The prediction schedule's lines of the summary (none without one); ``own`` names the model predicting
     outside the bands."""
@@ -144,6 +155,7 @@ def schedule_lines(rec: dict | None, own: str = "the central model") -> list[str
                      f"(spectral radius {b['max_spectral_radius']:.4f}, disk margin >= {b['min_disk_margin']:.2f}); "
                      f"on the other bands' models {'stable' if b['neighbours_stable'] else 'NOT stable'}"
                      + ("" if nb is None else f", disk margin >= {nb:.2f}")
-                     + ("" if b.get(FILTER_KEY) is None else f"; estimate filter {b[FILTER_KEY]:g} s"))
+                     + ("" if b.get(FILTER_KEY) is None else f"; estimate filter {b[FILTER_KEY]:g} s")
+                     + _reach_text(b.get(REACH_DOWN)))
     lines += [f"  {x['speed']:g} m/s left to {own}: {x['reason']}" for x in rec["left_out"]]
     return lines

@@ -11,10 +11,11 @@ oracle) had its worst cell go from 1.17 to 1.10, 1.32 to 1.08 and 1.52 to 1.30x 
 
 Layout: ``design["prediction_schedule"] = {"bands": [[low, high | null], ...], "laws": [law, ...],
 "left_out": [...]}``, band ``i`` (m/s, ``low <= v < high``; bands reach half-way between design speeds,
-:func:`design.laws.estimate_schedule.bands_for`) predicted with ``laws[i]["model"]``; at every other
-speed the file's own (central) model predicts. Each law is ``{"model": {A, B, C, D, K, name, hash},
-"unconstrained_gain": [[...]], "band_models": [{"name", "hash", "speed"}, ...], "certificate": {...},
-"certificate_off": {...} | null, "neighbours": [...]}``, optionally with ``"estimate_filter_s"`` (the time
+:func:`design.laws.estimate_schedule.bands_for`, and a band whose law holds the next slower speed's models
+too down to a quarter of the way above it: :func:`design.synthesis.mpc_design.with_prediction_schedule`)
+predicted with ``laws[i]["model"]``; at every other speed the file's own (central) model predicts. Each law
+is ``{"model": {A, B, C, D, K, name, hash}, "unconstrained_gain": [[...]], "band_models": [{"name", "hash",
+"speed"}, ...], "certificate": {...}, "certificate_off": {...} | null, "neighbours": [...]}``, optionally with ``"estimate_filter_s"`` (the time
 constant, s, of the band's disturbance estimate's filter; absent: the file's estimate's); ``left_out`` lists
 the design speeds whose band the design left to the central model, and why (a record only).
 
@@ -23,24 +24,27 @@ within 0-20 m/s, at most :data:`MAX_BANDS`); each model's hash, sample time, inp
 unconstrained gain re-derived from the file's horizon, weights, limits, window and estimate with that
 model (as the file's own: :func:`design.mpc.law.checked_gain`); its certificate certifies exactly that
 law, with the band's estimate filter (:func:`design.files.certificate.check_certificate`), on exactly the
-band's models, every one of which has its design speed inside the band and is among the models the file's
-own certificate lists;
+band's models, each of which is among the models the file's own certificate lists and has its design speed
+inside the band, but for those of one slower design speed when the band reaches down towards it;
 the prediction model is one of them. Where the file's estimate schedule turns the estimate off at a
 speed of the band, the band's law without the estimate is certified likewise (``certificate_off``).
 ``neighbours`` (each band law's margins on the other bands' models) is recorded, not required.
 
 What is proven, and what is not. Each band's law (the MPC's unconstrained law with the band's model
 predicting) is stable, with the recorded margins, on every model identified at a speed of its band,
-every implement: every identified condition is certified with the law that runs at its speed. The
+every implement: every identified condition is certified with the law that runs at its speed; a band
+reaching down into the gap below it is certified on the slower speed's models too, so at every speed
+between two design speeds the law that runs there is certified on the models of the design speeds on each
+side or on those of the nearer one. The
 central law (the file's own) runs outside every band, and when the file has no schedule; it keeps its
 certificate on every model. The fall-back gain is the same in every band. A band's law is not required
 to be stable on the other bands' models (its margins there are recorded: on three tractors of the bench,
 default, heavy-11t and random-3, every band law was stable on all nine local models, disk margins 0.44 and
 more, but nothing in the design makes it so), and switching between the band laws is not covered by a
 common Lyapunov function:
-the loop switches only when the measured speed crosses a band's edge, half-way between two design
-speeds, with :class:`design.core.speed_latch.SpeedLatch`'s hysteresis and dwell, as the linear files'
-law schedule does (:mod:`design.files.law_schedule`). The states (the measured window, the integral,
+the loop switches only when the measured speed crosses a band's edge, between two design speeds, with
+:class:`design.core.speed_latch.SpeedLatch`'s hysteresis and dwell, as the linear files' law schedule does
+(:mod:`design.files.law_schedule`). The states (the measured window, the integral,
 the estimate) mean the same in every band, so nothing resets at a switch.
 """
 
@@ -172,7 +176,8 @@ def parse_prediction_schedule(rec: Any, dt: float, like: Model) -> PredictionSch
 
 
 def _band_models(rows: Any, band: tuple[float, float], what: str) -> dict[str, float]:
-    """``{hash: speed}`` of a band's listed models, each with its design speed inside ``band``."""
+    """``{hash: speed}`` of a band's listed models: at least one with its design speed inside ``band``, the
+    others (a band reaching down) all of one design speed below it."""
     if not isinstance(rows, list) or not rows or len(rows) > MAX_NOTES:
         raise ControllerFileError(f"{what} band_models must list the band's models (1 to {MAX_NOTES})")
     out = {}
@@ -181,10 +186,15 @@ def _band_models(rows: Any, band: tuple[float, float], what: str) -> dict[str, f
         if not isinstance(row, dict) or sorted(row) != ["hash", "name", "speed"] or not isinstance(row["hash"], str):
             raise ControllerFileError(f"{what} band_models entries must be {{name, hash, speed}}, got {row!r}")
         v = row["speed"]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v < hi):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 < v < hi):
             raise ControllerFileError(f"{what}: model {row['name']!r} was identified at {v!r} m/s, outside the band "
                                       f"{lo:g}-{hi:g} m/s: a band's law is certified on its own band's models")
         out[row["hash"]] = float(v)
+    below = {v for v in out.values() if v < lo}
+    if len(below) > 1 or len(below) == len(set(out.values())):
+        raise ControllerFileError(f"{what}: its models were identified at {sorted(set(out.values()))} m/s; a band's "
+                                  f"law is certified on its own band's models, and on one slower design speed's "
+                                  f"when it reaches down towards it")
     return out
 
 

@@ -11,7 +11,8 @@ The constrained closed loop is non-linear; the tests and the HIL bench check it.
 per design speed of the local models, the MPC predicting with the one of that speed's models whose law
 holds the band's models closest (:func:`innovation_sigma`), the same weights, its estimate's filter chosen
 within the speed's noise floor and no faster than the MPC's own (:func:`band_filters`), certified on the models
-of its band.
+of its band; a band whose law holds the next slower design speed's models too runs down to a quarter of the way
+above that speed (:func:`with_prediction_schedule`).
 
 :func:`prediction_alternatives` names the models that may predict in the central model's place when no
 law predicting with the central model stabilises every model (a last resort:
@@ -32,7 +33,8 @@ from identification.model import Model
 
 from design.core.errors import DesignInputError, SynthesisError
 from design.core.noise import MEASUREMENT_NOISE, disk_gain_floor, worst_noise_gain
-from design.laws.estimate_schedule import RECORD, bands_for, law_without_estimate, schedule_record, trailing_states
+from design.laws.estimate_schedule import REACH_FRACTION, RECORD, bands_for, law_without_estimate, schedule_record
+from design.laws.estimate_schedule import trailing_states
 from design.files.linear import read_controller_file
 from design.files.mpc import MPCFile, mpc_from_body
 from design.files.prediction_schedule import FILTER_KEY, RECORD as PREDICTION_RECORD
@@ -429,13 +431,55 @@ def _filter_row(f: MPCFile, tau_f: float | None) -> dict:
     return {} if f.disturbance is None else {FILTER_KEY: f.disturbance.tau_f if tau_f is None else tau_f}
 
 
+#: Key of a band's record of its reach below half-way to the next slower design speed
+#: (:func:`with_prediction_schedule`).
+REACH_DOWN = "reach_down"
+
+
+def _reach_down(f: MPCFile, best: dict, v: float, speeds: Sequence[float], local: Sequence[tuple[float, Model]],
+                inside: Sequence[tuple[float, Model]], names: Sequence[str], nd: int, noise: Sequence[float],
+                disk_margin: float, central_law) -> tuple[dict | None, dict | None]:
+    """The band law ``best`` of design speed ``v`` made again on its band's models and those of the next slower
+    design speed (its certificates on both, its noise checks on both), when it holds the slower speed's models
+    with at least ``disk_margin``; and the record of the try (None for the slowest speed)."""
+    i = list(speeds).index(v)
+    if i == 0:
+        return None, None
+    slower = speeds[i - 1]
+    below = [(s, m) for s, m in local if s == slower]
+    below_names = [str(m.meta.get("name", "model")) for _, m in below]
+    made = _band_law(f, best["model"], [*inside, *below], [*names, *below_names], nd, noise, disk_margin,
+                     central_law, best["tau_f"])
+    if isinstance(made, str):
+        return None, {"speed": slower, "refused": made}
+    worst = min(made["cert"].checks[len(inside):], key=lambda c: c.disk_margin)
+    if not worst.disk_margin >= disk_margin:
+        return None, {"speed": slower, "refused": f"its disk margin on {worst.name} is {worst.disk_margin:.3f}, "
+                                                  f"below {disk_margin:g}"}
+    low = slower + REACH_FRACTION * (v - slower)
+    return made, {"speed": slower, "low_mps": low, "min_disk_margin": worst.disk_margin}
+
+
 def with_prediction_schedule(res: MPCDesign, models: Sequence[Model], implement: str = "none",
                              noise: Sequence[float] = MEASUREMENT_NOISE, disk_margin: float = 0.6) -> MPCDesign:
     """``res`` with a prediction schedule: per design speed of the local ``models``, the MPC predicting with
     one of that speed's models, the file's weights, horizon, limits, window and estimate
     (:mod:`design.files.prediction_schedule`).
 
-    Each speed's band reaches half-way to its neighbours (:func:`design.laws.estimate_schedule.bands_for`).
+    Each speed's band reaches half-way to its neighbours (:func:`design.laws.estimate_schedule.bands_for`),
+    and further down when its law holds the next slower design speed's models as well: the band's law (its
+    model and filter chosen) is certified again on its band's models and that speed's, with the same checks
+    (below), and with a disk margin of at least ``disk_margin`` on the slower speed's models; it then runs down
+    to :data:`~design.laws.estimate_schedule.REACH_FRACTION` of the way above the slower speed, the slower
+    band stopping there, and its certificate and ``band_models`` list both speeds' models (the band's record
+    ``reach_down``: the slower speed and the band's low edge, or why not). Between two design speeds the
+    tractor's dynamics lie between those of the two speeds' models, and the law that runs there holds both.
+    Why the faster law: on worn-valve (the field procedure's commissioning, seeds 0-2, 60 s passes) the
+    1.79 m/s band's law ran at 2.24 m/s and steered its cells 1.18-1.36x the oracle; the 2.91 m/s band's law,
+    certified on the 1.79 m/s models with disk margins of 0.62 and more, 1.08-1.14x. A law certified on both
+    speeds' models, predicting with the model of either that holds them closest, kept the 1.79 m/s model
+    there: the steering index does not see it.
+
     A candidate law, predicting with one of the band's models, is certified on the band's models (every
     implement identified at that speed); it cannot run there when it is not stable on them, when its law
     without the disturbance estimate is not (the estimate's schedule could then not turn it off there), when
@@ -529,17 +573,27 @@ def with_prediction_schedule(res: MPCDesign, models: Sequence[Model], implement:
             best = kept[0]
         pred, k, law, cert, cert_off = best["model"], best["k"], best["law"], best["cert"], best["cert_off"]
         _check_solver(f, k, pred)
+        down, reach = _reach_down(f, best, v, speeds, local, inside, names, nd, noise, disk_margin, central_law)
+        members = list(zip(names, inside))
+        if down is not None:        # certified on the slower speed's models too: it runs down into the gap
+            low = reach["low_mps"]
+            if bands and bands[-1][1] > low:
+                bands[-1] = (bands[-1][0], low)
+                summary["bands"][-1]["band_mps"][1] = low
+            band, cert, cert_off = (low, band[1]), down["cert"], down["cert_off"]
+            below = [(s, m) for s, m in outside if s == reach["speed"]]
+            members += [(str(m.meta.get("name", "model")), (s, m)) for s, m in below]
+            outside = [(s, m) for s, m in outside if s != reach["speed"]]
         neighbours = _neighbour_rows(law, [m for _, m in outside], [s for s, _ in outside])
         bands.append(band)
         entries.append({"model": model_record(pred), "unconstrained_gain": k.tolist(),
                         **({} if best["tau_f"] is None else {FILTER_KEY: best["tau_f"]}),
-                        "band_models": [{"name": n, "hash": model_hash(m), "speed": s}
-                                        for n, (s, m) in zip(names, inside)],
+                        "band_models": [{"name": n, "hash": model_hash(m), "speed": s} for n, (s, m) in members],
                         "certificate": cert.to_dict(),
                         "certificate_off": None if cert_off is None else cert_off.to_dict(),
                         "neighbours": neighbours})
         row = {"band_mps": [band[0], None if math.isinf(band[1]) else band[1]],
-               "model": best["name"], "models": names, **_filter_row(f, best["tau_f"]),
+               "model": best["name"], "models": [n for n, _ in members], **_filter_row(f, best["tau_f"]),
                "worst": cert.worst.name, "max_spectral_radius": cert.worst.spectral_radius,
                "min_disk_margin": min(c.disk_margin for c in cert.checks),
                "noise_gain": best["noise_gain"],
@@ -548,6 +602,8 @@ def with_prediction_schedule(res: MPCDesign, models: Sequence[Model], implement:
                "neighbours_min_disk_margin": min((r["disk_margin"] for r in neighbours), default=None)}
         if choice is not None:
             row[PREDICTION_CHOICE] = choice
+        if reach is not None:
+            row[REACH_DOWN] = reach
         summary["bands"].append(row)
     summary["left_out"] = left_out
     if not entries:

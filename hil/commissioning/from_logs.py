@@ -342,7 +342,9 @@ def _prediction_text(rec: dict | None, own: str = "the central model") -> str:
     parts = []
     for b in rec["bands"]:
         lo, hi = b["band_mps"]
-        parts.append(f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s with {b['model']}")
+        down = (b.get("reach_down") or {}).get("low_mps")
+        parts.append(f"{lo:g}-{'inf' if hi is None else format(hi, 'g')} m/s with {b['model']}"
+                     + ("" if down is None else f" (on the {b['reach_down']['speed']:g} m/s models too)"))
     left = rec.get("left_out") or []
     return ("; predicts by speed band, each law certified on its band's models: " + ", ".join(parts)
             + (f" (left to {own}: {len(left)} band{'s' if len(left) > 1 else ''})" if left else ""))

@@ -102,7 +102,7 @@ def test_a_band_s_filter_edited_or_without_an_estimate_is_refused(saved):
 
     def slower(b):                                         # the certified law had the 1 s filter
         b["design"][RECORD]["laws"][2][FILTER_KEY] = 1.4
-    refused(slower, r"band 2 \(2.35-inf m/s\)")
+    refused(slower, r"band 2 \(2.07-inf m/s\)")
 
     def negative(b):
         b["design"][RECORD]["laws"][1][FILTER_KEY] = -0.7
@@ -116,4 +116,9 @@ def test_a_band_s_filter_edited_or_without_an_estimate_is_refused(saved):
 def test_the_design_summary_says_each_band_s_filter(scheduled):
     lines = schedule_lines(scheduled[0].prediction_schedule)
     bands = [line for line in lines if line.startswith("  ") and " m/s: " in line]
-    assert [b.rsplit("; estimate filter ", 1)[1] for b in bands] == ["2 s", "1 s", "1 s"]
+    assert [b.rsplit("; estimate filter ", 1)[1].split(";")[0] for b in bands] == ["2 s", "1 s", "1 s"]
+    # and how far down each band runs, certified on the next slower speed's models
+    assert "down to" not in bands[0]
+    assert bands[1].endswith("; down to 1.1975 m/s, certified on the 1 m/s models too (disk margin >= "
+                             f"{scheduled[0].prediction_schedule['bands'][1]['reach_down']['min_disk_margin']:.2f})")
+    assert "; down to 2.07 m/s, certified on the 1.79 m/s models too" in bands[2]

@@ -1,6 +1,7 @@
 """An MPC file's prediction models by speed band (design/files/prediction_schedule.py): written by the design,
 checked on every read (a tampered band refused), run by the controller on one state with the latched band's
-QP, and a band whose law is not stable on its own band's models left to the central law."""
+QP, a band whose law holds the next slower speed's models too reaching down towards it, and a band whose law
+is not stable on its own band's models left to the central law."""
 
 from __future__ import annotations
 
@@ -47,15 +48,30 @@ def saved(scheduled, tmp_path):
 def test_each_design_speed_gets_its_band_and_its_none_model(scheduled, saved):
     res, _ = scheduled
     rec = res.file.design[RECORD]
-    assert rec["bands"] == [[0.0, 1.395], [1.395, 2.35], [2.35, None]] and rec["left_out"] == []
+    # the 1.79 and 2.91 m/s laws hold the next slower speed's models too: each runs down to a quarter of the way
+    # above that speed (1.00 + 0.25 x 0.79, 1.79 + 0.25 x 1.12), not half-way
+    assert rec["bands"] == [[0.0, pytest.approx(1.1975)], [pytest.approx(1.1975), pytest.approx(2.07)],
+                            [pytest.approx(2.07), None]] and rec["left_out"] == []
     assert [law["model"]["name"] for law in rec["laws"]] == ["local_none_1", "local_none_1.79", "local_none_2.91"]
-    for law, v in zip(rec["laws"], SPEEDS):         # certified on exactly its band's models, every implement
-        assert [r["name"] for r in law["certificate"]["models"]] == [f"local_none_{v:g}", f"local_disker_{v:g}"]
+    slower = {1.0: None, 1.79: 1.0, 2.91: 1.79}
+    for law, row, v in zip(rec["laws"], res.prediction_schedule["bands"], SPEEDS):
+        # certified on exactly its band's models, every implement, and the slower speed's it reaches down to
+        below = [] if slower[v] is None else [f"local_none_{slower[v]:g}", f"local_disker_{slower[v]:g}"]
+        names = [f"local_none_{v:g}", f"local_disker_{v:g}", *below]
+        assert [r["name"] for r in law["certificate"]["models"]] == names == row["models"]
+        assert [r["name"] for r in law["band_models"]] == names
         assert law["certificate"]["passed"] and law["certificate_off"]["passed"]
-        assert len(law["neighbours"]) == 4 and {r["speed"] for r in law["neighbours"]} == set(SPEEDS) - {v}
+        assert {r["speed"] for r in law["neighbours"]} == set(SPEEDS) - {v, slower[v]}
+        if slower[v] is not None:
+            assert row["reach_down"]["speed"] == slower[v] and row["reach_down"]["min_disk_margin"] >= 0.6
+            assert min(c["disk_margin"] for c in law["certificate"]["models"][2:]) == \
+                pytest.approx(row["reach_down"]["min_disk_margin"])
+        else:
+            assert "reach_down" not in row
     spec = read_mpc_file(saved)
     assert spec.to_dict() == json.loads(saved.read_text())
-    assert spec.prediction_schedule.bands == ((0.0, 1.395), (1.395, 2.35), (2.35, float("inf")))
+    assert spec.prediction_schedule.bands == ((0.0, pytest.approx(1.1975)), (pytest.approx(1.1975),
+                                              pytest.approx(2.07)), (pytest.approx(2.07), float("inf")))
 
 
 def _step(ctrl, t: float, v: float) -> float:
@@ -70,11 +86,11 @@ def test_the_controller_switches_band_past_the_hysteresis_and_runs_the_band_law(
         _step(ctrl, t, 1.79)
         t += 0.05
     assert ctrl.band == 1
-    for _ in range(40):                               # just past the edge at 2.35 m/s, inside the hysteresis
-        _step(ctrl, t, 2.37)
+    for _ in range(40):                               # just past the edge at 2.07 m/s, inside the hysteresis
+        _step(ctrl, t, 2.09)
         t += 0.05
     assert ctrl.band == 1 and ctrl.latch.switches == 0
-    _step(ctrl, t, 2.45)                              # 0.1 m/s inside the band, after the dwell: band 2's QP
+    _step(ctrl, t, 2.17)                              # 0.1 m/s inside the band, after the dwell: band 2's QP
     assert ctrl.band == 2 and ctrl.latch.switches == 1 and ctrl.backend is ctrl.backends[3]
     assert ctrl.last.fallback is False and DWELL_S <= 40 * 0.05
     # the latched band's QP gives its own unconstrained law's first move from a small state
@@ -111,11 +127,22 @@ def test_a_tampered_band_is_refused(saved):
     def swap(b):                                      # band 0 runs band 2's law: its models are not band 0's
         laws = b["design"][RECORD]["laws"]
         laws[0], laws[2] = laws[2], laws[0]
-    refused(swap, r"band 0 \(0-1.395 m/s\): model 'local_none_2.91' was identified at 2.91 m/s, outside the band")
+    refused(swap, r"band 0 \(0-1.1975 m/s\): model 'local_none_2.91' was identified at 2.91 m/s, outside the band")
 
     def uncertified(b):                               # a band's model taken out of its law's certificate
         b["design"][RECORD]["laws"][1]["certificate"]["models"].pop()
-    refused(uncertified, r"band 1 \(1.395-2.35 m/s\): its certificate was made on 1 models, not exactly the band's 2")
+    refused(uncertified, r"band 1 \(1.1975-2.07 m/s\): its certificate was made on 3 models, not exactly the "
+                         r"band's 4")
+
+    def two_below(b):                                 # a band listing the models of two slower design speeds
+        law0, law2 = b["design"][RECORD]["laws"][0], b["design"][RECORD]["laws"][2]
+        law2["band_models"] += law0["band_models"]
+    refused(two_below, r"band 2 \(2.07-inf m/s\): its models were identified at \[1.0, 1.79, 2.91\] m/s")
+
+    def none_inside(b):                               # a band with none of its own models
+        law = b["design"][RECORD]["laws"][2]
+        law["band_models"] = [r for r in law["band_models"] if r["speed"] == 1.79]
+    refused(none_inside, r"band 2 \(2.07-inf m/s\): its models were identified at \[1.79\] m/s")
 
     def overlap(b):
         b["design"][RECORD]["bands"][1] = [1.0, 2.35]
@@ -154,7 +181,7 @@ def test_design_mpc_adds_the_schedule_unless_told_not_to(scheduled, tmp_path, ca
     common = ["mpc", "--models", *paths, "--horizon", "20", "--time-budget-ms", "1000"]
     assert design_main([*common, "--out", str(tmp_path / "on.json")]) == 0
     text = capsys.readouterr().out
-    assert "2.35- m/s: local_none_2.91, worst local_" in text and "on the other bands' models stable" in text
+    assert "2.07- m/s: local_none_2.91, worst local_" in text and "on the other bands' models stable" in text
     assert [law["model"]["name"] for law in read_mpc_file(tmp_path / "on.json").design[RECORD]["laws"]] == \
         ["local_none_1", "local_none_1.79", "local_none_2.91"]
     assert design_main([*common, "--prediction-schedule", "off", "--out", str(tmp_path / "off.json")]) == 0
@@ -188,8 +215,13 @@ def test_a_band_whose_law_is_much_noisier_than_the_central_law_on_its_models_is_
     quiet = (0.001, 1e-4, 5e-4)
     res = with_prediction_schedule(base, models, noise=quiet)
     rec = res.file.design[RECORD]
-    assert rec["bands"] == [[1.395, 2.35], [2.35, None]]
+    assert rec["bands"] == [[1.395, pytest.approx(2.07)], [pytest.approx(2.07), None]]
     assert [x["speed"] for x in rec["left_out"]] == [1.0]
+    # the 1.79 m/s law does not hold the slow valve's 1.00 m/s models with the disk margin: it stops half-way
+    down = res.prediction_schedule["bands"][0]["reach_down"]
+    assert down["speed"] == 1.0 and "low_mps" not in down
+    assert down["refused"].startswith("its disk margin on local_") and down["refused"].endswith("below 0.6")
+    assert float(down["refused"].split(" is ")[1].split(",")[0]) < 0.6
     reason = rec["left_out"][0]["reason"]
     assert "times the central law's" in reason and f"at most {mpc_design.NOISE_RATIO:g} times" in reason
     ratio = float(reason.split(" times the central law's")[0].rsplit(" ", 1)[1])

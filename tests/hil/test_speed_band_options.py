@@ -50,7 +50,8 @@ def test_the_mpc_step_designs_with_the_schedule_or_without(tmp_path):
         assert rec["settings"]["prediction_schedule"] is on
         spec = read_mpc_file(tmp_path / f"mpc_{on}.json")
         if on:
-            assert spec.prediction_schedule.bands == ((0.0, 1.955), (1.955, float("inf")))
+            # the 2.91 m/s law holds the 1.00 m/s models too: it runs down to a quarter of the way above them
+            assert spec.prediction_schedule.bands == ((0.0, 1.4775), (1.4775, float("inf")))
             assert [b["model"] for b in rec["result"]["prediction_schedule"]["bands"]] == ["local_none_1",
                                                                                            "local_none_2.91"]
         else:
@@ -109,4 +110,11 @@ def test_the_report_line_names_each_band_s_law_and_prediction_model():
                                    "left_out": [{"speed": 2.91, "reason": "unstable"}]}}
     assert speed_bands_text(mpc) == ("; predicts by speed band, each law certified on its band's models: 0-1.955 m/s "
                                      "with local_none_5th (left to the central model: 1 band)")
+    mpc = {"prediction_schedule": {"bands": [
+        {"band_mps": [0.0, 1.1975], "model": "local_none_5th"},
+        {"band_mps": [1.1975, None], "model": "local_disker_9th",
+         "reach_down": {"speed": 1.0, "low_mps": 1.1975, "min_disk_margin": 0.71}}], "left_out": []}}
+    assert speed_bands_text(mpc) == ("; predicts by speed band, each law certified on its band's models: "
+                                     "0-1.1975 m/s with local_none_5th, 1.1975-inf m/s with local_disker_9th (on "
+                                     "the 1 m/s models too)")
     assert speed_bands_text({}) == ""

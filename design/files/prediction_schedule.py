@@ -15,9 +15,10 @@ Layout: ``design["prediction_schedule"] = {"bands": [[low, high | null], ...], "
 too down to a quarter of the way above it: :func:`design.synthesis.mpc_design.with_prediction_schedule`)
 predicted with ``laws[i]["model"]``; at every other speed the file's own (central) model predicts. Each law
 is ``{"model": {A, B, C, D, K, name, hash}, "unconstrained_gain": [[...]], "band_models": [{"name", "hash",
-"speed"}, ...], "certificate": {...}, "certificate_off": {...} | null, "neighbours": [...]}``, optionally with ``"estimate_filter_s"`` (the time
-constant, s, of the band's disturbance estimate's filter; absent: the file's estimate's); ``left_out`` lists
-the design speeds whose band the design left to the central model, and why (a record only).
+"speed"}, ...], "certificate": {...}, "certificate_off": {...} | null, "neighbours": [...]}``, optionally with
+``"estimate_filter_s"`` (the time constant, s, of the band's disturbance estimate's filter; absent: the file's
+estimate's); ``left_out`` lists the design speeds whose band the design left to the central model, and why (a
+record only).
 
 What the reader checks (:func:`check_prediction_schedule`, on every read): the bands (no overlap,
 within 0-20 m/s, at most :data:`MAX_BANDS`); each model's hash, sample time, inputs and outputs; its
@@ -30,22 +31,19 @@ the prediction model is one of them. Where the file's estimate schedule turns th
 speed of the band, the band's law without the estimate is certified likewise (``certificate_off``).
 ``neighbours`` (each band law's margins on the other bands' models) is recorded, not required.
 
-What is proven, and what is not. Each band's law (the MPC's unconstrained law with the band's model
-predicting) is stable, with the recorded margins, on every model identified at a speed of its band,
-every implement: every identified condition is certified with the law that runs at its speed; a band
-reaching down into the gap below it is certified on the slower speed's models too, so at every speed
-between two design speeds the law that runs there is certified on the models of the design speeds on each
-side or on those of the nearer one. The
-central law (the file's own) runs outside every band, and when the file has no schedule; it keeps its
-certificate on every model. The fall-back gain is the same in every band. A band's law is not required
-to be stable on the other bands' models (its margins there are recorded: on three tractors of the bench,
-default, heavy-11t and random-3, every band law was stable on all nine local models, disk margins 0.44 and
-more, but nothing in the design makes it so), and switching between the band laws is not covered by a
-common Lyapunov function:
-the loop switches only when the measured speed crosses a band's edge, between two design speeds, with
-:class:`design.core.speed_latch.SpeedLatch`'s hysteresis and dwell, as the linear files' law schedule does
-(:mod:`design.files.law_schedule`). The states (the measured window, the integral,
-the estimate) mean the same in every band, so nothing resets at a switch.
+What is proven, and what is not. Each band's law (the MPC's unconstrained law with the band's model predicting) is
+stable, with the recorded margins, on every model identified at a speed of its band, every implement: every
+identified condition is certified with the law that runs at its speed; a band reaching down into the gap below it
+is certified on the slower speed's models too, so at every speed between two design speeds the law that runs there
+is certified on the models of the design speeds on each side or on those of the nearer one. The central law (the
+file's own) runs outside every band, and when the file has no schedule; it keeps its certificate on every model.
+The fall-back gain is the same in every band. A band's law is not required to be stable on the other bands' models
+(its margins there are recorded: on three tractors of the bench, default, heavy-11t and random-3, every band law
+was stable on all nine local models, disk margins 0.44 and more, but nothing in the design makes it so), and
+switching between the band laws is not covered by a common Lyapunov function: the loop switches only when the
+measured speed crosses a band's edge, between two design speeds, with :class:`design.core.speed_latch.SpeedLatch`'s
+hysteresis and dwell, as the linear files' law schedule does (:mod:`design.files.law_schedule`). The states (the
+measured window, the integral, the estimate) mean the same in every band, so nothing resets at a switch.
 """
 
 from __future__ import annotations

@@ -7,12 +7,13 @@ allow a faster loop it is slower than it need be. :func:`design_robust_bands` ke
 law at every speed no band holds, and the certificate on every model), then designs, for each design speed, a law on
 the local models of that speed (every implement identified there) with the same specifications, its automatic
 weights' scale chosen on the band's models, and on the base law's state layout (its measured window, the
-integral, the disturbance estimate): the loop holds the states by index, so every law must carry the same ones. A band law is kept when it holds its band's models
-closer than the base law: the largest cross-track 1-sigma it leaves on them, each model closed with the law and
-driven by its own identified innovations (:func:`design.synthesis.mpc_design.innovation_sigma`: the soil's pull, the
-ground and the sensors' noise as the passes saw them, the disturbance estimate in the loop), below the base law's
-(recorded as the band's ``steering``), whether it is faster or gentler than the base law (:func:`judged_by`); where
-a band's model records no innovations, only a faster law is kept, on its scale alone. A faster law need not steer
+integral, the disturbance estimate): the loop holds the states by index, so every law must carry the same ones.
+A band law is kept when it holds its band's models closer than the base law: the largest cross-track 1-sigma it
+leaves on them, each model closed with the law and driven by its own identified innovations
+(:func:`design.synthesis.mpc_design.innovation_sigma`: the soil's pull, the ground and the sensors' noise as the
+passes saw them, the disturbance estimate in the loop), below the base law's (recorded as the band's ``steering``),
+whether it is faster or gentler than the base law (:func:`judged_by`); where a band's model records no innovations,
+only a faster law is kept, on its scale alone. A faster law need not steer
 better. On random-13 (the field procedure) the 1.00 m/s band's law, scale 11.1 against the one law's 5.0, left 3.21
 cm/(m/s) on its worst model where the one law left 3.08, and steered the six 1.00-1.34 m/s cells 1.69-1.91x the
 oracle, the one law 1.04-1.14x (seeds 0-2, 60 s passes). A gentler one can: the one law's scale is what all the

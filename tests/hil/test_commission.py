@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from hil.bench.commissioning.campaign import commission_campaign
 from hil.bench.commissioning.cli import add_commission_parser, commission_options
 from hil.bench.commissioning.recipe import CommissionOptions, commission
 from hil.bench.commissioning.table import hil_ratios
@@ -67,7 +68,7 @@ def test_commission_runs_end_to_end_and_writes_everything_under_out(tmp_path: Pa
     assert "is above 1.1 (the MPC bounds the steering rate" in report
 
 
-def test_the_command_refuses_bad_options(capsys) -> None:
+def test_the_command_refuses_bad_options(capsys, tmp_path: Path) -> None:
     p = _parser()
     with pytest.raises(SystemExit):
         p.parse_args(["commission", "--tractor", "x", "--out", "o", "--order", "zero"])
@@ -85,7 +86,13 @@ def test_the_command_refuses_bad_options(capsys) -> None:
     with pytest.raises(ValueError, match="alternative_order must be"):
         CommissionOptions(alternative_order=-1)
     with pytest.raises(ValueError, match="hil_seeds"):
-        CommissionOptions(hil_seeds=())
+        CommissionOptions(hil_seeds=(-1,))
+    # --hil-seeds 0: no HIL comparison (the commissioning alone); a campaign refuses it
+    no_hil = commission_options(p.parse_args(["commission", "--tractor", "x", "--out", "o", "--hil-seeds", "0"]))
+    assert no_hil.hil_seeds == ()
+    with pytest.raises(ValueError, match="a campaign compares the controllers"):
+        commission_campaign([resolve_tractor("default")], tmp_path / "c", no_hil)
+    assert not (tmp_path / "c").exists()
     with pytest.raises(ValueError, match="must differ from hil_seeds"):
         CommissionOptions(hil_seeds=(0, 1), trial_seeds=(1, 5))
     with pytest.raises(ValueError, match="more_passes must be 0..5 rounds"):

@@ -169,6 +169,10 @@ def commission_campaign(tractors: Sequence[Tractor], out: str | Path, options: C
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
         raise SimulatorConfigError(f"tractor names must be unique (each is a folder), got {dup} more than once")
+    if not opts.hil_seeds:
+        raise SimulatorConfigError("a campaign compares the controllers on every tractor: give --hil-seeds (e.g. 0-2), "
+                                   "or commission one tractor without the comparison with hil commission "
+                                   "--hil-seeds 0")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     code = code_version()

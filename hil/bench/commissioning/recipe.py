@@ -93,7 +93,8 @@ class CommissionOptions:
         Seed of the passes and of the valve test; the HIL passes use ``hil_seeds``.
     hil_seeds, hil_duration
         Seeds and length, s, of the closed-loop passes per condition and controller; a cell's bias
-        and 1-sigma are pooled over them (:func:`hil.vehicle.summary.pool_passes`). Three, because
+        and 1-sigma are pooled over them (:func:`hil.vehicle.summary.pool_passes`); no seeds: no HIL
+        comparison (the commissioning's files and report only). Three by default, because
         one 60 s pass is too short to judge a ratio to the oracle: on heavy-11t with the ripper at
         2.91 m/s the MPC's ratio was 2.02 on seed 0 and 0.91-1.23 on seeds 1-7.
     hil_conditions
@@ -198,8 +199,9 @@ class CommissionOptions:
                                        "has no rounds of more passes; use procedure 'slews' for those")
         SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
                   duration=self.pass_duration, seed=self.seed)   # validates those
-        if not self.hil_seeds or not all(isinstance(s, int) and s >= 0 for s in self.hil_seeds):
-            raise SimulatorConfigError(f"hil_seeds must be integers >= 0, got {self.hil_seeds!r}")
+        if not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in self.hil_seeds):
+            raise SimulatorConfigError(f"hil_seeds must be integers >= 0 (none: no HIL comparison), got "
+                                       f"{self.hil_seeds!r}")
         for name in ("trial_seeds", "window_seeds"):
             seeds = getattr(self, name)
             if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
@@ -391,7 +393,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
     table = steps.run("hil", f"HIL comparison on the tractor ({len(opts.conditions())} conditions, "
                       f"{len(opts.hil_seeds)} seed(s), {opts.hil_duration:g} s, commissioned loop"
                       + (", the oracle's weights searched per condition)" if opts.oracle_search else ")"),
-                      hil) if com is not None else None
+                      hil) if com is not None and opts.hil_seeds else None
     res["hil"] = table or []
     res["driving_s"] = driving_seconds(opts, res, out)
     res["steps"] = steps.record

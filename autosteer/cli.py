@@ -265,6 +265,16 @@ def seeds_or_count(text: str) -> tuple[int, ...] | int:
     return seed_list(text)
 
 
+def passes_per_speed(text: str) -> int | tuple[int, ...]:
+    """argparse type of the identification passes: one count for every speed (``2``) or a count per speed,
+    comma-separated (``1,2,3``), each 1-10."""
+    parts = text.split(",")
+    if not all(p.strip().isdigit() and 1 <= int(p) <= 10 for p in parts):
+        raise argparse.ArgumentTypeError(f"expected a count of passes 1-10, or one per speed like 1,2,3, got "
+                                         f"{text!r}")
+    return int(parts[0]) if len(parts) == 1 else tuple(int(p) for p in parts)
+
+
 def resolve_seeds(value: tuple[int, ...] | int, first: int | None, default_first: int,
                   option: str = "--seeds", first_option: str = "--seed") -> tuple[int, ...]:
     """The seeds of ``value`` (from :func:`seeds_or_count`): a count runs from ``first`` (``default_first``

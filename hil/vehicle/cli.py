@@ -17,7 +17,7 @@ import os
 import sys
 from pathlib import Path
 
-from autosteer.cli import Parser
+from autosteer.cli import Parser, passes_per_speed
 from identification.errors import OutputError, PassLogError
 from identification.outputs import write_stdout
 
@@ -295,8 +295,9 @@ def add_procedure_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentPa
                    help="a new plan's implements (default none disker ripper; an existing plan.json is kept)")
     p.add_argument("--speeds", nargs="+", type=parse_float, default=None, metavar="M_PER_S",
                    help="a new plan's speeds, m/s (default 1.0 1.79 2.91)")
-    p.add_argument("--passes", type=int, default=None,
-                   help=f"a new plan's passes per speed (default {FieldPlan.passes})")
+    p.add_argument("--passes", type=passes_per_speed, default=None, metavar="N[,N...]",
+                   help=f"a new plan's passes per speed (default {FieldPlan.passes}), or a count for each speed: "
+                        "1,2,3 with three speeds")
     p.add_argument("--duration", type=parse_float, default=None,
                    help=f"a new plan's seconds per pass (default {FieldPlan.duration:g})")
     p.add_argument("--bridge", default=None, metavar="SPEC",

@@ -86,6 +86,9 @@ class PlannedPass:
 class FieldPlan:
     """What the operator drives: the valve test, then ``passes`` passes of ``duration`` s per speed and implement.
 
+    ``passes`` is one count for every speed, or a count per speed (``(1, 2, 3)`` with three speeds: the driving
+    weighted towards the speeds where identification needs more data; :meth:`per_speed`).
+
     The default fits the budget with room for passes a fault spoils: three implements x three speeds x two
     passes of 60 s (6 min per implement) and the valve test with its linearity check (at most 4.0 min at
     standstill, :meth:`ValveTestPlan.longest_duration`): 22.0 min, which leaves 8.0 min (eight passes) to drive
@@ -97,7 +100,7 @@ class FieldPlan:
 
     implements: tuple[str, ...] = ("none", "disker", "ripper")
     speeds: tuple[float, ...] = (1.0, 1.79, 2.91)
-    passes: int = 2
+    passes: int | tuple[int, ...] = 2
     duration: float = 60.0
     valve_test: ValveTestPlan | None = ValveTestPlan()
     top_ups: tuple[str, ...] = ()
@@ -111,13 +114,22 @@ class FieldPlan:
             raise ProcedureError(f"top_ups must be distinct implements of the plan, not all of them, got "
                                  f"{self.top_ups!r}")
         finite_tuple(self.speeds, "speeds", lo=0.3, hi=5.0, unit="m/s", error=ProcedureError)
-        finite(self.passes, "passes", lo=1, hi=10, integer=True, unit="per speed", error=ProcedureError)
+        if isinstance(self.passes, (tuple, list)):
+            object.__setattr__(self, "passes", tuple(self.passes))
+            if len(self.passes) != len(self.speeds):
+                raise ProcedureError(f"passes per speed must give one count for each of the {len(self.speeds)} "
+                                     f"speeds, got {len(self.passes)}: {list(self.passes)}")
+            for n in self.passes:
+                finite(n, "passes", lo=1, hi=10, integer=True, unit="at a speed", error=ProcedureError)
+        else:
+            finite(self.passes, "passes", lo=1, hi=10, integer=True, unit="per speed", error=ProcedureError)
         finite(self.duration, "duration", lo=10.0, hi=600.0, unit="s per pass", error=ProcedureError)
 
     def to_dict(self) -> dict:
         """The plan as ``plan.json`` holds it (the valve test by its duties and step time)."""
         vt = self.valve_test
-        d = {"implements": list(self.implements), "speeds": [float(v) for v in self.speeds], "passes": self.passes,
+        d = {"implements": list(self.implements), "speeds": [float(v) for v in self.speeds],
+             "passes": list(self.passes) if isinstance(self.passes, tuple) else self.passes,
              "duration": float(self.duration),
              "valve_test": None if vt is None else {"duties": list(vt.duties), "step_time": vt.step_time}}
         if self.top_ups:
@@ -139,20 +151,29 @@ class FieldPlan:
             raise ProcedureError(f"{where}: top_ups must be a list of implements, got {tops!r}")
         try:
             valve = None if vt is None else ValveTestPlan(duties=tuple(vt["duties"]), step_time=vt["step_time"])
-            return cls(tuple(d["implements"]), tuple(d["speeds"]), d["passes"], d["duration"], valve, tuple(tops))
+            passes = tuple(d["passes"]) if isinstance(d["passes"], list) else d["passes"]
+            return cls(tuple(d["implements"]), tuple(d["speeds"]), passes, d["duration"], valve, tuple(tops))
         except (TypeError, ValueError) as exc:
             raise ProcedureError(f"{where}: {exc}") from None
+
+    def per_speed(self) -> tuple[int, ...]:
+        """Passes at each of :attr:`speeds` (per implement)."""
+        return self.passes if isinstance(self.passes, tuple) else (self.passes,) * len(self.speeds)
+
+    def implement_seconds(self) -> float:
+        """Driving of one implement's passes, s."""
+        return sum(self.per_speed()) * float(self.duration)
 
     def planned(self) -> list[PlannedPass]:
         """Every pass, implement by implement (one hitch each), speed by speed."""
         return [PlannedPass(imp, float(v), i, float(self.duration))
-                for imp in self.implements for v in self.speeds for i in range(self.passes)]
+                for imp in self.implements for v, n in zip(self.speeds, self.per_speed()) for i in range(n)]
 
     def seconds(self) -> dict:
         """Driving per step, s: ``valve test``, each implement, and ``total``."""
         out = {"valve test": self.valve_test.longest_duration() if self.valve_test is not None else 0.0}
         for imp in self.implements:
-            out[imp] = len(self.speeds) * self.passes * float(self.duration)
+            out[imp] = self.implement_seconds()
         out["total"] = sum(out.values())
         return out
 
@@ -185,7 +206,7 @@ class FieldPlan:
         if name in self.implements:
             raise ProcedureError(f"the plan already holds the {name}: its passes are driven with the others; "
                                  "add an implement it does not hold")
-        seconds = len(self.speeds) * self.passes * float(self.duration)
+        seconds = self.implement_seconds()
         if seconds > per_implement + 1e-9:
             raise ProcedureError(f"the {name}'s passes would drive {seconds / 60:.1f} min: over the "
                                  f"{per_implement / 60:g} min of a top-up; start a plan with fewer speeds, passes "

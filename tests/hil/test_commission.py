@@ -101,6 +101,14 @@ def test_the_command_refuses_bad_options(capsys, tmp_path: Path) -> None:
         CommissionOptions(more_passes=1)
     assert commission_options(p.parse_args(["commission", "--tractor", "x", "--out", "o", "--more-passes", "0"])).more_passes == 0
     assert commission_options(p.parse_args(["commission", "--tractor", "x", "--out", "o"])).procedure == "field"
+    # passes per speed: the field procedure's plan takes them; the slews and a wrong count are refused
+    weighted = commission_options(p.parse_args(["commission", "--tractor", "x", "--out", "o", "--passes", "1,2,3"]))
+    assert weighted.passes == (1, 2, 3) and weighted.field_plan().per_speed() == (1, 2, 3)
+    assert weighted.most_passes() == 3
+    with pytest.raises(ValueError, match="are for the field procedure"):
+        CommissionOptions(procedure="slews", passes=(1, 2, 3))
+    with pytest.raises(ValueError, match="one count for each of the 2 speeds, got 3"):
+        CommissionOptions(speeds=(1.0, 2.91), passes=(1, 2, 3))
 
 
 def test_hil_run_takes_a_commissioning_file_and_hil_commission_refuses_an_unknown_tractor(tmp_path: Path,

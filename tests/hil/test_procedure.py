@@ -79,6 +79,35 @@ def test_a_log_that_is_not_a_pass_log_is_named_with_the_fix(tmp_path):
         Procedure(tmp_path, PLAN).status()
 
 
+def test_a_plan_weighted_towards_the_fast_speed_takes_a_count_of_passes_per_speed(tmp_path, capsys):
+    """``passes`` per speed: the same six passes per implement as the default, shared out 1/2/3 over 1.00, 1.79
+    and 2.91 m/s; plan.json keeps the counts, the operator's command takes them as ``--passes 1,2,3``."""
+    plan = FieldPlan(passes=(1, 2, 3))
+    assert plan.per_speed() == (1, 2, 3) and plan.seconds() == FieldPlan().seconds()
+    assert [(p.implement, p.speed, p.index) for p in plan.planned()[:6]] == [
+        ("none", 1.0, 0), ("none", 1.79, 0), ("none", 1.79, 1), ("none", 2.91, 0), ("none", 2.91, 1),
+        ("none", 2.91, 2)]
+    assert FieldPlan.from_dict(plan.to_dict()) == plan and plan.to_dict()["passes"] == [1, 2, 3]
+    assert plan.add_implement("bedder").planned()[18:] == [p.__class__("bedder", p.speed, p.index, p.duration)
+                                                           for p in plan.planned()[:6]]
+    with pytest.raises(ProcedureError, match=r"one count for each of the 3 speeds, got 2: \[1, 2\]"):
+        FieldPlan(passes=(1, 2))
+    with pytest.raises(ProcedureError, match="passes must be an integer"):
+        FieldPlan(passes=(1, 2, 2.5))
+    with pytest.raises(ProcedureError, match=r"none 11.0 min, disker 11.0 min, ripper 11.0 min: over the 10 min"):
+        FieldPlan(passes=(3, 3, 5)).check_budget()
+    from hil.cli import main as hil_main
+    folder = tmp_path / "tractor"
+    assert hil_main(["procedure", str(folder), "--passes", "1,2,3"]) == 0
+    assert "passes recorded: 0 of 18" in capsys.readouterr().out
+    assert Procedure.open(folder).plan == plan
+    with pytest.raises(SystemExit):
+        hil_main(["procedure", str(tmp_path / "bad"), "--passes", "1,0,3"])
+    assert "expected a count of passes 1-10, or one per speed like 1,2,3, got '1,0,3'" in capsys.readouterr().err
+    assert hil_main(["procedure", str(tmp_path / "two"), "--passes", "1,2"]) == 1
+    assert "one count for each of the 3 speeds" in capsys.readouterr().err and not (tmp_path / "two").exists()
+
+
 def test_the_operator_command_keeps_its_plan_and_refuses_another_or_one_over_budget(tmp_path, capsys):
     from hil.cli import main as hil_main
     folder = tmp_path / "tractor"

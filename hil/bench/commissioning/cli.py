@@ -20,7 +20,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from autosteer.cli import condition_pairs, resolve_seeds, seed_list, seeds_or_count
+from autosteer.cli import condition_pairs, passes_per_speed, resolve_seeds, seed_list, seeds_or_count
 
 from hil.bench.commissioning.campaign import commission_campaign
 from hil.bench.commissioning.recipe import PROCEDURES, CommissionOptions, commission
@@ -68,9 +68,9 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
                         "the paper's five gears for the slews)")
     c.add_argument("--implements", nargs="+", choices=IMPLEMENTS, default=list(IMPLEMENTS),
                    help="implements of the identification passes (default: all three), each at every speed")
-    c.add_argument("--passes", type=int, default=None,
+    c.add_argument("--passes", type=passes_per_speed, default=None, metavar="N[,N...]",
                    help=f"identification passes per condition (default {FieldPlan.passes} for the field procedure, 3 "
-                        "for the slews)")
+                        "for the slews); with the field procedure a count for each speed, e.g. 1,2,3")
     c.add_argument("--duration", type=number, default=None,
                    help=f"seconds per identification pass (default {FieldPlan.duration:g} for the field procedure, "
                         "120 for the slews)")

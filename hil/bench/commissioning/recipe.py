@@ -153,7 +153,7 @@ class CommissionOptions:
     procedure: str = "field"
     speeds: tuple[float, ...] | None = None
     implements: tuple[str, ...] = IMPLEMENTS
-    passes: int | None = None
+    passes: int | tuple[int, ...] | None = None
     pass_duration: float | None = None
     seed: int = 1997
     hil_seeds: tuple[int, ...] = (0, 1, 2)
@@ -197,7 +197,16 @@ class CommissionOptions:
         if field and self.more_passes:
             raise SimulatorConfigError("more_passes: the field procedure re-drives spoiled passes itself and "
                                        "has no rounds of more passes; use procedure 'slews' for those")
-        SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.passes,
+        if isinstance(self.passes, (tuple, list)):
+            if not field:
+                raise SimulatorConfigError(f"passes per speed ({list(self.passes)}) are for the field procedure; "
+                                           "the slews take one count per condition")
+            object.__setattr__(self, "passes", tuple(self.passes))
+            try:
+                self.field_plan()
+            except ValueError as exc:
+                raise SimulatorConfigError(str(exc)) from None
+        SysidPlan(speeds=self.speeds, implements=self.implements, passes=self.most_passes(),
                   duration=self.pass_duration, seed=self.seed)   # validates those
         if not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in self.hil_seeds):
             raise SimulatorConfigError(f"hil_seeds must be integers >= 0 (none: no HIL comparison), got "
@@ -234,6 +243,10 @@ class CommissionOptions:
         """How the HIL comparison searches the oracle's weights (:class:`OracleSearch`, its passes as long as the
         comparison's), or ``None`` with ``oracle_search`` off (the default weights)."""
         return OracleSearch(duration=self.hil_duration) if self.oracle_search else None
+
+    def most_passes(self) -> int:
+        """The largest count of passes at a condition (``passes`` itself, one count for all)."""
+        return max(self.passes) if isinstance(self.passes, tuple) else self.passes
 
     def field_plan(self) -> FieldPlan:
         """The field procedure's plan: the implements, speeds, passes and their length; the valve test."""
@@ -287,7 +300,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         res["linearity"] = dict(com.linearity or {})
         res["loop"] = asdict(com.loop_config())
 
-    plan = SysidPlan(speeds=opts.speeds, implements=opts.implements, passes=opts.passes,
+    plan = SysidPlan(speeds=opts.speeds, implements=opts.implements, passes=opts.most_passes(),
                      duration=opts.pass_duration, seed=opts.seed)
     field = opts.procedure == "field"
 
@@ -306,7 +319,7 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             return good
         made = make_passes(plan, params, progress=lambda d, n: tick("passes", d, n), valve=com.valve)
         return [str(log.save(out / "logs" / f"{name}.npz")) for name, log in made]
-    what = (f"identification passes driven by the runtime's excitation in its corridor ({opts.passes} per speed "
+    what = (f"identification passes driven by the runtime's excitation in its corridor ({per_speed(opts)} per speed "
             f"and implement, {opts.pass_duration:g} s, spoiled ones driven again)" if field else
             f"identification passes through the inverse map ({opts.passes} per condition, {opts.pass_duration:g} s)")
     logs = steps.run("passes", what, passes) if com is not None else None
@@ -430,6 +443,13 @@ def _jsonable(o: object) -> object:
     if isinstance(o, Condition):
         return {"implement": o.implement, "speed": o.speed}
     return str(o)
+
+
+def per_speed(o: CommissionOptions) -> str:
+    """The passes per speed as the steps' lines say them (``2``, or ``1/2/3`` at 1, 1.79, 2.91 m/s)."""
+    if not isinstance(o.passes, tuple):
+        return str(o.passes)
+    return "/".join(map(str, o.passes)) + " at " + ", ".join(f"{v:g}" for v in o.speeds) + " m/s"
 
 
 def options_dict(o: CommissionOptions) -> dict:

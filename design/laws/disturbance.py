@@ -78,12 +78,16 @@ class DisturbanceSpec:
         Time constants of the filter, s, the design chooses ``tau_f`` among (with the gain, by the
         H2 criterion after the specifications' scale-back: :func:`design_estimate`); empty: ``tau_f``
         as given. The law's file records the one chosen as ``tau_f_s``.
+    max_scale
+        The largest scale of the H2-optimal gain the design may keep (1: full gain; the scale-back starts at
+        the largest of its steps not above it, :data:`SCALES`).
     """
 
     tau_d: float = 2.0
     tau_f: float = 2.0
     channels: tuple[int, ...] = (0, 1)
     filter_choices: tuple[float, ...] = ()
+    max_scale: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("tau_d", "tau_f"):
@@ -96,6 +100,8 @@ class DisturbanceSpec:
         if len(set(choices)) != len(choices):
             raise DesignInputError(f"filter_choices must be distinct, got {self.filter_choices!r}")
         object.__setattr__(self, "filter_choices", tuple(sorted((float(v) for v in choices), reverse=True)))
+        finite(self.max_scale, "max_scale", lo=0.0, hi=1.0, unit="of the gain", where="DisturbanceSpec",
+               error=DesignInputError)
         ch = tuple(self.channels)
         if not ch or len(set(ch)) != len(ch) or any(isinstance(j, bool) or not isinstance(j, (int, np.integer))
                                                     or j < 0 for j in ch):
@@ -105,6 +111,11 @@ class DisturbanceSpec:
     def to_dict(self) -> dict:
         """JSON form (of the estimate as it runs: the choices are the design's, recorded by it)."""
         return {"tau_d_s": self.tau_d, "tau_f_s": self.tau_f, "channels": list(self.channels)}
+
+
+#: The scales of the estimate's H2-optimal gain the design tries, largest first, until one meets the
+#: specifications (none: the estimate does not act).
+SCALES = (1.0, 0.7, 0.5, 0.35, 0.25, 0.15)
 
 
 #: The filter time constants, s, a robust law designed with :func:`chosen_filter` chooses among
@@ -300,8 +311,8 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
     Returns
     -------
     compensator, record
-        The law (``K_d`` scaled by the largest accepted of 1, 0.7, 0.5, 0.35, 0.25, 0.15, 0; at 0 the
-        estimate does not act) and what was chosen (gain, scale, H2 costs with and without it; with
+        The law (``K_d`` scaled by the largest accepted of :data:`SCALES` up to ``spec.max_scale``, else 0;
+        at 0 the estimate does not act) and what was chosen (gain, scale, H2 costs with and without it; with
         ``spec.filter_choices``, the filter's time constant chosen and each candidate's gain, scale and
         worst H2 ratio under ``filter_choice``).
     """
@@ -348,6 +359,8 @@ def design_estimate(k: np.ndarray, base: Compensator, layout: IOStateLayout,
               "states": list(range(base.order + layout.n_outputs, base.order + layout.n_outputs + nd))}
     if choice is not None:
         record["filter_choice"] = choice
+    if spec.max_scale < 1.0:
+        record["max_scale"] = spec.max_scale
     return comp, record
 
 
@@ -393,7 +406,7 @@ def _one_filter(k, base, layout, window_models, qz, r, spec: DisturbanceSpec, ac
                              "maxiter": 600})
     kd = best.x.reshape(1, nd) if best.fun < c0 else zero.reshape(1, nd)
     chosen, scale = comp_of(np.zeros((1, nd))), 0.0
-    for s in (1.0, 0.7, 0.5, 0.35, 0.25, 0.15):
+    for s in (s for s in SCALES if s <= spec.max_scale + 1e-12):
         cand = comp_of(s * kd)
         if obj(s * kd.ravel()) < 1e30 and (accept is None or accept(cand)):
             chosen, scale = cand, s

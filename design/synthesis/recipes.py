@@ -302,7 +302,7 @@ def _with_estimate(res: RobustResult, models: Sequence[Model], validate: Sequenc
     out = with_disturbance_estimate(res, models, spec, dspec, accept, latency)
     auto = res.file.design.get("auto_weights")
     made = [out]
-    if auto and latency is not None and fitted_scale(out.file.design["disturbance_estimate"]) < 1.0:
+    if auto and latency is not None and fitted_scale(out.file.design["disturbance_estimate"]) < dspec.max_scale:
         out, made = _backed_off(out, res, models, spec, dspec, accept, latency, float(auto["chosen_scale"]))
 
     def finish(o: RobustResult) -> RobustResult:
@@ -325,8 +325,9 @@ def _with_estimate(res: RobustResult, models: Sequence[Model], validate: Sequenc
 def fitted_scale(record: dict) -> float:
     """The largest scale of its gain the disturbance estimate kept beside a window law (its record
     ``design["disturbance_estimate"]``): with the filter chosen by the design, over every filter tried (the one
-    chosen may keep less, its H2 ratio being lower all the same), else the one filter's. Below 1 the estimate
-    does not fit at its full gain beside that law, whatever its filter, and gentler window laws are tried."""
+    chosen may keep less, its H2 ratio being lower all the same), else the one filter's. Below the most it may
+    keep (:attr:`DisturbanceSpec.max_scale`, 1: its full gain) the estimate does not fit beside that law, whatever
+    its filter, and gentler window laws are tried."""
     tried = (record.get("filter_choice") or {}).get("tried")
     if tried:
         return max(float(t["scale"]) for t in tried)
@@ -335,9 +336,9 @@ def fitted_scale(record: dict) -> float:
 
 def _backed_off(out: RobustResult, res: RobustResult, models: Sequence[Model], spec: RobustSpec,
                 dspec: DisturbanceSpec, accept, latency, chosen: float) -> tuple[RobustResult, list[RobustResult]]:
-    """The first gentler window law (:data:`BACKOFF`) beside which the estimate keeps its full gain, else the
-    one with the largest estimate scale (``out`` if none is larger; both with any filter tried:
-    :func:`fitted_scale`); recorded in the estimate's record.
+    """The first gentler window law (:data:`BACKOFF`) beside which the estimate keeps the most of its gain it may
+    (:attr:`DisturbanceSpec.max_scale`), else the one with the largest estimate scale (``out`` if none is larger;
+    both with any filter tried: :func:`fitted_scale`); recorded in the estimate's record.
 
     Returns the kept design and every design made (``out`` first, then the gentler ones in the order tried),
     each with the record naming its own window scale as ``kept_scale``."""
@@ -358,7 +359,7 @@ def _backed_off(out: RobustResult, res: RobustResult, models: Sequence[Model], s
         made.append((chosen * f, o2))
         if s2 > best_scale:
             best, best_scale = o2, s2
-        if s2 >= 1.0:
+        if s2 >= dspec.max_scale:
             break
 
     def recorded(scale: float, o: RobustResult) -> RobustResult:

@@ -80,6 +80,9 @@ class Designer:
     angle_noise
         The wheel-angle sensor's 1-sigma, rad, of the band laws' noise check (the valve test's measurement; None:
         :data:`design.core.noise.MEASUREMENT_NOISE`'s).
+    fastest_estimate_scale
+        The most of its gain the disturbance estimate of the robust controller's fastest band law may keep
+        (:func:`design.synthesis.band_laws.design_robust_bands`; 1: full gain where the specifications allow).
     prediction_schedule
         The MPC predicts, in each design speed's band, with the one of that speed's local models whose law holds
         the band's models closest, or the central model where it does better
@@ -96,6 +99,7 @@ class Designer:
     robust_bands: bool = True
     angle_noise: float | None = None
     prediction_schedule: bool = True
+    fastest_estimate_scale: float = 1.0
 
     @property
     def noise(self) -> tuple[float, float, float]:
@@ -145,7 +149,8 @@ class Designer:
                                 self.search(attempt), chosen_filter() if self.estimate else None, candidates=keep)
         res = design_robust_controller(local, options, progress=progress)
         if by_band:
-            res = design_robust_bands(local, options, res, progress, noise=self.noise)
+            res = design_robust_bands(local, options, res, progress, noise=self.noise,
+                                      fastest_estimate_scale=self.fastest_estimate_scale)
         res.save(out, candidates_dir if keep else None)
         summary = {"out": str(out), **res.summary()}
         if SEARCH_RECORD in res.file.design:
@@ -153,7 +158,9 @@ class Designer:
         return {"file": str(out), "result": summary,
                 "settings": self._settings("robust", f"{models_dir.name}/local_*.npz", attempt,
                                            integral=self.integral, disturbance_estimate=self.estimate,
-                                           robust_bands=by_band)}
+                                           robust_bands=by_band,
+                                           **({"fastest_estimate_scale": self.fastest_estimate_scale}
+                                              if by_band and self.fastest_estimate_scale < 1.0 else {}))}
 
     def mpc(self, models_dir: Path, attempt: DesignTry, out: Path, fallback: Path | None,
             progress: Callable[[str], None] | None = None, alternative: bool = False) -> dict:

@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable
 
+from autosteer.checks import finite
 from identification.delay import VALID_TIME_CHANNELS
 from identification.errors import IdentificationError
 from identification.outputs import atomic_write
@@ -81,6 +82,10 @@ class LogOptions:
         The robust controller's file also carries a law per design speed's band, designed and certified on that
         band's local models and past its noise check (:func:`design.synthesis.band_laws.design_robust_bands`;
         default); False: one law at every speed.
+    fastest_estimate_scale
+        The most of its gain the disturbance estimate of the fastest design speed's band law may keep, 0-1
+        (:func:`design.synthesis.band_laws.design_robust_bands`; default 1: full gain where the specifications
+        allow it).
     robust_past
         Longer measured windows tried, in order, when the design with the window from observability fails.
     fallback_order
@@ -101,6 +106,7 @@ class LogOptions:
     disturbance_estimate: bool = True
     prediction_schedule: bool = True
     robust_bands: bool = True
+    fastest_estimate_scale: float = 1.0
     robust_past: tuple[int, ...] = (6,)
     fallback_order: int | None = 4
     alternative_order: int | None = 4
@@ -112,6 +118,8 @@ class LogOptions:
             raise CommissioningError(f"latency must be one of {list(LATENCY_SOURCES)}, got {self.latency!r}")
         if self.weights not in WEIGHTS:
             raise CommissioningError(f"weights must be one of {list(WEIGHTS)}, got {self.weights!r}")
+        finite(self.fastest_estimate_scale, "fastest_estimate_scale", lo=0.0, hi=1.0, unit="of the estimate's gain",
+               error=CommissioningError)
         if not all(isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= 20 for k in self.robust_past):
             raise CommissioningError(f"robust_past must be window lengths 1..20, got {self.robust_past!r}")
         if self.fallback_order is not None and (isinstance(self.fallback_order, bool)
@@ -224,7 +232,7 @@ def commission_from_logs(logs: str | Path, commissioning: str | Path, out: str |
         res["identification"] = ident
         designer = Designer(rate_limit=com.valve.max_rate, integral=opts.integral, estimate=opts.disturbance_estimate,
                             prediction_schedule=opts.prediction_schedule, robust_bands=opts.robust_bands,
-                            angle_noise=com.valve.angle_noise)
+                            angle_noise=com.valve.angle_noise, fastest_estimate_scale=opts.fastest_estimate_scale)
         designs, again = design_with_fallback(steps, designer, logs, models_dir, out,
                                               attempts(opts.weights, opts.robust_past), opts.fallback_order,
                                               opts.markov, progress=lambda d, n: tick("identification", d, n),

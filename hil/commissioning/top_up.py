@@ -178,7 +178,7 @@ def top_up(logs: str | Path, commissioning: str | Path, out: str | Path, options
                                  f"passes of it, remove {models_dir} and top up again")
     designer = Designer(rate_limit=com.valve.max_rate, integral=opts.integral, estimate=opts.disturbance_estimate,
                         prediction_schedule=opts.prediction_schedule, robust_bands=opts.robust_bands,
-                        angle_noise=com.valve.angle_noise)
+                        angle_noise=com.valve.angle_noise, fastest_estimate_scale=opts.fastest_estimate_scale)
     order = opts.fallback_order
     designs, again = design_with_fallback(
         steps, designer, mine, models_dir, out, attempts(opts.weights, opts.robust_past), order, opts.markov,

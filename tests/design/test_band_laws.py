@@ -420,3 +420,15 @@ def test_a_band_law_gentler_than_the_base_law_is_judged_by_the_steering_index_wh
         assert judged_by(scale, 1.0, True) == "steering"
     assert judged_by(2.0, 1.0, False) == "scale"
     assert judged_by(1.0, 1.0, False) == judged_by(0.5, 1.0, False) == "refused"
+
+
+def test_the_fastest_band_law_holds_its_estimate_to_the_scale_given_and_no_other_law_changes(designed):
+    base, res, _, models, _ = designed
+    bands = res.file.design[SEARCH_RECORD]["bands"]
+    assert bands[-1]["estimate_scale"] == 1.0          # full gain where nothing holds it
+    held = design_robust_bands(models, _options(), base, fastest_estimate_scale=0.5).file.design[SEARCH_RECORD]
+    fast = held["bands"][-1]
+    assert fast["band_mps"][1] is None and fast["estimate_max_scale"] == 0.5 and 0 < fast["estimate_scale"] <= 0.5
+    assert held["bands"][0] == {**bands[0], "seconds": held["bands"][0]["seconds"]}
+    with pytest.raises(DesignInputError, match="fastest_estimate_scale must be a finite number >= 0 and <= 1"):
+        design_robust_bands(models, _options(), base, fastest_estimate_scale=1.2)

@@ -109,6 +109,12 @@ def test_the_command_refuses_bad_options(capsys, tmp_path: Path) -> None:
         CommissionOptions(procedure="slews", passes=(1, 2, 3))
     with pytest.raises(ValueError, match="one count for each of the 2 speeds, got 3"):
         CommissionOptions(speeds=(1.0, 2.91), passes=(1, 2, 3))
+    # the fastest band law's estimate held below full gain, from the command line; out of 0-1 refused
+    held = commission_options(p.parse_args(["commission", "--tractor", "x", "--out", "o", "--fastest-estimate-scale",
+                                            "0.7"]))
+    assert held.fastest_estimate_scale == 0.7 and CommissionOptions().fastest_estimate_scale == 1.0
+    with pytest.raises(ValueError, match="fastest_estimate_scale must be a finite number >= 0 and <= 1"):
+        CommissionOptions(fastest_estimate_scale=1.5)
 
 
 def test_hil_run_takes_a_commissioning_file_and_hil_commission_refuses_an_unknown_tractor(tmp_path: Path,

@@ -95,6 +95,8 @@ def test_bench_only_options_do_not_go_with_logs(tmp_path, capsys):
 def test_options_are_checked():
     with pytest.raises(CommissioningError, match="latency must be one of"):
         LogOptions(latency="guess")
+    with pytest.raises(CommissioningError, match="fastest_estimate_scale must be a finite number >= 0 and <= 1"):
+        LogOptions(fastest_estimate_scale=-0.1)
 
 
 def test_logs_without_the_receivers_valid_times_are_refused_when_the_latency_must_be_measured(recorded, tmp_path,

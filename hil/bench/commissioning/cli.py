@@ -108,6 +108,9 @@ def _add_recipe_options(c: argparse.ArgumentParser, number) -> None:
                         "certified on that band's local models, where it is faster than the one law and the "
                         "sensors' noise leaves its rate limit the gain its disk margin certifies (design robust "
                         "--robust-bands; default on; off: one law at every speed)")
+    c.add_argument("--fastest-estimate-scale", type=number, default=1.0, metavar="S",
+                   help="the most of its gain (0-1) the disturbance estimate of the robust controller's fastest band "
+                        "law may keep (default 1: full gain where the specifications allow it)")
     c.add_argument("--estimate-trial", choices=("on", "off"), default=None,
                    help="choose per speed whether the estimate acts, by a trial drive with it and without it "
                         "(design estimate-schedule; default on with the slews, off with the field procedure, "
@@ -169,7 +172,8 @@ def commission_options(args: argparse.Namespace) -> CommissionOptions:
                              estimate_trial=None if args.estimate_trial is None else args.estimate_trial == "on",
                              oracle_search=args.oracle_search == "on",
                              prediction_schedule=args.prediction_schedule == "on",
-                             robust_bands=args.robust_bands == "on")
+                             robust_bands=args.robust_bands == "on",
+                             fastest_estimate_scale=args.fastest_estimate_scale)
 
 
 def _reporters(quiet: bool):
@@ -244,7 +248,7 @@ def _run_from_logs(args: argparse.Namespace) -> dict:
     opts = LogOptions(order=args.order, markov=args.markov, acceptance=args.acceptance, latency=args.latency,
                       weights=args.weights, disturbance_estimate=args.disturbance_estimate == "on",
                       prediction_schedule=args.prediction_schedule == "on",
-                      robust_bands=args.robust_bands == "on")
+                      robust_bands=args.robust_bands == "on", fastest_estimate_scale=args.fastest_estimate_scale)
     say, progress, close = _reporters(args.quiet)
     res = commission_from_logs(args.logs, args.commissioning, args.out, opts, say=say, progress=progress)
     close()
@@ -254,7 +258,7 @@ def _run_from_logs(args: argparse.Namespace) -> dict:
 
 #: Design and identification options a top-up takes from the commissioning it adds to, not from the command line.
 COMMISSIONING_SETTINGS = ("order", "markov", "acceptance", "latency", "weights", "disturbance_estimate",
-                          "prediction_schedule", "robust_bands")
+                          "prediction_schedule", "robust_bands", "fastest_estimate_scale")
 
 
 def _run_top_up(args: argparse.Namespace) -> dict:

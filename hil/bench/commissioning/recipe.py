@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Callable
 
 
+from autosteer.checks import finite
 from identification.outputs import atomic_write
 from hil.commissioning.designs import WEIGHTS, DesignHooks, Designer, attempts, design_with_fallback
 from hil.commissioning.steps import Steps
@@ -138,6 +139,10 @@ class CommissionOptions:
         The robust controller's file also carries a law per design speed's band, designed and certified on that
         band's local models and past its noise check (:func:`design.synthesis.band_laws.design_robust_bands`;
         default); False: one law at every speed.
+    fastest_estimate_scale
+        The most of its gain the disturbance estimate of the fastest design speed's band law may keep, 0-1
+        (:func:`design.synthesis.band_laws.design_robust_bands`; default 1: full gain where the specifications
+        allow it).
     estimate_trial, trial_seeds
         Choose per speed whether the estimate acts by a trial drive with and without it
         (:mod:`hil.bench.commissioning.estimate_trial`), on passes with ``trial_seeds`` (apart from ``hil_seeds``).
@@ -171,6 +176,7 @@ class CommissionOptions:
     disturbance_estimate: bool = True
     prediction_schedule: bool = True
     robust_bands: bool = True
+    fastest_estimate_scale: float = 1.0
     estimate_trial: bool | None = None
     trial_seeds: tuple[int, ...] = TRIAL_SEEDS
     window_seeds: tuple[int, ...] = WINDOW_SEEDS
@@ -221,6 +227,8 @@ class CommissionOptions:
         RunSpec(duration=self.hil_duration)
         if self.weights not in WEIGHTS:
             raise SimulatorConfigError(f"weights must be one of {list(WEIGHTS)}, got {self.weights!r}")
+        finite(self.fastest_estimate_scale, "fastest_estimate_scale", lo=0.0, hi=1.0, unit="of the estimate's gain",
+               error=SimulatorConfigError)
         if not all(isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= 20 for k in self.robust_past):
             raise SimulatorConfigError(f"robust_past must be window lengths 1..20, got {self.robust_past!r}")
         if self.fallback_order is not None and (isinstance(self.fallback_order, bool)
@@ -377,7 +385,8 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
         # record holds after identification
         designer = Designer(rate_limit=com.valve.max_rate, logs=None if field else out / "logs", integral=opts.integral,
                             estimate=opts.disturbance_estimate, prediction_schedule=opts.prediction_schedule,
-                            robust_bands=opts.robust_bands, angle_noise=com.valve.angle_noise)
+                            robust_bands=opts.robust_bands, angle_noise=com.valve.angle_noise,
+                            fastest_estimate_scale=opts.fastest_estimate_scale)
         designs, again = design_with_fallback(
             steps, designer, out / "logs", models_dir, out, attempts(opts.weights, opts.robust_past),
             opts.fallback_order, opts.markov, candidates=opts.disturbance_estimate and opts.estimate_trial,

@@ -22,11 +22,14 @@ required); ``manual_override`` is the operator steering (limit status operator-l
 3 with a reset pending); ``watchdog_tripped`` is the controller's command timeout (exit code 5 with
 a reset pending).
 
-Link and address faults do not raise out of :meth:`~IsobusDriver.poll` and
-:meth:`~IsobusDriver.send_rate` (the loop's list of link errors holds the serial bridges'): a failed
-send or a lost address claim counts, drops the driver to disengaged and makes
-:meth:`~IsobusDriver.is_alive` false (until a send succeeds again, and the node holds an address
-again), which the loop sees as a silent bridge and disengages on within one cycle.
+Link and address faults do not raise out of :meth:`~IsobusDriver.poll` (the loop's list of link errors holds
+the serial bridges'): a failed send or a lost address claim counts, drops the driver to disengaged and makes
+:meth:`~IsobusDriver.is_alive` false (until a send succeeds again, and the node holds an address again), which
+the loop sees as a silent bridge and disengages on within one cycle. A rate command after the driver dropped to
+"not intended" by itself (any of those faults, no rate command for ``max_dt`` -- a stalled host -- or a silent
+controller), before the loop has seen it, raises :class:`IsobusLinkError` naming why, one of the loop's link
+errors: the loop disengages with that reason and engages again once healthy, where a programming error (a rate
+before any :meth:`~IsobusDriver.engage`) stays an :class:`IsobusConfigError`.
 """
 
 from __future__ import annotations
@@ -246,6 +249,7 @@ class IsobusDriver:
         self._t_last = -math.inf        # last rate command
         self._t_keepalive = -math.inf   # last "not intended"
         self._link_failed = False       # the last send or receive failed
+        self._dropped: str | None = None  # why the driver dropped to "not intended" by itself, if it did
         self.counts = dict(intended_sent=0, not_intended_sent=0, reports=0, refused=0, link_errors=0,
                            address_lost=0, overflowed=0, limited=0)
         """Counters since construction."""
@@ -255,18 +259,24 @@ class IsobusDriver:
             node.claim()
 
     # -- sending ------------------------------------------------------------------------------
+    def _drop(self, why: str) -> None:
+        """Drop to disengaged by itself (the loop learns ``why`` from its next rate command)."""
+        if self._engaged:
+            self._dropped = why
+        self._engaged = False
+
     def _address_lost(self) -> None:
         self.counts["address_lost"] += 1
-        self._engaged = False
+        self._drop("the node lost its address claim")
 
     def _send(self, curvature: float, status: CommandStatus) -> bool:
         if not self.node.claimed:
             return False
         try:
             self.node.send(GuidanceSystemCommand(saturate(curvature), status), self.config.controller_address)
-        except (IsobusLinkError, AddressClaimError):
+        except (IsobusLinkError, AddressClaimError) as exc:
             self.counts["link_errors"] += 1
-            self._engaged = False
+            self._drop(f"a send failed ({exc})")
             self._link_failed = True
             return False
         self._link_failed = False
@@ -279,13 +289,13 @@ class IsobusDriver:
 
     def engage(self) -> None:
         """Start steering: the setpoint starts at the measured angle (sent with the first rate command)."""
-        self._engaged = True
+        self._engaged, self._dropped = True, None
         self._setpoint = self._measured()
         self._t_last = self._clock.now()
 
     def disengage(self) -> None:
         """Stop steering: send "not intended to steer" at once (the controller stops following)."""
-        self._engaged = False
+        self._engaged, self._dropped = False, None
         self._not_intended()
 
     def send_rate(self, rate: float) -> float:
@@ -303,10 +313,14 @@ class IsobusDriver:
 
         Raises
         ------
+        IsobusLinkError
+            The driver dropped to "not intended" by itself since :meth:`engage` (the message says why).
         IsobusConfigError
-            Not engaged (the driver never sends "intended" while disengaged), or ``rate`` not finite.
+            Never engaged (the driver never sends "intended" while disengaged), or ``rate`` not finite.
         """
         if not self._engaged:
+            if self._dropped is not None:
+                raise IsobusLinkError(f"the steering controller's command dropped to not intended: {self._dropped}")
             raise IsobusConfigError("send_rate while disengaged: call engage() first")
         if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate):
             raise IsobusConfigError(f"rate must be a finite number of rad/s, got {rate!r}")
@@ -339,9 +353,10 @@ class IsobusDriver:
         cfg = self.config
         try:
             received = self.node.poll()
-        except IsobusLinkError:
+        except IsobusLinkError as exc:
             self.counts["link_errors"] += 1
-            self._engaged, self._link_failed = False, True
+            self._drop(f"receiving failed ({exc})")
+            self._link_failed = True
             received = []
         for r in received:
             if r.source != cfg.controller_address:
@@ -362,7 +377,9 @@ class IsobusDriver:
                 self.counts["overflowed"] += 1
         now = self._clock.now()
         if self._engaged and (now - self._t_last > cfg.max_dt + 1e-9 or not self.is_alive()):
-            self._engaged = False       # the loop stopped commanding, or the controller went silent
+            # the loop stopped commanding (a stalled host), or the controller went silent
+            self._drop(f"no rate command for {now - self._t_last:.2f} s (at most {cfg.max_dt:g} s)"
+                       if now - self._t_last > cfg.max_dt + 1e-9 else "the controller went silent")
             self._not_intended()
         elif not self._engaged and now - self._t_keepalive >= cfg.period - 1e-9:
             self._not_intended()

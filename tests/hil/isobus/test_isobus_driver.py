@@ -18,7 +18,9 @@ from hil.devices.wheel_calibration import two_point_calibration
 from hil.links.clock import VirtualClock
 from hil.links.scheduler import LockstepScheduler
 from hil.truth.conditions import condition_for
+from hil.vehicle.errors import SteeringLinkError
 from hil.vehicle.isobus.driver import ANGLE_CALIBRATION, IsobusDriver, IsobusDriverConfig
+from hil.vehicle.isobus.errors import IsobusConfigError
 from hil.vehicle.isobus.network import CanId, Name, Node
 from hil.vehicle.isobus.protocol import CommandStatus, decode
 
@@ -136,3 +138,14 @@ def test_when_rate_commands_stop_the_driver_drops_to_not_intended_itself(rig):
     dropped = [t for t, s, _ in r.commands if t > 1.5]
     assert r.commands[-1][1] is CommandStatus.NOT_INTENDED and min(dropped) == 1.7
     assert not r.controller.state.engaged and r.controller.state.exit_code == 0   # ended by us, not a timeout
+    # the loop's next rate (a stalled host's loop had not seen the drop yet) is a link error naming why, which
+    # the loop disengages on; engaged again, the driver steers; a rate never engaged is a programming error
+    with pytest.raises(SteeringLinkError, match=r"dropped to not intended: no rate command for 0.20 s \(at most "
+                                                r"0.15 s\)"):
+        r.driver.send_rate(0.1)
+    r.driver.engage()
+    r.driver.send_rate(0.1)
+    assert r.driver.engaged
+    r.driver.disengage()
+    with pytest.raises(IsobusConfigError, match="call engage"):
+        r.driver.send_rate(0.1)

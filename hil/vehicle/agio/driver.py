@@ -12,7 +12,8 @@ see the same rate-input plant as through the HC11 bridge.
 The module answers every PGN 254 with a PGN 253 (measured angle, switches, PWM). While the loop is
 disengaged the driver keeps the module talking with PGN 254 frames with autosteer *off* (sent by
 :meth:`~AgioDriver.poll`), which the module can never steer on: no steering command is ever sent while
-disengaged; and when no rate command came for ``max_dt`` the driver drops autosteer by itself.
+disengaged; and when no rate command came for ``max_dt`` the driver drops autosteer by itself (the loop's next
+rate command is then an :class:`AgioLinkError` saying so, on which the loop disengages).
 Every frame read is checked (checksum, length, source, reserved bits); refused ones are
 dropped and counted (:meth:`~AgioDriver.stats`).
 
@@ -256,6 +257,7 @@ class AgioDriver:
         self._reports: deque[AgioReport] = deque()
         self._latest: AgioReport | None = None
         self._engaged = False
+        self._dropped: str | None = None   # why the driver dropped autosteer by itself, if it did
         self._setpoint = 0.0          # the integral of the rate commands, rad
         self._sent = 0.0              # the setpoint last sent, rad
         self._t_last = -math.inf
@@ -291,13 +293,13 @@ class AgioDriver:
 
     def engage(self) -> None:
         """Start steering: the setpoint starts at the measured angle (sent with the first rate command)."""
-        self._engaged = True
+        self._engaged, self._dropped = True, None
         self._setpoint = self._measured()
         self._t_last = self._clock.now()
 
     def disengage(self) -> None:
         """Stop steering: send a PGN 254 with autosteer off (the module stops at its next loop)."""
-        self._engaged = False
+        self._engaged, self._dropped = False, None
         self._steer_frame(False, self._measured())
 
     def send_rate(self, rate: float) -> float:
@@ -316,12 +318,15 @@ class AgioDriver:
         Raises
         ------
         AgioConfigError
-            Not engaged (the driver never sends a steering command while disengaged), or ``rate``
+            Never engaged (the driver never sends a steering command while disengaged), or ``rate``
             is not finite.
         AgioLinkError
-            The link failed.
+            The link failed, or the driver dropped autosteer by itself since :meth:`engage` (no rate command
+            for ``max_dt``: a stalled host; the message says so, and the loop disengages on it).
         """
         if not self._engaged:
+            if self._dropped is not None:
+                raise AgioLinkError(f"the module's autosteer was dropped: {self._dropped}")
             raise AgioConfigError("send_rate while disengaged: call engage() first")
         if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate):
             raise AgioConfigError(f"rate must be a finite number of rad/s, got {rate!r}")
@@ -373,8 +378,11 @@ class AgioDriver:
         """Read what is waiting (never blocks); while disengaged, also send a PGN 254 with autosteer
         off so the module keeps answering. Returns the reports not yet returned, oldest first."""
         self._pump()
-        if self._engaged and self._clock.now() - self._t_last > self.config.max_dt:
-            self._engaged = False   # nobody commands any more (the loop stopped): autosteer off
+        now = self._clock.now()
+        if self._engaged and now - self._t_last > self.config.max_dt:
+            # nobody commands any more (the loop stopped, a stalled host): autosteer off
+            self._engaged = False
+            self._dropped = f"no rate command for {now - self._t_last:.2f} s (at most {self.config.max_dt:g} s)"
         if not self._engaged:
             self._steer_frame(False, self._measured())
         out = list(self._reports)

@@ -160,6 +160,15 @@ def test_when_commands_stop_the_driver_drops_autosteer_by_itself():
     cycles(clock, driver, 5, rate=0.0)
     cycles(clock, driver, 6)                  # poll only, 0.3 s > max_dt 0.2 s
     assert not driver.engaged and wire.steer_frames()[-1][1].status == GuidanceStatus.OFF
+    # the loop's next rate (a stalled host's loop had not seen the drop) is a link error naming why, which the
+    # loop disengages on; engaged again it steers; a rate never engaged is a programming error
+    with pytest.raises(AgioLinkError, match=r"autosteer was dropped: no rate command for 0\.\d\d s \(at most 0.2 s\)"):
+        driver.send_rate(0.1)
+    driver.engage()
+    driver.send_rate(0.1)
+    driver.disengage()
+    with pytest.raises(AgioConfigError, match="call engage"):
+        driver.send_rate(0.1)
 
 
 def test_the_steer_switch_off_reads_as_manual_override():

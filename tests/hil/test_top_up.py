@@ -18,7 +18,8 @@ from hil.bench.runs.sysid import SysidPlan, make_passes
 from hil.commissioning.from_logs import CommissioningError, LogOptions, driving_seconds
 from hil.commissioning.html import file_sha256
 from hil.commissioning.model_choice import orders_of
-from hil.commissioning.top_up import TopUpOptions, top_up
+from hil.bench.commissioning.recipe import CommissionOptions, options_dict
+from hil.commissioning.top_up import TopUpOptions, _options, top_up
 from hil.truth.tractors import resolve_tractor
 from hil.vehicle.commissioning import Commissioning, load_commissioning, save_commissioning
 from hil.vehicle.controllers import vehicle_controller
@@ -166,3 +167,14 @@ def test_a_top_up_is_refused_in_one_line_before_anything_is_written(small, tmp_p
     assert "--top-up go with --logs" in _refused(["--tractor", "default", "--out", str(out), "--top-up", "ripper"],
                                                  capsys)
     assert _tree(out) == before and not (out / "models").exists()
+
+
+def test_a_top_up_designs_with_the_commissionings_fastest_estimate_scale(tmp_path):
+    """The fastest band law's estimate scale is read back from the commissioning's result.json, from logs or from
+    the bench, and an older commissioning without it keeps full gain, as it was designed."""
+    logs = {"options": {**asdict(LogOptions()), "fastest_estimate_scale": 0.7}}
+    assert _options(logs, tmp_path / "result.json").fastest_estimate_scale == 0.7
+    bench = {"options": json.loads(json.dumps(options_dict(CommissionOptions(fastest_estimate_scale=0.5))))}
+    assert _options(bench, tmp_path / "result.json").fastest_estimate_scale == 0.5
+    older = {k: v for k, v in asdict(LogOptions()).items() if k != "fastest_estimate_scale"}
+    assert _options({"options": older}, tmp_path / "result.json").fastest_estimate_scale == 1.0

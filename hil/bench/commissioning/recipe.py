@@ -327,8 +327,8 @@ def commission(tractor: Tractor, out: str | Path, options: CommissionOptions | N
             return good
         made = make_passes(plan, params, progress=lambda d, n: tick("passes", d, n), valve=com.valve)
         return [str(log.save(out / "logs" / f"{name}.npz")) for name, log in made]
-    what = (f"identification passes driven by the runtime's excitation in its corridor ({per_speed(opts)} per speed "
-            f"and implement, {opts.pass_duration:g} s, spoiled ones driven again)" if field else
+    what = (f"identification passes driven by the runtime's excitation in its corridor ({passes_text(opts)} per "
+            f"speed and implement, {opts.pass_duration:g} s, spoiled ones driven again)" if field else
             f"identification passes through the inverse map ({opts.passes} per condition, {opts.pass_duration:g} s)")
     logs = steps.run("passes", what, passes) if com is not None else None
 
@@ -454,7 +454,7 @@ def _jsonable(o: object) -> object:
     return str(o)
 
 
-def per_speed(o: CommissionOptions) -> str:
+def passes_text(o: CommissionOptions) -> str:
     """The passes per speed as the steps' lines say them (``2``, or ``1/2/3`` at 1, 1.79, 2.91 m/s)."""
     if not isinstance(o.passes, tuple):
         return str(o.passes)
